@@ -1,0 +1,273 @@
+"""The application: components, their connections and the activities that run them.
+
+Built from an XML file by :mod:`coco_core.builder`, or by hand in Python. Owns the run: start every
+activity, run the main activity (if any) in the calling thread, and stop everything cleanly within a
+second when asked (Ctrl-C, ``--duration``, or a component whose error policy is ``stop_app``).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from .activity import Activity, PeriodicActivity
+from .component import Component, ErrorPolicy, UnknownNameError
+from .connections import Connection, make_connection
+from .errors import CocoError, did_you_mean
+from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from .ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
+from .scheduling import available_cores
+
+log = logging.getLogger("coco")
+
+STOP_TIMEOUT = 1.0
+"""Seconds every activity gets, together, to finish its cycle and run ``on_stop``."""
+
+
+class WiringError(CocoError):
+    """A connection that cannot be made: wrong direction, incompatible types, wrong policy."""
+
+
+def types_compatible(source: object, sink: object) -> bool:
+    """Whether values of port type ``source`` may flow into an input of port type ``sink``."""
+    if sink is object or source is object:
+        return True
+    if isinstance(source, type) and isinstance(sink, type):
+        return issubclass(source, sink)
+    return source == sink
+
+
+class Application:
+    """A set of components, connections and activities that start and stop together."""
+
+    def __init__(self, name: str = "coco", on_error: ErrorPolicy = ErrorPolicy.CONTINUE) -> None:
+        self.name = name
+        self.on_error = on_error
+        self._components: dict[str, Component] = {}
+        self.activities: dict[str, Activity] = {}
+        self.connections: list[Connection] = []
+        self._stop_requested = threading.Event()
+        self.stop_reason = ""
+        self._started = False
+        self._stopped = False
+        self.started_at = 0.0
+
+    # --- composition ----------------------------------------------------------------------------
+    def add(self, component: Component, activity: Activity | str | None = None) -> Component:
+        """Add ``component`` and its peers (``init`` runs now), optionally scheduling it."""
+        members = component.walk()
+        for member in members:
+            if member.name in self._components:
+                raise CocoError(f"two components are called {member.name!r}; instance names must be unique")
+        for member in members:
+            self._components[member.name] = member
+            member.app = self
+        for member in reversed(members):
+            member.init()
+        if activity is not None:
+            self.schedule(component, activity)
+        return component
+
+    def add_activity(self, activity: Activity) -> Activity:
+        if activity.name in self.activities:
+            raise CocoError(f"two activities are called {activity.name!r}")
+        if activity.main and any(other.main for other in self.activities.values()):
+            raise CocoError(f"activity {activity.name!r} cannot be main: another activity already is")
+        self.activities[activity.name] = activity
+        return activity
+
+    def schedule(self, component: Component | str, activity: Activity | str) -> None:
+        """Put a component (by object or name) into an activity (by object or name)."""
+        target = activity if isinstance(activity, Activity) else self.activity(activity)
+        if target.name not in self.activities:
+            self.add_activity(target)
+        target.add(component if isinstance(component, Component) else self.component(component))
+
+    def component(self, name: str) -> Component:
+        try:
+            return self._components[name]
+        except KeyError:
+            raise UnknownNameError(f"no component {name!r} in application {self.name}; "
+                                   f"{did_you_mean(name, self._components)}") from None
+
+    @property
+    def components(self) -> dict[str, Component]:
+        """Every component by instance name, peers included."""
+        return dict(self._components)
+
+    def activity(self, name: str) -> Activity:
+        try:
+            return self.activities[name]
+        except KeyError:
+            raise UnknownNameError(f"no activity {name!r} in application {self.name}; "
+                                   f"{did_you_mean(name, self.activities)}") from None
+
+    def _port(self, ref: str | Port) -> Port:
+        if isinstance(ref, Port):
+            return ref
+        component, dot, port = ref.rpartition(".")
+        if not dot:
+            raise CocoError(f"port reference {ref!r} must be 'component.port'")
+        return self.component(component).port(port)
+
+    def connect(self, source: str | Port, sink: str | Port,
+                policy: ConnectionPolicy | None = None, event: bool | None = None) -> Connection:
+        """Connect an output to an input (``"camera.image"`` or port objects) with ``policy``.
+
+        ``event`` overrides whether writes on this connection wake the sink's triggered activity.
+        """
+        policy = policy or ConnectionPolicy()
+        out, into = self._port(source), self._port(sink)
+        if not isinstance(out, OutputPort):
+            raise WiringError(f"{out.qualified_name} is an input port; a connection starts at an output "
+                                   f"(outputs of {out.owner.name if out.owner else '?'}: "
+                                   f"{', '.join(out.owner.outputs) if out.owner else ''})")
+        if not isinstance(into, InputPort):
+            raise WiringError(f"{into.qualified_name} is an output port; a connection ends at an input "
+                                   f"(inputs of {into.owner.name if into.owner else '?'}: "
+                                   f"{', '.join(into.owner.inputs) if into.owner else ''})")
+        if not types_compatible(out.type, into.type):
+            raise WiringError(f"cannot connect {out.qualified_name} ({type_name(out.type)}) to "
+                                   f"{into.qualified_name} ({type_name(into.type)}): types differ")
+        connection = self._make(out, policy)
+        out.add_connection(connection)
+        into.add_connection(connection, event)
+        self.connections.append(connection)
+        return connection
+
+    @staticmethod
+    def _make(out: OutputPort, policy: ConnectionPolicy) -> Connection:
+        if isinstance(out, PooledOutputPort):
+            if policy.data not in (BufferPolicy.DATA, BufferPolicy.POOL):
+                raise WiringError(f"{out.qualified_name} is a pooled output: connect it with data=POOL "
+                                       f"(latest frame, no copy), not {policy.data.value}")
+            return out.connection()
+        if policy.data is BufferPolicy.POOL:
+            raise WiringError(f"data=POOL needs a pooled output port; {out.qualified_name} is not one "
+                                   "(use DATA, BUFFER or CIRCULAR)")
+        return make_connection(policy)
+
+    # --- checks ---------------------------------------------------------------------------------
+    def problems(self) -> list[tuple[Connection | Component, str]]:
+        """What would make this application run wrongly, with the object each problem is about."""
+        found: list[tuple[Connection | Component, str]] = []
+        for connection in self.connections:
+            if connection.policy.sync is not SyncPolicy.UNSYNC:
+                continue
+            writer = connection.source.owner.activity if connection.source and connection.source.owner else None
+            reader = connection.sink.owner.activity if connection.sink and connection.sink.owner else None
+            if writer is None or writer is not reader:
+                names = (writer.name if writer else "none", reader.name if reader else "none")
+                found.append((connection, f"UNSYNC connection {connection.source.qualified_name} -> "  # type: ignore[union-attr]
+                                          f"{connection.sink.qualified_name} joins activities {names[0]} and "  # type: ignore[union-attr]
+                                          f"{names[1]}; UNSYNC is only valid inside one activity (use LOCKED "
+                                          "or LOCK_FREE)"))
+        return found
+
+    def unscheduled(self) -> list[Component]:
+        """Top-level components no activity runs (they are configured, and serve operations)."""
+        return [c for c in self._components.values() if c.owner is None and c.activity is None]
+
+    # --- running --------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Start every activity but the main one (see :meth:`run`)."""
+        if self._started:
+            raise CocoError(f"application {self.name} was already started")
+        problems = self.problems()
+        if problems:
+            raise CocoError("\n".join(text for _, text in problems))
+        self._started = True
+        self.started_at = time.perf_counter()
+        reserved = self._exclusive_cores()
+        for component in self.unscheduled():
+            log.warning("component %s is in no activity: it is configured and serves operations, "
+                        "but on_update never runs", component.name)
+            component.configure()
+        for activity in self.activities.values():
+            activity.reserved_cores = reserved - set(activity.scheduling.affinity)
+            activity.start()
+
+    def _exclusive_cores(self) -> set[int]:
+        reserved: set[int] = set()
+        for activity in self.activities.values():
+            if activity.scheduling.exclusive:
+                reserved |= set(activity.scheduling.affinity) & available_cores()
+        return reserved
+
+    @property
+    def main_activity(self) -> Activity | None:
+        return next((a for a in self.activities.values() if a.main), None)
+
+    def run(self, duration: float | None = None) -> None:
+        """Start, run until stopped (or for ``duration`` seconds), then stop cleanly.
+
+        The main activity, if any, runs in the calling thread.
+        """
+        self.start()
+        timer = None
+        if duration is not None:
+            timer = threading.Timer(duration, self.request_stop, args=(f"duration of {duration:g} s reached",))
+            timer.daemon = True
+            timer.start()
+        try:
+            main = self.main_activity
+            if main is not None:
+                main.run_here()
+            self._stop_requested.wait()
+        finally:
+            if timer is not None:
+                timer.cancel()
+            self.stop()
+
+    def request_stop(self, reason: str = "stop requested") -> None:
+        """Ask every activity to stop; returns at once (safe from signal handlers and components)."""
+        if not self._stop_requested.is_set():
+            self.stop_reason = reason
+            log.info("stopping application %s: %s", self.name, reason)
+        self._stop_requested.set()
+        for activity in self.activities.values():
+            activity.stop()
+
+    @property
+    def stop_requested(self) -> bool:
+        return self._stop_requested.is_set()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until a stop is requested; False on timeout."""
+        return self._stop_requested.wait(timeout)
+
+    def stop(self, timeout: float = STOP_TIMEOUT) -> bool:
+        """Stop every activity, waiting at most ``timeout`` seconds in total; False if one hung."""
+        if self._stopped:
+            return True
+        self._stopped = True
+        self.request_stop(self.stop_reason or "stop requested")
+        deadline = time.monotonic() + timeout
+        clean = True
+        for activity in self.activities.values():
+            if not activity.join(max(0.0, deadline - time.monotonic())):
+                clean = False
+                where = f" (inside {activity.current.name}.on_update)" if activity.current else ""
+                log.error("activity %s did not stop within %.1f s%s; abandoning its thread",
+                          activity.name, timeout, where)
+        for component in self.unscheduled():
+            component.stop()
+        log.info("application %s stopped in %.3f s (%s)", self.name, timeout - (deadline - time.monotonic()),
+                 "clean" if clean else "some activities did not stop")
+        return clean
+
+    def set_period(self, activity: str, period: float) -> None:
+        """Change a periodic activity's period (seconds) while it runs."""
+        target = self.activity(activity)
+        if not isinstance(target, PeriodicActivity):
+            raise CocoError(f"activity {activity} is {target.describe()}, it has no period")
+        target.set_period(period)
+
+    def schedule_tree(self) -> list[tuple[Activity | None, list[Component]]]:
+        """The scheduling tree's activity level, unscheduled components last."""
+        tree: list[tuple[Activity | None, list[Component]]] = [
+            (activity, list(activity.components)) for activity in self.activities.values()]
+        rest = self.unscheduled()
+        if rest:
+            tree.append((None, rest))
+        return tree

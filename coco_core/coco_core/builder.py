@@ -1,0 +1,124 @@
+"""From the application model to a runnable application.
+
+Every problem is reported with the file:line of the element that caused it (unknown task, attribute
+or port, a value of the wrong type, an impossible connection), all of them in one pass, and nothing
+is started when there is any: a wrong file never half-runs.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from . import registry
+from .activity import Activity, PeriodicActivity, TriggeredActivity
+from .application import Application
+from .attributes import AttributeValueError
+from .component import Component, ErrorPolicy
+from .errors import CocoError, ConfigError, ConfigErrors
+from .model import ActivitySpec, AppSpec, ComponentSpec, LogSpec
+from .policy import ConnectionPolicy
+from .scheduling import SchedulingRequest
+
+log = logging.getLogger("coco")
+
+
+class _Builder:
+    def __init__(self, spec: AppSpec) -> None:
+        self.spec = spec
+        self.errors: list[ConfigError] = []
+
+    def fail(self, error: Exception | str, spec: object) -> None:
+        self.errors.append(ConfigError(str(error), getattr(spec, "location", None)))
+
+    def check(self) -> None:
+        if self.errors:
+            raise ConfigErrors(self.errors)
+
+    def instantiate(self, spec: ComponentSpec) -> Component | None:
+        try:
+            cls = registry.load(spec.task, spec.library)
+        except CocoError as error:
+            self.fail(error, spec)
+            return None
+        try:
+            component = cls(spec.name)
+        except Exception as error:
+            self.fail(f"component {spec.name} ({spec.task}) could not be constructed: {error!r}", spec)
+            return None
+        for attribute in spec.attributes:
+            try:
+                component.set_attribute_now(attribute.name, attribute.value)
+            except (KeyError, AttributeValueError) as error:
+                self.fail(error, attribute)
+        if spec.on_error:
+            component.on_error = ErrorPolicy(spec.on_error)
+        for peer_spec in spec.peers:
+            peer = self.instantiate(peer_spec)
+            if peer is not None:
+                component.add_peer(peer)
+        return component
+
+    def activity(self, spec: ActivitySpec) -> Activity:
+        schedule = spec.schedule
+        request = SchedulingRequest(
+            affinity=list(schedule.exclusive_affinity or schedule.affinity),
+            exclusive=bool(schedule.exclusive_affinity),
+            realtime=schedule.realtime or "none",
+            priority=schedule.priority,
+            nice=schedule.nice,
+        )
+        if schedule.type == "periodic":
+            assert schedule.period_ms is not None  # the loader guarantees it
+            return PeriodicActivity(spec.name, schedule.period_ms / 1e3, main=schedule.main, scheduling=request)
+        return TriggeredActivity(spec.name, main=schedule.main, scheduling=request)
+
+    def build(self) -> Application:
+        spec = self.spec
+        app = Application(spec.name or Path(spec.file).stem, on_error=ErrorPolicy(spec.on_error or "continue"))
+        components = [c for c in map(self.instantiate, spec.components) if c is not None]
+        self.check()
+        by_name = {c.name: s for c, s in zip(components, spec.components)}
+        for component in components:
+            try:
+                app.add(component)
+            except Exception as error:
+                self.fail(f"component {component.name}: init() failed: {error!r}", by_name.get(component.name))
+        self.check()
+        for activity_spec in spec.activities:
+            try:
+                activity = app.add_activity(self.activity(activity_spec))
+                for name in activity_spec.components:
+                    activity.add(app.component(name))
+            except (CocoError, ValueError, KeyError) as error:
+                self.fail(error, activity_spec)
+        for connection_spec in spec.connections:
+            try:
+                app.connect(str(connection_spec.src), str(connection_spec.dest),
+                            ConnectionPolicy(connection_spec.data, connection_spec.policy,
+                                             max(1, connection_spec.buffersize)),
+                            event=connection_spec.event)
+            except (CocoError, ValueError, KeyError) as error:
+                self.fail(error, connection_spec)
+        self.check()
+        locations = dict(zip(map(id, app.connections), spec.connections))
+        for subject, problem in app.problems():
+            self.fail(problem, locations.get(id(subject)))
+        self.check()
+        return app
+
+
+def build_application(spec: AppSpec) -> Application:
+    """Instantiate, configure and wire ``spec``; raise :class:`ConfigErrors` listing every problem."""
+    return _Builder(spec).build()
+
+
+def configure_logging(spec: LogSpec | None, default_level: int = logging.INFO) -> None:
+    """Map CoCo's ``<log>`` switches onto Python logging: ``types`` with ``debug`` enables debug
+    output, ``outfile`` adds a log file next to the console."""
+    level = logging.DEBUG if spec is not None and "debug" in spec.types else default_level
+    logging.getLogger("coco").setLevel(level)
+    if spec is not None and spec.outfile:
+        handler = logging.FileHandler(spec.outfile)
+        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+        logging.getLogger("coco").addHandler(handler)

@@ -1,0 +1,303 @@
+"""The component: CoCo's unit of computation.
+
+A component declares, on its class, typed attributes, input and output ports and operations, and
+implements the life cycle ``init`` -> ``on_config`` -> ``on_update`` (repeated) -> ``on_stop``.
+It never knows which activity, thread or process runs it: that is the scheduling tree's business,
+decided in the application file.
+
+Life cycle and threads:
+- ``init()`` runs when the component is added to an application, after its attributes were set from
+  the file, in the thread building the application: declare ports that depend on attributes here.
+- ``on_config()`` runs in the component's activity thread before the first update (thread-bound
+  resources such as OpenGL contexts belong here).
+- ``on_update()`` runs every activation of the activity; pending operation calls run before it.
+- ``on_stop()`` runs in the activity thread when the application stops: flush and close here.
+Peers (nested components) follow their owner: configured before it, updated after it (unless the
+owner sets ``manages_peers`` and calls ``peer.step()`` itself, e.g. to render in order), stopped after it.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import time
+import traceback
+from concurrent.futures import Future
+from typing import TYPE_CHECKING, Any, Callable, ClassVar
+
+from .attributes import Attribute
+from .errors import CocoError, did_you_mean
+from . import operations as ops
+from .operations import Operation
+from .ports import InputPort, OutputPort, Port
+from .profiling import ComponentStats
+from .stamps import Stamp
+
+if TYPE_CHECKING:
+    from .activity import Activity
+    from .application import Application
+
+log = logging.getLogger("coco")
+
+
+class ErrorPolicy(enum.Enum):
+    """What happens when a component's callback raises."""
+
+    CONTINUE = "continue"
+    """Report, count, and keep calling it."""
+    STOP_COMPONENT = "stop_component"
+    """Report and stop calling this component (its activity goes on with the others)."""
+    STOP_APP = "stop_app"
+    """Report and stop the whole application cleanly."""
+
+
+class UnknownNameError(CocoError, KeyError):
+    """An unknown port, attribute or operation name; the message lists the valid ones."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+_TRACEBACKS_SHOWN = 3
+"""Full tracebacks logged per component before switching to periodic one-line summaries."""
+
+
+class Component:
+    """Base class of every CoCo component.
+
+    Construct with the instance name and any attribute values: ``MovingAverage("filter", window=8)``.
+    """
+
+    manages_peers: ClassVar[bool] = False
+    """True when the component runs its peers itself (``peer.step()``) instead of after ``on_update``."""
+
+    _attribute_decls: ClassVar[dict[str, Attribute]] = {}
+    _port_decls: ClassVar[dict[str, Port]] = {}
+    _operation_decls: ClassVar[dict[str, str]] = {}
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        attributes: dict[str, Attribute] = {}
+        ports: dict[str, Port] = {}
+        operations: dict[str, str] = {}
+        for klass in reversed(cls.__mro__):
+            for name, member in vars(klass).items():
+                if isinstance(member, Attribute):
+                    attributes[name] = member
+                elif isinstance(member, Port):
+                    ports[name] = member
+                elif callable(member) and hasattr(member, "_coco_operation"):
+                    operations[member._coco_operation] = name
+        cls._attribute_decls, cls._port_decls, cls._operation_decls = attributes, ports, operations
+
+    def __init__(self, name: str | None = None, **attributes: Any) -> None:
+        self.name = name or type(self).__name__
+        self._attribute_values: dict[str, Any] = {}
+        self.inputs: dict[str, InputPort] = {}
+        self.outputs: dict[str, OutputPort] = {}
+        for port_name, declaration in self._port_decls.items():
+            self._add_port(declaration.bind(self, port_name))
+        self._operations: dict[str, Operation] = {
+            op_name: Operation(self, op_name, getattr(self, method))
+            for op_name, method in self._operation_decls.items()
+        }
+        self.peers: list[Component] = []
+        self.owner: Component | None = None
+        self.app: Application | None = None
+        self._activity: Activity | None = None
+        self.stats = ComponentStats()
+        self.on_error: ErrorPolicy | None = None
+        """None: the application's policy (continue when standalone)."""
+        self.enabled = True
+        self._last_error_log = 0.0
+        for attribute_name, value in attributes.items():
+            self.set_attribute_now(attribute_name, value)
+
+    # --- life cycle, overridden by components ---------------------------------------------------
+    def init(self) -> None:
+        """Declare what depends on attributes (dynamic ports, operations); no threads yet."""
+
+    def on_config(self) -> None:
+        """Acquire resources, in the activity thread, before the first update."""
+
+    def on_update(self) -> None:
+        """One activation: read inputs, compute, write outputs. Must not block."""
+
+    def on_stop(self) -> None:
+        """Release resources and flush what was produced, in the activity thread."""
+
+    # --- declarations at run time ---------------------------------------------------------------
+    def add_input(self, name: str, type_: Any = object, event: bool = False, doc: str = "") -> InputPort:
+        """Declare an input port from ``init`` (e.g. one per configured topic)."""
+        port = InputPort(type_, event, doc).bind(self, name)
+        self._add_port(port)
+        return port
+
+    def add_output(self, name: str, type_: Any = object, doc: str = "") -> OutputPort:
+        """Declare an output port from ``init``."""
+        port = OutputPort(type_, doc).bind(self, name)
+        self._add_port(port)
+        return port
+
+    def _add_port(self, port: Port) -> None:
+        if port.name in self.inputs or port.name in self.outputs:
+            raise CocoError(f"component {self.name}: port {port.name!r} declared twice")
+        target: dict[str, Any] = self.inputs if isinstance(port, InputPort) else self.outputs
+        target[port.name] = port
+        # Declared ports shadow the class-level declaration of the same name.
+        self.__dict__[port.name] = port
+
+    def add_operation(self, name: str, function: Callable[..., Any]) -> Operation:
+        """Declare an operation from a plain function (the decorator covers methods)."""
+        op = Operation(self, name, function)
+        self._operations[name] = op
+        return op
+
+    def add_peer(self, peer: Component) -> Component:
+        """Nest ``peer``: it shares this component's activity and is run by it."""
+        if peer.owner is not None:
+            raise CocoError(f"component {peer.name} is already a peer of {peer.owner.name}")
+        peer.owner = self
+        self.peers.append(peer)
+        return peer
+
+    # --- lookups with errors that list the valid names ------------------------------------------
+    def port(self, name: str) -> Port:
+        """The input or output port called ``name``."""
+        port = self.inputs.get(name) or self.outputs.get(name)
+        if port is None:
+            valid = list(self.inputs) + list(self.outputs)
+            raise UnknownNameError(f"component {self.name} ({type(self).__name__}) has no port {name!r}; "
+                                   f"{did_you_mean(name, valid)}")
+        return port
+
+    def operation(self, name: str) -> Operation:
+        """The operation called ``name``, to call from any thread."""
+        try:
+            return self._operations[name]
+        except KeyError:
+            raise UnknownNameError(f"component {self.name} ({type(self).__name__}) has no operation {name!r}; "
+                                   f"{did_you_mean(name, self._operations)}") from None
+
+    @property
+    def operations(self) -> dict[str, Operation]:
+        return dict(self._operations)
+
+    def attribute_declaration(self, name: str) -> Attribute:
+        try:
+            return self._attribute_decls[name]
+        except KeyError:
+            raise UnknownNameError(f"component {self.name} ({type(self).__name__}) has no attribute {name!r}; "
+                                   f"{did_you_mean(name, self._attribute_decls)}") from None
+
+    def find_component(self, name: str) -> Component:
+        """Another component of the same application, by instance name."""
+        if self.app is None:
+            raise CocoError(f"component {self.name} is not part of an application")
+        return self.app.component(name)
+
+    # --- attributes -----------------------------------------------------------------------------
+    def set_attribute_now(self, name: str, value: Any) -> None:
+        """Set an attribute immediately (text is parsed). Use from the component's own thread or
+        before it runs; other threads use :meth:`set_attribute`."""
+        declaration = self.attribute_declaration(name)
+        declaration.__set__(self, value)
+
+    def attributes(self) -> dict[str, Any]:
+        """Current value of every declared attribute."""
+        return {name: getattr(self, name) for name in self._attribute_decls}
+
+    @ops.operation
+    def set_attribute(self, name: str, value: Any) -> None:
+        """Change an attribute at run time; validated, applied between two updates."""
+        self.set_attribute_now(name, value)
+
+    @ops.operation
+    def get_attribute(self, name: str) -> Any:
+        """Read an attribute at run time, consistently with the component's own thread."""
+        self.attribute_declaration(name)
+        return getattr(self, name)
+
+    # --- scheduling -----------------------------------------------------------------------------
+    @property
+    def activity(self) -> Activity | None:
+        """The activity that runs this component (its owner's, for a peer)."""
+        return self.owner.activity if self.owner is not None else self._activity
+
+    @activity.setter
+    def activity(self, activity: Activity | None) -> None:
+        self._activity = activity
+
+    def walk(self) -> list[Component]:
+        """This component and its peers, depth first."""
+        found = [self]
+        for peer in self.peers:
+            found.extend(peer.walk())
+        return found
+
+    def configure(self) -> bool:
+        """Run ``on_config`` of the peers, then of this component; False when it failed."""
+        for peer in self.peers:
+            peer.configure()
+        return self._guard("on_config", self.on_config)
+
+    def step(self) -> None:
+        """One profiled, exception-isolated execution, then the peers' unless managed here."""
+        if self.enabled:
+            start = time.perf_counter()
+            try:
+                self.on_update()
+            except Exception:
+                self._failed("on_update")
+            self.stats.record(start, time.perf_counter())
+        if not self.manages_peers:
+            for peer in self.peers:
+                peer.step()
+
+    def stop(self) -> None:
+        """Run ``on_stop`` of this component, then of its peers; errors are reported, not raised."""
+        self._guard("on_stop", self.on_stop, count_only=True)
+        for peer in self.peers:
+            peer.stop()
+
+    def _guard(self, phase: str, callback: Callable[[], None], count_only: bool = False) -> bool:
+        try:
+            callback()
+        except Exception:
+            self._failed(phase, disable=not count_only)
+            return False
+        return True
+
+    def _failed(self, phase: str, disable: bool = False) -> None:
+        """Report an exception from ``phase`` and apply the error policy."""
+        self.stats.errors += 1
+        errors = self.stats.errors
+        now = time.monotonic()
+        if errors <= _TRACEBACKS_SHOWN:
+            log.error("component %s raised in %s (error %d):\n%s", self.name, phase, errors,
+                      traceback.format_exc().rstrip())
+        elif now - self._last_error_log >= 1.0:
+            log.error("component %s raised in %s again (%d errors so far): %s", self.name, phase, errors,
+                      traceback.format_exc().strip().splitlines()[-1])
+            self._last_error_log = now
+        policy = self.on_error or (self.app.on_error if self.app else ErrorPolicy.CONTINUE)
+        if disable or policy is ErrorPolicy.STOP_COMPONENT:
+            self.enabled = False
+            log.error("component %s is stopped after its error in %s", self.name, phase)
+        if policy is ErrorPolicy.STOP_APP:
+            if self.app is not None:
+                self.app.request_stop(f"component {self.name} raised in {phase}")
+            elif self.activity is not None:
+                self.activity.stop()
+
+    def record_latency(self, stamp: Stamp) -> None:
+        """Record the age of ``stamp`` now: call when this component outputs what the stamped data
+        produced, and the profiler reports the end-to-end latency."""
+        self.stats.latency.add(time.perf_counter() - stamp.time)
+
+    def call(self, operation_name: str, *args: Any, **kwargs: Any) -> Future:
+        """Shorthand for ``self.operation(name)(*args)``."""
+        return self.operation(operation_name)(*args, **kwargs)
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r}>"

@@ -1,0 +1,262 @@
+"""Connections: the storage between one output port and one input port.
+
+A port with several peers has several connections (many-to-many is a set of one-to-one channels, as in
+OROCOS), so every connection has exactly one writer thread and one reader thread. That is what makes
+the LOCK_FREE variants sound under CPython: the writer only ever appends / swaps a reference and the
+reader only ever pops / reads it, and each of those is a single atomic bytecode-level operation.
+
+The hot path is kept to a handful of bytecodes: each combination of buffering and sync policy is its
+own small class instead of one class with branches, and the dropped-item counter is derived
+(``written - read - pending``) rather than maintained, so neither side pays for it.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import deque
+from typing import TYPE_CHECKING, Any, Callable
+
+from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+
+if TYPE_CHECKING:
+    from .ports import InputPort, OutputPort
+
+
+class _Empty:
+    """Sentinel returned by :meth:`Connection.pop` when nothing new is there (None is a valid value)."""
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "EMPTY"
+
+
+EMPTY: Any = _Empty()
+
+
+class Connection:
+    """One channel from ``source`` to ``sink`` with a :class:`ConnectionPolicy`.
+
+    ``written`` counts values offered by the writer, ``read`` values taken by the reader; whatever is
+    neither taken nor still pending was dropped by the policy. ``trigger`` is called after a value was
+    stored when the sink is an event port, to wake the sink's triggered activity.
+    """
+
+    __slots__ = ("source", "sink", "policy", "written", "read", "trigger", "__weakref__")
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        self.policy = policy
+        self.source: OutputPort | None = None
+        self.sink: InputPort | None = None
+        self.written = 0
+        self.read = 0
+        self.trigger: Callable[[], None] | None = None
+
+    def push(self, value: Any) -> None:
+        """Store ``value`` for the reader; never blocks."""
+        raise NotImplementedError
+
+    def pop(self) -> Any:
+        """Take the next value, or :data:`EMPTY` when there is nothing new; never blocks."""
+        raise NotImplementedError
+
+    @property
+    def pending(self) -> int:
+        """Values written and not yet taken by the reader."""
+        raise NotImplementedError
+
+    @property
+    def dropped(self) -> int:
+        """Values the policy discarded (overwritten, refused when full, or pushed out as oldest)."""
+        return self.written - self.read - self.pending
+
+    def counters(self) -> dict[str, int]:
+        """Snapshot of the flow counters, for the profiler and diagnostics."""
+        return {"written": self.written, "read": self.read, "dropped": self.dropped, "pending": self.pending}
+
+    def __repr__(self) -> str:
+        source = self.source.qualified_name if self.source else "?"
+        sink = self.sink.qualified_name if self.sink else "?"
+        return f"<Connection {source} -> {sink} {self.policy}>"
+
+
+class DataConnection(Connection):
+    """DATA, LOCK_FREE / UNSYNC: the latest value and its sequence number, swapped as one tuple."""
+
+    __slots__ = ("_cell", "_seen")
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self._cell: tuple[int, Any] = (0, None)
+        self._seen = 0
+
+    def push(self, value: Any) -> None:
+        self.written += 1
+        self._cell = (self.written, value)
+        if self.trigger is not None:
+            self.trigger()
+
+    def pop(self) -> Any:
+        seq, value = self._cell
+        if seq == self._seen:
+            return EMPTY
+        self._seen = seq
+        self.read += 1
+        return value
+
+    @property
+    def pending(self) -> int:
+        return 0 if self._cell[0] == self._seen else 1
+
+
+class LockedDataConnection(DataConnection):
+    """DATA, LOCKED."""
+
+    __slots__ = ("_lock",)
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self._lock = threading.Lock()
+
+    def push(self, value: Any) -> None:
+        with self._lock:
+            self.written += 1
+            self._cell = (self.written, value)
+        if self.trigger is not None:
+            self.trigger()
+
+    def pop(self) -> Any:
+        with self._lock:
+            seq, value = self._cell
+            if seq == self._seen:
+                return EMPTY
+            self._seen = seq
+            self.read += 1
+            return value
+
+
+class BufferConnection(Connection):
+    """BUFFER, LOCK_FREE / UNSYNC: bounded FIFO that refuses new data when full.
+
+    Only the reader shrinks the deque, so the writer's length check can only be pessimistic: the buffer
+    never exceeds its size even without a lock.
+    """
+
+    __slots__ = ("_queue", "_size")
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self._queue: deque[Any] = deque()
+        self._size = policy.size
+
+    def push(self, value: Any) -> None:
+        self.written += 1
+        if len(self._queue) < self._size:
+            self._queue.append(value)
+            if self.trigger is not None:
+                self.trigger()
+
+    def pop(self) -> Any:
+        if self._queue:
+            self.read += 1
+            return self._queue.popleft()
+        return EMPTY
+
+    @property
+    def pending(self) -> int:
+        return len(self._queue)
+
+
+class LockedBufferConnection(BufferConnection):
+    """BUFFER, LOCKED."""
+
+    __slots__ = ("_lock",)
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self._lock = threading.Lock()
+
+    def push(self, value: Any) -> None:
+        with self._lock:
+            self.written += 1
+            if len(self._queue) >= self._size:
+                return
+            self._queue.append(value)
+        if self.trigger is not None:
+            self.trigger()
+
+    def pop(self) -> Any:
+        with self._lock:
+            if self._queue:
+                self.read += 1
+                return self._queue.popleft()
+            return EMPTY
+
+
+class CircularConnection(Connection):
+    """CIRCULAR, LOCK_FREE / UNSYNC: bounded FIFO whose append pushes the oldest item out atomically."""
+
+    __slots__ = ("_queue",)
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self._queue: deque[Any] = deque(maxlen=policy.size)
+
+    def push(self, value: Any) -> None:
+        self.written += 1
+        self._queue.append(value)
+        if self.trigger is not None:
+            self.trigger()
+
+    def pop(self) -> Any:
+        if self._queue:
+            self.read += 1
+            return self._queue.popleft()
+        return EMPTY
+
+    @property
+    def pending(self) -> int:
+        return len(self._queue)
+
+
+class LockedCircularConnection(CircularConnection):
+    """CIRCULAR, LOCKED."""
+
+    __slots__ = ("_lock",)
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self._lock = threading.Lock()
+
+    def push(self, value: Any) -> None:
+        with self._lock:
+            self.written += 1
+            self._queue.append(value)
+        if self.trigger is not None:
+            self.trigger()
+
+    def pop(self) -> Any:
+        with self._lock:
+            if self._queue:
+                self.read += 1
+                return self._queue.popleft()
+            return EMPTY
+
+
+_CLASSES: dict[tuple[BufferPolicy, bool], type[Connection]] = {
+    (BufferPolicy.DATA, False): DataConnection,
+    (BufferPolicy.DATA, True): LockedDataConnection,
+    (BufferPolicy.BUFFER, False): BufferConnection,
+    (BufferPolicy.BUFFER, True): LockedBufferConnection,
+    (BufferPolicy.CIRCULAR, False): CircularConnection,
+    (BufferPolicy.CIRCULAR, True): LockedCircularConnection,
+}
+
+
+def make_connection(policy: ConnectionPolicy) -> Connection:
+    """The connection class for a copying policy (POOL connections are made by pooled ports)."""
+    try:
+        cls = _CLASSES[(policy.data, policy.sync is SyncPolicy.LOCKED)]
+    except KeyError:
+        raise ValueError(f"{policy.data.value} connections are made by pooled output ports") from None
+    return cls(policy)

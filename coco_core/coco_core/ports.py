@@ -1,0 +1,186 @@
+"""Typed input and output ports.
+
+Ports are declared on the component class (``image = InputPort(Image, event=True)``); each component
+instance gets its own bound copy under the same attribute name. Writing and reading never block:
+the connection's policy decides what happens to data the reader has not taken.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import TYPE_CHECKING, Any, Callable
+
+from .connections import EMPTY, Connection
+from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
+from .pool import FramePool, PoolConnection, Slot
+
+if TYPE_CHECKING:
+    from .component import Component
+
+
+def type_name(tp: Any) -> str:
+    """Readable name of a port type, for error messages."""
+    return getattr(tp, "__qualname__", None) or repr(tp)
+
+
+class Port:
+    """What input and output ports share: a name, a Python type, an owner and connections."""
+
+    def __init__(self, type_: Any = object, doc: str = "") -> None:
+        self.type = type_
+        self.doc = doc
+        self.name = ""
+        self.owner: Component | None = None
+        self.connections: list[Connection] = []
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def bind(self, owner: Component, name: str | None = None) -> Port:
+        """A copy of this declaration belonging to one component instance."""
+        port = copy.copy(self)
+        port.owner = owner
+        port.name = name or self.name
+        port.connections = []
+        return port
+
+    @property
+    def qualified_name(self) -> str:
+        return f"{self.owner.name if self.owner else '?'}.{self.name}"
+
+    @property
+    def connected(self) -> bool:
+        return bool(self.connections)
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.qualified_name}: {type_name(self.type)}>"
+
+
+class OutputPort(Port):
+    """Sends values to every connected input; a write with no connection is a no-op."""
+
+    def write(self, value: Any) -> None:
+        """Offer ``value`` to every connection; never blocks."""
+        for connection in self.connections:
+            connection.push(value)
+
+    def add_connection(self, connection: Connection) -> None:
+        connection.source = self
+        self.connections.append(connection)
+
+
+class PooledOutputPort(OutputPort):
+    """An output whose frames live in a :class:`FramePool`: ``acquire`` a slot, fill it, ``write`` it.
+
+    Readers receive the :class:`Slot` itself and must ``release()`` it (or use it as a context
+    manager). ``slots`` should be at least 2 + the number of readers that hold a frame at once.
+    """
+
+    def __init__(self, slots: int = 4, doc: str = "") -> None:
+        super().__init__(Slot, doc)
+        self.slots = slots
+        self.pool = FramePool(slots)
+
+    def bind(self, owner: Component, name: str | None = None) -> PooledOutputPort:
+        port = super().bind(owner, name)
+        assert isinstance(port, PooledOutputPort)
+        port.pool = FramePool(self.slots)
+        return port
+
+    def acquire(self, shape: tuple[int, ...], dtype: Any = "uint8") -> Slot | None:
+        """A slot to fill in place, or None when every slot is busy (skip this frame)."""
+        return self.pool.acquire(shape, dtype)
+
+    def write(self, slot: Slot) -> None:
+        """Publish a filled slot to every reader."""
+        self.pool.publish(slot)
+        for connection in self.connections:
+            connection.push(slot)
+
+    def connection(self) -> PoolConnection:
+        """A new reader-side connection on this port's pool."""
+        return PoolConnection(self.pool)
+
+
+class InputPort(Port):
+    """Receives from any number of connections, read round-robin.
+
+    An *event* input wakes the triggered activity of its component whenever a value arrives.
+    """
+
+    def __init__(self, type_: Any = object, event: bool = False, doc: str = "") -> None:
+        super().__init__(type_, doc)
+        self.event = event
+        self._next = 0
+        self._last: Any = None
+        self._has_last = False
+        self._keeps_last = True
+        self._wake: Callable[[], None] | None = None
+        self._triggering: list[Connection] = []
+        """The connections whose writes wake this port's activity."""
+
+    def bind(self, owner: Component, name: str | None = None) -> InputPort:
+        port = super().bind(owner, name)
+        assert isinstance(port, InputPort)
+        port._next, port._last, port._has_last, port._keeps_last, port._wake = 0, None, False, True, None
+        port._triggering = []
+        return port
+
+    def add_connection(self, connection: Connection, event: bool | None = None) -> None:
+        """Attach a connection; ``event`` overrides the port's own event flag for this connection."""
+        connection.sink = self
+        if isinstance(connection, PoolConnection):
+            # A pooled frame may be reused once released: never hand it out again as OLD_DATA.
+            self._keeps_last = False
+        if event if event is not None else self.event:
+            connection.trigger = self._wake
+            self._triggering.append(connection)
+        self.connections.append(connection)
+
+    def set_wake(self, wake: Callable[[], None] | None) -> None:
+        """Install the function that wakes this port's activity on its triggering connections."""
+        self._wake = wake
+        for connection in self._triggering:
+            connection.trigger = wake
+
+    @property
+    def triggers(self) -> bool:
+        """Whether any connection into this port wakes the component's activity."""
+        return bool(self._triggering)
+
+    def read(self) -> tuple[ReadStatus, Any]:
+        """``(NEW_DATA, value)``, ``(OLD_DATA, last value)`` or ``(NO_DATA, None)``; never blocks.
+
+        With several connections, reading starts after the connection that delivered last time, so
+        every source gets its turn.
+        """
+        connections = self.connections
+        count = len(connections)
+        if count == 1:
+            value = connections[0].pop()
+            if value is not EMPTY:
+                if self._keeps_last:
+                    self._last, self._has_last = value, True
+                return NEW_DATA, value
+        elif count:
+            start = self._next
+            for offset in range(count):
+                index = (start + offset) % count
+                value = connections[index].pop()
+                if value is not EMPTY:
+                    self._next = (index + 1) % count
+                    if self._keeps_last:
+                        self._last, self._has_last = value, True
+                    return NEW_DATA, value
+        if self._has_last:
+            return OLD_DATA, self._last
+        return NO_DATA, None
+
+    def read_all(self) -> list[Any]:
+        """Every value waiting on every connection, in round-robin order; empty when none."""
+        values: list[Any] = []
+        while True:
+            status, value = self.read()
+            if status is not NEW_DATA:
+                return values
+            values.append(value)

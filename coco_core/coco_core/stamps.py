@@ -1,0 +1,38 @@
+"""Message stamps (FlowVR's term): where and when a piece of data was born.
+
+A stamp travels with data through every port, so latency can be measured end to end, from the
+acquisition of a sample to whatever output it produced, whatever components and threads it crossed.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Generic, TypeVar
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True, slots=True)
+class Stamp:
+    """Acquisition time (``time.perf_counter`` seconds in this process), sequence number and source."""
+
+    time: float
+    seq: int = 0
+    source: str = ""
+
+    @classmethod
+    def now(cls, seq: int = 0, source: str = "") -> Stamp:
+        return cls(time.perf_counter(), seq, source)
+
+    def age(self) -> float:
+        """Seconds since acquisition."""
+        return time.perf_counter() - self.time
+
+
+@dataclass(frozen=True, slots=True)
+class Stamped(Generic[T]):
+    """A value with its stamp, the usual payload of a port that carries measurements."""
+
+    value: T
+    stamp: Stamp = field(default_factory=Stamp.now)

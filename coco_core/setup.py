@@ -1,0 +1,32 @@
+from setuptools import find_packages, setup
+
+PACKAGE = "coco_core"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="CoCo for ROS 2 developers",
+    maintainer_email="coco-ros2@example.org",
+    description="CoCo runtime: components, ports, activities, XML applications; importable without ROS.",
+    license="MIT",
+    tests_require=["pytest"],
+    entry_points={
+        'console_scripts': [
+            'coco-launch = coco_core.launcher:main',
+        ],
+        'coco.components': [
+            'SignalGenerator = coco_core.demo.signal_generator:SignalGenerator',
+            'MovingAverage = coco_core.demo.moving_average:MovingAverage',
+            'CsvRecorder = coco_core.demo.csv_recorder:CsvRecorder',
+            'RangeMonitor = coco_core.demo.range_monitor:RangeMonitor',
+            'Supervisor = coco_core.demo.supervisor:Supervisor',
+        ],
+    },
+)

@@ -1,0 +1,20 @@
+from setuptools import find_packages, setup
+
+PACKAGE = "coco_mr_haptics"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="CoCo for ROS 2 developers",
+    maintainer_email="coco-ros2@example.org",
+    description="CoCo mixed-reality haptics: proxy-based haptic rendering and devices.",
+    license="MIT",
+    tests_require=["pytest"],
+)

@@ -1,0 +1,1 @@
+"""CoCo mixed-reality vision: image types, camera readers, marker tracking and streaming."""

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# The whole test suite: set up and build the workspace, run every package's tests with colcon and the
+# workspace-level tests in test/, print `colcon test-result --verbose`, and fail when any test failed
+# or when no test ran.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# shellcheck source=setup.sh
+source "$ROOT/scripts/setup.sh"
+cd "$ROOT"
+
+export PYTEST_ADDOPTS="--timeout=300 ${PYTEST_ADDOPTS:-}"
+rm -rf build/*/pytest.xml build/workspace_tests
+status=0
+colcon --log-base log test --build-base build --install-base install \
+    --event-handlers console_direct+ summary+ || status=$?
+mkdir -p build/workspace_tests
+python -m pytest test -o cache_dir=build/workspace_tests/.pytest_cache \
+    --junit-xml=build/workspace_tests/pytest.xml --junit-prefix=workspace || status=$?
+colcon test-result --test-result-base build --verbose || status=$?
+python scripts/check_test_results.py build || status=$?
+exit "$status"

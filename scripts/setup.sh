@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# Prepares the workspace from a fresh clone and leaves it sourced: system packages (when missing),
+# the virtual environment with the pinned requirements, and a colcon build.
+# Sourced by run_app.sh and run_tests.sh; safe to run again (each step is skipped when up to date).
+set -euo pipefail
+
+COCO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="$COCO_ROOT/.venv"
+
+log() { printf '[setup] %s\n' "$*" >&2; }
+
+pick_python() {
+    local candidate
+    for candidate in python3.13 python3.12 python3.11 python3; do
+        if command -v "$candidate" >/dev/null 2>&1 &&
+            "$candidate" -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null; then
+            echo "$candidate"
+            return
+        fi
+    done
+    echo "CoCo needs Python 3.11 or newer; none was found on PATH" >&2
+    exit 1
+}
+
+apt_install() {
+    # Debian/Ubuntu: install what is missing; we run as root on these machines, sudo elsewhere.
+    local sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo="sudo"
+    log "installing system packages: $*"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "$@" >/dev/null
+}
+
+ensure_venv() {
+    local python
+    python="$(pick_python)"
+    if [ ! -x "$VENV/bin/python" ]; then
+        if ! "$python" -c 'import ensurepip, venv' 2>/dev/null; then
+            apt_install "python3-venv"
+        fi
+        log "creating $VENV with $python"
+        "$python" -m venv "$VENV"
+    fi
+    # The ROS wheels install package.xml files under the venv: keep colcon from crawling them.
+    touch "$VENV/COLCON_IGNORE"
+}
+
+ensure_requirements() {
+    local stamp="$VENV/.requirements.sha256" want
+    want="$(sha256sum "$COCO_ROOT/requirements.txt" | cut -d' ' -f1)"
+    if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+        log "installing pinned requirements (first run takes a few minutes)"
+        "$VENV/bin/python" -m pip install --quiet --upgrade pip
+        "$VENV/bin/python" -m pip install --quiet -r "$COCO_ROOT/requirements.txt"
+        echo "$want" > "$stamp"
+    fi
+}
+
+build_workspace() {
+    log "colcon build"
+    (cd "$COCO_ROOT" && colcon --log-base log build --build-base build --install-base install \
+        --event-handlers console_direct- console_stderr- summary+ >&2)
+}
+
+ensure_venv
+ensure_requirements
+set +u
+# shellcheck disable=SC1091
+source "$VENV/bin/activate"
+set -u
+build_workspace
+set +u
+# shellcheck disable=SC1091
+source "$COCO_ROOT/install/setup.bash"
+set -u
