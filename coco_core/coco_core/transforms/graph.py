@@ -1,0 +1,486 @@
+"""The transformation graph: reference frames joined by static, dynamic and axis edges.
+
+A lookup ``(target, source)`` resolves its path once (breadth-first, fewest hops, any graph shape,
+edges walked in either direction) and caches it with its value. The cached value is returned as long
+as no edge on the path changed: each edge (and each kinematic model) has a version counter, and the
+graph a global one so that the common case — nothing changed since the last lookup — costs one
+dictionary access and one comparison, without a lock. Queries may have callbacks, which run after any
+edge on their path changes, with the new value, in the thread that made the change.
+
+Consecutive edges of one :class:`KinematicModel` (a URDF robot) are evaluated together by the model
+(Pinocchio computes all joint placements in one call), not edge by edge.
+"""
+
+from __future__ import annotations
+
+import logging
+import time as _time
+from collections import deque
+from typing import Any, Callable, Iterable, Mapping
+
+import numpy as np
+
+from ..errors import did_you_mean
+from . import se3
+from .edges import AxisEdge, Dependency, DynamicEdge, Edge, EdgeKind, StaticEdge
+from .rwlock import ReadWriteLock
+
+log = logging.getLogger("coco.transforms")
+
+Callback = Callable[[np.ndarray], None]
+
+
+class TransformError(LookupError):
+    """An unknown frame, no path, or a write the declared structure forbids."""
+
+
+class KinematicModel(Dependency):
+    """Frames whose relative transforms an external kinematics library computes in bulk.
+
+    Subclasses (e.g. :class:`~coco_core.transforms.urdf.UrdfModel`) implement :meth:`relative` and
+    :meth:`set_positions`, and bump ``version`` when their joint values change.
+    """
+
+    __slots__ = ("name",)
+
+    def __init__(self, name: str) -> None:
+        super().__init__()
+        self.name = name
+
+    def relative(self, a: str, b: str) -> np.ndarray:
+        """``T_a_b`` for two frames of the model, with the current joint values."""
+        raise NotImplementedError
+
+    def set_positions(self, values: Mapping[str, float]) -> list[str]:
+        """Set joint values by name in one bulk update; return the names the model does not have."""
+        raise NotImplementedError
+
+    @property
+    def joint_names(self) -> list[str]:
+        raise NotImplementedError
+
+
+class ModelEdge(Edge):
+    """An edge whose value comes from a :class:`KinematicModel` (a URDF joint, fixed or moving)."""
+
+    __slots__ = ("model", "joint", "kind")
+
+    def __init__(self, parent: str, child: str, model: KinematicModel, kind: EdgeKind, joint: str = "") -> None:
+        super().__init__(parent, child)
+        self.model = model
+        self.kind = kind
+        self.joint = joint
+
+    def transform(self) -> np.ndarray:
+        return self.model.relative(self.parent, self.child)
+
+    def inverse(self) -> np.ndarray:
+        return self.model.relative(self.child, self.parent)
+
+    def describe(self) -> dict[str, Any]:
+        described = super().describe()
+        described.update(version=self.model.version, joint=self.joint, model=self.model.name)
+        return described
+
+
+class _Step:
+    """One factor of a path's product: the transform from one frame to the next."""
+
+    __slots__ = ("dependency",)
+
+    def __init__(self, dependency: Dependency) -> None:
+        self.dependency = dependency
+
+    def value(self, time: float | None) -> np.ndarray:
+        raise NotImplementedError
+
+
+class _Forward(_Step):
+    __slots__ = ("edge",)
+
+    def __init__(self, edge: Edge) -> None:
+        super().__init__(edge)
+        self.edge = edge
+
+    def value(self, time: float | None) -> np.ndarray:
+        return self.edge.transform() if time is None else self.edge.transform_at(time)
+
+
+class _Backward(_Forward):
+    __slots__ = ()
+
+    def value(self, time: float | None) -> np.ndarray:
+        return self.edge.inverse() if time is None else se3.inverse(self.edge.transform_at(time))
+
+
+class _Segment(_Step):
+    __slots__ = ("model", "a", "b")
+
+    def __init__(self, model: KinematicModel, a: str, b: str) -> None:
+        super().__init__(model)
+        self.model, self.a, self.b = model, a, b
+
+    def value(self, time: float | None) -> np.ndarray:
+        return self.model.relative(self.a, self.b)
+
+
+class Query:
+    """A cached lookup of ``T_target_source``; get one from :meth:`TransformGraph.query`."""
+
+    __slots__ = ("graph", "target", "source", "steps", "dependencies", "versions", "graph_version",
+                 "structure_version", "value", "callbacks", "__weakref__")
+
+    def __init__(self, graph: TransformGraph, target: str, source: str) -> None:
+        self.graph = graph
+        self.target = target
+        self.source = source
+        self.steps: list[_Step] = []
+        self.dependencies: tuple[Dependency, ...] = ()
+        self.versions: tuple[int, ...] = ()
+        self.graph_version = -1
+        self.structure_version = -1
+        self.value: np.ndarray = se3.IDENTITY
+        self.callbacks: list[Callback] = []
+
+    @property
+    def path(self) -> list[str]:
+        """The frames the query walks, target first."""
+        self.graph.lookup(self.target, self.source)
+        return self.graph.path(self.target, self.source)
+
+    def current(self) -> np.ndarray:
+        """``T_target_source`` now (the cached value when nothing on the path changed)."""
+        return self.graph.lookup(self.target, self.source)
+
+    def on_change(self, callback: Callback) -> Callable[[], None]:
+        """Call ``callback(T_target_source)`` after any change on the path; returns an unsubscribe."""
+        self.graph.lookup(self.target, self.source)  # resolve the path, so its dependencies are known
+        with self.graph._lock.write():
+            self.callbacks.append(callback)
+            for dependency in self.dependencies:
+                dependency.watchers.add(self)
+
+        def unsubscribe() -> None:
+            with self.graph._lock.write():
+                if callback in self.callbacks:
+                    self.callbacks.remove(callback)
+                if not self.callbacks:
+                    for dependency in self.dependencies:
+                        dependency.watchers.discard(self)
+
+        return unsubscribe
+
+    def __repr__(self) -> str:
+        return f"<Query {self.target} <- {self.source}>"
+
+
+class TransformGraph:
+    """Frames and edges, with cached, versioned lookups. Safe to use from any number of threads."""
+
+    def __init__(self, history: int = 100, strict: bool = False) -> None:
+        self.history = history
+        """Capacity of a dynamic edge created on first write."""
+        self.strict = strict
+        """When True (the structure was declared), writing an undeclared edge is an error."""
+        self._lock = ReadWriteLock()
+        self._adjacent: dict[str, list[Edge]] = {}
+        self._edges: dict[tuple[str, str], Edge] = {}
+        self._joints: dict[str, AxisEdge] = {}
+        self._models: dict[str, KinematicModel] = {}
+        self._queries: dict[tuple[str, str], Query] = {}
+        self.version = 0
+        self.structure_version = 0
+        self._reported_unknown_joints: set[str] = set()
+
+    # --- structure ------------------------------------------------------------------------------
+    @property
+    def frames(self) -> list[str]:
+        return list(self._adjacent)
+
+    @property
+    def edges(self) -> list[Edge]:
+        return list(self._edges.values())
+
+    @property
+    def models(self) -> dict[str, KinematicModel]:
+        return dict(self._models)
+
+    def add_frame(self, name: str) -> None:
+        with self._lock.write():
+            self._add_frame(name)
+
+    def _add_frame(self, name: str) -> None:
+        if name not in self._adjacent:
+            self._adjacent[name] = []
+            self.structure_version += 1
+            self.version += 1
+
+    def add_edge(self, edge: Edge) -> Edge:
+        """Add an edge of any kind (its frames are created as needed)."""
+        with self._lock.write():
+            key = (edge.parent, edge.child)
+            if key in self._edges or (edge.child, edge.parent) in self._edges:
+                raise TransformError(f"frames {edge.parent} and {edge.child} are already joined by "
+                                     f"{self._edges.get(key) or self._edges[(edge.child, edge.parent)]!r}")
+            self._add_frame(edge.parent)
+            self._add_frame(edge.child)
+            self._edges[key] = edge
+            self._adjacent[edge.parent].append(edge)
+            self._adjacent[edge.child].append(edge)
+            if isinstance(edge, AxisEdge):
+                if edge.joint in self._joints:
+                    raise TransformError(f"joint {edge.joint} already drives edge {self._joints[edge.joint].name}")
+                self._joints[edge.joint] = edge
+            if isinstance(edge, ModelEdge):
+                self._models[edge.model.name] = edge.model
+            self.structure_version += 1
+            self.version += 1
+        return edge
+
+    def add_static(self, parent: str, child: str, transform: np.ndarray = se3.IDENTITY) -> StaticEdge:
+        edge = self.add_edge(StaticEdge(parent, child, transform))
+        assert isinstance(edge, StaticEdge)
+        return edge
+
+    def add_dynamic(self, parent: str, child: str, capacity: int | None = None) -> DynamicEdge:
+        edge = self.add_edge(DynamicEdge(parent, child, capacity or self.history))
+        assert isinstance(edge, DynamicEdge)
+        return edge
+
+    def add_axis(self, parent: str, child: str, joint: str, joint_type: str, origin: np.ndarray = se3.IDENTITY,
+                 axis: Iterable[float] = (0.0, 0.0, 1.0), value: float = 0.0) -> AxisEdge:
+        edge = self.add_edge(AxisEdge(parent, child, joint, joint_type, origin, tuple(axis), value))
+        assert isinstance(edge, AxisEdge)
+        return edge
+
+    def remove_edge(self, parent: str, child: str) -> None:
+        """Remove an edge (e.g. a temporary registration path); frames stay."""
+        with self._lock.write():
+            edge = self.edge(parent, child)
+            del self._edges[(edge.parent, edge.child)]
+            self._adjacent[edge.parent].remove(edge)
+            self._adjacent[edge.child].remove(edge)
+            if isinstance(edge, AxisEdge):
+                self._joints.pop(edge.joint, None)
+            self.structure_version += 1
+            self.version += 1
+            changed = [edge]
+        self._notify(changed)
+
+    def edge(self, parent: str, child: str) -> Edge:
+        """The edge between two frames, in either direction."""
+        edge = self._edges.get((parent, child)) or self._edges.get((child, parent))
+        if edge is None:
+            for frame in (parent, child):
+                self._check_frame(frame)
+            raise TransformError(f"no edge joins {parent} and {child}")
+        return edge
+
+    def _check_frame(self, frame: str) -> None:
+        if frame not in self._adjacent:
+            raise TransformError(f"unknown frame {frame!r}; {did_you_mean(frame, self._adjacent)}")
+
+    # --- writes ---------------------------------------------------------------------------------
+    def set_transform(self, parent: str, child: str, transform: np.ndarray, stamp: float | None = None) -> None:
+        """Write ``T_parent_child``: a sample of a dynamic edge (created on first write unless the
+        structure is strict) or a new value of a static edge."""
+        with self._lock.write():
+            edge = self._edges.get((parent, child))
+            if edge is None:
+                if (child, parent) in self._edges:
+                    raise TransformError(f"edge {parent}->{child} is declared as {child}->{parent}; "
+                                         "write it in that direction")
+                if self.strict:
+                    raise TransformError(f"edge {parent}->{child} is not declared; declared edges: "
+                                         f"{', '.join(sorted(e.name for e in self._edges.values())) or 'none'}")
+            if edge is None:
+                edge = DynamicEdge(parent, child, self.history)
+                self._add_frame(parent)
+                self._add_frame(child)
+                self._edges[(parent, child)] = edge
+                self._adjacent[parent].append(edge)
+                self._adjacent[child].append(edge)
+                self.structure_version += 1
+            if isinstance(edge, DynamicEdge):
+                edge.assign(transform, _time.time() if stamp is None else stamp)
+            elif isinstance(edge, StaticEdge):
+                edge.assign(transform)
+            else:
+                raise TransformError(f"edge {edge.name} is a {edge.kind.value} edge driven by joint "
+                                     f"{getattr(edge, 'joint', '?')}: set its joint value instead")
+            self.version += 1
+        self._notify([edge])
+
+    def set_joint(self, joint: str, value: float) -> None:
+        """Set one joint value (axis edge or joint of a kinematic model)."""
+        unknown = self.set_joints({joint: value})
+        if unknown:
+            raise TransformError(f"unknown joint {joint!r}; {did_you_mean(joint, self.joint_names)}")
+
+    def set_joints(self, values: Mapping[str, float]) -> list[str]:
+        """Set many joint values at once (a JointState): each kinematic model updates in bulk.
+
+        Returns the names nothing in the graph drives; each is also logged once, as
+        robot_state_publisher does, and otherwise ignored.
+        """
+        changed: list[Dependency] = []
+        with self._lock.write():
+            remaining = dict(values)
+            for model in self._models.values():
+                unknown = set(model.set_positions(remaining))
+                if len(unknown) != len(remaining):
+                    changed.append(model)
+                remaining = {name: value for name, value in remaining.items() if name in unknown}
+            for name in list(remaining):
+                edge = self._joints.get(name)
+                if edge is not None:
+                    edge.assign(remaining.pop(name))
+                    changed.append(edge)
+            if changed:
+                self.version += 1
+        new = [name for name in remaining if name not in self._reported_unknown_joints]
+        if new:
+            self._reported_unknown_joints.update(new)
+            log.warning("ignoring joint(s) that no edge or model has: %s", ", ".join(sorted(new)))
+        self._notify(changed)
+        return list(remaining)
+
+    @property
+    def joint_names(self) -> list[str]:
+        names = list(self._joints)
+        for model in self._models.values():
+            names.extend(model.joint_names)
+        return names
+
+    # --- reads ----------------------------------------------------------------------------------
+    def lookup(self, target: str, source: str, time: float | None = None) -> np.ndarray:
+        """``T_target_source``: maps coordinates in ``source`` to ``target`` (the pose of ``source``
+        in ``target``). With ``time``, dynamic edges are interpolated at that time (not cached)."""
+        if time is None:
+            query = self._queries.get((target, source))
+            if query is not None and query.graph_version == self.version:
+                return query.value
+            return self._refresh(query or self._new_query(target, source))
+        with self._lock.read():
+            steps = self._resolve(target, source)
+            return self._product(steps, time)
+
+    def query(self, target: str, source: str) -> Query:
+        """The cached query object for ``(target, source)``, e.g. to register callbacks."""
+        query = self._queries.get((target, source)) or self._new_query(target, source)
+        self._refresh(query)
+        return query
+
+    def path(self, target: str, source: str) -> list[str]:
+        """Frames from ``target`` to ``source`` along the path lookups use."""
+        with self._lock.read():
+            return self._path_frames(target, source)
+
+    def _new_query(self, target: str, source: str) -> Query:
+        query = Query(self, target, source)
+        return self._queries.setdefault((target, source), query)
+
+    def _refresh(self, query: Query) -> np.ndarray:
+        with self._lock.read():
+            version = self.version
+            if query.structure_version != self.structure_version:
+                steps = self._resolve(query.target, query.source)
+                dependencies = tuple(dict.fromkeys(step.dependency for step in steps))
+                if query.callbacks:
+                    for old in query.dependencies:
+                        old.watchers.discard(query)
+                    for new in dependencies:
+                        new.watchers.add(query)
+                query.steps, query.dependencies = steps, dependencies
+                query.structure_version = self.structure_version
+                query.versions = ()
+            versions = tuple(dependency.version for dependency in query.dependencies)
+            if versions != query.versions:
+                query.value = self._product(query.steps, None)
+                query.versions = versions
+            query.graph_version = version
+            return query.value
+
+    @staticmethod
+    def _product(steps: list[_Step], time: float | None) -> np.ndarray:
+        if not steps:
+            return se3.IDENTITY
+        result = steps[0].value(time)
+        for step in steps[1:]:
+            result = result @ step.value(time)
+        return se3.frozen(result) if len(steps) > 1 else result
+
+    def _path_frames(self, target: str, source: str) -> list[str]:
+        self._check_frame(target)
+        self._check_frame(source)
+        previous: dict[str, tuple[str, Edge] | None] = {target: None}
+        frontier = deque([target])
+        while frontier and source not in previous:
+            frame = frontier.popleft()
+            for edge in self._adjacent[frame]:
+                other = edge.child if edge.parent == frame else edge.parent
+                if other not in previous:
+                    previous[other] = (frame, edge)
+                    frontier.append(other)
+        if source not in previous:
+            reachable = sorted(previous)
+            shown = ", ".join(reachable[:12]) + (" ..." if len(reachable) > 12 else "")
+            raise TransformError(f"no path from {target} to {source}: {target} only reaches {shown}")
+        frames = [source]
+        while frames[-1] != target:
+            link = previous[frames[-1]]
+            assert link is not None
+            frames.append(link[0])
+        return frames[::-1]
+
+    def _resolve(self, target: str, source: str) -> list[_Step]:
+        frames = self._path_frames(target, source)
+        steps: list[_Step] = []
+        index = 0
+        while index < len(frames) - 1:
+            edge = self.edge(frames[index], frames[index + 1])
+            if isinstance(edge, ModelEdge):
+                end = index + 1
+                while end < len(frames) - 1:
+                    following = self.edge(frames[end], frames[end + 1])
+                    if not (isinstance(following, ModelEdge) and following.model is edge.model):
+                        break
+                    end += 1
+                steps.append(_Segment(edge.model, frames[index], frames[end]))
+                index = end
+                continue
+            steps.append(_Forward(edge) if edge.parent == frames[index] else _Backward(edge))
+            index += 1
+        return steps
+
+    def _notify(self, changed: Iterable[Dependency]) -> None:
+        """Run the callbacks of every query whose path went through a changed edge or model."""
+        queries: dict[int, Query] = {}
+        for dependency in changed:
+            for query in list(dependency.watchers):
+                queries[id(query)] = query
+        for query in queries.values():
+            try:
+                value = self.lookup(query.target, query.source)
+            except LookupError as error:
+                log.warning("query %s <- %s has no value after the change: %s", query.target, query.source, error)
+                continue
+            for callback in list(query.callbacks):
+                try:
+                    callback(value)
+                except Exception:
+                    log.exception("callback of query %s <- %s failed", query.target, query.source)
+
+    # --- diagnostics ----------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """The whole graph, JSON-ready: frames, edges with kinds, values and stamps."""
+        with self._lock.read():
+            edges = []
+            for edge in self._edges.values():
+                try:
+                    edges.append(edge.describe())
+                except LookupError as error:
+                    edges.append({"parent": edge.parent, "child": edge.child, "kind": edge.kind.value,
+                                  "error": str(error)})
+            return {"version": self.version, "frames": list(self._adjacent), "edges": edges,
+                    "models": sorted(self._models)}

@@ -1,0 +1,158 @@
+"""Rigid transforms as 4x4 homogeneous numpy matrices, and the few operations the graph needs.
+
+Convention: a transform ``T_a_b`` maps coordinates in frame ``b`` to frame ``a`` (it is the pose of
+``b`` in ``a``), as a URDF joint origin maps child to parent and tf2's ``lookupTransform(a, b)``.
+Quaternions are ``(x, y, z, w)`` as in ROS messages.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+IDENTITY = np.eye(4)
+IDENTITY.flags.writeable = False
+
+
+def frozen(matrix: np.ndarray) -> np.ndarray:
+    """Mark ``matrix`` read-only: cached values are shared with every caller and must not change."""
+    matrix.flags.writeable = False
+    return matrix
+
+
+def make(rotation: np.ndarray | None = None, translation: Sequence[float] | None = None) -> np.ndarray:
+    """A 4x4 transform from a 3x3 rotation and a translation (either may be omitted)."""
+    transform = np.eye(4)
+    if rotation is not None:
+        transform[:3, :3] = rotation
+    if translation is not None:
+        transform[:3, 3] = translation
+    return transform
+
+
+def inverse(transform: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid transform (transpose the rotation; no general matrix inversion)."""
+    result = np.eye(4)
+    rotation_t = transform[:3, :3].T
+    result[:3, :3] = rotation_t
+    result[:3, 3] = -rotation_t @ transform[:3, 3]
+    return result
+
+
+def quaternion_to_matrix(q: Sequence[float]) -> np.ndarray:
+    """3x3 rotation of a quaternion ``(x, y, z, w)``; normalised first."""
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def matrix_to_quaternion(rotation: np.ndarray) -> np.ndarray:
+    """Quaternion ``(x, y, z, w)`` with ``w >= 0`` of a 3x3 rotation (Shepperd's method, stable for
+    every angle)."""
+    m = rotation
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    if trace > 0:
+        s = 2.0 * math.sqrt(1.0 + trace)
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
+    quaternion = np.array(q)
+    quaternion /= np.linalg.norm(quaternion)
+    return -quaternion if quaternion[3] < 0 else quaternion
+
+
+def from_pose(translation: Sequence[float], quaternion: Sequence[float]) -> np.ndarray:
+    """4x4 transform of a translation and a quaternion ``(x, y, z, w)`` (a ROS Pose)."""
+    return make(quaternion_to_matrix(quaternion), translation)
+
+
+def to_pose(transform: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(translation, quaternion ``(x, y, z, w)``) of a 4x4 transform."""
+    return transform[:3, 3].copy(), matrix_to_quaternion(transform[:3, :3])
+
+
+def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """3x3 rotation of URDF's fixed-axis roll, pitch, yaw: ``Rz(yaw) Ry(pitch) Rx(roll)``."""
+    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
+                              math.cos(yaw), math.sin(yaw))
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def axis_angle(axis: Sequence[float], angle: float) -> np.ndarray:
+    """3x3 rotation of ``angle`` radians about the unit ``axis`` (Rodrigues)."""
+    x, y, z = axis
+    c, s = math.cos(angle), math.sin(angle)
+    t = 1.0 - c
+    return np.array([
+        [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+        [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+        [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+    ])
+
+
+def slerp(q0: np.ndarray, q1: np.ndarray, fraction: float) -> np.ndarray:
+    """Spherical linear interpolation between unit quaternions, along the shorter arc."""
+    dot = float(np.dot(q0, q1))
+    if dot < 0.0:
+        q1, dot = -q1, -dot
+    if dot > 0.9995:  # nearly parallel: linear interpolation is exact enough and stable
+        result = q0 + fraction * (q1 - q0)
+        return result / np.linalg.norm(result)
+    theta = math.acos(dot)
+    sin_theta = math.sin(theta)
+    return (math.sin((1.0 - fraction) * theta) * q0 + math.sin(fraction * theta) * q1) / sin_theta
+
+
+def interpolate(a: np.ndarray, b: np.ndarray, fraction: float) -> np.ndarray:
+    """Transform ``fraction`` of the way from ``a`` to ``b``: linear translation, slerp rotation."""
+    translation = a[:3, 3] + fraction * (b[:3, 3] - a[:3, 3])
+    rotation = quaternion_to_matrix(slerp(matrix_to_quaternion(a[:3, :3]), matrix_to_quaternion(b[:3, :3]),
+                                          fraction))
+    return make(rotation, translation)
+
+
+def denavit_hartenberg(d: float, theta: float, r: float, alpha: float) -> np.ndarray:
+    """Transform of classic Denavit-Hartenberg parameters: ``Rz(theta) Tz(d) Tx(r) Rx(alpha)``."""
+    ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
+    return np.array([
+        [ct, -st * ca, st * sa, r * ct],
+        [st, ct * ca, -ct * sa, r * st],
+        [0.0, sa, ca, d],
+        [0.0, 0.0, 0.0, 1.0],
+    ])
+
+
+def as_transform(value: np.ndarray | Sequence[Sequence[float]]) -> np.ndarray:
+    """Check and copy a 4x4 rigid transform given by a caller; a clear error otherwise.
+
+    On the write path of every edge update, so the checks avoid ``np.allclose`` (10x slower).
+    """
+    matrix = np.array(value, dtype=float)
+    if matrix.shape != (4, 4):
+        raise ValueError(f"expected a 4x4 homogeneous transform, got shape {matrix.shape}")
+    bottom = matrix[3]
+    if abs(bottom[0]) + abs(bottom[1]) + abs(bottom[2]) + abs(bottom[3] - 1.0) > 1e-9:
+        raise ValueError(f"the last row of a homogeneous transform must be 0 0 0 1, got {bottom}")
+    rotation = matrix[:3, :3]
+    if float(np.abs(rotation @ rotation.T - _EYE3).max()) > 1e-6:
+        raise ValueError("the rotation part of the transform is not orthonormal")
+    return matrix
+
+
+_EYE3 = np.eye(3)
