@@ -27,6 +27,7 @@ setup(
             'CsvRecorder = coco_core.demo.csv_recorder:CsvRecorder',
             'RangeMonitor = coco_core.demo.range_monitor:RangeMonitor',
             'Supervisor = coco_core.demo.supervisor:Supervisor',
+            'TransformationInterface = coco_core.transforms.interface:TransformationInterface',
         ],
     },
 )

@@ -53,7 +53,7 @@ def test_ctrl_c_stops_within_a_second_and_flushes(coco_launch: Path, tmp_path: P
     finally:
         process.kill()
     assert process.returncode == 0, out
-    stopped = re.search(r"application demo_pipeline stopped in ([0-9.]+) s \(clean\)", out)
+    stopped = re.search(r"application demo_pipeline stopped ([0-9.]+) s after the request \(clean\)", out)
     assert stopped, out
     assert float(stopped.group(1)) < 1.0
     assert "received SIGINT" in out

@@ -17,6 +17,7 @@ from .errors import CocoError, did_you_mean
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from .ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
 from .scheduling import available_cores
+from .transforms.graph import TransformGraph
 
 log = logging.getLogger("coco")
 
@@ -47,10 +48,13 @@ class Application:
         self.activities: dict[str, Activity] = {}
         self.connections: list[Connection] = []
         self._stop_requested = threading.Event()
+        self._stop_requested_at = 0.0
         self.stop_reason = ""
         self._started = False
         self._stopped = False
         self.started_at = 0.0
+        self.transforms = TransformGraph()
+        """The application's transformation graph, shared by every component (thread-safe)."""
 
     # --- composition ----------------------------------------------------------------------------
     def add(self, component: Component, activity: Activity | str | None = None) -> Component:
@@ -223,6 +227,7 @@ class Application:
         """Ask every activity to stop; returns at once (safe from signal handlers and components)."""
         if not self._stop_requested.is_set():
             self.stop_reason = reason
+            self._stop_requested_at = time.monotonic()
             log.info("stopping application %s: %s", self.name, reason)
         self._stop_requested.set()
         for activity in self.activities.values():
@@ -252,8 +257,8 @@ class Application:
                           activity.name, timeout, where)
         for component in self.unscheduled():
             component.stop()
-        log.info("application %s stopped in %.3f s (%s)", self.name, timeout - (deadline - time.monotonic()),
-                 "clean" if clean else "some activities did not stop")
+        log.info("application %s stopped %.3f s after the request (%s)", self.name,
+                 time.monotonic() - self._stop_requested_at, "clean" if clean else "some activities did not stop")
         return clean
 
     def set_period(self, activity: str, period: float) -> None:

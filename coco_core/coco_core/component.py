@@ -36,6 +36,7 @@ from .stamps import Stamp
 if TYPE_CHECKING:
     from .activity import Activity
     from .application import Application
+    from .transforms.graph import TransformGraph
 
 log = logging.getLogger("coco")
 
@@ -195,6 +196,14 @@ class Component:
         if self.app is None:
             raise CocoError(f"component {self.name} is not part of an application")
         return self.app.component(name)
+
+    @property
+    def transform_graph(self) -> TransformGraph:
+        """The application's transformation graph (thread-safe: read and write it from any activity)."""
+        if self.app is None:
+            raise CocoError(f"component {self.name} is not part of an application, so it has no "
+                            "transformation graph")
+        return self.app.transforms
 
     # --- attributes -----------------------------------------------------------------------------
     def set_attribute_now(self, name: str, value: Any) -> None:

@@ -1,0 +1,99 @@
+"""TransformationInterface: the component that connects the transformation graph to the data flow.
+
+Transforms and joint states arriving on its ports update the application's graph (a URDF robot is
+updated in bulk through Pinocchio); chosen lookups are published on output ports whenever an edge on
+their path changes; other components may also call its ``lookup`` operation from any activity.
+"""
+
+from __future__ import annotations
+
+import logging
+import numpy as np
+
+from ..attributes import Attribute
+from ..component import Component
+from ..operations import current_activity, operation
+from ..ports import InputPort, OutputPort
+from .graph import Query, TransformError
+from .samples import FramePose, JointSample, TransformSample
+
+log = logging.getLogger("coco.transforms")
+
+
+def parse_output(spec: str) -> tuple[str, str, str]:
+    """``"port=target:source"`` -> (port, target, source)."""
+    port, equals, pair = spec.partition("=")
+    target, colon, source = pair.partition(":")
+    if not (equals and colon and port.strip() and target.strip() and source.strip()):
+        raise ValueError(f"output {spec!r} must look like port=target:source (e.g. gripper=base:left_gripper)")
+    return port.strip(), target.strip(), source.strip()
+
+
+def _check_outputs(specs: list[str]) -> str | None:
+    for spec in specs:
+        try:
+            parse_output(spec)
+        except ValueError as error:
+            return str(error)
+    return None
+
+
+class TransformationInterface(Component):
+    """Feeds the transformation graph from ports and publishes lookups on ports."""
+
+    urdf = Attribute(str, "", "URDF file or package:// URL to load into the graph; empty for none")
+    prefix = Attribute(str, "", "prefix added to the URDF's frame names (several robots in one graph)")
+    outputs = Attribute(list[str], [], "lookups to publish, each 'port=target:source' (T_target_source)",
+                        check=_check_outputs)
+
+    transform = InputPort(object, event=True, doc="TransformSample, or a list of them, to write into the graph")
+    joints = InputPort(JointSample, event=True, doc="joint values applied to axis edges and URDF models")
+
+    def init(self) -> None:
+        if self.urdf:
+            from .urdf import load_urdf
+
+            self.model = load_urdf(self.transform_graph, self.urdf, prefix=self.prefix)
+        self._lookups: list[tuple[OutputPort, str, str]] = []
+        for spec in self.outputs:
+            port, target, source = parse_output(spec)
+            self._lookups.append((self.add_output(port, FramePose, f"T_{target}_{source}"), target, source))
+        self._pending = list(self._lookups)
+
+    def on_update(self) -> None:
+        graph = self.transform_graph
+        for item in self.transform.read_all():
+            for sample in item if isinstance(item, (list, tuple)) else (item,):
+                graph.set_transform(sample.parent, sample.child, sample.transform, sample.stamp)
+        for joints in self.joints.read_all():
+            graph.set_joints(joints.as_mapping())
+        if self._pending:
+            self._subscribe_pending()
+
+    def _subscribe_pending(self) -> None:
+        """Bind each output to its query once its path exists (frames may appear after start)."""
+        still_pending = []
+        for port, target, source in self._pending:
+            try:
+                query = self.transform_graph.query(target, source)
+            except TransformError:
+                still_pending.append((port, target, source))
+                continue
+            query.on_change(lambda value, port=port, query=query: self._publish(port, query, value))
+            self._publish(port, query, query.current())
+        self._pending = still_pending
+
+    def _publish(self, port: OutputPort, query: Query, value: np.ndarray) -> None:
+        """Write in this component's thread: callbacks run in whichever thread changed the graph."""
+        pose = FramePose(query.target, query.source, value)
+        activity = self.activity
+        if activity is None or current_activity() is activity or not activity.running:
+            port.write(pose)
+        else:
+            activity.enqueue(lambda: port.write(pose))
+
+    @operation
+    def lookup(self, target: str, source: str, time: float | None = None) -> np.ndarray:
+        """``T_target_source`` now, or interpolated at ``time``."""
+        return self.transform_graph.lookup(target, source, time)
+

@@ -1,0 +1,43 @@
+"""What flows on ports into and out of the transformation graph.
+
+Plain frozen dataclasses with numpy payloads, so that vision, haptics and ROS bridges can all feed the
+graph without knowing each other; conversions from ROS messages live in ``coco_ros``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, slots=True)
+class TransformSample:
+    """``T_parent_child`` measured at ``stamp`` (seconds; the graph's time base, e.g. ROS time)."""
+
+    parent: str
+    child: str
+    transform: np.ndarray
+    stamp: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class JointSample:
+    """Joint values by name, as in a sensor_msgs/JointState."""
+
+    names: tuple[str, ...]
+    positions: np.ndarray
+    stamp: float | None = None
+
+    def as_mapping(self) -> dict[str, float]:
+        return dict(zip(self.names, self.positions.tolist()))
+
+
+@dataclass(frozen=True, slots=True)
+class FramePose:
+    """The result of a lookup: ``T_target_source`` (the pose of ``source`` in ``target``)."""
+
+    target: str
+    source: str
+    transform: np.ndarray
+    stamp: float | None = None

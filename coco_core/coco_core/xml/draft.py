@@ -1,0 +1,48 @@
+"""The application as it is being read, before the checks that need all of it.
+
+Files are read in document order (an included file where its ``<include>`` stands), but a
+connection may name a component defined further down or in another file, and a ``type="file"``
+attribute is searched in resource paths declared anywhere. So the element readers only append to
+a :class:`Draft`, noting what must be checked later; :mod:`.references` checks it as a whole.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..errors import Location
+from ..model import ActivitySpec, AttributeSpec, ComponentSpec, ConnectionSpec, LogSpec, PortRef
+
+
+@dataclass
+class Scheduled:
+    """One component named by an activity or pipeline, and where."""
+
+    component: str
+    activity: str
+    location: Location
+
+
+@dataclass
+class FileAttribute:
+    """A ``type="file"`` attribute and the directory of the file that holds it."""
+
+    spec: AttributeSpec
+    directory: str
+
+
+@dataclass
+class Draft:
+    """Everything read so far, in document order."""
+
+    components: list[ComponentSpec] = field(default_factory=list)
+    connections: list[ConnectionSpec] = field(default_factory=list)
+    activities: list[ActivitySpec] = field(default_factory=list)
+    paths: list[str] = field(default_factory=list)
+    log: LogSpec | None = None
+    scheduled: list[Scheduled] = field(default_factory=list)
+    file_attributes: list[FileAttribute] = field(default_factory=list)
+    pipeline_inputs: list[PortRef] = field(default_factory=list)
+    """The input port of each pipeline's first stage: connections into it wake the pipeline."""
+    activity_count: int = 0
+    pipeline_count: int = 0

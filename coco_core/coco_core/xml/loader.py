@@ -1,0 +1,293 @@
+"""Load an application file: read it and its includes in document order, then check it as a whole.
+
+An included file is read where its ``<include>`` stands, so its components, connections,
+activities, paths and args come in the result where the include is, and the args it declares are
+visible after it. Errors are collected across all files and raised together; nothing is returned
+for a wrong application.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+from ..errors import ConfigError, ConfigErrors
+from ..model import AppSpec, LogSpec
+from .activities import read_activity
+from .arguments import Arguments
+from .components import ON_ERROR, read_component
+from .connections import read_connection
+from .draft import Draft
+from .pipeline import read_pipeline
+from .reader import CONDITIONS, FileReader
+from .references import check_draft
+from .resources import find_resource, not_found_message
+from .substitution import Substitutions
+from .tree import Element, parse_xml
+from .values import parse_int
+
+PACKAGE_ATTRIBUTES = ("name", "on_error")
+PACKAGE_CHILDREN = (
+    "activities",
+    "arg",
+    "components",
+    "connections",
+    "includes",
+    "log",
+    "logconfig",
+    "paths",
+    "resourcespaths",
+)
+LOG_CHILDREN = ("file", "levels", "outfile", "types")
+LOG_TYPES = ("debug", "err", "log")
+
+
+def load_application(
+    path: str | os.PathLike[str], args: Mapping[str, str] | None = None
+) -> AppSpec:
+    """The application described by the file at ``path``.
+
+    ``args`` gives values to the ``<arg>`` declarations (``name:=value`` on a command line).
+    Raises :class:`ConfigError` when the file cannot be read, and :class:`ConfigErrors` with every
+    error found (each pointing at a file and line) when its content is wrong.
+    """
+    file = os.path.abspath(os.fspath(path))
+    try:
+        data = Path(file).read_bytes()
+    except OSError as error:
+        raise ConfigError(f"cannot read application file {file}: {error.strerror}") from None
+    return _Loader(args or {}).load(data, file, os.path.dirname(file))
+
+
+def parse_application_string(
+    text: str, filename: str = "<string>", args: Mapping[str, str] | None = None
+) -> AppSpec:
+    """The application described by ``text``; ``filename`` only names it in errors.
+
+    Relative names in it (includes, paths, ``type="file"`` attributes, ``$(dirname)``) start from
+    the current directory.
+    """
+    return _Loader(args or {}).load(text, filename, os.getcwd())
+
+
+class _Loader:
+    """The state of one load: errors so far, args, the draft and the chain of open includes."""
+
+    def __init__(self, given_args: Mapping[str, str]) -> None:
+        self.errors: list[ConfigError] = []
+        self.arguments = Arguments(given_args)
+        self.substitutions = Substitutions(self.arguments.values)
+        self.draft = Draft()
+        self.include_chain: list[tuple[str, str]] = []
+        """(identity, name) of each file being read, outermost first, to detect include cycles."""
+        self.files: list[str] = []
+        """Every file opened, in order: errors are reported in this order, then by line."""
+        self.complete = True
+        """False once a file could not be read: checks across files would then only add noise."""
+
+    def load(self, data: bytes | str, file: str, directory: str) -> AppSpec:
+        name, on_error = Path(file).stem, "continue"
+        root = self._parse(data, file)
+        if root is not None:
+            reader = FileReader(directory, self.substitutions, self.errors)
+            self.include_chain.append((_identity(file), file))
+            values = self._package(reader, root, "", top=True)
+            name = values.get("name", "").strip() or name
+            on_error = values.get("on_error", "").strip() or on_error
+        if self.complete:
+            self.errors.extend(self.arguments.unknown_given())
+            self.errors.extend(check_draft(self.draft))
+        if self.errors:
+            raise ConfigErrors(sorted(self.errors, key=self._reading_order))
+        return AppSpec(
+            name=name,
+            file=file,
+            components=self.draft.components,
+            connections=self.draft.connections,
+            activities=self.draft.activities,
+            paths=self.draft.paths,
+            args=dict(self.arguments.values),
+            on_error=on_error,
+            log=self.draft.log,
+        )
+
+    def _reading_order(self, error: ConfigError) -> tuple[int, int]:
+        """Sort key: errors by file (in the order files were opened), then line; unplaced last."""
+        if error.location is None or error.location.file not in self.files:
+            return len(self.files), 0
+        return self.files.index(error.location.file), error.location.line
+
+    def _parse(self, data: bytes | str, file: str) -> Element | None:
+        self.files.append(file)
+        try:
+            return parse_xml(data, file)
+        except ConfigError as error:
+            self.errors.append(error)
+            self.complete = False
+            return None
+
+    def _package(
+        self, reader: FileReader, root: Element, on_error_default: str, *, top: bool = False
+    ) -> dict[str, str]:
+        """Read a ``<package>``; its checked attributes are returned for the top file to use.
+
+        The top file's ``on_error`` is the application's policy, which its components follow by
+        keeping "". An included file's ``on_error`` is the default of the components defined in it
+        (and in the files it includes), so that a sub-application can be stricter than the rest.
+        """
+        if root.tag != "package":
+            reader.error(f"the root element is <{root.tag}>; expected <package>", root)
+            return {}
+        for schema_attribute in [name for name in root.attributes if _is_schema_attribute(name)]:
+            del root.attributes[schema_attribute]
+        values = reader.attributes(root, PACKAGE_ATTRIBUTES)
+        own_on_error = reader.choice(root, values, "on_error", ON_ERROR, "")
+        on_error = "" if top else own_on_error or on_error_default
+        for child in reader.children(root, PACKAGE_CHILDREN):
+            if child.tag in ("log", "logconfig"):
+                self._log(reader, child)
+            elif child.tag in ("paths", "resourcespaths"):
+                self._paths(reader, child)
+            elif child.tag == "includes":
+                self._includes(reader, child, on_error)
+            elif child.tag == "arg":
+                if reader.kept(child):
+                    self.arguments.declare(reader, child)
+            elif child.tag == "components":
+                self._components(reader, child, on_error)
+            elif child.tag == "connections":
+                for connection in reader.container(child, ("connection",)):
+                    if reader.kept(connection):
+                        spec = read_connection(reader, connection)
+                        if spec is not None:
+                            self.draft.connections.append(spec)
+            else:
+                self._activities(reader, child, on_error)
+        return values
+
+    def _components(self, reader: FileReader, element: Element, on_error: str) -> None:
+        for child in reader.container(element, ("component",)):
+            if reader.kept(child):
+                spec = read_component(reader, child, self.draft, on_error)
+                if spec is not None:
+                    self.draft.components.append(spec)
+
+    def _activities(self, reader: FileReader, element: Element, on_error: str) -> None:
+        for child in reader.container(element, ("activity", "farm", "pipeline")):
+            if child.tag == "farm":
+                reader.error(
+                    "<farm> is not supported; build it from <pipeline> and <activity> elements",
+                    child,
+                )
+            elif reader.kept(child):
+                if child.tag == "activity":
+                    read_activity(reader, child, self.draft, on_error)
+                else:
+                    read_pipeline(reader, child, self.draft)
+
+    def _log(self, reader: FileReader, element: Element) -> None:
+        children = reader.container(element, LOG_CHILDREN)
+        if self.draft.log is not None:
+            reader.error(
+                f"<{element.tag}> is given a second time (the first is at {self.draft.log.location}); "
+                "an application has one log configuration",
+                element,
+            )
+            return
+        log = LogSpec(location=element.location)
+        # <file> named the C++ CoCo's log configuration file: it is read (so it is checked), unused.
+        for tag in LOG_CHILDREN:
+            child = reader.once(element, children, tag)
+            if child is None:
+                continue
+            text = reader.text(child)
+            if tag == "levels":
+                log.levels = self._log_levels(reader, child, text)
+            elif tag == "types":
+                log.types = self._log_types(reader, child, text)
+            elif tag == "outfile":
+                log.outfile = text
+        self.draft.log = log
+
+    @staticmethod
+    def _log_levels(reader: FileReader, element: Element, text: str) -> list[int]:
+        levels: list[int] = []
+        for word in text.split():
+            try:
+                levels.append(parse_int(word))
+            except ValueError:
+                reader.error(
+                    f"<levels> {word!r} is not valid; expected numbers separated by spaces", element
+                )
+        return levels
+
+    @staticmethod
+    def _log_types(reader: FileReader, element: Element, text: str) -> list[str]:
+        for word in text.split():
+            if word not in LOG_TYPES:
+                reader.error(
+                    f"<types> {word!r} is not valid; expected words among: {', '.join(LOG_TYPES)}",
+                    element,
+                )
+        return [word for word in text.split() if word in LOG_TYPES]
+
+    def _paths(self, reader: FileReader, element: Element) -> None:
+        """``<paths>``, or the per-activity layout's ``<resourcespaths>``, whose ``<librariespath>``
+        is one more resource path here (Python components are found by their package instead)."""
+        allowed = ("path",) if element.tag == "paths" else ("librariespath", "path")
+        for child in reader.container(element, allowed):
+            text = reader.text(child)
+            if text:
+                self.draft.paths.append(os.path.normpath(os.path.join(reader.directory, text)))
+            else:
+                reader.error(f"<{child.tag}> is empty; it names a directory", child)
+
+    def _includes(self, reader: FileReader, element: Element, on_error: str) -> None:
+        for include in reader.container(element, ("include",)):
+            if not reader.kept(include):
+                continue
+            name = reader.text(include, CONDITIONS)
+            if not name:
+                reader.error("<include> is empty; it names an application file", include)
+                continue
+            found, tried = find_resource(name, reader.directory, self.draft.paths)
+            if found is None:
+                reader.error(f"<include> {not_found_message(name, tried)}", include)
+                self.complete = False
+                continue
+            self._include(reader, include, found, on_error)
+
+    def _include(self, reader: FileReader, include: Element, file: str, on_error: str) -> None:
+        identity = _identity(file)
+        identities = [open_identity for open_identity, _ in self.include_chain]
+        if identity in identities:
+            cycle = [name for _, name in self.include_chain[identities.index(identity) :]]
+            reader.error(f"include cycle: {' -> '.join([*cycle, file])}", include)
+            return
+        try:
+            data = Path(file).read_bytes()
+        except OSError as error:
+            reader.error(f"cannot read included file {file}: {error.strerror}", include)
+            self.complete = False
+            return
+        root = self._parse(data, file)
+        if root is None:
+            return
+        self.include_chain.append((identity, file))
+        included = FileReader(os.path.dirname(file), self.substitutions, self.errors)
+        self._package(included, root, on_error)
+        self.include_chain.pop()
+
+
+def _identity(file: str) -> str:
+    """What makes two names the same file, for cycle detection (``<string>`` has no real path)."""
+    return os.path.realpath(file) if os.path.isabs(file) else file
+
+
+def _is_schema_attribute(name: str) -> bool:
+    """Prefix declarations and ``xsi:`` hints (``xsi:noNamespaceSchemaLocation="coco.xsd"``) are
+    for XML tools, so ``<package>`` accepts them without meaning anything by them. A default
+    namespace (``xmlns="..."``) is not accepted: it would put the elements in a namespace that
+    the schema does not have."""
+    return name.startswith(("xmlns:", "xsi:"))

@@ -1,0 +1,126 @@
+"""Checks that need the whole application: unique names, references that resolve, files that exist.
+
+They run once every file is read, because a file may refer to a component defined further down or
+in another file, and a ``type="file"`` attribute is searched in every resource path the application
+declares. They also complete what only the whole application tells: the absolute path of each
+``type="file"`` attribute, and ``event`` on connections that feed a pipeline.
+"""
+
+from __future__ import annotations
+
+from ..errors import ConfigError, Location, did_you_mean
+from ..model import ActivitySpec, ComponentSpec
+from .draft import Draft
+from .resources import find_resource, not_found_message
+
+
+def check_draft(draft: Draft) -> list[ConfigError]:
+    """Every error of the whole-application checks; completes ``draft`` as a side effect."""
+    errors: list[ConfigError] = []
+    instances, owners = _instances(draft.components, errors)
+    unknown_reported: set[tuple[str, Location | None]] = set()
+
+    def known(name: str, location: Location | None, what: str, valid: list[str]) -> bool:
+        if name in instances:
+            return True
+        if (name, location) not in unknown_reported:
+            unknown_reported.add((name, location))
+            message = f"{what} is not a defined component; {did_you_mean(name, valid)}"
+            errors.append(ConfigError(message, location))
+        return False
+
+    top_level = list(dict.fromkeys(spec.name for spec in draft.components))
+    first_scheduled: dict[str, tuple[str, Location]] = {}
+    for scheduled in draft.scheduled:
+        name, location = scheduled.component, scheduled.location
+        if not known(name, location, f'<component name="{name}">', top_level):
+            continue
+        if name in owners:
+            errors.append(ConfigError(
+                f"component {name!r} is a peer of {owners[name]!r}: peers are run by their owner "
+                "and cannot be scheduled",
+                location,
+            ))
+        elif name in first_scheduled:
+            activity, first = first_scheduled[name]
+            errors.append(ConfigError(
+                f"component {name!r} is already scheduled in activity {activity!r} at {first}; "
+                "a component runs in one activity",
+                location,
+            ))
+        else:
+            first_scheduled[name] = (scheduled.activity, location)
+
+    every_name = list(instances)
+    for connection in draft.connections:
+        for tag, ref in (("src", connection.src), ("dest", connection.dest)):
+            known(ref.component, ref.location, f'<{tag} task="{ref.component}">', every_name)
+
+    _check_activities(draft.activities, errors)
+    _resolve_files(draft, errors)
+    inputs = {(ref.component, ref.port) for ref in draft.pipeline_inputs}
+    for connection in draft.connections:
+        if connection.event is None and (connection.dest.component, connection.dest.port) in inputs:
+            connection.event = True
+    return errors
+
+
+def _instances(
+    components: list[ComponentSpec], errors: list[ConfigError]
+) -> tuple[dict[str, ComponentSpec], dict[str, str]]:
+    """Every component by instance name (reporting duplicates), and the owner of each peer."""
+    instances: dict[str, ComponentSpec] = {}
+    owners: dict[str, str] = {}
+    pending: list[tuple[ComponentSpec, str | None]] = [(c, None) for c in reversed(components)]
+    while pending:
+        spec, owner = pending.pop()
+        if spec.name in instances:
+            errors.append(ConfigError(
+                f"component name {spec.name!r} is already used at {instances[spec.name].location}; "
+                "instance names must be unique (give one of them a <name>)",
+                spec.location,
+            ))
+        else:
+            instances[spec.name] = spec
+            if owner is not None:
+                owners[spec.name] = owner
+        pending.extend((peer, spec.name) for peer in reversed(spec.peers))
+    return instances, owners
+
+
+def _check_activities(activities: list[ActivitySpec], errors: list[ConfigError]) -> None:
+    """Activity names are unique, and at most one activity takes the main thread."""
+    first_named: dict[str, ActivitySpec] = {}
+    main: ActivitySpec | None = None
+    for activity in activities:
+        if activity.name in first_named:
+            errors.append(ConfigError(
+                f"activity name {activity.name!r} is already used at "
+                f"{first_named[activity.name].location}",
+                activity.location,
+            ))
+        else:
+            first_named[activity.name] = activity
+        if activity.schedule.main:
+            if main is not None:
+                errors.append(ConfigError(
+                    f"activity {activity.name!r} asks for the main thread, which activity "
+                    f"{main.name!r} at {main.schedule.location} already has; only one can",
+                    activity.schedule.location,
+                ))
+            else:
+                main = activity
+
+
+def _resolve_files(draft: Draft, errors: list[ConfigError]) -> None:
+    """Turn each ``type="file"`` attribute into the absolute path of an existing file."""
+    for pending in draft.file_attributes:
+        spec = pending.spec
+        found, tried = find_resource(spec.value, pending.directory, draft.paths)
+        if found is None:
+            errors.append(ConfigError(
+                f'<attribute name="{spec.name}" type="file"> {not_found_message(spec.value, tried)}',
+                spec.location,
+            ))
+        else:
+            spec.value = found

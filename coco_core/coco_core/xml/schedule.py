@@ -1,0 +1,109 @@
+"""``<schedule>`` (``<schedulepolicy>`` in the per-activity layout): when and where an activity runs.
+
+Both spellings of the period (``period=`` and CoCo's older ``value=``) are accepted, in
+milliseconds. ``type`` may be left out: a period makes the activity periodic. ``runtime`` (a
+SCHED_DEADLINE budget in the C++ CoCo) is accepted and ignored, since DEADLINE is not available
+from Python.
+"""
+
+from __future__ import annotations
+
+from ..model import ScheduleSpec
+from .reader import FileReader
+from .tree import Element
+from .values import parse_bool, parse_cores, parse_int, parse_number
+
+COMMON_ATTRIBUTES = (
+    "activity",
+    "affinity",
+    "exclusive_affinity",
+    "nice",
+    "priority",
+    "realtime",
+    "runtime",
+)
+ACTIVITY_SCHEDULE_ATTRIBUTES = (*COMMON_ATTRIBUTES, "main", "period", "type", "value")
+PIPELINE_SCHEDULE_ATTRIBUTES = (*COMMON_ATTRIBUTES, "buffersize")
+"""A pipeline's stages are triggered by their input, so there is no type or period to give."""
+
+REALTIME = ("none", "FIFO", "RR")
+
+
+def read_schedule(reader: FileReader, element: Element, values: dict[str, str]) -> ScheduleSpec:
+    """The schedule described by ``values``, the already checked attributes of ``element``."""
+    kind, period = _activation(reader, element, values)
+    return ScheduleSpec(
+        type=kind,
+        period_ms=period,
+        activity=reader.choice(element, values, "activity", ("parallel", "sequential"), "parallel"),
+        main=bool(reader.parsed(element, values, "main", parse_bool)),
+        realtime=_realtime(reader, element, values),
+        priority=reader.parsed(element, values, "priority", parse_int),
+        nice=reader.parsed(element, values, "nice", _nice),
+        affinity=reader.parsed(element, values, "affinity", parse_cores) or [],
+        exclusive_affinity=reader.parsed(element, values, "exclusive_affinity", parse_cores) or [],
+        location=element.location,
+    )
+
+
+def _activation(
+    reader: FileReader, element: Element, values: dict[str, str]
+) -> tuple[str, float | None]:
+    """``type`` and the period in milliseconds, checked against each other."""
+    given = [name for name in ("period", "value") if values.get(name, "").strip()]
+    if len(given) > 1:
+        reader.error(
+            f"<{element.tag}> has both period= and value=; they are the same setting "
+            "(milliseconds): give one",
+            element,
+        )
+    attribute = given[0] if given else None
+    period = reader.parsed(element, values, attribute, _milliseconds) if attribute else None
+    if period == -1:  # the C++ CoCo's "no period"
+        attribute = period = None
+    kind = reader.choice(
+        element, values, "type", ("periodic", "triggered"), "periodic" if attribute else "triggered"
+    )
+    if kind == "periodic":
+        if attribute is None:
+            reader.error(
+                f'<{element.tag}> type="periodic" needs period= (milliseconds, greater than 0)',
+                element,
+            )
+        elif period is not None and period <= 0:
+            reader.error(
+                f'<{element.tag}> attribute {attribute}="{values[attribute]}": '
+                "expected a period greater than 0 milliseconds",
+                element,
+            )
+    elif attribute is not None:
+        reader.error(
+            f'<{element.tag}> attribute {attribute}="{values[attribute]}": a triggered activity '
+            'has no period (remove it, or make the activity type="periodic")',
+            element,
+        )
+        period = None
+    return kind, period
+
+
+def _realtime(reader: FileReader, element: Element, values: dict[str, str]) -> str:
+    if values.get("realtime", "").strip() == "DEADLINE":
+        reader.error(
+            f'<{element.tag}> attribute realtime="DEADLINE" is not available from Python '
+            "(the os module has no SCHED_DEADLINE); use FIFO or RR",
+            element,
+        )
+        return "none"
+    return reader.choice(element, values, "realtime", REALTIME, "none")
+
+
+def _milliseconds(text: str) -> float:
+    return parse_number(text, "a number of milliseconds")
+
+
+def _nice(text: str) -> int:
+    expected = "a nice value from -20 (most favourable) to 19"
+    value = parse_int(text, expected)
+    if not -20 <= value <= 19:
+        raise ValueError(expected)
+    return value
