@@ -34,7 +34,8 @@ class Activity:
     """Base of periodic and triggered activities."""
 
     kind = "activity"
-    _wake_on_enqueue = True
+    wakes_on_data = True
+    """Whether data arriving on an event port starts a cycle (triggered) or waits for one (periodic)."""
 
     def __init__(
         self,
@@ -71,9 +72,13 @@ class Activity:
             raise ValueError(f"component {component.name} is already in activity {component.activity.name}")
         component.activity = self
         self.components.append(component)
+        self._bind_wake(component)
+
+    def _bind_wake(self, component: Component) -> None:
+        """Let every input of ``component`` and its peers wake this activity (event ports use it)."""
         for member in component.walk():
             for port in member.inputs.values():
-                port.set_wake(self.wake)
+                port.set_wake(self.wake if self.wakes_on_data else None)
 
     @property
     def running(self) -> bool:
@@ -89,6 +94,8 @@ class Activity:
         if self._started:
             raise RuntimeError(f"activity {self.name} was already started")
         self._started = True
+        for component in self.components:  # ports and peers may have been added since add()
+            self._bind_wake(component)
         if not self.main:
             self._thread = threading.Thread(target=self.run_here, name=f"coco:{self.name}", daemon=True)
             self._thread.start()
@@ -136,8 +143,7 @@ class Activity:
     def enqueue(self, call: Callable[[], None]) -> None:
         """Queue ``call`` to run in this activity before its next cycle."""
         self._ops.append(call)
-        if self._wake_on_enqueue:
-            self._wake.set()
+        self.wake()
 
     def wake(self) -> None:
         """Ask a triggered activity for one more cycle (what event ports call on new data)."""
@@ -163,11 +169,12 @@ class PeriodicActivity(Activity):
     """Runs every ``period`` seconds on absolute deadlines: late cycles never shift later ones.
 
     A cycle that ends after the next deadline is an *overrun*; the deadlines it missed are skipped so
-    the activity stays on its time grid. Queued operations wait for the next deadline.
+    the activity stays on its time grid. Queued operations and data on event ports wait for the next
+    deadline.
     """
 
     kind = "periodic"
-    _wake_on_enqueue = False
+    wakes_on_data = False
 
     def __init__(self, name: str, period: float, components: Iterable[Component] = (), *,
                  spin: float = DEFAULT_SPIN, **options: object) -> None:
@@ -176,38 +183,58 @@ class PeriodicActivity(Activity):
             raise ValueError(f"activity {name}: the period must be positive, got {period}")
         self._period = period
         self.spin = spin
+        self._interrupt = threading.Event()
+        """Ends the coarse sleep early: a stop or a period change (data never does)."""
 
     @property
     def period(self) -> float:
         return self._period
 
     def set_period(self, period: float) -> None:
-        """Change the period at run time; the time grid restarts at the next cycle."""
+        """Change the period at run time: the next cycle comes ``period`` after the last one began
+        (at once if that is already past), and the time grid continues from there."""
         if period <= 0:
             raise ValueError(f"activity {self.name}: the period must be positive, got {period}")
         self._period = period
+        self._interrupt.set()
+
+    def wake(self) -> None:
+        """Data on an event port does not advance a periodic activity: it is read at the next cycle."""
+
+    def stop(self) -> None:
+        super().stop()
+        self._interrupt.set()
 
     def _loop(self) -> None:
         clock = time.perf_counter
-        wait = self._wake.wait
         stats = self.stats
         period = self._period
         deadline = clock()
         while not self._stopping:
             self._cycle()
-            if self._period != period:
-                period, deadline = self._period, clock()
             deadline += period
             now = clock()
             if now > deadline:
                 stats.overruns += 1
                 deadline += (int((now - deadline) / period) + 1) * period
-            remaining = deadline - now
-            if remaining > self.spin:
-                wait(remaining - self.spin)
-            while (now := clock()) < deadline and not self._stopping:
-                pass
-            stats.record_error(now - deadline)
+            woke = self._sleep_until(deadline)
+            while woke is None:  # interrupted: stopping, or a new period
+                if self._stopping:
+                    return
+                deadline, period = max(deadline - period + self._period, clock()), self._period
+                woke = self._sleep_until(deadline)
+            stats.record_error(woke - deadline)
+
+    def _sleep_until(self, deadline: float) -> float | None:
+        """Sleep coarsely, then spin to ``deadline``; the wake-up time, or None when interrupted."""
+        remaining = deadline - time.perf_counter()
+        if remaining > self.spin and self._interrupt.wait(remaining - self.spin):
+            self._interrupt.clear()
+            return None
+        while (now := time.perf_counter()) < deadline:
+            if self._stopping:
+                return None
+        return now
 
     def describe(self) -> str:
         return f"periodic {self._period * 1e3:g} ms"

@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from typing import get_args, get_origin
 from .activity import Activity, PeriodicActivity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
@@ -30,9 +31,16 @@ class WiringError(CocoError):
 
 
 def types_compatible(source: object, sink: object) -> bool:
-    """Whether values of port type ``source`` may flow into an input of port type ``sink``."""
+    """Whether values of port type ``source`` may flow into an input of port type ``sink``.
+
+    Generic types compare by their origin when either side is unparameterised
+    (``Stamped[float]`` flows into ``Stamped``); two parameterised types must be equal.
+    """
     if sink is object or source is object:
         return True
+    if get_args(source) and get_args(sink):
+        return source == sink
+    source, sink = get_origin(source) or source, get_origin(sink) or sink
     if isinstance(source, type) and isinstance(sink, type):
         return issubclass(source, sink)
     return source == sink

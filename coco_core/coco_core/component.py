@@ -93,6 +93,8 @@ class Component:
 
     def __init__(self, name: str | None = None, **attributes: Any) -> None:
         self.name = name or type(self).__name__
+        self.owner: Component | None = None
+        self._activity: Activity | None = None
         self._attribute_values: dict[str, Any] = {}
         self.inputs: dict[str, InputPort] = {}
         self.outputs: dict[str, OutputPort] = {}
@@ -103,9 +105,7 @@ class Component:
             for op_name, method in self._operation_decls.items()
         }
         self.peers: list[Component] = []
-        self.owner: Component | None = None
         self.app: Application | None = None
-        self._activity: Activity | None = None
         self.stats = ComponentStats()
         self.on_error: ErrorPolicy | None = None
         """None: the application's policy (continue when standalone)."""
@@ -145,6 +145,8 @@ class Component:
             raise CocoError(f"component {self.name}: port {port.name!r} declared twice")
         target: dict[str, Any] = self.inputs if isinstance(port, InputPort) else self.outputs
         target[port.name] = port
+        if isinstance(port, InputPort) and self.activity is not None and self.activity.wakes_on_data:
+            port.set_wake(self.activity.wake)
         # Declared ports shadow the class-level declaration of the same name.
         self.__dict__[port.name] = port
 
