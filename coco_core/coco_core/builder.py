@@ -73,9 +73,68 @@ class _Builder:
             return PeriodicActivity(spec.name, schedule.period_ms / 1e3, main=schedule.main, scheduling=request)
         return TriggeredActivity(spec.name, main=schedule.main, scheduling=request)
 
+    def install_transforms(self, app: Application) -> None:
+        """Install the declared ``<transforms>`` structure into ``app.transforms``.
+
+        This runs before any component is added, because ``app.add`` runs ``init()``, where components
+        look frames up or load their own URDFs into the graph. Strictness is switched on last: it
+        governs what components write, not what the file declares. Whatever the graph refuses (a URDF
+        that cannot be found or parsed, an edge that clashes with a URDF joint) is reported at the
+        element that asked for it.
+        """
+        spec = self.spec.transforms
+        if spec is None:
+            return
+        import numpy as np
+
+        from .transforms import AxisEdge
+
+        graph = app.transforms
+        if spec.history is not None:
+            graph.history = spec.history
+        for frame in spec.frames:
+            graph.add_frame(frame.name)
+        for edge in spec.edges:
+            try:
+                if edge.kind == "static":
+                    graph.add_static(edge.parent, edge.child, np.array(edge.origin))
+                elif edge.kind == "dynamic":
+                    graph.add_dynamic(edge.parent, edge.child, edge.history)
+                elif edge.dh is not None:
+                    graph.add_edge(AxisEdge.from_dh(edge.parent, edge.child, edge.joint, edge.joint_type,
+                                                    *edge.dh, value=edge.value))
+                else:
+                    graph.add_axis(edge.parent, edge.child, edge.joint, edge.joint_type,
+                                   np.array(edge.origin), edge.axis, edge.value)
+            except (CocoError, LookupError, ValueError) as error:
+                self.fail(f"<{edge.kind}> {edge.name}: {error}", edge)
+        # Which element declares each joint name: a value given by name must drive one joint only.
+        joints = {edge.joint: f"<axis> {edge.name} at {edge.location}"
+                  for edge in spec.edges if edge.kind == "axis"}
+        for urdf in spec.urdfs:
+            try:
+                from .transforms.urdf import load_urdf
+
+                # joint_prefix only when given: the call then also suits a load_urdf without it.
+                extra = {"joint_prefix": urdf.joint_prefix} if urdf.joint_prefix else {}
+                model = load_urdf(graph, urdf.file, name=urdf.name or None, prefix=urdf.prefix, **extra)
+                for joint in model.joint_names:
+                    if joint in joints:
+                        self.fail(f"<urdf> {urdf.file}: joint {joint!r} of the robot is also declared by "
+                                  f"{joints[joint]}; joint names are unique (give the robot a joint_prefix=)",
+                                  urdf)
+                    else:
+                        joints[joint] = f"<urdf> {urdf.file} at {urdf.location}"
+                if urdf.attach:
+                    graph.add_static(urdf.attach, model.frame(model.root_link), np.array(urdf.origin))
+            except (CocoError, LookupError, ValueError, OSError, ImportError) as error:
+                self.fail(f"<urdf> {error}", urdf)
+        graph.strict = spec.strict
+
     def build(self) -> Application:
         spec = self.spec
         app = Application(spec.name or Path(spec.file).stem, on_error=ErrorPolicy(spec.on_error or "continue"))
+        self.install_transforms(app)
         components = [c for c in map(self.instantiate, spec.components) if c is not None]
         self.check()
         by_name = {c.name: s for c, s in zip(components, spec.components)}

@@ -126,7 +126,6 @@ def run(options: argparse.Namespace) -> int:
         return 2
     try:
         spec = load_application(options.app, parse_assignments(options.args))
-        configure_logging(spec.log, logging.getLevelName(options.log_level))
         app = build_application(spec)
     except CocoError as error:
         print(f"coco-launch: {error}", file=sys.stderr)
@@ -134,6 +133,7 @@ def run(options: argparse.Namespace) -> int:
     if options.check:
         print(describe(app))
         return 0
+    configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
     install_signal_handlers(app)
     printer = start_profile_printer(app, options.profile) if options.profile else None
     try:

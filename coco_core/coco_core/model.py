@@ -107,6 +107,89 @@ class LogSpec:
     location: Location | None = None
 
 
+def _identity() -> list[list[float]]:
+    return [[1.0 if row == column else 0.0 for column in range(4)] for row in range(4)]
+
+
+@dataclass
+class FrameSpec:
+    """``<frame name="..."/>`` in ``<transforms>``: a frame that exists even if no edge names it."""
+
+    name: str
+    location: Location | None = None
+
+
+@dataclass
+class EdgeSpec:
+    """A declared edge of the transformation graph: ``<static>``, ``<dynamic>`` or ``<axis>``.
+
+    ``origin`` is ``T_parent_child`` of a static edge, or the fixed origin of an axis edge, as a 4x4
+    homogeneous matrix in nested lists (the loader computes it from ``xyz``/``rpy``/``quaternion``),
+    so that the model stays plain data.
+    """
+
+    kind: str
+    """``static``, ``dynamic`` or ``axis`` (the values of :class:`~coco_core.transforms.EdgeKind`)."""
+    parent: str
+    child: str
+    origin: list[list[float]] = field(default_factory=_identity)
+    joint: str = ""
+    """Axis edges: the joint name that drives the edge (``set_joint``, JointState names)."""
+    joint_type: str = ""
+    """Axis edges: ``revolute``, ``continuous`` or ``prismatic``."""
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    """Axis edges: the joint axis in the child frame (not normalised; the graph normalises it)."""
+    value: float = 0.0
+    """Axis edges: the initial joint value (radians or metres)."""
+    dh: tuple[float, float, float, float] | None = None
+    """Axis edges given by classic Denavit-Hartenberg parameters ``(d, theta, r, alpha)`` instead of
+    ``origin`` and ``axis``."""
+    history: int | None = None
+    """Dynamic edges: how many samples the edge keeps; None: the section's (or the graph's) default."""
+    location: Location | None = None
+
+    @property
+    def name(self) -> str:
+        return f"{self.parent}->{self.child}"
+
+
+@dataclass
+class UrdfSpec:
+    """``<urdf file=...>``: a robot whose joints join the graph, optionally attached to a frame."""
+
+    file: str
+    """An absolute path (the loader resolves relative ones) or a ``package://``/``file://`` URL."""
+    name: str = ""
+    """The model's name in the graph; empty: ``prefix`` + the robot's name."""
+    prefix: str = ""
+    """Prepended to the URDF's link names to make frame names."""
+    joint_prefix: str = ""
+    """Prepended to the URDF's joint names (two copies of one robot in a graph)."""
+    attach: str = ""
+    """A frame the URDF's root link is joined to by a static edge; empty: not attached."""
+    origin: list[list[float]] = field(default_factory=_identity)
+    """``T_attach_root`` of that static edge."""
+    location: Location | None = None
+
+
+@dataclass
+class TransformsSpec:
+    """``<transforms>``: the declared structure of the application's transformation graph.
+
+    Present only when a file declares it; the sections of every file (includes too) are merged.
+    """
+
+    strict: bool = True
+    """Writing an edge that is not declared is an error (instead of creating a dynamic edge)."""
+    history: int | None = None
+    """Capacity of dynamic edges that do not give their own; None: the graph's default."""
+    frames: list[FrameSpec] = field(default_factory=list)
+    edges: list[EdgeSpec] = field(default_factory=list)
+    urdfs: list[UrdfSpec] = field(default_factory=list)
+    location: Location | None = None
+    """The first ``<transforms>`` element read."""
+
+
 @dataclass
 class AppSpec:
     """A whole application after includes, substitutions and conditions were applied."""
@@ -123,6 +206,8 @@ class AppSpec:
     """Final values of the ``<arg>`` declarations."""
     on_error: str = "continue"
     log: LogSpec | None = None
+    transforms: TransformsSpec | None = None
+    """The declared transformation graph structure; None when no file has ``<transforms>``."""
 
     def all_components(self) -> list[ComponentSpec]:
         """Every component, peers included, depth first."""

@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 import time as _time
 from collections import deque
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any, Callable, ContextManager, Iterable, Mapping
 
 import numpy as np
 
@@ -303,13 +303,30 @@ class TransformGraph:
                 self.structure_version += 1
             if isinstance(edge, DynamicEdge):
                 edge.assign(transform, _time.time() if stamp is None else stamp)
-            elif isinstance(edge, StaticEdge):
+            elif isinstance(edge, StaticEdge) and not self.strict:
                 edge.assign(transform)
+            elif isinstance(edge, StaticEdge):
+                raise TransformError(f"edge {edge.name} is declared static: a new calibration goes through "
+                                     "set_static(), samples only to dynamic edges")
             else:
-                raise TransformError(f"edge {edge.name} is a {edge.kind.value} edge driven by joint "
+                raise TransformError(f"edge {edge.name} is an {edge.kind.value} edge driven by joint "
                                      f"{getattr(edge, 'joint', '?')}: set its joint value instead")
             self.version += 1
         self._notify([edge])
+
+    def set_static(self, parent: str, child: str, transform: np.ndarray) -> None:
+        """Replace the value of a static edge (a new calibration), in either direction."""
+        with self._lock.write():
+            edge = self.edge(parent, child)
+            if not isinstance(edge, StaticEdge):
+                raise TransformError(f"edge {edge.name} is a {edge.kind.value} edge, not a static one")
+            edge.assign(transform if edge.parent == parent else se3.inverse(np.asarray(transform, dtype=float)))
+            self.version += 1
+        self._notify([edge])
+
+    def reading(self) -> ContextManager[None]:
+        """Hold the read lock: several lookups inside see one consistent state of the graph."""
+        return self._lock.read()
 
     def set_joint(self, joint: str, value: float) -> None:
         """Set one joint value (axis edge or joint of a kinematic model)."""
@@ -327,15 +344,19 @@ class TransformGraph:
         with self._lock.write():
             remaining = dict(values)
             for model in self._models.values():
+                before = model.version
                 unknown = set(model.set_positions(remaining))
-                if len(unknown) != len(remaining):
+                if model.version != before:  # same values again: no callbacks, caches stay valid
                     changed.append(model)
-                remaining = {name: value for name, value in remaining.items() if name in unknown}
+                if len(unknown) != len(remaining):
+                    remaining = {name: value for name, value in remaining.items() if name in unknown}
             for name in list(remaining):
                 edge = self._joints.get(name)
                 if edge is not None:
-                    edge.assign(remaining.pop(name))
-                    changed.append(edge)
+                    value = remaining.pop(name)
+                    if edge.value != value:
+                        edge.assign(value)
+                        changed.append(edge)
             if changed:
                 self.version += 1
         new = [name for name in remaining if name not in self._reported_unknown_joints]

@@ -9,9 +9,13 @@ a :class:`Draft`, noting what must be checked later; :mod:`.references` checks i
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from ..errors import Location
 from ..model import ActivitySpec, AttributeSpec, ComponentSpec, ConnectionSpec, LogSpec, PortRef
+
+if TYPE_CHECKING:
+    from .transforms import TransformsDraft
 
 
 @dataclass
@@ -44,5 +48,7 @@ class Draft:
     file_attributes: list[FileAttribute] = field(default_factory=list)
     pipeline_inputs: list[PortRef] = field(default_factory=list)
     """The input port of each pipeline's first stage: connections into it wake the pipeline."""
+    transforms: TransformsDraft | None = None
+    """The ``<transforms>`` sections read so far, merged; None while there is none."""
     activity_count: int = 0
     pipeline_count: int = 0

@@ -24,6 +24,7 @@ from .reader import CONDITIONS, FileReader
 from .references import check_draft
 from .resources import find_resource, not_found_message
 from .substitution import Substitutions
+from .transforms import read_transforms
 from .tree import Element, parse_xml
 from .values import parse_int
 
@@ -38,6 +39,7 @@ PACKAGE_CHILDREN = (
     "logconfig",
     "paths",
     "resourcespaths",
+    "transforms",
 )
 LOG_CHILDREN = ("file", "levels", "outfile", "types")
 LOG_TYPES = ("debug", "err", "log")
@@ -110,6 +112,7 @@ class _Loader:
             args=dict(self.arguments.values),
             on_error=on_error,
             log=self.draft.log,
+            transforms=self.draft.transforms.spec if self.draft.transforms is not None else None,
         )
 
     def _reading_order(self, error: ConfigError) -> tuple[int, int]:
@@ -156,6 +159,9 @@ class _Loader:
                     self.arguments.declare(reader, child)
             elif child.tag == "components":
                 self._components(reader, child, on_error)
+            elif child.tag == "transforms":
+                if reader.kept(child):
+                    self.draft.transforms = read_transforms(reader, child, self.draft.transforms)
             elif child.tag == "connections":
                 for connection in reader.container(child, ("connection",)):
                     if reader.kept(connection):

@@ -1,9 +1,10 @@
 """Checks that need the whole application: unique names, references that resolve, files that exist.
 
 They run once every file is read, because a file may refer to a component defined further down or
-in another file, and a ``type="file"`` attribute is searched in every resource path the application
-declares. They also complete what only the whole application tells: the absolute path of each
-``type="file"`` attribute, and ``event`` on connections that feed a pipeline.
+in another file, a ``type="file"`` attribute or a ``<urdf>`` file is searched in every resource path
+the application declares, and ``<transforms>`` sections of several files declare one graph. They
+also complete what only the whole application tells: the absolute path of each ``type="file"``
+attribute and ``<urdf>`` file, and ``event`` on connections that feed a pipeline.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from ..errors import ConfigError, Location, did_you_mean
 from ..model import ActivitySpec, ComponentSpec
 from .draft import Draft
 from .resources import find_resource, not_found_message
+from .transforms import check_transforms
 
 
 def check_draft(draft: Draft) -> list[ConfigError]:
@@ -58,6 +60,8 @@ def check_draft(draft: Draft) -> list[ConfigError]:
 
     _check_activities(draft.activities, errors)
     _resolve_files(draft, errors)
+    if draft.transforms is not None:
+        errors.extend(check_transforms(draft.transforms, draft.paths))
     inputs = {(ref.component, ref.port) for ref in draft.pipeline_inputs}
     for connection in draft.connections:
         if connection.event is None and (connection.dest.component, connection.dest.port) in inputs:
