@@ -62,6 +62,17 @@ build_workspace() {
         --event-handlers console_direct- console_stderr- summary+ >&2)
 }
 
+ensure_system_packages() {
+    # Chromium checks the transformation graph's web page; graphviz renders its DOT export.
+    local missing=()
+    command -v chromium >/dev/null 2>&1 || missing+=(chromium)
+    command -v dot >/dev/null 2>&1 || missing+=(graphviz)
+    if [ "${#missing[@]}" -gt 0 ]; then
+        apt_install "${missing[@]}"
+    fi
+}
+
+ensure_system_packages
 ensure_venv
 ensure_requirements
 set +u

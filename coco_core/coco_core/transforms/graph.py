@@ -59,6 +59,11 @@ class KinematicModel(Dependency):
     def joint_names(self) -> list[str]:
         raise NotImplementedError
 
+    @property
+    def positions(self) -> dict[str, float]:
+        """Current value of every moving joint, by name."""
+        raise NotImplementedError
+
 
 class ModelEdge(Edge):
     """An edge whose value comes from a :class:`KinematicModel` (a URDF joint, fixed or moving)."""
@@ -80,6 +85,8 @@ class ModelEdge(Edge):
     def describe(self) -> dict[str, Any]:
         described = super().describe()
         described.update(version=self.model.version, joint=self.joint, model=self.model.name)
+        if self.kind is EdgeKind.AXIS:
+            described["value"] = self.model.positions.get(self.joint)
         return described
 
 
@@ -154,7 +161,7 @@ class Query:
 
     def on_change(self, callback: Callback) -> Callable[[], None]:
         """Call ``callback(T_target_source)`` after any change on the path; returns an unsubscribe."""
-        self.graph.lookup(self.target, self.source)  # resolve the path, so its dependencies are known
+        self.graph._resolve_query(self)  # the path, so its dependencies are known (values may be missing)
         with self.graph._lock.write():
             self.callbacks.append(callback)
             for dependency in self.dependencies:
@@ -235,6 +242,7 @@ class TransformGraph:
                 self._models[edge.model.name] = edge.model
             self.structure_version += 1
             self.version += 1
+        self._notify([], structure_changed=True)
         return edge
 
     def add_static(self, parent: str, child: str, transform: np.ndarray = se3.IDENTITY) -> StaticEdge:
@@ -264,8 +272,7 @@ class TransformGraph:
                 self._joints.pop(edge.joint, None)
             self.structure_version += 1
             self.version += 1
-            changed = [edge]
-        self._notify(changed)
+        self._notify([edge], structure_changed=True)
 
     def edge(self, parent: str, child: str) -> Edge:
         """The edge between two frames, in either direction."""
@@ -293,6 +300,7 @@ class TransformGraph:
                 if self.strict:
                     raise TransformError(f"edge {parent}->{child} is not declared; declared edges: "
                                          f"{', '.join(sorted(e.name for e in self._edges.values())) or 'none'}")
+            created = edge is None
             if edge is None:
                 edge = DynamicEdge(parent, child, self.history)
                 self._add_frame(parent)
@@ -312,7 +320,7 @@ class TransformGraph:
                 raise TransformError(f"edge {edge.name} is an {edge.kind.value} edge driven by joint "
                                      f"{getattr(edge, 'joint', '?')}: set its joint value instead")
             self.version += 1
-        self._notify([edge])
+        self._notify([edge], structure_changed=created)
 
     def set_static(self, parent: str, child: str, transform: np.ndarray) -> None:
         """Replace the value of a static edge (a new calibration), in either direction."""
@@ -387,9 +395,10 @@ class TransformGraph:
             return self._product(steps, time)
 
     def query(self, target: str, source: str) -> Query:
-        """The cached query object for ``(target, source)``, e.g. to register callbacks."""
+        """The cached query object for ``(target, source)``, e.g. to register callbacks; raises when
+        there is no path yet (a dynamic edge on it may still be without a sample)."""
         query = self._queries.get((target, source)) or self._new_query(target, source)
-        self._refresh(query)
+        self._resolve_query(query)
         return query
 
     def path(self, target: str, source: str) -> list[str]:
@@ -401,20 +410,29 @@ class TransformGraph:
         query = Query(self, target, source)
         return self._queries.setdefault((target, source), query)
 
+    def _resolve_query(self, query: Query) -> None:
+        with self._lock.read():
+            self._resolve_path(query)
+
+    def _resolve_path(self, query: Query) -> None:
+        """(Re)compute the query's path after a structure change; the read lock is held."""
+        if query.structure_version == self.structure_version:
+            return
+        steps = self._resolve(query.target, query.source)
+        dependencies = tuple(dict.fromkeys(step.dependency for step in steps))
+        if query.callbacks:
+            for old in query.dependencies:
+                old.watchers.discard(query)
+            for new in dependencies:
+                new.watchers.add(query)
+        query.steps, query.dependencies = steps, dependencies
+        query.structure_version = self.structure_version
+        query.versions = ()
+
     def _refresh(self, query: Query) -> np.ndarray:
         with self._lock.read():
             version = self.version
-            if query.structure_version != self.structure_version:
-                steps = self._resolve(query.target, query.source)
-                dependencies = tuple(dict.fromkeys(step.dependency for step in steps))
-                if query.callbacks:
-                    for old in query.dependencies:
-                        old.watchers.discard(query)
-                    for new in dependencies:
-                        new.watchers.add(query)
-                query.steps, query.dependencies = steps, dependencies
-                query.structure_version = self.structure_version
-                query.versions = ()
+            self._resolve_path(query)
             versions = tuple(dependency.version for dependency in query.dependencies)
             if versions != query.versions:
                 query.value = self._product(query.steps, None)
@@ -474,17 +492,28 @@ class TransformGraph:
             index += 1
         return steps
 
-    def _notify(self, changed: Iterable[Dependency]) -> None:
-        """Run the callbacks of every query whose path went through a changed edge or model."""
+    def _notify(self, changed: Iterable[Dependency], structure_changed: bool = False) -> None:
+        """Run the callbacks of every query whose path went through a changed edge or model.
+
+        After a structure change every query with callbacks is looked up again: its path may now be
+        shorter or different, and its callbacks must follow the new path from now on.
+        """
         queries: dict[int, Query] = {}
         for dependency in changed:
             for query in list(dependency.watchers):
                 queries[id(query)] = query
+        if structure_changed:
+            for query in list(self._queries.values()):
+                if query.callbacks:
+                    queries[id(query)] = query
         for query in queries.values():
+            before = query.value
             try:
                 value = self.lookup(query.target, query.source)
             except LookupError as error:
-                log.warning("query %s <- %s has no value after the change: %s", query.target, query.source, error)
+                log.debug("query %s <- %s has no value after the change: %s", query.target, query.source, error)
+                continue
+            if structure_changed and value is before:
                 continue
             for callback in list(query.callbacks):
                 try:

@@ -80,7 +80,10 @@ class TransformationInterface(Component):
                 still_pending.append((port, target, source))
                 continue
             query.on_change(lambda value, port=port, query=query: self._publish(port, query, value))
-            self._publish(port, query, query.current())
+            try:
+                self._publish(port, query, query.current())
+            except LookupError:  # a dynamic edge on the path has no sample yet: its first one calls back
+                pass
         self._pending = still_pending
 
     def _publish(self, port: OutputPort, query: Query, value: np.ndarray) -> None:

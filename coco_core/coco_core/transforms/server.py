@@ -1,0 +1,587 @@
+"""A diagnostics server for a transformation graph: REST, WebSocket streams and a small web page.
+
+Standard library only (``http.server``), bound to 127.0.0.1 by default::
+
+    server = TransformServer(graph).start()
+    print(server.url)          # open it in a browser
+    ...
+    server.stop()
+
+REST (GET, JSON unless said otherwise)
+
+- ``/api/graph``: the whole graph (:func:`.export.graph_dict`)
+- ``/api/frames``: ``{"frames": [...]}``
+- ``/api/edges``: ``{"edges": [...]}``
+- ``/api/lookup?target=a&source=b[&time=t]``: ``T_a_b`` as ``matrix``, ``translation``, ``quaternion``
+  (x, y, z, w) and the ``path`` walked; 404 with the error text and the valid frames when a frame is
+  unknown or no path joins them; 409 with the error text when the path has no value (a dynamic edge
+  without a sample, or a time outside its history); 400 when a parameter is missing or malformed
+- ``/api/graph.dot``: graphviz DOT (text)
+
+WebSocket (text messages, JSON)
+
+- ``/ws/transforms?target=a&source=b[&target=c&source=d...][&rate=hz]``: first the current value of
+  every pair, then each pair again whenever a change on its path gives it a new value, coalesced so
+  that a client gets at most ``rate`` messages a second (default and maximum: the server's ``rate``):
+  ``{"type": "transforms", "time": ..., "changes": n, "transforms": [{"target", "source", "matrix",
+  "translation", "quaternion"} | {"target", "source", "error"}]}``. ``changes`` counts the updates
+  coalesced into the message. Unknown frames or pairs without a path are refused (404) before the
+  upgrade; a pair whose path has no value yet (a dynamic edge without a sample) is reported with an
+  ``error`` and retried until it has one.
+- ``/ws/graph[?rate=hz]``: the whole graph, again whenever it changed, at most ``rate`` times a second:
+  ``{"type": "graph", "graph": {...}}``.
+
+Updates are driven by :meth:`Query.on_change` callbacks, which run in the thread that wrote the
+graph: the callback only stores the new value and wakes the connection's sender thread (about 1 us
+added to the write), so a 1 kHz joint loop is not slowed by clients and clients are not flooded.
+Structure changes (an edge added or removed) do not call back; each sender notices them from the
+graph's ``structure_version`` and looks its pairs up again, so a new shorter path takes over and a
+vanished one is reported as an ``error`` entry.
+
+``/`` serves the web page (files in ``web/`` beside this module): the frames as a tree with the
+edges' kinds and live values, and live lookups chosen on the page or in its URL
+(``/?target=a&source=b``, several pairs allowed).
+
+Security: the server only reads the graph. Bound to a loopback address it answers only requests
+whose ``Host`` is a loopback name (no DNS rebinding), and it accepts a WebSocket only from a page of
+the same origin (any web site could otherwise open a socket to localhost).
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import json
+import logging
+import socket
+import threading
+import time as _time
+from http import HTTPStatus
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from importlib import resources
+from typing import TYPE_CHECKING, Any, Callable
+from urllib.parse import parse_qs, urlsplit
+
+import numpy as np
+
+from . import export
+from .websocket import CLOSE_GOING_AWAY, WebSocket, WebSocketError, handshake_headers
+
+if TYPE_CHECKING:
+    from .graph import TransformGraph
+
+log = logging.getLogger("coco.transforms.server")
+
+WEB_FILES = {
+    "index.html": "text/html; charset=utf-8",
+    "app.js": "text/javascript; charset=utf-8",
+    "style.css": "text/css; charset=utf-8",
+}
+"""The page's files (in ``web/`` beside this module) and their content types."""
+
+ENDPOINTS = ["/", "/api/graph", "/api/frames", "/api/edges", "/api/lookup?target=A&source=B[&time=T]",
+             "/api/graph.dot", "/ws/transforms?target=A&source=B[&rate=HZ]", "/ws/graph[?rate=HZ]"]
+
+_LOOPBACK_NAMES = {"localhost", "localhost.localdomain", "ip6-localhost"}
+
+
+class _RequestError(Exception):
+    """An HTTP error answer: status and JSON body."""
+
+    def __init__(self, status: HTTPStatus, message: str, **extra: Any) -> None:
+        super().__init__(message)
+        self.status = status
+        self.body = {"error": message, **extra}
+
+
+def _is_loopback(host: str) -> bool:
+    host = host.strip("[]").lower()
+    if host in _LOOPBACK_NAMES:
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _hostname(authority: str) -> str:
+    """``host`` of ``host:port`` / ``[v6]:port`` / ``scheme://host:port``."""
+    if "://" in authority:
+        return (urlsplit(authority).hostname or "").lower()
+    return (urlsplit("//" + authority).hostname or "").lower()
+
+
+class TransformServer:
+    """REST + WebSocket + web page over one :class:`TransformGraph`, in background threads.
+
+    ``port=0`` picks a free port (see :attr:`url` after :meth:`start`); ``rate`` is the most
+    messages a second one WebSocket client gets.
+    """
+
+    def __init__(self, graph: TransformGraph, host: str = "127.0.0.1", port: int = 0, rate: float = 30.0) -> None:
+        if rate <= 0:
+            raise ValueError(f"rate must be > 0 messages per second, got {rate}")
+        self.graph = graph
+        self.host = host
+        self.port = port
+        self.rate = float(rate)
+        self._httpd: _HTTPServer | None = None
+        self._thread: threading.Thread | None = None
+        self._connections: set[_Connection] = set()
+        self._lock = threading.Lock()
+        self._stopping = False
+        self._web_cache: dict[str, bytes] = {}
+
+    # --- life cycle -----------------------------------------------------------------------------
+    def start(self) -> TransformServer:
+        """Bind and serve in a background thread; returns ``self``."""
+        if self._httpd is not None:
+            raise RuntimeError(f"the transform server already runs at {self.url}")
+        httpd = (_HTTPServer6 if ":" in self.host else _HTTPServer)((self.host, self.port), _Handler)
+        httpd.owner = self
+        self._httpd = httpd
+        self.port = httpd.server_address[1]
+        self._stopping = False
+        self._thread = threading.Thread(target=httpd.serve_forever, kwargs={"poll_interval": 0.05},
+                                        name=f"coco-transform-server:{self.port}", daemon=True)
+        self._thread.start()
+        log.info("transform server at %s", self.url)
+        return self
+
+    def stop(self, timeout: float = 1.0) -> None:
+        """Close every WebSocket (close frame 1001), stop serving and join the threads."""
+        httpd, thread = self._httpd, self._thread
+        if httpd is None or thread is None:
+            return
+        deadline = _time.monotonic() + timeout
+        with self._lock:
+            self._stopping = True
+            connections = list(self._connections)
+        httpd.shutdown()
+        for connection in connections:
+            connection.close(CLOSE_GOING_AWAY, "server stopping")
+        for connection in connections:
+            connection.join(max(0.0, deadline - _time.monotonic()))
+        httpd.server_close()
+        thread.join(max(0.0, deadline - _time.monotonic()))
+        if thread.is_alive() or any(connection.alive for connection in connections):
+            log.warning("transform server at %s: threads still running %.1f s after stop", self.url, timeout)
+        self._httpd = self._thread = None
+
+    def __enter__(self) -> TransformServer:
+        return self.start() if self._httpd is None else self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    @property
+    def url(self) -> str:
+        """``http://host:port/`` of the running server."""
+        if self._httpd is None:
+            raise RuntimeError("the transform server is not started: call start() first")
+        host = self.host if ":" not in self.host else f"[{self.host}]"
+        return f"http://{host}:{self.port}/"
+
+    @property
+    def clients(self) -> int:
+        """Number of open WebSocket connections."""
+        with self._lock:
+            return len(self._connections)
+
+    # --- helpers for the handler ------------------------------------------------------------------
+    def _web_file(self, name: str) -> bytes:
+        data = self._web_cache.get(name)
+        if data is None:
+            data = (resources.files(__package__) / "web" / name).read_bytes()
+            self._web_cache[name] = data
+        return data
+
+    def _register(self, connection: _Connection) -> bool:
+        with self._lock:
+            if self._stopping:
+                return False
+            self._connections.add(connection)
+            return True
+
+    def _unregister(self, connection: _Connection) -> None:
+        with self._lock:
+            self._connections.discard(connection)
+
+    def __repr__(self) -> str:
+        state = self.url if self._httpd is not None else "stopped"
+        return f"<TransformServer {state}>"
+
+
+class _HTTPServer(ThreadingHTTPServer):
+    daemon_threads = True
+    block_on_close = False  # stop() joins the WebSocket threads itself, with a time limit
+    owner: TransformServer
+
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        log.debug("transform server: error with client %s", client_address, exc_info=True)
+
+
+class _HTTPServer6(_HTTPServer):
+    address_family = socket.AF_INET6
+
+
+# --- streams --------------------------------------------------------------------------------------
+def _entry(target: str, source: str, value: np.ndarray | str) -> dict[str, Any]:
+    if isinstance(value, str):
+        return {"target": target, "source": source, "error": value}
+    return {"target": target, "source": source, **export.pose(value)}
+
+
+def _same(a: np.ndarray | str | None, b: np.ndarray | str | None) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and (a is b or bool(np.array_equal(a, b)))
+    return a == b
+
+
+class _Connection:
+    """One WebSocket client: the handler thread reads its frames, a sender thread writes updates."""
+
+    def __init__(self, server: TransformServer, ws: WebSocket, sock: socket.socket, rate: float) -> None:
+        self.server = server
+        self.ws = ws
+        self.socket = sock
+        self.interval = 1.0 / rate
+        self.wake = threading.Event()
+        self.reader: threading.Thread = threading.current_thread()
+        self.sender = threading.Thread(target=self._send_loop, name=f"coco-transform-ws-{id(self):x}", daemon=True)
+        self.sent = 0
+
+    @property
+    def alive(self) -> bool:
+        return self.reader.is_alive() or self.sender.is_alive()
+
+    def run(self) -> None:
+        """In the handler thread: start sending, read until the client closes, then clean up."""
+        self.sender.start()
+        try:
+            while self.ws.receive() is not None:
+                pass  # clients have nothing to say yet; pings are answered by receive()
+        finally:
+            self.ws.closed.set()
+            self.wake.set()
+            self.sender.join()
+            self.cleanup()
+            self.server._unregister(self)
+
+    def close(self, code: int, reason: str) -> None:
+        """From another thread (server stop): send a close frame and unblock the reader."""
+        self.ws.close(code, reason, timeout=0.2)  # the sender may be stuck on a client that stopped reading
+        self.wake.set()
+        try:
+            self.socket.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+
+    def join(self, timeout: float) -> None:
+        deadline = _time.monotonic() + timeout
+        for thread in (self.sender, self.reader):
+            if thread is not threading.current_thread() and thread.ident is not None:
+                thread.join(max(0.0, deadline - _time.monotonic()))
+
+    def _send_loop(self) -> None:
+        try:
+            self.send_loop()
+        except Exception:  # a bug here must not pass silently, nor take the server down
+            log.exception("transform server: WebSocket sender failed")
+            self.close(1011, "server error")
+        finally:  # the client closed, or a send failed: either way the reader must not wait on
+            self.ws.closed.set()
+            try:
+                self.socket.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def _throttle(self, last: float) -> bool:
+        """Sleep until ``interval`` after ``last``; False when the connection closed meanwhile."""
+        delay = last + self.interval - _time.monotonic()
+        if delay > 0:
+            self.ws.closed.wait(delay)
+        return not self.ws.closed.is_set()
+
+    def send(self, message: dict[str, Any]) -> bool:
+        ok = self.ws.send_text(json.dumps(export.jsonable(message), allow_nan=False))
+        self.sent += ok
+        return ok
+
+    def send_loop(self) -> None:
+        raise NotImplementedError
+
+    def cleanup(self) -> None:
+        pass
+
+
+class _TransformStream(_Connection):
+    """Values of some ``(target, source)`` lookups, pushed when they change, throttled."""
+
+    def __init__(self, server: TransformServer, ws: WebSocket, sock: socket.socket, rate: float,
+                 pairs: list[tuple[str, str]]) -> None:
+        super().__init__(server, ws, sock, rate)
+        self.pairs = pairs
+        self._lock = threading.Lock()
+        self._pending: dict[tuple[str, str], np.ndarray | str] = {}  # a value, or why there is none
+        self._changes = 0
+        self._unsubscribers: list[Callable[[], None]] = []
+        self._waiting: dict[tuple[str, str], str] = {}  # pairs without a value yet, and why
+        self._sent: dict[tuple[str, str], np.ndarray | str] = {}  # the last value sent of each pair
+
+    def _callback(self, pair: tuple[str, str]) -> Callable[[np.ndarray], None]:
+        def changed(value: np.ndarray) -> None:  # runs in the writer's thread: keep it tiny
+            with self._lock:
+                self._pending[pair] = value
+                self._changes += 1
+            self.wake.set()
+        return changed
+
+    def _subscribe(self, pair: tuple[str, str]) -> bool:
+        graph = self.server.graph
+        try:  # fails while there is no path between the two frames
+            unsubscribe = graph.query(*pair).on_change(self._callback(pair))
+        except LookupError as error:
+            self._waiting[pair] = str(error)
+            return False
+        with self._lock:
+            self._unsubscribers.append(unsubscribe)
+        self._waiting.pop(pair, None)
+        value: np.ndarray | str
+        try:
+            value = graph.lookup(*pair)
+        except LookupError as error:  # e.g. a dynamic edge without a sample yet: the first one calls back
+            value = str(error)
+        with self._lock:
+            self._pending.setdefault(pair, value)
+        return True
+
+    def _structure_changed(self) -> None:
+        """Look the subscribed pairs up again after frames or edges were added: a lookup moves a
+        query's callbacks to its new path (a shorter one may exist now), and may change its value."""
+        graph = self.server.graph
+        for pair in dict.fromkeys(self.pairs):
+            if pair in self._waiting:
+                continue
+            value: np.ndarray | str
+            try:
+                value = graph.lookup(*pair)
+            except LookupError as error:  # e.g. an edge of its path was removed
+                value = str(error)
+            with self._lock:
+                if pair not in self._pending and not _same(value, self._sent.get(pair)):
+                    self._pending[pair] = value
+
+    def send_loop(self) -> None:
+        graph = self.server.graph
+        structure = graph.structure_version
+        for pair in dict.fromkeys(self.pairs):
+            self._subscribe(pair)
+        last = 0.0
+        first = True
+        while not self.ws.closed.is_set():
+            if not first:
+                # wake on a change, or every interval to retry pairs without a value and to notice
+                # structure changes (which do not call back)
+                self.wake.wait(self.interval)
+                if not self._throttle(last):
+                    break
+            self.wake.clear()
+            for pair in list(self._waiting):
+                self._subscribe(pair)
+            if graph.structure_version != structure:
+                structure = graph.structure_version
+                self._structure_changed()
+            with self._lock:
+                pending, self._pending = self._pending, {}
+                changes, self._changes = self._changes, 0
+            self._sent.update(pending)
+            entries = [_entry(*pair, value) for pair, value in pending.items()]
+            if first:
+                entries += [{"target": t, "source": s, "error": why} for (t, s), why in self._waiting.items()]
+            if entries:
+                if not self.send({"type": "transforms", "time": _time.time(), "changes": changes,
+                                  "transforms": entries}):
+                    break
+                last = _time.monotonic()
+            first = False
+
+    def cleanup(self) -> None:
+        with self._lock:
+            unsubscribers, self._unsubscribers = self._unsubscribers, []
+        for unsubscribe in unsubscribers:
+            unsubscribe()
+
+
+class _GraphStream(_Connection):
+    """The whole graph, sent again whenever its version changed, throttled."""
+
+    def send_loop(self) -> None:
+        graph = self.server.graph
+        version = None
+        while True:
+            if graph.version != version:
+                version = graph.version
+                if not self.send({"type": "graph", "graph": export.graph_dict(graph)}):
+                    break
+            if self.ws.closed.wait(self.interval):
+                break
+
+
+# --- HTTP ---------------------------------------------------------------------------------------
+class _Handler(BaseHTTPRequestHandler):
+    server: _HTTPServer
+    protocol_version = "HTTP/1.1"  # a 101 answer must say HTTP/1.1; every other answer closes
+    timeout = 10.0  # for reading a request; lifted once a WebSocket is open
+    server_version = "CoCoTransforms/1.0"
+
+    @property
+    def owner(self) -> TransformServer:
+        return self.server.owner
+
+    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 (the base class's name)
+        log.debug("%s %s", self.address_string(), format % args)
+
+    def do_GET(self) -> None:  # noqa: N802 (the base class's name)
+        parts = urlsplit(self.path)
+        query = parse_qs(parts.query, keep_blank_values=True)
+        try:
+            self._check_host()
+            route = parts.path.rstrip("/") or "/"
+            if route in ("/", "/index.html"):
+                self._send(HTTPStatus.OK, self.owner._web_file("index.html"), WEB_FILES["index.html"])
+            elif route.lstrip("/") in WEB_FILES:
+                name = route.lstrip("/")
+                self._send(HTTPStatus.OK, self.owner._web_file(name), WEB_FILES[name])
+            elif route == "/api":
+                self._json({"endpoints": ENDPOINTS})
+            elif route == "/api/graph":
+                self._json(export.graph_dict(self.owner.graph))
+            elif route == "/api/frames":
+                self._json({"frames": self.owner.graph.frames})
+            elif route == "/api/edges":
+                self._json({"edges": export.graph_dict(self.owner.graph)["edges"]})
+            elif route == "/api/lookup":
+                self._json(self._lookup(query))
+            elif route == "/api/graph.dot":
+                self._send(HTTPStatus.OK, export.to_dot(self.owner.graph).encode("utf-8"),
+                           "text/vnd.graphviz; charset=utf-8")
+            elif route == "/ws/transforms":
+                self._websocket(query, self._pairs(query))
+            elif route == "/ws/graph":
+                self._websocket(query, None)
+            else:
+                raise _RequestError(HTTPStatus.NOT_FOUND, f"no such endpoint {parts.path!r}", endpoints=ENDPOINTS)
+        except _RequestError as error:
+            self._json(error.body, error.status)
+
+    # --- REST -----------------------------------------------------------------------------------
+    def _check_host(self) -> None:
+        if _is_loopback(self.owner.host) and not _is_loopback(_hostname(self.headers.get("Host", "localhost"))):
+            raise _RequestError(HTTPStatus.FORBIDDEN,
+                                f"this server answers only local names (localhost, 127.0.0.1), not "
+                                f"{self.headers.get('Host')!r}")
+
+    @staticmethod
+    def _one(query: dict[str, list[str]], name: str, required: bool = True) -> str | None:
+        values = query.get(name)
+        if not values or values[0] == "":
+            if required:
+                raise _RequestError(HTTPStatus.BAD_REQUEST, f"missing query parameter {name!r}; "
+                                    "expected e.g. /api/lookup?target=world&source=tool")
+            return None
+        return values[0]
+
+    def _lookup(self, query: dict[str, list[str]]) -> dict[str, Any]:
+        target, source = self._one(query, "target"), self._one(query, "source")
+        assert target is not None and source is not None
+        text = self._one(query, "time", required=False)
+        try:
+            time = None if text is None else float(text)
+        except ValueError:
+            raise _RequestError(HTTPStatus.BAD_REQUEST, f"time must be a number of seconds, got {text!r}") from None
+        graph = self.owner.graph
+        try:
+            path = graph.path(target, source)
+        except LookupError as error:  # an unknown frame, or no path
+            raise _RequestError(HTTPStatus.NOT_FOUND, str(error), frames=graph.frames) from None
+        try:
+            value = graph.lookup(target, source, time)
+        except LookupError as error:  # the path has no value (yet, or at that time)
+            raise _RequestError(HTTPStatus.CONFLICT, str(error), path=path) from None
+        return {"target": target, "source": source, "time": time, "path": path, **export.pose(value)}
+
+    def _pairs(self, query: dict[str, list[str]]) -> list[tuple[str, str]]:
+        targets, sources = query.get("target", []), query.get("source", [])
+        if not targets or len(targets) != len(sources):
+            raise _RequestError(HTTPStatus.BAD_REQUEST,
+                                f"expected one or more target/source pairs (got {len(targets)} target(s), "
+                                f"{len(sources)} source(s)), e.g. /ws/transforms?target=world&source=tool")
+        pairs = list(zip(targets, sources))
+        graph = self.owner.graph
+        for target, source in pairs:
+            try:
+                graph.path(target, source)
+            except LookupError as error:
+                raise _RequestError(HTTPStatus.NOT_FOUND, str(error), frames=graph.frames) from None
+        return pairs
+
+    def _send(self, status: HTTPStatus, body: bytes, content_type: str, headers: dict[str, str] | None = None) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", content_type)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-cache")
+        for name, value in (headers or {}).items():
+            self.send_header(name, value)
+        self.send_header("Connection", "close")
+        self.end_headers()
+        self.wfile.write(body)
+
+    def _json(self, body: Any, status: HTTPStatus = HTTPStatus.OK) -> None:
+        self._send(status, json.dumps(export.jsonable(body), allow_nan=False).encode("utf-8"),
+                   "application/json; charset=utf-8")
+
+    # --- WebSocket ------------------------------------------------------------------------------
+    def _rate(self, query: dict[str, list[str]]) -> float:
+        text = self._one(query, "rate", required=False)
+        if text is None:
+            return self.owner.rate
+        try:
+            rate = float(text)
+            if not rate > 0:
+                raise ValueError
+        except ValueError:
+            raise _RequestError(HTTPStatus.BAD_REQUEST, f"rate must be a positive number of messages per "
+                                f"second, got {text!r}") from None
+        return min(rate, self.owner.rate)
+
+    def _websocket(self, query: dict[str, list[str]], pairs: list[tuple[str, str]] | None) -> None:
+        rate = self._rate(query)
+        try:
+            response = handshake_headers(self.headers)
+        except WebSocketError as error:
+            raise _RequestError(HTTPStatus.UPGRADE_REQUIRED, str(error)) from None
+        origin = self.headers.get("Origin")
+        if origin and urlsplit(origin).netloc.lower() != self.headers.get("Host", "").lower():
+            raise _RequestError(HTTPStatus.FORBIDDEN, f"WebSocket from another origin ({origin}) refused")
+        ws = WebSocket(self.rfile, self.wfile.write)
+        if pairs is None:
+            connection: _Connection = _GraphStream(self.owner, ws, self.connection, rate)
+        else:
+            connection = _TransformStream(self.owner, ws, self.connection, rate, pairs)
+        if not self.owner._register(connection):
+            raise _RequestError(HTTPStatus.SERVICE_UNAVAILABLE, "the server is stopping")
+        self.close_connection = True
+        try:
+            self.send_response(HTTPStatus.SWITCHING_PROTOCOLS)
+            for name, value in response.items():
+                self.send_header(name, value)
+            self.end_headers()
+            self.connection.settimeout(None)
+        except OSError:
+            self.owner._unregister(connection)
+            return
+        connection.run()

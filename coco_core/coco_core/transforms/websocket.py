@@ -1,0 +1,207 @@
+"""The server side of WebSocket (RFC 6455), small enough for the diagnostics server.
+
+What a read-mostly diagnostics stream needs and no more: the opening handshake
+(``Sec-WebSocket-Accept``), unmasked text frames from the server, and reading the client's masked
+frames so that pings are answered and a close is echoed. No extensions (no compression), no
+subprotocols. Messages from the client are handed to the caller as whole (reassembled) payloads.
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import struct
+import threading
+from typing import BinaryIO, Callable, Mapping
+
+GUID = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
+
+OP_CONTINUATION, OP_TEXT, OP_BINARY = 0x0, 0x1, 0x2
+OP_CLOSE, OP_PING, OP_PONG = 0x8, 0x9, 0xA
+
+CLOSE_NORMAL, CLOSE_GOING_AWAY, CLOSE_PROTOCOL_ERROR, CLOSE_TOO_BIG = 1000, 1001, 1002, 1009
+
+MAX_MESSAGE = 1 << 20
+"""Largest client message accepted (1 MiB); clients of a diagnostics stream send little."""
+
+
+class WebSocketError(Exception):
+    """A handshake the server cannot accept, or a frame that breaks the protocol."""
+
+
+def accept_key(key: str) -> str:
+    """``Sec-WebSocket-Accept`` for a client's ``Sec-WebSocket-Key``."""
+    return base64.b64encode(hashlib.sha1((key.strip() + GUID).encode("ascii")).digest()).decode("ascii")
+
+
+def handshake_headers(headers: Mapping[str, str]) -> dict[str, str]:
+    """Check an upgrade request's headers; return the response headers of the 101 answer.
+
+    Raises :class:`WebSocketError` naming what is missing.
+    """
+    if "websocket" not in headers.get("Upgrade", "").lower():
+        raise WebSocketError("expected a WebSocket upgrade request (header 'Upgrade: websocket')")
+    if "upgrade" not in headers.get("Connection", "").lower():
+        raise WebSocketError("expected header 'Connection: Upgrade'")
+    if headers.get("Sec-WebSocket-Version", "").strip() != "13":
+        raise WebSocketError(f"unsupported Sec-WebSocket-Version {headers.get('Sec-WebSocket-Version')!r}; "
+                             "supported: 13")
+    key = headers.get("Sec-WebSocket-Key", "").strip()
+    try:
+        if len(base64.b64decode(key, validate=True)) != 16:
+            raise ValueError
+    except ValueError:
+        raise WebSocketError(f"invalid Sec-WebSocket-Key {key!r}: expected 16 bytes in base64") from None
+    return {"Upgrade": "websocket", "Connection": "Upgrade", "Sec-WebSocket-Accept": accept_key(key)}
+
+
+def encode_frame(payload: bytes, opcode: int = OP_TEXT, fin: bool = True) -> bytes:
+    """One unmasked frame, as a server sends it."""
+    length = len(payload)
+    first = (0x80 if fin else 0) | opcode
+    if length < 126:
+        header = struct.pack("!BB", first, length)
+    elif length < 1 << 16:
+        header = struct.pack("!BBH", first, 126, length)
+    else:
+        header = struct.pack("!BBQ", first, 127, length)
+    return header + payload
+
+
+def _read_exactly(read: Callable[[int], bytes], count: int) -> bytes:
+    data = read(count) if count else b""
+    while len(data) < count:
+        more = read(count - len(data))
+        if not more:
+            raise EOFError("the connection closed in the middle of a frame")
+        data += more
+    return data
+
+
+def read_frame(read: Callable[[int], bytes], max_size: int = MAX_MESSAGE) -> tuple[bool, int, bytes]:
+    """Read one frame from a client: ``(fin, opcode, unmasked payload)``.
+
+    Raises :class:`EOFError` when the connection closes, :class:`WebSocketError` on a protocol error
+    (an unmasked client frame, reserved bits set, a control frame that is too long or fragmented,
+    a payload over ``max_size``).
+    """
+    head = read(2)
+    if not head:
+        raise EOFError("the connection closed")
+    head += _read_exactly(read, 2 - len(head))
+    first, second = head
+    fin, opcode = bool(first & 0x80), first & 0x0F
+    if first & 0x70:
+        raise WebSocketError("reserved bits set, but no extension was negotiated")
+    if not second & 0x80:
+        raise WebSocketError("client frames must be masked")
+    length = second & 0x7F
+    if length == 126:
+        (length,) = struct.unpack("!H", _read_exactly(read, 2))
+    elif length == 127:
+        (length,) = struct.unpack("!Q", _read_exactly(read, 8))
+    if opcode >= 0x8 and (length > 125 or not fin):
+        raise WebSocketError("control frames must be unfragmented with at most 125 bytes")
+    if length > max_size:
+        raise WebSocketError(f"frame of {length} bytes exceeds the limit of {max_size}")
+    mask = _read_exactly(read, 4)
+    masked = _read_exactly(read, length)
+    return fin, opcode, _unmask(masked, mask)
+
+
+def _unmask(data: bytes, mask: bytes) -> bytes:
+    if not data:
+        return data
+    key = int.from_bytes((mask * (len(data) // 4 + 1))[:len(data)], "big")
+    return (int.from_bytes(data, "big") ^ key).to_bytes(len(data), "big")
+
+
+class WebSocket:
+    """A server-side connection after the handshake: thread-safe sends, a receive loop.
+
+    ``read`` is the buffered reader of the socket (bytes the HTTP parser buffered must not be lost),
+    ``write`` writes all bytes it is given.
+    """
+
+    def __init__(self, reader: BinaryIO, write: Callable[[bytes], object]) -> None:
+        self._read = reader.read
+        self._write = write
+        self._write_lock = threading.Lock()
+        self.closed = threading.Event()
+        """Set once a close frame was sent or the connection broke: nothing more is sent."""
+
+    def send_text(self, text: str) -> bool:
+        """Send one text message; False when the connection is closed (or broke while sending)."""
+        return self._send(encode_frame(text.encode("utf-8"), OP_TEXT))
+
+    def _send(self, frame: bytes) -> bool:
+        with self._write_lock:
+            if self.closed.is_set():
+                return False
+            try:
+                self._write(frame)
+                return True
+            except OSError:
+                self.closed.set()
+                return False
+
+    def close(self, code: int = CLOSE_NORMAL, reason: str = "", timeout: float = -1) -> None:
+        """Send a close frame (once); the caller then closes the socket.
+
+        With a ``timeout``, give up sending when another thread's send blocks that long (a client that
+        stopped reading): the connection is marked closed all the same.
+        """
+        if not self._write_lock.acquire(timeout=timeout):
+            self.closed.set()
+            return
+        try:
+            if self.closed.is_set():
+                return
+            self.closed.set()
+            try:
+                self._write(encode_frame(struct.pack("!H", code) + reason.encode("utf-8")[:120], OP_CLOSE))
+            except OSError:
+                pass
+        finally:
+            self._write_lock.release()
+
+    def receive(self) -> str | bytes | None:
+        """The next message from the client (answering pings meanwhile), or None once it closed."""
+        fragments: list[bytes] = []
+        message_opcode = OP_TEXT
+        while True:
+            try:
+                fin, opcode, payload = read_frame(self._read)
+            except (EOFError, OSError, ValueError):  # ValueError: reading a file closed under us
+                self.closed.set()
+                return None
+            except WebSocketError as error:
+                self.close(CLOSE_TOO_BIG if "exceeds" in str(error) else CLOSE_PROTOCOL_ERROR, str(error))
+                return None
+            if opcode == OP_PING:
+                self._send(encode_frame(payload, OP_PONG))
+            elif opcode == OP_PONG:
+                pass
+            elif opcode == OP_CLOSE:
+                code = struct.unpack("!H", payload[:2])[0] if len(payload) >= 2 else CLOSE_NORMAL
+                self.close(code if 1000 <= code < 5000 and code not in (1005, 1006, 1015) else CLOSE_NORMAL)
+                return None
+            elif opcode in (OP_TEXT, OP_BINARY, OP_CONTINUATION):
+                if opcode != OP_CONTINUATION:
+                    fragments, message_opcode = [], opcode
+                fragments.append(payload)
+                if sum(len(fragment) for fragment in fragments) > MAX_MESSAGE:
+                    self.close(CLOSE_TOO_BIG, "message too big")
+                    return None
+                if fin:
+                    data = b"".join(fragments)
+                    if message_opcode == OP_BINARY:
+                        return data
+                    try:
+                        return data.decode("utf-8")
+                    except UnicodeDecodeError:
+                        self.close(1007, "text message is not UTF-8")
+                        return None
+            else:
+                self.close(CLOSE_PROTOCOL_ERROR, f"unknown opcode {opcode:#x}")
+                return None
