@@ -58,6 +58,8 @@ class Activity:
         self._wake = threading.Event()
         self._stopping = False
         self._started = False
+        self._entered = False
+        """Whether a thread runs (or will run) the body: a main activity enters it only in run_here."""
         self._finished = threading.Event()
         self._thread: threading.Thread | None = None
         for component in components:
@@ -97,12 +99,13 @@ class Activity:
         for component in self.components:  # ports and peers may have been added since add()
             self._bind_wake(component)
         if not self.main:
+            self._entered = True
             self._thread = threading.Thread(target=self.run_here, name=f"coco:{self.name}", daemon=True)
             self._thread.start()
 
     def run_here(self) -> None:
         """The activity's body, in the calling thread: configure, loop until stopped, stop components."""
-        self._started = True
+        self._started = self._entered = True
         set_current_activity(self)
         try:
             for warning in apply_to_current_thread(self.scheduling, self.reserved_cores):
@@ -143,7 +146,10 @@ class Activity:
     def enqueue(self, call: Callable[[], None]) -> None:
         """Queue ``call`` to run in this activity before its next cycle."""
         self._ops.append(call)
-        self.wake()
+        if self._finished.is_set():  # the activity's last drain may have run already: do not lose it
+            self._run_pending()
+        else:
+            self.wake()
 
     def wake(self) -> None:
         """Ask a triggered activity for one more cycle (what event ports call on new data)."""
@@ -156,7 +162,7 @@ class Activity:
 
     def join(self, timeout: float | None = None) -> bool:
         """Wait until the activity has finished; False on timeout."""
-        return self._finished.wait(timeout) if self._started else True
+        return self._finished.wait(timeout) if self._entered else True
 
     def describe(self) -> str:
         return self.kind

@@ -10,7 +10,8 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import get_args, get_origin
+from types import UnionType
+from typing import Union, get_args, get_origin
 from .activity import Activity, PeriodicActivity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
@@ -34,10 +35,15 @@ def types_compatible(source: object, sink: object) -> bool:
     """Whether values of port type ``source`` may flow into an input of port type ``sink``.
 
     Generic types compare by their origin when either side is unparameterised
-    (``Stamped[float]`` flows into ``Stamped``); two parameterised types must be equal.
+    (``Stamped[float]`` flows into ``Stamped``); two parameterised types must be equal. An input typed
+    as a union accepts any of its members (``int`` flows into ``int | None``).
     """
     if sink is object or source is object:
         return True
+    if get_origin(sink) in (Union, UnionType):
+        return any(types_compatible(source, member) for member in get_args(sink))
+    if get_origin(source) in (Union, UnionType):
+        return all(types_compatible(member, sink) for member in get_args(source))
     if get_args(source) and get_args(sink):
         return source == sink
     source, sink = get_origin(source) or source, get_origin(sink) or sink

@@ -152,10 +152,10 @@ class Attribute(Generic[T]):
         raise AttributeValueError(f"expected {getattr(tp, '__name__', tp)}, got {value!r}")
 
     def _check_constraints(self, value: Any) -> None:
-        if self.choices is not None and value not in self.choices:
-            raise AttributeValueError(f"expected one of {', '.join(map(str, self.choices))}, got {value!r}")
         scalars = value if isinstance(value, (list, tuple)) else [value]
         for scalar in scalars:
+            if self.choices is not None and scalar not in self.choices:
+                raise AttributeValueError(f"expected one of {', '.join(map(str, self.choices))}, got {scalar!r}")
             if self.min is not None and scalar < self.min:
                 raise AttributeValueError(f"expected >= {self.min}, got {scalar!r}")
             if self.max is not None and scalar > self.max:

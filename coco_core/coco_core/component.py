@@ -110,6 +110,9 @@ class Component:
         self.on_error: ErrorPolicy | None = None
         """None: the application's policy (continue when standalone)."""
         self.enabled = True
+        self._configured = False
+        """Set once ``on_config`` succeeded: only configured components get ``on_stop``. Private,
+        like every base-class field a subclass could otherwise shadow by accident."""
         self._last_error_log = 0.0
         for attribute_name, value in attributes.items():
             self.set_attribute_now(attribute_name, value)
@@ -250,24 +253,30 @@ class Component:
         """Run ``on_config`` of the peers, then of this component; False when it failed."""
         for peer in self.peers:
             peer.configure()
-        return self._guard("on_config", self.on_config)
+        self._configured = self._guard("on_config", self.on_config)
+        return self._configured
 
     def step(self) -> None:
-        """One profiled, exception-isolated execution, then the peers' unless managed here."""
-        if self.enabled:
-            start = time.perf_counter()
-            try:
-                self.on_update()
-            except Exception:
-                self._failed("on_update")
-            self.stats.record(start, time.perf_counter())
+        """One profiled, exception-isolated execution, then the peers' unless managed here; a
+        stopped (disabled) component runs neither itself nor its peers."""
+        if not self.enabled:
+            return
+        start = time.perf_counter()
+        try:
+            self.on_update()
+        except Exception:
+            self._failed("on_update")
+        self.stats.record(start, time.perf_counter())
         if not self.manages_peers:
             for peer in self.peers:
                 peer.step()
 
     def stop(self) -> None:
-        """Run ``on_stop`` of this component, then of its peers; errors are reported, not raised."""
-        self._guard("on_stop", self.on_stop, count_only=True)
+        """Run ``on_stop`` of this component (if it was configured), then of its peers; errors are
+        reported, not raised."""
+        if self._configured:
+            self._guard("on_stop", self.on_stop, count_only=True)
+            self._configured = False
         for peer in self.peers:
             peer.stop()
 
