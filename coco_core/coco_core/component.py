@@ -89,6 +89,10 @@ class Component:
                     ports[name] = member
                 elif callable(member) and hasattr(member, "_coco_operation"):
                     operations[member._coco_operation] = name
+        clashes = sorted((set(attributes) | set(ports)) & _RESERVED_NAMES)
+        if clashes:
+            raise TypeError(f"component {cls.__name__}: {', '.join(clashes)} would shadow Component's own "
+                            "member(s) of that name; choose another attribute or port name")
         cls._attribute_decls, cls._port_decls, cls._operation_decls = attributes, ports, operations
 
     def __init__(self, name: str | None = None, **attributes: Any) -> None:
@@ -321,3 +325,8 @@ class Component:
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r}>"
+
+
+_RESERVED_NAMES = {name for name in vars(Component) if not name.startswith("__")} | {
+    "name", "inputs", "outputs", "peers", "owner", "app", "stats", "on_error", "enabled"}
+"""What an attribute or port of a subclass may not be called: the base class uses these itself."""

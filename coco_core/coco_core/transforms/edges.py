@@ -103,9 +103,10 @@ class StaticEdge(Edge):
         super().__init__(parent, child)
         self._value = se3.frozen(se3.as_transform(transform))
 
-    def assign(self, transform: np.ndarray) -> None:
-        self._value = se3.frozen(se3.as_transform(transform))
+    def assign(self, transform: np.ndarray, checked: bool = False) -> bool:
+        self._value = transform if checked else se3.frozen(se3.as_transform(transform))
         self.version += 1
+        return True
 
     def transform(self) -> np.ndarray:
         return self._value
@@ -125,23 +126,29 @@ class DynamicEdge(Edge):
         self._stamps: deque[float] = deque(maxlen=capacity)
         self._values: deque[np.ndarray] = deque(maxlen=capacity)
 
-    def assign(self, transform: np.ndarray, stamp: float) -> None:
-        """Add a sample; samples may arrive out of order (they are kept sorted by stamp)."""
-        value = se3.frozen(se3.as_transform(transform))
-        if not self._stamps or stamp >= self._stamps[-1]:
-            self._stamps.append(stamp)
+    def assign(self, transform: np.ndarray, stamp: float, checked: bool = False) -> bool:
+        """Add a sample; samples may arrive out of order (they are kept sorted by stamp), and a sample
+        with the stamp of one already kept replaces it. Returns False when the sample was dropped
+        (older than a full history). ``checked``: the matrix is already validated and read-only."""
+        value = transform if checked else se3.frozen(se3.as_transform(transform))
+        stamps = self._stamps
+        index = bisect.bisect_left(stamps, stamp)
+        if index < len(stamps) and stamps[index] == stamp:
+            self._values[index] = value
+        elif index == len(stamps):
+            stamps.append(stamp)
             self._values.append(value)
         else:
-            index = bisect.bisect_right(self._stamps, stamp)
-            if len(self._stamps) == self.capacity:
+            if len(stamps) == self.capacity:
                 if index == 0:
-                    return  # older than everything kept: it would be evicted at once
-                self._stamps.popleft()
+                    return False  # older than everything kept: it would be evicted at once
+                stamps.popleft()
                 self._values.popleft()
                 index -= 1
-            self._stamps.insert(index, stamp)
+            stamps.insert(index, stamp)
             self._values.insert(index, value)
         self.version += 1
+        return True
 
     @property
     def time_range(self) -> tuple[float, float] | None:

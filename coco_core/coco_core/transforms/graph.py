@@ -117,7 +117,7 @@ class _Backward(_Forward):
     __slots__ = ()
 
     def value(self, time: float | None) -> np.ndarray:
-        return self.edge.inverse() if time is None else se3.inverse(self.edge.transform_at(time))
+        return self.edge.inverse() if time is None else se3.frozen(se3.inverse(self.edge.transform_at(time)))
 
 
 class _Segment(_Step):
@@ -135,7 +135,7 @@ class Query:
     """A cached lookup of ``T_target_source``; get one from :meth:`TransformGraph.query`."""
 
     __slots__ = ("graph", "target", "source", "steps", "dependencies", "versions", "graph_version",
-                 "structure_version", "value", "callbacks", "__weakref__")
+                 "structure_version", "value", "callbacks", "notified", "__weakref__")
 
     def __init__(self, graph: TransformGraph, target: str, source: str) -> None:
         self.graph = graph
@@ -148,6 +148,8 @@ class Query:
         self.structure_version = -1
         self.value: np.ndarray = se3.IDENTITY
         self.callbacks: list[Callback] = []
+        self.notified: np.ndarray | None = None
+        """The value callbacks saw last: a structure change elsewhere that leaves it equal is silent."""
 
     @property
     def path(self) -> list[str]:
@@ -160,8 +162,14 @@ class Query:
         return self.graph.lookup(self.target, self.source)
 
     def on_change(self, callback: Callback) -> Callable[[], None]:
-        """Call ``callback(T_target_source)`` after any change on the path; returns an unsubscribe."""
-        self.graph._resolve_query(self)  # the path, so its dependencies are known (values may be missing)
+        """Call ``callback(T_target_source)`` after any change on the path; returns an unsubscribe.
+
+        The path need not exist yet, nor have a value: the callback first runs once it has one.
+        """
+        try:
+            self.notified = self.graph.lookup(self.target, self.source)
+        except LookupError:  # no path or no sample yet: structure changes are re-checked for us
+            pass
         with self.graph._lock.write():
             self.callbacks.append(callback)
             for dependency in self.dependencies:
@@ -229,14 +237,14 @@ class TransformGraph:
             if key in self._edges or (edge.child, edge.parent) in self._edges:
                 raise TransformError(f"frames {edge.parent} and {edge.child} are already joined by "
                                      f"{self._edges.get(key) or self._edges[(edge.child, edge.parent)]!r}")
+            if isinstance(edge, AxisEdge) and edge.joint in self._joints:
+                raise TransformError(f"joint {edge.joint} already drives edge {self._joints[edge.joint].name}")
             self._add_frame(edge.parent)
             self._add_frame(edge.child)
             self._edges[key] = edge
             self._adjacent[edge.parent].append(edge)
             self._adjacent[edge.child].append(edge)
             if isinstance(edge, AxisEdge):
-                if edge.joint in self._joints:
-                    raise TransformError(f"joint {edge.joint} already drives edge {self._joints[edge.joint].name}")
                 self._joints[edge.joint] = edge
             if isinstance(edge, ModelEdge):
                 self._models[edge.model.name] = edge.model
@@ -290,7 +298,8 @@ class TransformGraph:
     # --- writes ---------------------------------------------------------------------------------
     def set_transform(self, parent: str, child: str, transform: np.ndarray, stamp: float | None = None) -> None:
         """Write ``T_parent_child``: a sample of a dynamic edge (created on first write unless the
-        structure is strict) or a new value of a static edge."""
+        structure is strict) or, when not strict, a new value of a static edge."""
+        matrix = se3.frozen(se3.as_transform(transform))  # a bad matrix changes nothing
         with self._lock.write():
             edge = self._edges.get((parent, child))
             if edge is None:
@@ -310,17 +319,23 @@ class TransformGraph:
                 self._adjacent[child].append(edge)
                 self.structure_version += 1
             if isinstance(edge, DynamicEdge):
-                edge.assign(transform, _time.time() if stamp is None else stamp)
+                changed = edge.assign(matrix, _time.time() if stamp is None else stamp, checked=True)
             elif isinstance(edge, StaticEdge) and not self.strict:
-                edge.assign(transform)
+                changed = edge.assign(matrix, checked=True)
             elif isinstance(edge, StaticEdge):
                 raise TransformError(f"edge {edge.name} is declared static: a new calibration goes through "
                                      "set_static(), samples only to dynamic edges")
+            elif isinstance(edge, ModelEdge):
+                raise TransformError(f"edge {edge.name} belongs to kinematic model {edge.model.name}"
+                                     f"{f' (joint {edge.joint})' if edge.joint else ''}: it moves with the "
+                                     "model's joint values, set through set_joints()")
             else:
                 raise TransformError(f"edge {edge.name} is an {edge.kind.value} edge driven by joint "
                                      f"{getattr(edge, 'joint', '?')}: set its joint value instead")
-            self.version += 1
-        self._notify([edge], structure_changed=created)
+            if changed or created:
+                self.version += 1
+        if changed or created:
+            self._notify([edge], structure_changed=created)
 
     def set_static(self, parent: str, child: str, transform: np.ndarray) -> None:
         """Replace the value of a static edge (a new calibration), in either direction."""
@@ -349,6 +364,9 @@ class TransformGraph:
         robot_state_publisher does, and otherwise ignored.
         """
         changed: list[Dependency] = []
+        for name, value in values.items():  # nothing changes when one value is wrong
+            if not isinstance(value, (int, float, np.number)) or isinstance(value, bool) or value != value:
+                raise ValueError(f"joint {name}: expected a number, got {value!r}")
         with self._lock.write():
             remaining = dict(values)
             for model in self._models.values():
@@ -395,11 +413,9 @@ class TransformGraph:
             return self._product(steps, time)
 
     def query(self, target: str, source: str) -> Query:
-        """The cached query object for ``(target, source)``, e.g. to register callbacks; raises when
-        there is no path yet (a dynamic edge on it may still be without a sample)."""
-        query = self._queries.get((target, source)) or self._new_query(target, source)
-        self._resolve_query(query)
-        return query
+        """The query object for ``(target, source)``, e.g. to register callbacks; the frames and the
+        path between them may not exist yet."""
+        return self._queries.get((target, source)) or self._new_query(target, source)
 
     def path(self, target: str, source: str) -> list[str]:
         """Frames from ``target`` to ``source`` along the path lookups use."""
@@ -409,10 +425,6 @@ class TransformGraph:
     def _new_query(self, target: str, source: str) -> Query:
         query = Query(self, target, source)
         return self._queries.setdefault((target, source), query)
-
-    def _resolve_query(self, query: Query) -> None:
-        with self._lock.read():
-            self._resolve_path(query)
 
     def _resolve_path(self, query: Query) -> None:
         """(Re)compute the query's path after a structure change; the read lock is held."""
@@ -452,25 +464,32 @@ class TransformGraph:
     def _path_frames(self, target: str, source: str) -> list[str]:
         self._check_frame(target)
         self._check_frame(source)
-        previous: dict[str, tuple[str, Edge] | None] = {target: None}
-        frontier = deque([target])
-        while frontier and source not in previous:
+        # Search in one canonical direction, so (a, b) and (b, a) walk the same path in a cycle.
+        start, goal = sorted((target, source))
+        previous = self._search(start, goal)
+        if goal not in previous:
+            reachable = sorted(previous if target == start else self._search(target, None))
+            shown = ", ".join(reachable[:12]) + (" ..." if len(reachable) > 12 else "")
+            raise TransformError(f"no path from {target} to {source}: {target} only reaches {shown}")
+        frames = [goal]
+        while frames[-1] != start:
+            link = previous[frames[-1]]
+            assert link is not None
+            frames.append(link[0])
+        return frames[::-1] if target == start else frames
+
+    def _search(self, start: str, goal: str | None) -> dict[str, tuple[str, Edge] | None]:
+        """Breadth-first from ``start`` until ``goal`` (or everything reachable): frame -> how reached."""
+        previous: dict[str, tuple[str, Edge] | None] = {start: None}
+        frontier = deque([start])
+        while frontier and goal not in previous:
             frame = frontier.popleft()
             for edge in self._adjacent[frame]:
                 other = edge.child if edge.parent == frame else edge.parent
                 if other not in previous:
                     previous[other] = (frame, edge)
                     frontier.append(other)
-        if source not in previous:
-            reachable = sorted(previous)
-            shown = ", ".join(reachable[:12]) + (" ..." if len(reachable) > 12 else "")
-            raise TransformError(f"no path from {target} to {source}: {target} only reaches {shown}")
-        frames = [source]
-        while frames[-1] != target:
-            link = previous[frames[-1]]
-            assert link is not None
-            frames.append(link[0])
-        return frames[::-1]
+        return previous
 
     def _resolve(self, target: str, source: str) -> list[_Step]:
         frames = self._path_frames(target, source)
@@ -507,14 +526,15 @@ class TransformGraph:
                 if query.callbacks:
                     queries[id(query)] = query
         for query in queries.values():
-            before = query.value
             try:
                 value = self.lookup(query.target, query.source)
             except LookupError as error:
                 log.debug("query %s <- %s has no value after the change: %s", query.target, query.source, error)
                 continue
-            if structure_changed and value is before:
-                continue
+            watched = any(query in dependency.watchers for dependency in changed)
+            if not watched and query.notified is not None and np.array_equal(value, query.notified):
+                continue  # a structure change elsewhere left this value as it was
+            query.notified = value
             for callback in list(query.callbacks):
                 try:
                     callback(value)

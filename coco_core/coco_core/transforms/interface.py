@@ -43,8 +43,8 @@ class TransformationInterface(Component):
 
     urdf = Attribute(str, "", "URDF file or package:// URL to load into the graph; empty for none")
     prefix = Attribute(str, "", "prefix added to the URDF's frame names (several robots in one graph)")
-    outputs = Attribute(list[str], [], "lookups to publish, each 'port=target:source' (T_target_source)",
-                        check=_check_outputs)
+    publish = Attribute(list[str], [], "lookups to publish on output ports, each 'port=target:source' "
+                        "(T_target_source)", check=_check_outputs)
 
     transform = InputPort(object, event=True, doc="TransformSample, or a list of them, to write into the graph")
     joints = InputPort(JointSample, event=True, doc="joint values applied to axis edges and URDF models")
@@ -54,11 +54,22 @@ class TransformationInterface(Component):
             from .urdf import load_urdf
 
             self.model = load_urdf(self.transform_graph, self.urdf, prefix=self.prefix)
-        self._lookups: list[tuple[OutputPort, str, str]] = []
-        for spec in self.outputs:
-            port, target, source = parse_output(spec)
-            self._lookups.append((self.add_output(port, FramePose, f"T_{target}_{source}"), target, source))
-        self._pending = list(self._lookups)
+        self._lookups: list[tuple[OutputPort, Query]] = []
+        for spec in self.publish:
+            port_name, target, source = parse_output(spec)
+            port = self.add_output(port_name, FramePose, f"T_{target}_{source}")
+            query = self.transform_graph.query(target, source)
+            # The path may not exist yet: the callback runs once it does, whoever completes it.
+            query.on_change(lambda value, port=port, query=query: self._publish(port, query, value))
+            self._lookups.append((port, query))
+
+    def on_config(self) -> None:
+        """Publish what is already known, so readers start with the current poses."""
+        for port, query in self._lookups:
+            try:
+                self._publish(port, query, query.current())
+            except LookupError:  # no path or no sample yet: the callback publishes it when there is
+                pass
 
     def on_update(self) -> None:
         graph = self.transform_graph
@@ -67,24 +78,6 @@ class TransformationInterface(Component):
                 graph.set_transform(sample.parent, sample.child, sample.transform, sample.stamp)
         for joints in self.joints.read_all():
             graph.set_joints(joints.as_mapping())
-        if self._pending:
-            self._subscribe_pending()
-
-    def _subscribe_pending(self) -> None:
-        """Bind each output to its query once its path exists (frames may appear after start)."""
-        still_pending = []
-        for port, target, source in self._pending:
-            try:
-                query = self.transform_graph.query(target, source)
-            except TransformError:
-                still_pending.append((port, target, source))
-                continue
-            query.on_change(lambda value, port=port, query=query: self._publish(port, query, value))
-            try:
-                self._publish(port, query, query.current())
-            except LookupError:  # a dynamic edge on the path has no sample yet: its first one calls back
-                pass
-        self._pending = still_pending
 
     def _publish(self, port: OutputPort, query: Query, value: np.ndarray) -> None:
         """Write in this component's thread: callbacks run in whichever thread changed the graph."""

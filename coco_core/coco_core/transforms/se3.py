@@ -146,12 +146,17 @@ def as_transform(value: np.ndarray | Sequence[Sequence[float]]) -> np.ndarray:
     matrix = np.array(value, dtype=float)
     if matrix.shape != (4, 4):
         raise ValueError(f"expected a 4x4 homogeneous transform, got shape {matrix.shape}")
+    if not np.isfinite(matrix).all():
+        raise ValueError("the transform has NaN or infinite entries")
     bottom = matrix[3]
     if abs(bottom[0]) + abs(bottom[1]) + abs(bottom[2]) + abs(bottom[3] - 1.0) > 1e-9:
         raise ValueError(f"the last row of a homogeneous transform must be 0 0 0 1, got {bottom}")
     rotation = matrix[:3, :3]
     if float(np.abs(rotation @ rotation.T - _EYE3).max()) > 1e-6:
         raise ValueError("the rotation part of the transform is not orthonormal")
+    (a, b, c), (d, e, f), (g, h, i) = rotation.tolist()
+    if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0.0:
+        raise ValueError("the rotation part of the transform is a reflection (determinant -1)")
     return matrix
 
 
