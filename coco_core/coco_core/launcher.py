@@ -49,6 +49,9 @@ def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
     parser.add_argument("--check", action="store_true",
                         help="load and build the application, print its scheduling tree, do not run it")
     parser.add_argument("--list", action="store_true", help="list the installed components and exit")
+    parser.add_argument("--transforms-server", type=int, metavar="PORT",
+                        help="serve the transformation graph (REST, WebSocket, web page) on 127.0.0.1:PORT "
+                             "while the application runs (0: any free port)")
     parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     return parser
 
@@ -136,9 +139,17 @@ def run(options: argparse.Namespace) -> int:
     configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
     install_signal_handlers(app)
     printer = start_profile_printer(app, options.profile) if options.profile else None
+    server = None
+    if options.transforms_server is not None:
+        from .transforms.server import TransformServer
+
+        server = TransformServer(app.transforms, port=options.transforms_server).start()
+        print(f"transformation graph served at {server.url}", flush=True)
     try:
         app.run(options.duration)
     finally:
+        if server is not None:
+            server.stop()
         if printer is not None:
             printer.set()
             print(profile_report(app), flush=True)
