@@ -1,0 +1,73 @@
+"""Timing on a noisy machine: calibrated loops, measured interleaved, medians and paired ratios.
+
+A *variant* is a callable ``loop(n)`` that performs ``n`` operations. Every variant is first run to
+pick ``n`` so that one repeat lasts about ``target_s`` (this also warms caches, allocators and DDS),
+then the repeats go round-robin over all variants: noise from other processes hits the variants of
+one round alike, and ratios are taken per round (paired) before the median.
+"""
+
+from __future__ import annotations
+
+import gc
+import statistics
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+Loop = Callable[[int], None]
+
+
+@dataclass
+class Samples:
+    """Per-operation times of one variant, in nanoseconds, one per repeat."""
+
+    name: str
+    per_op_ns: list[float]
+    ops_per_repeat: int
+
+    @property
+    def median(self) -> float:
+        return statistics.median(self.per_op_ns) if self.per_op_ns else float("nan")
+
+    def to_json(self) -> dict[str, object]:
+        return {"median_ns": self.median, "per_op_ns": self.per_op_ns, "ops_per_repeat": self.ops_per_repeat}
+
+    def ratio_to(self, anchor: Samples) -> float:
+        """Median over repeats of ``anchor / self``: how many times cheaper than the anchor."""
+        pairs = [a / s for a, s in zip(anchor.per_op_ns, self.per_op_ns) if s > 0]
+        return statistics.median(pairs) if pairs else float("nan")
+
+
+def _timed(loop: Loop, n: int) -> int:
+    """Nanoseconds for ``loop(n)``, with the cyclic garbage collector held off during the run."""
+    gc.collect()
+    gc.disable()
+    try:
+        start = time.perf_counter_ns()
+        loop(n)
+        return time.perf_counter_ns() - start
+    finally:
+        gc.enable()
+
+
+def calibrate(loop: Loop, target_s: float, max_ops: int = 10_000_000) -> int:
+    """Operations per repeat so that one repeat lasts about ``target_s``; doubles as the warm-up."""
+    n = 1
+    while True:
+        elapsed = _timed(loop, n)
+        if elapsed >= target_s * 1e9 / 4 or n >= max_ops:
+            break
+        n *= 4 if elapsed < target_s * 1e9 / 64 else 2
+    return max(1, min(max_ops, int(n * target_s * 1e9 / max(elapsed, 1))))
+
+
+def measure(variants: dict[str, Loop], repeats: int = 7, target_s: float = 0.05) -> dict[str, Samples]:
+    """Calibrate every variant, then run ``repeats`` interleaved rounds; rotate the order per round."""
+    names = list(variants)
+    ops = {name: calibrate(variants[name], target_s) for name in names}
+    samples = {name: Samples(name, [], ops[name]) for name in names}
+    for round_ in range(repeats):
+        shift = round_ % len(names)
+        for name in names[shift:] + names[:shift]:
+            samples[name].per_op_ns.append(_timed(variants[name], ops[name]) / ops[name])
+    return samples
