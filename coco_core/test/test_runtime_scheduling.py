@@ -1,0 +1,115 @@
+"""Thread placement of activities: affinity, exclusive cores, real-time class, nice value.
+
+What the OS allows is applied to the activity's own thread; what it refuses becomes one clear warning
+and the activity runs anyway.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+
+import pytest
+
+from coco_core import Application, Component, PeriodicActivity, SchedulingRequest, TriggeredActivity
+from coco_core.builder import build_application
+from coco_core.registry import register
+from coco_core.xml import parse_application_string
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="Linux scheduling calls only")
+
+
+class Probe(Component):
+    """Records, in its activity's thread, where and how that thread is scheduled."""
+
+    def init(self) -> None:
+        self.seen = threading.Event()
+        self.cores: set[int] = set()
+        self.policy = -1
+        self.nice = 0
+
+    def on_config(self) -> None:
+        self.cores = os.sched_getaffinity(0)
+        self.policy = os.sched_getscheduler(0)
+        self.nice = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+        self.seen.set()
+
+
+def run_probe(request: SchedulingRequest, *others: tuple[str, SchedulingRequest]) -> Probe:
+    app = Application("scheduling")
+    probe = app.add(Probe("probe"), TriggeredActivity("probed", scheduling=request))
+    for name, other in others:
+        app.add(Probe(f"{name}_probe"), TriggeredActivity(name, scheduling=other))
+    app.start()
+    try:
+        assert probe.seen.wait(5.0)
+    finally:
+        app.stop()
+    return probe
+
+
+def test_affinity_pins_the_activity_thread_only() -> None:
+    before = os.sched_getaffinity(0)
+    probe = run_probe(SchedulingRequest(affinity=[min(before)]))
+    assert probe.cores == {min(before)}
+    assert os.sched_getaffinity(0) == before, "the launcher's own thread must keep its cores"
+
+
+def test_a_core_that_does_not_exist_is_a_warning_and_the_activity_runs(caplog) -> None:
+    caplog.set_level(logging.WARNING, logger="coco")
+    probe = run_probe(SchedulingRequest(affinity=[999]))
+    assert probe.seen.is_set()
+    warning = " ".join(record.getMessage() for record in caplog.records)
+    assert "activity probed" in warning and "[999] not available" in warning
+    assert str(sorted(os.sched_getaffinity(0))) in warning
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two cores to reserve one")
+def test_exclusive_cores_keep_other_activities_off_them() -> None:
+    cores = sorted(os.sched_getaffinity(0))
+    probe = run_probe(SchedulingRequest(), ("exclusive", SchedulingRequest(affinity=[cores[0]], exclusive=True)))
+    assert cores[0] not in probe.cores and probe.cores == set(cores[1:])
+
+
+def test_priority_without_a_realtime_class_is_ignored_with_a_warning(caplog) -> None:
+    caplog.set_level(logging.WARNING, logger="coco")
+    run_probe(SchedulingRequest(priority=5))
+    assert any("priority 5 ignored" in record.getMessage() for record in caplog.records)
+
+
+def test_realtime_fifo_is_applied_or_refused_with_a_warning(caplog) -> None:
+    caplog.set_level(logging.WARNING, logger="coco")
+    probe = run_probe(SchedulingRequest(realtime="FIFO", priority=10))
+    refused = [r.getMessage() for r in caplog.records if "realtime FIFO priority 10" in r.getMessage()]
+    if probe.policy == os.SCHED_FIFO:
+        assert not refused
+    else:  # no CAP_SYS_NICE here (e.g. a container): the thread stays normal and the user is told why
+        assert probe.policy == os.SCHED_OTHER
+        assert refused and "refused by the OS" in refused[0] and "CAP_SYS_NICE" in refused[0]
+
+
+def test_nice_value_is_applied_to_the_activity_thread_only() -> None:
+    before = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    probe = run_probe(SchedulingRequest(nice=min(before + 7, 19)))
+    assert probe.nice == min(before + 7, 19)
+    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == before
+
+
+def test_schedule_attributes_of_a_file_reach_the_activity() -> None:
+    register("SchedulingProbe")(Probe)
+    spec = parse_application_string("""<package>
+      <components><component><name>p</name><task>SchedulingProbe</task></component></components>
+      <activities>
+        <activity name="fast">
+          <schedule type="periodic" value="2" exclusive_affinity="0" realtime="RR" priority="20" nice="-2"/>
+          <components><component name="p"/></components>
+        </activity>
+      </activities>
+    </package>""", filename="scheduling.xml")
+    app = build_application(spec)
+    activity = app.activity("fast")
+    assert isinstance(activity, PeriodicActivity) and activity.period == pytest.approx(0.002)
+    request = activity.scheduling
+    assert (request.affinity, request.exclusive, request.realtime, request.priority, request.nice) == (
+        [0], True, "RR", 20, -2)
