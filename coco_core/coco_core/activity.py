@@ -110,23 +110,24 @@ class Activity:
         try:
             for warning in apply_to_current_thread(self.scheduling, self.reserved_cores):
                 log.warning("activity %s: %s", self.name, warning)
-            for component in self.components:
-                if not self._stopping:
-                    component.configure()
+            self.configure()
             if not self._stopping:
                 self._loop()
         finally:
-            self._run_pending()
-            for component in self.components:
-                component.stop()
-            self._finished.set()
-            self._run_pending()
+            self.finish()
             set_current_activity(None)
 
-    def _loop(self) -> None:
-        raise NotImplementedError
+    # The three steps of an activity's life, public so that another host (an rclpy executor running
+    # the activity as a callback group) can drive them instead of the activity's own thread.
+    def configure(self) -> None:
+        """Configure the components, in order, unless a stop was asked meanwhile."""
+        self._started = self._entered = True
+        for component in self.components:
+            if not self._stopping:
+                component.configure()
 
-    def _cycle(self) -> None:
+    def cycle(self) -> None:
+        """One activation: queued operation calls, then every component in order."""
         if self._ops:
             self._run_pending()
         for component in self.components:
@@ -134,6 +135,21 @@ class Activity:
             component.step()
         self.current = None
         self.stats.cycles += 1
+
+    def finish(self) -> None:
+        """Run what was queued, stop the components (``on_stop``) and mark the activity finished."""
+        self._run_pending()
+        for component in self.components:
+            component.stop()
+        self._finished.set()
+        self._run_pending()
+
+    @property
+    def stopping(self) -> bool:
+        return self._stopping
+
+    def _loop(self) -> None:
+        raise NotImplementedError
 
     def _run_pending(self) -> None:
         ops = self._ops
@@ -217,7 +233,7 @@ class PeriodicActivity(Activity):
         period = self._period
         deadline = clock()
         while not self._stopping:
-            self._cycle()
+            self.cycle()
             deadline += period
             now = clock()
             if now > deadline:
@@ -261,4 +277,4 @@ class TriggeredActivity(Activity):
             clear()
             if self._stopping:
                 break
-            self._cycle()
+            self.cycle()
