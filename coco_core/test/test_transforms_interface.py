@@ -262,9 +262,13 @@ def test_joint_samples_drive_axis_edges_and_outputs(make_app, wait_until):
     graph.add_axis("base", "upper", "shoulder", "revolute", origin=transform(0, 0, 1))
     graph.add_axis("upper", "hand", "slide", "prismatic", axis=(1, 0, 0))
     app.start()
-    send(source, "js", JointSample(("shoulder", "slide", "unknown"), np.array([0.5, 2.0, 9.0])))
+    # The path exists at start: its pose (both joints at 0) is published first.
     assert wait_until(lambda: sink.count() >= 1)
+    np.testing.assert_allclose(sink.call("collected").result(timeout=2.0)[0].transform, transform(0, 0, 1), atol=TOL)
+    send(source, "js", JointSample(("shoulder", "slide", "unknown"), np.array([0.5, 2.0, 9.0])))
+    assert wait_until(lambda: sink.count() >= 2)
     poses = sink.call("collected").result(timeout=2.0)
+    assert len(poses) == 2
     expected = transform(0, 0, 1) @ homogeneous(rot_z(0.5)) @ transform(2, 0, 0)
     np.testing.assert_allclose(poses[-1].transform, expected, atol=TOL)
     np.testing.assert_allclose(poses[-1].transform[:3, 3], [2 * math.cos(0.5), 2 * math.sin(0.5), 1.0], atol=TOL)

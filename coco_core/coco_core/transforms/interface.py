@@ -55,6 +55,7 @@ class TransformationInterface(Component):
 
             self.model = load_urdf(self.transform_graph, self.urdf, prefix=self.prefix)
         self._lookups: list[tuple[OutputPort, Query]] = []
+        self._published: set[OutputPort] = set()
         for spec in self.publish:
             port_name, target, source = parse_output(spec)
             port = self.add_output(port_name, FramePose, f"T_{target}_{source}")
@@ -64,8 +65,11 @@ class TransformationInterface(Component):
             self._lookups.append((port, query))
 
     def on_config(self) -> None:
-        """Publish what is already known, so readers start with the current poses."""
+        """Publish what is already known, so readers start with the current poses (unless the path
+        was completed before the start, in which case its callback published it already)."""
         for port, query in self._lookups:
+            if port in self._published:
+                continue
             try:
                 self._publish(port, query, query.current())
             except LookupError:  # no path or no sample yet: the callback publishes it when there is
@@ -82,6 +86,7 @@ class TransformationInterface(Component):
     def _publish(self, port: OutputPort, query: Query, value: np.ndarray) -> None:
         """Write in this component's thread: callbacks run in whichever thread changed the graph."""
         pose = FramePose(query.target, query.source, value)
+        self._published.add(port)
         activity = self.activity
         if activity is None or current_activity() is activity or not activity.running:
             port.write(pose)
