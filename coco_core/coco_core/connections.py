@@ -12,6 +12,8 @@ own small class instead of one class with branches, and the dropped-item counter
 
 from __future__ import annotations
 
+import logging
+import sys
 import threading
 from collections import deque
 from typing import TYPE_CHECKING, Any, Callable
@@ -20,6 +22,8 @@ from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 
 if TYPE_CHECKING:
     from .ports import InputPort, OutputPort
+
+log = logging.getLogger("coco")
 
 
 class _Empty:
@@ -253,10 +257,25 @@ _CLASSES: dict[tuple[BufferPolicy, bool], type[Connection]] = {
 }
 
 
+def _gil_enabled() -> bool:
+    """False on a free-threaded CPython build (3.13t and later), where LOCK_FREE would be unsound."""
+    check = getattr(sys, "_is_gil_enabled", None)
+    return True if check is None else bool(check())
+
+
+GIL = _gil_enabled()
+
+
 def make_connection(policy: ConnectionPolicy) -> Connection:
-    """The connection class for a copying policy (POOL connections are made by pooled ports)."""
+    """The connection class for a copying policy (POOL connections are made by pooled ports).
+
+    Without a GIL, appends and swaps are no longer atomic: LOCK_FREE then falls back to LOCKED.
+    """
+    locked = policy.sync is SyncPolicy.LOCKED or (policy.sync is SyncPolicy.LOCK_FREE and not GIL)
+    if policy.sync is SyncPolicy.LOCK_FREE and not GIL:
+        log.warning("this Python runs without a GIL: the LOCK_FREE connection %s uses a lock instead", policy)
     try:
-        cls = _CLASSES[(policy.data, policy.sync is SyncPolicy.LOCKED)]
+        cls = _CLASSES[(policy.data, locked)]
     except KeyError:
         raise ValueError(f"{policy.data.value} connections are made by pooled output ports") from None
     return cls(policy)
