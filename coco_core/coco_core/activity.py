@@ -36,6 +36,10 @@ class Activity:
     kind = "activity"
     wakes_on_data = True
     """Whether data arriving on an event port starts a cycle (triggered) or waits for one (periodic)."""
+    host: Callable[[Activity], None] | None = None
+    """Set by another host before :meth:`start` (``coco_ros`` runs activities as callback groups of an
+    rclpy executor): ``start`` then calls ``host(self)`` instead of starting a thread, and that host
+    drives :meth:`configure`, :meth:`cycle` and :meth:`finish`."""
 
     def __init__(
         self,
@@ -98,7 +102,10 @@ class Activity:
         self._started = True
         for component in self.components:  # ports and peers may have been added since add()
             self._bind_wake(component)
-        if not self.main:
+        if self.host is not None:
+            self._entered = True
+            self.host(self)
+        elif not self.main:
             self._entered = True
             self._thread = threading.Thread(target=self.run_here, name=f"coco:{self.name}", daemon=True)
             self._thread.start()

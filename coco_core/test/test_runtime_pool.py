@@ -202,7 +202,6 @@ def test_shape_or_dtype_change_reallocates():
 
 def test_two_readers_share_one_slot_until_both_release():
     out, (a, b), (conn_a, conn_b) = rig(readers=2)
-    pool = out.pool
     slot = out.acquire((2, 2))
     slot.array[:] = 9
     out.write(slot)

@@ -29,28 +29,13 @@ from coco_core.transforms import (
     TransformGraph,
     se3,
 )
+from coco_core.transforms.urdf import load_urdf
+from geometry import rot_x, rot_z, homogeneous
 
 TOL = 1e-12
 
 
 # --- helpers ----------------------------------------------------------------------------------------
-
-def rot_x(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_z(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def homogeneous(rotation=None, translation=(0.0, 0.0, 0.0)) -> np.ndarray:
-    result = np.eye(4)
-    if rotation is not None:
-        result[:3, :3] = rotation
-    result[:3, 3] = translation
-    return result
 
 
 def trans(x=0.0, y=0.0, z=0.0) -> np.ndarray:
@@ -1076,7 +1061,6 @@ def test_concurrent_readers_never_see_a_half_applied_urdf_update(tmp_path):
     """A URDF rail of four prismatic joints plus a graph axis edge beyond the tool, all set to k by one
     JointState: tip x = 4 + 5 k. Readers mix model segments and ordinary edges in one path."""
     pytest.importorskip("pinocchio")
-    from coco_core.transforms.urdf import load_urdf
 
     path = tmp_path / "rail.urdf"
     path.write_text(URDF_CHAIN)
@@ -1153,19 +1137,11 @@ def test_to_dict_is_json_serialisable_and_complete(tmp_path):
     graph.set_transform("world", "robot", trans(0, 2, 0), stamp=2.5)
     graph.add_axis("robot", "arm", "shoulder", "revolute", origin=trans(0, 0, 1), axis=(0, 0, 2), value=0.4)
     graph.add_edge(AxisEdge.from_dh("arm", "forearm", "elbow", "prismatic", 0.1, 0.2, 0.3, 0.4))
-    models = []
-    try:
-        import pinocchio  # noqa: F401
-    except ImportError:
-        pass
-    else:
-        from coco_core.transforms.urdf import load_urdf
-
-        path = tmp_path / "rail.urdf"
-        path.write_text(URDF_CHAIN)
-        model = load_urdf(graph, path, prefix="r_")
-        graph.set_joints({"p2": 0.5})
-        models.append(model.name)
+    path = tmp_path / "rail.urdf"
+    path.write_text(URDF_CHAIN)
+    model = load_urdf(graph, path, prefix="r_")
+    graph.set_joints({"p2": 0.5})
+    models = [model.name]
 
     described = graph.to_dict()
     text = json.dumps(described, default=list)

@@ -27,23 +27,11 @@ from coco_core import (
 from coco_core.transforms import ExtrapolationError, TransformError, se3
 from coco_core.transforms.interface import TransformationInterface, parse_output
 from coco_core.transforms.samples import FramePose, JointSample, TransformSample
+from geometry import rot_z, homogeneous
 
 TOL = 1e-12
 QUEUE = ConnectionPolicy(data=BufferPolicy.BUFFER, size=256)
 """Every sample and every pose must arrive: a buffer, not the default latest-value connection."""
-
-
-def rot_z(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def homogeneous(rotation=None, translation=(0.0, 0.0, 0.0)) -> np.ndarray:
-    result = np.eye(4)
-    if rotation is not None:
-        result[:3, :3] = rotation
-    result[:3, 3] = translation
-    return result
 
 
 class Source(Component):

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from coco_core.transforms import se3
+from geometry import rot_x, rot_y, rot_z, homogeneous
 
 pr = pytest.importorskip("pytransform3d.rotations")
 
@@ -20,28 +21,6 @@ TOL = 1e-12
 
 
 # --- independent constructions ----------------------------------------------------------------------
-
-def rot_x(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_y(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def rot_z(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def homogeneous(rotation=None, translation=(0.0, 0.0, 0.0)) -> np.ndarray:
-    result = np.eye(4)
-    if rotation is not None:
-        result[:3, :3] = rotation
-    result[:3, 3] = translation
-    return result
 
 
 def skew(v) -> np.ndarray:

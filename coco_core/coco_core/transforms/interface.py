@@ -14,8 +14,8 @@ from ..attributes import Attribute
 from ..component import Component
 from ..operations import current_activity, operation
 from ..ports import InputPort, OutputPort
-from .graph import Query, TransformError
-from .samples import FramePose, JointSample, TransformSample
+from .graph import Query
+from .samples import FramePose, JointSample
 
 log = logging.getLogger("coco.transforms")
 
