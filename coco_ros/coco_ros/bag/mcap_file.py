@@ -1,0 +1,552 @@
+"""One MCAP file, read so that damage costs only what is damaged.
+
+The ``mcap`` library parses the records (:mod:`mcap.records`); this module does the framing itself
+(opcode, length, body) so that it knows the byte offset of every record and notices a record cut by
+the end of the file, which the library's stream reader can mistake for a short one.
+
+Opening builds a table of *blocks* (a chunk, or a run of loose messages in an unchunked file), each
+with its log-time range and channels:
+
+- from the summary section when the file is complete (footer, summary CRC and statistics intact):
+  nothing else is read, so opening a large bag costs only its summary;
+- otherwise by scanning the data section from the start, record by record, the way rosbag2 falls
+  back when a recording was interrupted. The scan stops at the first record that is cut or whose
+  framing is broken; a chunk that is complete but cannot be decoded (bad compression or CRC) is
+  skipped and the scan goes on after it, since its length still says where the next record starts.
+
+Messages are then merged across blocks in log-time order (blocks are loaded lazily, when the next
+message could come from them), so a replay holds one or two chunks in memory, not the file.
+"""
+
+from __future__ import annotations
+
+import heapq
+import os
+import struct
+import zlib
+from dataclasses import dataclass
+from io import BytesIO
+from pathlib import Path
+from typing import Callable, Iterator
+
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import EndOfFile
+from mcap.opcode import Opcode
+from mcap.records import (
+    Channel,
+    Chunk,
+    ChunkIndex,
+    Footer,
+    Header,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+)
+
+from .errors import BagError
+
+MAGIC = b"\x89MCAP0\r\n"
+_RECORD_HEAD = struct.Struct("<BQ")
+_MESSAGE_HEAD = struct.Struct("<HIQQ")
+_FOOTER_LENGTH = 9 + 20
+_RUN_BYTES = 1 << 20
+"""Loose messages are grouped into blocks of about this many bytes (a chunk's usual size)."""
+
+_OPCODE_NAMES = {int(op): op.name.replace("_", " ").title().replace(" ", "") for op in Opcode}
+
+
+def opcode_name(opcode: int) -> str:
+    return _OPCODE_NAMES.get(opcode, f"unknown (opcode 0x{opcode:02x})")
+
+
+@dataclass(frozen=True)
+class RawMessage:
+    """A message as stored: channel id, sequence, times (ns) and the CDR bytes."""
+
+    channel_id: int
+    sequence: int
+    log_time: int
+    publish_time: int
+    data: bytes
+
+
+@dataclass
+class Block:
+    """A unit of lazy loading: one chunk, or a run of loose message records."""
+
+    offset: int
+    length: int
+    start: int
+    end: int
+    channels: frozenset[int] | None
+    """Channel ids with messages in the block; None when unknown (no message index)."""
+    is_chunk: bool
+    order: int = 0
+
+
+class _Damage(Exception):
+    """Framing or decoding failure inside a buffer: where (offset) and what."""
+
+    def __init__(self, offset: int, detail: str) -> None:
+        super().__init__(detail)
+        self.offset = offset
+        self.detail = detail
+
+
+class _StrictStream(ReadDataStream):
+    """The library's stream, but a short read is an error (not a silently short field)."""
+
+    def read(self, length: int) -> bytes:
+        data = super().read(length)
+        if len(data) != length:
+            raise EndOfFile()
+        return data
+
+
+def _parse(record_class: type, body: bytes | memoryview):
+    """Parse a record body with the mcap library; a body that ends early raises ValueError."""
+    try:
+        return record_class.read(_StrictStream(BytesIO(body)))
+    except (EndOfFile, struct.error, UnicodeDecodeError) as error:
+        name = record_class.__name__
+        raise ValueError(f"{name} record body is malformed ({type(error).__name__})") from None
+
+
+def _message(body: bytes | memoryview) -> RawMessage:
+    if len(body) < _MESSAGE_HEAD.size:
+        raise ValueError(f"Message record of {len(body)} bytes, expected at least {_MESSAGE_HEAD.size}")
+    channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(body)
+    return RawMessage(channel_id, sequence, log_time, publish_time, bytes(body[_MESSAGE_HEAD.size :]))
+
+
+def _records(buffer: memoryview, base: int) -> Iterator[tuple[int, int, memoryview]]:
+    """(offset, opcode, body) of each record in a buffer whose first byte is at file offset ``base``."""
+    position = 0
+    size = len(buffer)
+    while position < size:
+        if size - position < _RECORD_HEAD.size:
+            raise _Damage(base + position, f"record header cut after {size - position} of 9 bytes")
+        opcode, length = _RECORD_HEAD.unpack_from(buffer, position)
+        body_start = position + _RECORD_HEAD.size
+        if length > size - body_start:
+            raise _Damage(
+                base + position,
+                f"{opcode_name(opcode)} record declares {length} bytes but only {size - body_start} follow",
+            )
+        yield base + position, opcode, buffer[body_start : body_start + length]
+        position = body_start + length
+
+
+def _chunk_payload(chunk: Chunk) -> bytes:
+    """The decompressed records of a chunk, checked against its size and CRC."""
+    if chunk.compression == "":
+        data = chunk.data
+    elif chunk.compression == "zstd":
+        import zstandard
+
+        try:
+            decompressor = zstandard.ZstdDecompressor()
+            data = decompressor.decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+        except zstandard.ZstdError as error:
+            raise ValueError(f"zstd data does not decompress ({error})") from None
+    elif chunk.compression == "lz4":
+        import lz4.frame
+
+        try:
+            data = lz4.frame.decompress(chunk.data)
+        except RuntimeError as error:
+            raise ValueError(f"lz4 data does not decompress ({error})") from None
+    else:
+        raise ValueError(
+            f"chunk compression {chunk.compression!r} is not supported (expected '', zstd or lz4)"
+        )
+    if len(data) != chunk.uncompressed_size:
+        raise ValueError(f"chunk holds {len(data)} bytes, its header says {chunk.uncompressed_size}")
+    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise ValueError("chunk CRC does not match its data")
+    return data
+
+
+class McapFile:
+    """Index and messages of one MCAP file; see the module docstring for the recovery rules."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.profile = ""
+        self.library = ""
+        self.schemas: dict[int, Schema] = {}
+        self.channels: dict[int, Channel] = {}
+        self.counts: dict[int, int] = {}
+        self.message_count = 0
+        self.start_time: int | None = None
+        self.end_time: int | None = None
+        self.metadata: dict[str, dict[str, str]] = {}
+        self.blocks: list[Block] = []
+        self.errors: list[BagError] = []
+        """Damage found while opening: data that is lost (reported after the readable messages)."""
+        self.notes: list[str] = []
+        """What was recovered without loss, e.g. a summary rebuilt by scanning."""
+        self.indexed_by = ""
+        """'summary' or 'scan': where the block table came from."""
+        self._header_length = 0
+        try:
+            self._fd = os.open(self.path, os.O_RDONLY)
+        except OSError as error:
+            raise BagError(self.path, f"cannot open the file: {error.strerror}") from None
+        try:
+            self.size = os.fstat(self._fd).st_size
+            self._open()
+        except BaseException:
+            self.close()
+            raise
+
+    # -- low level -------------------------------------------------------------------------------
+
+    def _read(self, length: int, offset: int) -> bytes:
+        if self._fd < 0:
+            raise BagError(self.path, "the file was closed")
+        chunks = []
+        while length > 0:
+            data = os.pread(self._fd, length, offset)
+            if not data:
+                break
+            chunks.append(data)
+            length -= len(data)
+            offset += len(data)
+        return b"".join(chunks)
+
+    def close(self) -> None:
+        if getattr(self, "_fd", -1) >= 0:
+            os.close(self._fd)
+            self._fd = -1
+
+    def _damage(self, offset: int, detail: str) -> None:
+        self.errors.append(BagError(self.path, detail, offset))
+
+    # -- opening ---------------------------------------------------------------------------------
+
+    def _open(self) -> None:
+        head = self._read(len(MAGIC), 0)
+        if head != MAGIC:
+            if MAGIC.startswith(head):
+                self._damage(
+                    0,
+                    f"the file ({len(head)} bytes) is truncated inside the 8-byte MCAP magic: "
+                    "nothing is readable",
+                )
+                self.indexed_by = "scan"
+                return
+            found = "an SQLite database (a rosbag2 .db3 bag?)" if head.startswith(b"SQLite f") else repr(head)
+            raise BagError(
+                self.path,
+                "not an MCAP file: expected the MCAP magic bytes 89 4d 43 41 50 30 0d 0a "
+                f"('\\x89MCAP0\\r\\n') at the start, found {found}; only MCAP bags can be read",
+                0,
+            )
+        header = self._header()
+        if header is None:
+            self.indexed_by = "scan"
+            return
+        self.profile, self.library = header.profile, header.library
+        if not self._read_summary():
+            self._scan(len(MAGIC) + self._header_length)
+
+    def _read_summary(self) -> bool:
+        """Index from the summary section; False (nothing changed) when it is missing or unusable."""
+        footer_offset = self.size - len(MAGIC) - _FOOTER_LENGTH
+        if footer_offset < len(MAGIC) or self._read(len(MAGIC), self.size - len(MAGIC)) != MAGIC:
+            self.notes.append("the file has no MCAP footer (the writer did not finish it); scanned the data")
+            return False
+        raw_footer = self._read(_FOOTER_LENGTH, footer_offset)
+        opcode, length = _RECORD_HEAD.unpack_from(raw_footer)
+        if opcode != Opcode.FOOTER or length != 20:
+            self.notes.append("the MCAP footer is malformed; scanned the data")
+            return False
+        footer: Footer = _parse(Footer, raw_footer[9:])
+        if footer.summary_start == 0 or not (len(MAGIC) < footer.summary_start <= footer_offset):
+            self.notes.append("the file has no summary section; scanned the data")
+            return False
+        summary = self._read(footer_offset - footer.summary_start, footer.summary_start)
+        if footer.summary_crc:
+            crc = zlib.crc32(raw_footer[: 9 + 16], zlib.crc32(summary))
+            if crc != footer.summary_crc:
+                self.notes.append("the summary CRC does not match; scanned the data")
+                return False
+        schemas, channels, chunk_indexes, metadata_indexes = {}, {}, [], []
+        statistics: Statistics | None = None
+        try:
+            for _, op, body in _records(memoryview(summary), footer.summary_start):
+                if op == Opcode.SCHEMA:
+                    schema = _parse(Schema, body)
+                    schemas[schema.id] = schema
+                elif op == Opcode.CHANNEL:
+                    channel = _parse(Channel, body)
+                    channels[channel.id] = channel
+                elif op == Opcode.CHUNK_INDEX:
+                    chunk_indexes.append(_parse(ChunkIndex, body))
+                elif op == Opcode.STATISTICS:
+                    statistics = _parse(Statistics, body)
+                elif op == Opcode.METADATA_INDEX:
+                    metadata_indexes.append(_parse(MetadataIndex, body))
+        except (_Damage, ValueError) as error:
+            self.notes.append(f"the summary section is malformed ({error}); scanned the data")
+            return False
+        if statistics is None or statistics.chunk_count != len(chunk_indexes):
+            self.notes.append("the summary has no statistics or not every chunk index; scanned the data")
+            return False
+        if len(channels) < statistics.channel_count or len(schemas) < statistics.schema_count:
+            self.notes.append("the summary does not repeat every channel and schema; scanned the data")
+            return False
+        if statistics.message_count and not chunk_indexes:
+            self.notes.append("the file is not chunked: loose messages have no index; scanned the data")
+            return False
+        self.schemas, self.channels = schemas, channels
+        self.counts = dict(statistics.channel_message_counts)
+        self.message_count = statistics.message_count
+        if statistics.message_count:
+            self.start_time, self.end_time = statistics.message_start_time, statistics.message_end_time
+        for order, index in enumerate(sorted(chunk_indexes, key=lambda c: c.chunk_start_offset)):
+            present = frozenset(index.message_index_offsets) or None
+            self.blocks.append(
+                Block(
+                    index.chunk_start_offset,
+                    index.chunk_length,
+                    index.message_start_time,
+                    index.message_end_time,
+                    present,
+                    True,
+                    order,
+                )
+            )
+        for index in metadata_indexes:
+            try:
+                for _, op, body in _records(memoryview(self._read(index.length, index.offset)), index.offset):
+                    if op == Opcode.METADATA:
+                        record = _parse(Metadata, body)
+                        self.metadata[record.name] = dict(record.metadata)
+            except (_Damage, ValueError):
+                continue  # metadata is informative only
+        self.indexed_by = "summary"
+        return True
+
+    def _header(self) -> Header | None:
+        """The Header record after the magic (its size goes to ``_header_length``); None if damaged."""
+        raw = self._read(_RECORD_HEAD.size, len(MAGIC))
+        truncated = (
+            f"the file ({self.size} bytes) is truncated inside the MCAP Header record: nothing is readable"
+        )
+        if len(raw) < _RECORD_HEAD.size:
+            self._damage(len(MAGIC), truncated)
+            return None
+        opcode, length = _RECORD_HEAD.unpack(raw)
+        if opcode != Opcode.HEADER:
+            found = opcode_name(opcode)
+            self._damage(len(MAGIC), f"expected the MCAP Header record after the magic, found {found}")
+            return None
+        body = self._read(length, len(MAGIC) + _RECORD_HEAD.size)
+        if len(body) < length:
+            self._damage(len(MAGIC), truncated)
+            return None
+        try:
+            header = _parse(Header, body)
+        except ValueError as error:
+            self._damage(len(MAGIC), f"{error}: nothing is readable")
+            return None
+        self._header_length = _RECORD_HEAD.size + length
+        return header
+
+    def _count(self, message: RawMessage) -> None:
+        self.counts[message.channel_id] = self.counts.get(message.channel_id, 0) + 1
+        self.message_count += 1
+        if self.start_time is None or message.log_time < self.start_time:
+            self.start_time = message.log_time
+        if self.end_time is None or message.log_time > self.end_time:
+            self.end_time = message.log_time
+
+    def _scan(self, position: int) -> None:
+        """Index by reading the data section record by record from ``position`` (after the Header)."""
+        self.indexed_by = "scan"
+        run: Block | None = None
+
+        def close_run() -> None:
+            nonlocal run
+            if run is not None:
+                run.order = len(self.blocks)
+                self.blocks.append(run)
+                run = None
+
+        while True:
+            raw = self._read(_RECORD_HEAD.size, position)
+            if not raw:
+                self.notes.append(f"the data section ends at byte {position} without a DataEnd record")
+                break
+            if len(raw) < _RECORD_HEAD.size:
+                cut = f"the record header is cut after {len(raw)} of 9 bytes"
+                self._damage(position, self._cut(position, cut))
+                break
+            opcode, length = _RECORD_HEAD.unpack(raw)
+            body_start = position + _RECORD_HEAD.size
+            available = self.size - body_start
+            if length > available:
+                self._damage(
+                    position,
+                    self._cut(
+                        position,
+                        f"a {opcode_name(opcode)} record declares {length} bytes but the file ends "
+                        f"{available} bytes later",
+                    ),
+                )
+                break
+            next_position = body_start + length
+            if opcode == Opcode.MESSAGE:
+                try:
+                    message = _message(self._read(min(length, _MESSAGE_HEAD.size), body_start))
+                except ValueError as error:
+                    self._damage(position, f"{error}; skipped it")
+                else:
+                    self._count(message)
+                    if run is None or run.length >= _RUN_BYTES:
+                        close_run()
+                        run = Block(position, 0, message.log_time, message.log_time, frozenset(), False)
+                    run.start = min(run.start, message.log_time)
+                    run.end = max(run.end, message.log_time)
+                    run.channels = run.channels | {message.channel_id}
+                if run is not None:
+                    run.length = next_position - run.offset
+            elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
+                try:
+                    self._register(opcode, self._read(length, body_start))
+                except ValueError as error:
+                    self._damage(position, f"{error}; skipped it")
+                if run is not None:
+                    run.length = next_position - run.offset
+            elif opcode == Opcode.CHUNK:
+                close_run()
+                self._scan_chunk(position, length, body_start)
+            elif opcode == Opcode.METADATA:
+                try:
+                    record = _parse(Metadata, self._read(length, body_start))
+                    self.metadata[record.name] = dict(record.metadata)
+                except ValueError:
+                    pass  # metadata is informative only
+            elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
+                break
+            position = next_position
+        close_run()
+
+    def _cut(self, position: int, what: str) -> str:
+        return (
+            f"{what}: the file ({self.size} bytes) is truncated; the {self.message_count} messages "
+            "before this point are readable, whatever followed is lost"
+        )
+
+    def _register(self, opcode: int, body: bytes | memoryview) -> None:
+        if opcode == Opcode.SCHEMA:
+            schema = _parse(Schema, body)
+            self.schemas.setdefault(schema.id, schema)
+        else:
+            channel = _parse(Channel, body)
+            self.channels.setdefault(channel.id, channel)
+
+    def _scan_chunk(self, position: int, length: int, body_start: int) -> None:
+        try:
+            chunk = _parse(Chunk, self._read(length, body_start))
+            payload = _chunk_payload(chunk)
+            messages = []
+            for _, op, body in _records(memoryview(payload), 0):
+                if op in (Opcode.SCHEMA, Opcode.CHANNEL):
+                    self._register(op, body)
+                elif op == Opcode.MESSAGE:
+                    messages.append(_message(body))
+        except (ValueError, _Damage) as error:
+            self._damage(
+                position,
+                f"the Chunk record ({length} bytes) cannot be decoded: {error}; skipped it, "
+                "the messages it held are lost",
+            )
+            return
+        if not messages:
+            return
+        for message in messages:
+            self._count(message)
+        self.blocks.append(
+            Block(
+                position,
+                _RECORD_HEAD.size + length,
+                min(m.log_time for m in messages),
+                max(m.log_time for m in messages),
+                frozenset(m.channel_id for m in messages),
+                True,
+                len(self.blocks),
+            )
+        )
+
+    # -- messages --------------------------------------------------------------------------------
+
+    def _load(
+        self, block: Block, channel_ids: frozenset[int] | None, start: int, end: int | None
+    ) -> list[RawMessage]:
+        buffer = memoryview(self._read(block.length, block.offset))
+        if len(buffer) < block.length:
+            raise _Damage(block.offset, f"the block declares {block.length} bytes but the file ends before")
+        wanted: list[RawMessage] = []
+
+        def keep(message: RawMessage) -> None:
+            if channel_ids is not None and message.channel_id not in channel_ids:
+                return
+            if message.log_time < start or (end is not None and message.log_time >= end):
+                return
+            wanted.append(message)
+
+        for offset, op, body in _records(buffer, block.offset):
+            try:
+                if op == Opcode.CHUNK:
+                    payload = _chunk_payload(_parse(Chunk, body))
+                    for _, inner, inner_body in _records(memoryview(payload), 0):
+                        if inner == Opcode.MESSAGE:
+                            keep(_message(inner_body))
+                elif op == Opcode.MESSAGE:
+                    keep(_message(body))
+            except ValueError as error:
+                raise _Damage(offset, f"the {opcode_name(op)} record cannot be decoded: {error}") from None
+        return wanted  # in file order; the merge in iter_messages orders by log time
+
+    def iter_messages(
+        self,
+        channel_ids: frozenset[int] | None = None,
+        start: int | None = None,
+        end: int | None = None,
+        on_error: Callable[[BagError], None] | None = None,
+    ) -> Iterator[RawMessage]:
+        """Messages of these channels with ``start <= log_time < end``, in log-time order.
+
+        A block that cannot be read is skipped and reported through ``on_error`` (its messages are
+        lost, the others still come).
+        """
+        start = 0 if start is None else start
+        blocks = [
+            b
+            for b in self.blocks
+            if b.end >= start
+            and (end is None or b.start < end)
+            and (channel_ids is None or b.channels is None or b.channels & channel_ids)
+        ]
+        blocks.sort(key=lambda b: (b.start, b.order))
+        heap: list[tuple[int, int, int, RawMessage]] = []
+        next_block = 0
+        while next_block < len(blocks) or heap:
+            while next_block < len(blocks) and (not heap or blocks[next_block].start <= heap[0][0]):
+                block = blocks[next_block]
+                next_block += 1
+                try:
+                    loaded = self._load(block, channel_ids, start, end)
+                except _Damage as damage:
+                    if on_error is not None:
+                        detail = f"{damage.detail}; skipped it, the messages it held are lost"
+                        on_error(BagError(self.path, detail, damage.offset))
+                    continue
+                for index, message in enumerate(loaded):
+                    heapq.heappush(heap, (message.log_time, block.order, index, message))
+            if heap:
+                yield heapq.heappop(heap)[3]

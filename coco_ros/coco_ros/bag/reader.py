@@ -1,0 +1,441 @@
+"""Reading rosbag2 bags stored as MCAP: topics, messages in log-time order, latched messages.
+
+A bag is a folder with ``metadata.yaml`` and one or more ``.mcap`` files (what ``ros2 bag record``
+makes), or a single ``.mcap`` file. Messages keep their CDR bytes; ``BagMessage.message``
+deserializes them with rclpy on first access, so filtering and forwarding cost no decoding.
+
+Damage (see :mod:`.mcap_file`): whatever is readable is read. Problems are :class:`BagError`s that
+name the file and the byte where reading stopped; they are collected in :attr:`BagReader.errors`
+and reported by :meth:`BagReader.messages` *after* the last readable message: raised by default, or
+handed to the ``on_error`` callback given to the reader (then nothing is raised). A file that is not
+MCAP at all fails at once, when the reader is made.
+"""
+
+from __future__ import annotations
+
+import heapq
+import re
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator
+
+from coco_core.errors import did_you_mean
+
+from . import tf_message
+from .errors import BagError, MessageTypeError
+from .mcap_file import McapFile, RawMessage
+from .message_types import TypeResolver
+from .metadata import BagMetadata, TopicRecord, read_metadata
+from .qos import Qos, parse_profiles
+
+_UNSET: Any = object()
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    """One topic of a bag."""
+
+    name: str
+    type: str
+    """``pkg/msg/Name``."""
+    serialization_format: str
+    """``cdr`` for every ROS 2 bag."""
+    offered_qos_profiles: tuple[Qos, ...]
+    """The QoS the recorded publishers offered (from the channel, else from metadata.yaml)."""
+    message_count: int
+    """Readable messages (in a damaged bag, fewer than metadata.yaml may say)."""
+    definition: str = ""
+    """The complete message definition stored in the bag's schema."""
+    definition_encoding: str = ""
+    type_description_hash: str = ""
+
+    @property
+    def latched(self) -> bool:
+        """Whether a late subscriber would have received this topic's last messages.
+
+        True when every recorded publisher offered TRANSIENT_LOCAL durability, as rosbag2 decides
+        its playback QoS; a ``/tf_static`` recorded without QoS information (old bags) counts too.
+        """
+        if not self.offered_qos_profiles:
+            return self.name == "/tf_static" or self.name.endswith("/tf_static")
+        return all(profile.transient_local for profile in self.offered_qos_profiles)
+
+
+class _TopicDecoder:
+    """CDR bytes -> message object for one topic; the class is resolved (once) on first use."""
+
+    __slots__ = ("resolver", "type_name", "serialization_format", "where")
+
+    def __init__(self, resolver: TypeResolver, topic: TopicInfo, where: str) -> None:
+        self.resolver = resolver
+        self.type_name = topic.type
+        self.serialization_format = topic.serialization_format
+        self.where = where
+
+    def __call__(self, data: bytes) -> Any:
+        if self.serialization_format != "cdr":
+            raise BagError(
+                self.where,
+                f"messages are serialized as {self.serialization_format!r}; only 'cdr' can be deserialized",
+            )
+        decode = self.resolver.decoder(self.type_name, self.where)
+        try:
+            return decode(data)
+        except Exception as error:  # rclpy raises several kinds on malformed CDR
+            raise BagError(self.where, f"cannot deserialize a {self.type_name} message: {error}") from None
+
+
+class BagMessage:
+    """One recorded message: topic, type, times (ns since the epoch), CDR bytes, decoded on demand."""
+
+    __slots__ = ("topic", "type", "log_time", "publish_time", "sequence", "data", "_decode", "_message")
+
+    def __init__(
+        self,
+        topic: str,
+        type_name: str,
+        log_time: int,
+        publish_time: int,
+        data: bytes,
+        decode: Callable[[bytes], Any],
+        sequence: int = 0,
+    ) -> None:
+        self.topic = topic
+        self.type = type_name
+        self.log_time = log_time
+        """When the recorder received it (rosbag2's receive time; the replay clock)."""
+        self.publish_time = publish_time
+        self.sequence = sequence
+        self.data = data
+        self._decode = decode
+        self._message = _UNSET
+
+    @property
+    def message(self) -> Any:
+        """The deserialized message (rclpy's class for the type), decoded once."""
+        if self._message is _UNSET:
+            self._message = self._decode(self.data)
+        return self._message
+
+    def __repr__(self) -> str:
+        return f"<BagMessage {self.topic} {self.type} t={self.log_time} {len(self.data)} bytes>"
+
+
+def _file_index(path: Path) -> tuple[int, str]:
+    match = re.search(r"_(\d+)\.mcap$", path.name)
+    return (int(match.group(1)) if match else -1, path.name)
+
+
+class BagReader:
+    """Read a rosbag2 MCAP bag (folder or ``.mcap`` file).
+
+    ``on_error``: called with each :class:`BagError` met while reading messages (damaged data)
+    instead of raising it at the end of :meth:`messages`.
+    """
+
+    def __init__(self, path: str | Path, *, on_error: Callable[[BagError], None] | None = None) -> None:
+        self.path = Path(path)
+        self._on_error = on_error
+        self._resolver = TypeResolver()
+        self.errors: list[BagError] = []
+        """Every problem found so far: damage found on opening, then blocks that failed to load."""
+        self.metadata: BagMetadata | None = None
+        self._notes: list[str] = []
+        self._files: list[McapFile] = []
+        try:
+            for file_path in self._resolve_files():
+                self._files.append(McapFile(file_path))
+        except BaseException:
+            self.close()
+            raise
+        for file in self._files:
+            for error in file.errors:
+                self._record(error)
+        self.topics: dict[str, TopicInfo] = {}
+        """Topic name -> :class:`TopicInfo`, in the order the bag declares them."""
+        self._channels: list[dict[int, str]] = []  # per file: channel id -> topic
+        self._decoders: dict[str, _TopicDecoder] = {}
+        self._build_topics()
+
+    # -- opening ---------------------------------------------------------------------------------
+
+    def _resolve_files(self) -> list[Path]:
+        path = self.path
+        if path.is_file():
+            return [path]
+        if not path.is_dir():
+            raise BagError(
+                path, "no such bag: expected a rosbag2 bag folder (with metadata.yaml) or an .mcap file"
+            )
+        try:
+            self.metadata = read_metadata(path)
+        except BagError as error:
+            # The storage files carry everything needed: a broken metadata.yaml costs nothing.
+            if not any(path.glob("*.mcap")):
+                raise
+            self._notes.append(f"{error}; read the .mcap files of the folder instead")
+        if self.metadata is None:
+            files = sorted(path.glob("*.mcap"), key=_file_index)
+            if not files:
+                raise BagError(
+                    path, "not a bag folder: expected metadata.yaml or at least one .mcap file in it"
+                )
+            return files
+        meta = self.metadata
+        if meta.storage_identifier and meta.storage_identifier != "mcap":
+            raise BagError(
+                path / "metadata.yaml",
+                f"storage {meta.storage_identifier!r} is not supported: expected 'mcap' "
+                "(convert the bag with 'ros2 bag convert' to MCAP)",
+            )
+        if meta.compression_mode.lower() == "file":
+            raise BagError(
+                path / "metadata.yaml",
+                f"file compression ({meta.compression_format}) is not supported: expected uncompressed "
+                ".mcap files (MCAP chunk compression is fine)",
+            )
+        files = [path / Path(name).name for name in meta.relative_file_paths]
+        missing = [str(f) for f in files if not f.is_file()]
+        if missing:
+            raise BagError(path / "metadata.yaml", f"lists files that are missing: {', '.join(missing)}")
+        if not files:
+            raise BagError(path / "metadata.yaml", "lists no storage file (relative_file_paths is empty)")
+        return files
+
+    def _build_topics(self) -> None:
+        declared: dict[str, TopicRecord] = {}
+        if self.metadata is not None:
+            declared = {t.name: t for t in self.metadata.topics}
+        counts: dict[str, int] = {}
+        found: dict[str, TopicInfo] = {}
+        for file in self._files:
+            by_id: dict[int, str] = {}
+            for channel_id, channel in sorted(file.channels.items()):
+                by_id[channel_id] = channel.topic
+                counts[channel.topic] = counts.get(channel.topic, 0) + file.counts.get(channel_id, 0)
+                if channel.topic in found:
+                    continue
+                record = declared.get(channel.topic)
+                schema = file.schemas.get(channel.schema_id)
+                type_name = schema.name if schema is not None else (record.type if record else "")
+                profiles: tuple[Qos, ...] = ()
+                if "offered_qos_profiles" in channel.metadata:
+                    try:
+                        profiles = parse_profiles(channel.metadata["offered_qos_profiles"])
+                    except ValueError:
+                        profiles = ()
+                if not profiles and record is not None:
+                    profiles = record.offered_qos_profiles
+                found[channel.topic] = TopicInfo(
+                    name=channel.topic,
+                    type=type_name,
+                    serialization_format=channel.message_encoding or "cdr",
+                    offered_qos_profiles=profiles,
+                    message_count=0,
+                    definition=schema.data.decode("utf-8", "replace") if schema is not None else "",
+                    definition_encoding=schema.encoding if schema is not None else "",
+                    type_description_hash=channel.metadata.get("topic_type_hash", "")
+                    or (record.type_description_hash if record else ""),
+                )
+            self._channels.append(by_id)
+        for name, record in declared.items():
+            if name not in found:  # declared but without a channel in the files: no message readable
+                found[name] = TopicInfo(
+                    name=name,
+                    type=record.type,
+                    serialization_format=record.serialization_format,
+                    offered_qos_profiles=record.offered_qos_profiles,
+                    message_count=0,
+                    type_description_hash=record.type_description_hash,
+                )
+        for name, info in found.items():
+            self.topics[name] = replace(info, message_count=counts.get(name, 0))
+            where = f"{self.path} topic {name}"
+            self._decoders[name] = _TopicDecoder(self._resolver, self.topics[name], where)
+
+    # -- summary ---------------------------------------------------------------------------------
+
+    @property
+    def files(self) -> list[Path]:
+        """The storage files read, in order."""
+        return [f.path for f in self._files]
+
+    @property
+    def message_count(self) -> int:
+        """Readable messages in the bag."""
+        return sum(f.message_count for f in self._files)
+
+    @property
+    def start_time(self) -> int:
+        """Log time (ns) of the first message; 0 for a bag without messages."""
+        times = [f.start_time for f in self._files if f.start_time is not None]
+        return min(times) if times else 0
+
+    @property
+    def end_time(self) -> int:
+        """Log time (ns) of the last message; 0 for a bag without messages."""
+        times = [f.end_time for f in self._files if f.end_time is not None]
+        return max(times) if times else 0
+
+    @property
+    def duration(self) -> int:
+        return self.end_time - self.start_time
+
+    @property
+    def damaged(self) -> bool:
+        """Whether some data is known to be lost (see :attr:`errors`)."""
+        return bool(self.errors)
+
+    @property
+    def notes(self) -> list[str]:
+        """Recoveries that lost nothing, e.g. a missing summary rebuilt by scanning."""
+        return self._notes + [f"{f.path}: {note}" for f in self._files for note in f.notes]
+
+    def latched_topics(self) -> list[str]:
+        """Topics whose messages a late subscriber would get (transient local, e.g. /tf_static)."""
+        return [name for name, info in self.topics.items() if info.latched]
+
+    def message_class(self, topic: str) -> type:
+        """The Python class of a topic's messages; :class:`MessageTypeError` when not installed."""
+        info = self.topics[self._select([topic])[0]]
+        return self._resolver.message_class(info.type, f"{self.path} topic {topic}")
+
+    def check_types(self, topics: Iterable[str] | None = None) -> None:
+        """Raise one :class:`MessageTypeError` listing every topic whose type cannot be deserialized.
+
+        A replay calls this before starting, so a missing package is reported up front, not at the
+        first message of that topic.
+        """
+        problems = []
+        for name in self._select(topics):
+            info = self.topics[name]
+            try:
+                self._resolver.decoder(info.type, f"{self.path} topic {name}")
+            except MessageTypeError as error:
+                problems.append(f"{name} ({error.detail})")
+        if problems:
+            raise MessageTypeError(self.path, "cannot deserialize " + "; ".join(problems))
+
+    # -- messages --------------------------------------------------------------------------------
+
+    def _select(self, topics: Iterable[str] | str | None) -> list[str]:
+        if topics is None:
+            return list(self.topics)
+        if isinstance(topics, str):
+            topics = [topics]
+        selected = list(dict.fromkeys(topics))
+        for name in selected:
+            if name not in self.topics:
+                raise BagError(self.path, f"no topic {name!r} in the bag; {did_you_mean(name, self.topics)}")
+        return selected
+
+    def _record(self, error: BagError) -> None:
+        key = (error.path, error.offset, error.detail)
+        if all((e.path, e.offset, e.detail) != key for e in self.errors):
+            self.errors.append(error)
+
+    def _iterate(
+        self, names: list[str], start: int | None, end: int | None, on_error: Callable[[BagError], None]
+    ) -> Iterator[BagMessage]:
+        wanted = set(names)
+        streams = []
+        for file, by_id in zip(self._files, self._channels):
+            ids = frozenset(i for i, topic in by_id.items() if topic in wanted)
+            if ids:
+                streams.append(self._wrap(file.iter_messages(ids, start, end, on_error), by_id))
+        if len(streams) == 1:
+            yield from streams[0]
+        elif streams:
+            yield from heapq.merge(*streams, key=lambda m: m.log_time)
+
+    def _wrap(self, raw: Iterator[RawMessage], by_id: dict[int, str]) -> Iterator[BagMessage]:
+        topics, decoders = self.topics, self._decoders
+        for message in raw:
+            topic = by_id[message.channel_id]
+            yield BagMessage(
+                topic,
+                topics[topic].type,
+                message.log_time,
+                message.publish_time,
+                message.data,
+                decoders[topic],
+                message.sequence,
+            )
+
+    def messages(
+        self,
+        topics: Iterable[str] | str | None = None,
+        start: int | None = None,
+        end: int | None = None,
+    ) -> Iterator[BagMessage]:
+        """Messages of ``topics`` (default: all) with ``start <= log_time < end``, in log-time order.
+
+        ``start``/``end`` are absolute log times in ns (``reader.start_time + offset``). Messages
+        with equal log times keep their order in the file. When the bag is damaged, every readable
+        message is yielded first, then the problems are reported (see the module docstring).
+        """
+        names = self._select(topics)
+        problems: list[BagError] = []
+
+        def on_error(error: BagError) -> None:
+            self._record(error)
+            problems.append(error)
+
+        yield from self._iterate(names, start, end, on_error)
+        for file in self._files:
+            problems.extend(file.errors)
+        if not problems:
+            return
+        if self._on_error is not None:
+            for error in problems:
+                self._on_error(error)
+            return
+        first = problems[0]
+        if len(problems) == 1:
+            raise first
+        others = "; ".join(str(p) for p in problems[1:])
+        detail = f"{first.detail} (and {len(problems) - 1} more problems: {others})"
+        raise BagError(first.path, detail, first.offset)
+
+    def latched(
+        self, topics: Iterable[str] | str | None = None, *, before: int | None = None
+    ) -> list[BagMessage]:
+        """What a subscriber joining at log time ``before`` would get from latched topics.
+
+        For each topic in ``topics`` (default: all) that is :attr:`TopicInfo.latched`, the messages
+        logged before ``before`` (default: the whole bag): ``tf2_msgs/msg/TFMessage`` topics
+        (/tf_static) keep *all* of them, since each static broadcaster publishes its own transforms;
+        other topics keep their last message. The result is in log-time order, so a replay that
+        starts at an offset (or loops) publishes it first and then ``messages(start=before)``.
+
+        Damage is recorded in :attr:`errors` but not raised here: the replay's :meth:`messages`
+        pass reports it.
+        """
+        names = [name for name in self._select(topics) if self.topics[name].latched]
+        if not names:
+            return []
+        keep_all = {name for name in names if self.topics[name].type == tf_message.TYPE_NAME}
+        every: list[BagMessage] = []
+        last: dict[str, BagMessage] = {}
+        for message in self._iterate(names, None, before, self._record):
+            if message.topic in keep_all:
+                every.append(message)
+            else:
+                last[message.topic] = message
+        return sorted(every + list(last.values()), key=lambda m: m.log_time)
+
+    # -- life cycle ------------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Release the files (messages already yielded stay usable)."""
+        for file in self._files:
+            file.close()
+
+    def __enter__(self) -> BagReader:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<BagReader {self.path} {len(self.topics)} topics {self.message_count} messages>"

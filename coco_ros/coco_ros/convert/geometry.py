@@ -1,0 +1,145 @@
+"""Poses and transforms: ``geometry_msgs/PoseStamped``, ``geometry_msgs/TransformStamped`` and
+``tf2_msgs/TFMessage`` <-> the 4x4 samples of the transformation graph.
+
+Frames follow tf2: a TransformStamped from ``header.frame_id`` (parent) to ``child_frame_id`` is
+``T_parent_child``, a :class:`TransformSample` ``(parent, child)``; a PoseStamped is the pose of
+something in ``header.frame_id``, a :class:`FramePose` with that frame as ``target`` and, since the
+message names no source frame, the converter's ``child_frame`` as ``source``. A FramePose may also
+be published as a TransformStamped or in a TFMessage (``target`` -> parent, ``source`` -> child),
+so that lookups of the graph can be broadcast on /tf.
+
+Quaternions are normalised on the way in (a zero quaternion is refused) and written with ``w >= 0``
+on the way out, so a rotation survives ROS -> CoCo -> ROS up to the sign of its quaternion and
+floating-point rounding (about 1e-16).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+from coco_core.transforms import se3
+from coco_core.transforms.samples import FramePose, TransformSample
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
+
+from .base import Converter, header_stamp, make_header, message_class
+
+
+def matrix_of(translation: Any, rotation: Any) -> np.ndarray:
+    """4x4 transform of a message's translation (Point or Vector3) and rotation (Quaternion)."""
+    quaternion = (rotation.x, rotation.y, rotation.z, rotation.w)
+    if sum(c * c for c in quaternion) < 1e-12:
+        raise ValueError(f"quaternion {quaternion} is zero: not a rotation")
+    return se3.from_pose((translation.x, translation.y, translation.z), quaternion)
+
+
+def _pose_parts(transform: np.ndarray) -> tuple[list[float], list[float]]:
+    matrix = np.asarray(transform, dtype=float)
+    if matrix.shape != (4, 4):
+        raise ValueError(f"expected a 4x4 transform, got shape {matrix.shape}")
+    translation, quaternion = se3.to_pose(matrix)
+    return translation.tolist(), quaternion.tolist()
+
+
+def pose_of(transform: np.ndarray) -> Pose:
+    (x, y, z), (qx, qy, qz, qw) = _pose_parts(transform)
+    return Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
+
+
+def transform_of(transform: np.ndarray) -> Transform:
+    (x, y, z), (qx, qy, qz, qw) = _pose_parts(transform)
+    return Transform(translation=Vector3(x=x, y=y, z=z), rotation=Quaternion(x=qx, y=qy, z=qz, w=qw))
+
+
+def _frames(value: TransformSample | FramePose) -> tuple[str, str]:
+    return (value.parent, value.child) if isinstance(value, TransformSample) else (value.target, value.source)
+
+
+class PoseStampedConverter(Converter[PoseStamped, FramePose]):
+    """``geometry_msgs/PoseStamped`` <-> :class:`FramePose` (``T_frame_id_child_frame``)."""
+
+    type_name = "geometry_msgs/msg/PoseStamped"
+    coco_type = FramePose
+
+    def __init__(self, child_frame: str = "") -> None:
+        self.child_frame = child_frame
+
+    def to_coco(self, msg: PoseStamped) -> FramePose:
+        self._check_message(msg)
+        pose = msg.pose
+        return FramePose(msg.header.frame_id, self.child_frame, matrix_of(pose.position, pose.orientation),
+                         header_stamp(msg.header))
+
+    def to_ros(self, value: FramePose) -> PoseStamped:
+        """The pose of ``value.source`` in ``value.target`` (the source's name is not carried)."""
+        self._check_value(value)
+        return PoseStamped(header=make_header(value.stamp, value.target), pose=pose_of(value.transform))
+
+
+class TransformStampedConverter(Converter[TransformStamped, TransformSample]):
+    """``geometry_msgs/TransformStamped`` <-> :class:`TransformSample` (a FramePose is also written)."""
+
+    type_name = "geometry_msgs/msg/TransformStamped"
+    coco_type = TransformSample
+
+    def to_coco(self, msg: TransformStamped) -> TransformSample:
+        self._check_message(msg)
+        return transform_sample(msg)
+
+    def to_ros(self, value: TransformSample | FramePose) -> TransformStamped:
+        self._check_value(value, (TransformSample, FramePose))
+        return transform_stamped(value)
+
+
+def transform_sample(msg: TransformStamped) -> TransformSample:
+    transform = msg.transform
+    return TransformSample(msg.header.frame_id, msg.child_frame_id,
+                           matrix_of(transform.translation, transform.rotation), header_stamp(msg.header))
+
+
+def transform_stamped(value: TransformSample | FramePose) -> TransformStamped:
+    parent, child = _frames(value)
+    return TransformStamped(header=make_header(value.stamp, parent), child_frame_id=child,
+                            transform=transform_of(value.transform))
+
+
+class TFMessageConverter(Converter[Any, list]):
+    """``tf2_msgs/TFMessage`` (/tf, /tf_static) <-> a list of :class:`TransformSample`.
+
+    ``to_ros`` takes one sample or any iterable of them (FramePose values too), which is what the
+    transformation interface's ``transform`` port accepts. ``tf2_msgs`` is imported when the
+    converter is made (it is not among the message packages of the ROS wheels on PyPI), so that the
+    other geometry converters work without it.
+    """
+
+    type_name = "tf2_msgs/msg/TFMessage"
+    coco_type = list
+
+    def __init__(self) -> None:
+        try:
+            self._message = message_class(self.type_name)
+        except ImportError as error:
+            raise ImportError(f"the {self.type_name} converter needs the tf2_msgs Python package, which is "
+                              f"not installed ({error}); build tf2_msgs (ros2/geometry2) in the workspace "
+                              "or source a ROS 2 installation") from error
+
+    @property
+    def message_type(self) -> type:
+        return self._message
+
+    def to_coco(self, msg: Any) -> list[TransformSample]:
+        self._check_message(msg)
+        return [transform_sample(transform) for transform in msg.transforms]
+
+    def to_ros(self, value: TransformSample | FramePose | Iterable[TransformSample | FramePose]) -> Any:
+        if isinstance(value, (TransformSample, FramePose)):
+            samples = [value]
+        elif isinstance(value, Iterable):
+            samples = list(value)
+        else:
+            raise TypeError(f"{type(self).__name__} publishes a TransformSample or FramePose, or a list of them, "
+                            f"got {type(value).__name__}")
+        for sample in samples:
+            self._check_value(sample, (TransformSample, FramePose))
+        return self._message(transforms=[transform_stamped(sample) for sample in samples])

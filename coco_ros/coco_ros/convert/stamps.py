@@ -1,0 +1,77 @@
+"""``builtin_interfaces/Time`` <-> float seconds, the time base of CoCo port data.
+
+Precision: a float64 holds about 16 significant digits, so seconds since 1970 (about 1.7e9) are
+resolved to 2**-22 s, about 240 ns; times under 2**22 s (48 days, e.g. simulated time) are resolved
+to better than a nanosecond and survive ``seconds -> Time -> seconds`` exactly.
+
+To keep ROS stamps exact anyway, :func:`time_to_seconds` returns a :class:`RosTime`: a ``float`` in
+every respect that also remembers the ``sec`` and ``nanosec`` it came from, and
+:func:`seconds_to_time` gives those back unchanged. A stamp copied from an incoming message to an
+outgoing one (an image to the pose computed from it) therefore matches to the nanosecond, as
+ROS's exact-time synchronisers need; any arithmetic on it yields a plain float, rounded to the
+nearest nanosecond on the way out.
+
+A zero ``Time`` (ROS's "unset", also tf2's "latest") maps to ``None``, and ``None`` back to zero.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from builtin_interfaces.msg import Time
+
+_NS = 1_000_000_000
+_INT32 = 2**31
+
+
+class RosTime(float):
+    """Float seconds that remember the exact ``builtin_interfaces/Time`` they were made from."""
+
+    __slots__ = ("sec", "nanosec")
+
+    sec: int
+    nanosec: int
+
+    def __new__(cls, sec: int, nanosec: int) -> RosTime:
+        value = super().__new__(cls, (int(sec) * _NS + int(nanosec)) / _NS)  # int / int: correctly rounded
+        value.sec = int(sec)
+        value.nanosec = int(nanosec)
+        return value
+
+    @property
+    def nanoseconds(self) -> int:
+        """The exact time in integer nanoseconds."""
+        return self.sec * _NS + self.nanosec
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (RosTime, (self.sec, self.nanosec))
+
+    def __repr__(self) -> str:
+        return f"RosTime(sec={self.sec}, nanosec={self.nanosec})"
+
+
+def time_to_seconds(stamp: Time) -> RosTime | None:
+    """Seconds of a ``builtin_interfaces/Time``; ``None`` for the zero (unset) time."""
+    if stamp.sec == 0 and stamp.nanosec == 0:
+        return None
+    return RosTime(stamp.sec, stamp.nanosec)
+
+
+def seconds_to_time(seconds: float | None) -> Time:
+    """``builtin_interfaces/Time`` of float seconds, rounded to the nearest nanosecond (exact for a
+    :class:`RosTime`); ``None`` gives the zero time."""
+    if seconds is None:
+        return Time()
+    if isinstance(seconds, RosTime):
+        return Time(sec=seconds.sec, nanosec=seconds.nanosec)
+    value = float(seconds)
+    if not math.isfinite(value):
+        raise ValueError(f"a ROS time must be finite, got {value}")
+    sec = math.floor(value)
+    nanosec = round((value - sec) * _NS)  # value - floor(value) is exact in floating point
+    if nanosec >= _NS:
+        sec, nanosec = sec + 1, nanosec - _NS
+    if not -_INT32 <= sec < _INT32:
+        raise ValueError(f"{value} s is outside the range of a ROS time (int32 seconds)")
+    return Time(sec=sec, nanosec=nanosec)

@@ -1,0 +1,34 @@
+"""Shared setup of the coco_ros tests.
+
+``coco_ros`` builds on the workspace's other packages (``coco_core``, ``coco_mr_vision``...): under
+colcon they are installed, but when pytest runs straight from the source tree
+(``cd coco_ros && python -m pytest test``) each sibling package that is not importable is put on
+the path here.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+_WORKSPACE = Path(__file__).resolve().parents[2]
+for _package in sorted(_WORKSPACE.glob("*/package.xml")):
+    _name = _package.parent.name
+    if (_package.parent / _name / "__init__.py").is_file() and importlib.util.find_spec(_name) is None:
+        sys.path.insert(0, str(_package.parent))
+
+SHARED_DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
+"""Real recordings from public sources (see shared/data/README.md); tests skip when it is absent."""
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture
+def talker_bag() -> Path:
+    """The rosbag2-written talker bag folder (metadata.yaml + talker.mcap), or skip."""
+    folder = SHARED_DATA / "rosbag2"
+    if not (folder / "talker.mcap").is_file() or not (folder / "metadata.yaml").is_file():
+        pytest.skip(f"shared test data absent: expected {folder}/talker.mcap and metadata.yaml")
+    return folder

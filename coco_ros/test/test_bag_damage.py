@@ -1,0 +1,265 @@
+"""Damaged bags: every readable message comes out, then an error names the file and the byte.
+
+Cases: files cut at many positions (a recorder killed mid-write, a copy interrupted), a chunk
+corrupted in the middle of an otherwise complete file, a writer killed by SIGKILL after its last
+flush, a writer stopped by Ctrl-C, and files that are not MCAP at all.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from coco_ros.bag import BagError, BagReader, BagWriter
+
+T0 = 1_700_000_000_000_000_000
+MS = 1_000_000
+COUNT = 300
+
+
+@pytest.fixture(scope="module", params=["none", "zstd"])
+def intact(request, tmp_path_factory) -> tuple[Path, list[tuple[str, int, str]], list]:
+    """(mcap file, its messages as (topic, log time, text), its chunk indexes), several chunks."""
+    from std_msgs.msg import String
+
+    folder = tmp_path_factory.mktemp(f"damage_{request.param}") / "bag"
+    with BagWriter(folder, compression=request.param, chunk_size=2048) as writer:
+        for i in range(COUNT):
+            topic = "/a" if i % 3 else "/b"
+            writer.write(topic, String(data=f"message {i:04d} " + "x" * (i % 50)), T0 + i * MS)
+    path = folder / "bag_0.mcap"
+    with BagReader(path) as reader:
+        messages = [(m.topic, m.log_time, m.message.data) for m in reader.messages()]
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as stream:
+        chunks = sorted(make_reader(stream).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    assert len(chunks) >= 5
+    return path, messages, chunks
+
+
+def read_all(path: Path) -> tuple[list[tuple[str, int, str]], BagError | None, BagReader]:
+    """Messages yielded before the error (if any) and the error raised after them."""
+    reader = BagReader(path)
+    got = []
+    try:
+        for message in reader.messages():
+            got.append((message.topic, message.log_time, message.message.data))
+    except BagError as error:
+        return got, error, reader
+    return got, None, reader
+
+
+def cut_positions(chunks) -> list[tuple[str, int]]:
+    """Named cut points in the data section: inside the header, inside chunks, between chunks."""
+    middle = chunks[len(chunks) // 2]
+    last = chunks[-1]
+    size = last.chunk_start_offset + last.chunk_length
+    return [
+        ("header", 12),
+        ("first chunk", chunks[0].chunk_start_offset + 5),
+        ("middle chunk start", middle.chunk_start_offset + 1),
+        ("middle chunk body", middle.chunk_start_offset + middle.chunk_length // 2),
+        ("middle chunk last byte", middle.chunk_start_offset + middle.chunk_length - 1),
+        ("last chunk", last.chunk_start_offset + last.chunk_length // 3),
+        ("40 % of the data", size * 2 // 5),
+        ("70 % of the data", size * 7 // 10),
+        ("message index after a chunk", middle.chunk_start_offset + middle.chunk_length + 3),
+    ]
+
+
+def test_truncated_files_yield_everything_before_the_cut_then_name_file_and_byte(intact, tmp_path):
+    path, messages, chunks = intact
+    data = path.read_bytes()
+    for name, cut in cut_positions(chunks):
+        damaged = tmp_path / f"cut_{cut}.mcap"
+        damaged.write_bytes(data[:cut])
+        complete = [c for c in chunks if c.chunk_start_offset + c.chunk_length <= cut]
+        readable = sum(
+            1 for _, t, _ in messages if any(c.message_start_time <= t <= c.message_end_time for c in complete)
+        )
+        got, error, reader = read_all(damaged)
+        assert got == messages[:readable], f"cut {name} at byte {cut}: {len(got)} messages, expected {readable}"
+        assert error is not None, f"cut {name} at byte {cut}: no error"
+        assert error.path == str(damaged) and str(damaged) in str(error)
+        assert error.offset is not None and 8 <= error.offset < cut, (name, cut, error)
+        assert f"at byte {error.offset}" in str(error) and "truncated" in str(error)
+        assert reader.damaged and reader.errors[0].offset == error.offset
+        assert reader.message_count == readable
+        reader.close()
+
+
+def test_a_cut_in_the_summary_loses_no_message(intact, tmp_path):
+    path, messages, chunks = intact
+    data = path.read_bytes()
+    last = chunks[-1]
+    for cut in (last.chunk_start_offset + last.chunk_length + last.message_index_length + 20, len(data) - 10):
+        damaged = tmp_path / f"summary_cut_{cut}.mcap"
+        damaged.write_bytes(data[:cut])
+        got, error, reader = read_all(damaged)
+        assert got == messages and error is None
+        assert reader.notes and "no MCAP footer" in reader.notes[0]
+        reader.close()
+
+
+def test_on_error_callback_reports_instead_of_raising(intact, tmp_path):
+    path, messages, chunks = intact
+    damaged = tmp_path / "cut.mcap"
+    damaged.write_bytes(path.read_bytes()[: chunks[3].chunk_start_offset + 7])
+    reported: list[BagError] = []
+    with BagReader(damaged, on_error=reported.append) as reader:
+        got = [m.log_time for m in reader.messages()]
+    assert got == [t for _, t, _ in messages[: len(got)]] and got
+    assert len(reported) == 1 and reported[0].offset == chunks[3].chunk_start_offset
+
+
+def test_a_corrupt_chunk_in_a_complete_file_costs_only_its_messages(intact, tmp_path):
+    path, messages, chunks = intact
+    data = bytearray(path.read_bytes())
+    bad = chunks[2]
+    position = bad.chunk_start_offset + bad.chunk_length - 20  # inside the chunk's data
+    data[position] ^= 0xFF
+    damaged = tmp_path / "corrupt.mcap"
+    damaged.write_bytes(bytes(data))
+    got, error, reader = read_all(damaged)
+    lost = [m for m in messages if bad.message_start_time <= m[1] <= bad.message_end_time]
+    assert lost and got == [m for m in messages if m not in lost]
+    assert error is not None and error.offset == bad.chunk_start_offset
+    assert "Chunk" in str(error) and "lost" in str(error)
+    reader.close()
+
+
+def test_not_mcap_files_are_refused_at_once(tmp_path):
+    text = tmp_path / "notes.mcap"
+    text.write_text("this is not a bag\n")
+    with pytest.raises(BagError, match=r"notes\.mcap at byte 0: not an MCAP file: expected the MCAP magic"):
+        BagReader(text)
+    sqlite = tmp_path / "old.db3"
+    sqlite.write_bytes(b"SQLite format 3\x00" + bytes(100))
+    with pytest.raises(BagError, match=r"SQLite database \(a rosbag2 \.db3 bag\?\)"):
+        BagReader(sqlite)
+    with pytest.raises(BagError, match="no such bag"):
+        BagReader(tmp_path / "missing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(BagError, match="expected metadata.yaml or at least one .mcap"):
+        BagReader(tmp_path / "empty")
+
+
+def test_metadata_yaml_problems_name_the_file(tmp_path):
+    from std_msgs.msg import String
+
+    folder = tmp_path / "bag"
+    with BagWriter(folder) as writer:
+        writer.write("/a", String(data="a"), T0)
+    meta = (folder / "metadata.yaml").read_text()
+    (folder / "bag_0.mcap").unlink()
+    with pytest.raises(BagError, match=r"metadata\.yaml: lists files that are missing: .*bag_0\.mcap"):
+        BagReader(folder)
+    (folder / "metadata.yaml").write_text(meta.replace("storage_identifier: mcap", "storage_identifier: sqlite3"))
+    with pytest.raises(BagError, match="storage 'sqlite3' is not supported: expected 'mcap'"):
+        BagReader(folder)
+    (folder / "metadata.yaml").write_text("rosbag2_bagfile_information: [not, a, mapping]\n")
+    with pytest.raises(BagError, match="expected a mapping 'rosbag2_bagfile_information'"):
+        BagReader(folder)
+
+
+def test_a_broken_metadata_yaml_beside_good_files_costs_nothing(tmp_path):
+    from std_msgs.msg import String
+
+    folder = tmp_path / "bag"
+    with BagWriter(folder) as writer:
+        writer.write("/a", String(data="a"), T0)
+    text = (folder / "metadata.yaml").read_text()
+    (folder / "metadata.yaml").write_text(text[: len(text) // 2] + "\n  - [unbalanced")
+    with BagReader(folder) as reader:
+        assert [m.message.data for m in reader.messages()] == ["a"]
+        assert reader.metadata is None and "metadata.yaml: cannot read it as YAML" in reader.notes[0]
+
+
+def test_an_empty_or_tiny_file_reads_as_nothing_with_an_error(tmp_path):
+    for size in (0, 5, 8, 15):
+        path = tmp_path / f"tiny_{size}.mcap"
+        path.write_bytes(b"\x89MCAP0\r\n\x01\x00\x00\x00\x00\x00\x00\x00"[:size])
+        got, error, reader = read_all(path)
+        assert got == [] and error is not None and str(path) in str(error), size
+        assert "nothing is readable" in str(error)
+        reader.close()
+
+
+WRITER_CHILD = textwrap.dedent(
+    """
+    import sys, time
+    from coco_ros.bag import BagWriter
+    from std_msgs.msg import String
+    writer = BagWriter(sys.argv[1], flush_interval=None)
+    count = 0
+    def write(n):
+        global count
+        for _ in range(n):
+            writer.write("/count", String(data=str(count)), {t0} + count * 1000)
+            count += 1
+    write(500)
+    writer.flush()
+    flushed = count
+    write(3)  # still in the open chunk: only close() writes these
+    print("ready", flushed, count, flush=True)
+    time.sleep(60)  # the parent kills or interrupts us here
+    """
+).format(t0=T0)
+
+
+def start_writer(folder: Path) -> tuple[subprocess.Popen, int, int]:
+    """A child process recording a bag: (process, messages flushed, messages written)."""
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ)
+    paths = [str(root / "coco_ros"), str(root / "coco_core"), env.get("PYTHONPATH", "")]
+    env["PYTHONPATH"] = os.pathsep.join(paths)
+    command = [sys.executable, "-c", WRITER_CHILD, str(folder)]
+    child = subprocess.Popen(command, stdout=subprocess.PIPE, text=True, env=env)
+    line = child.stdout.readline().split()
+    if line[:1] != ["ready"]:
+        child.kill()
+        child.wait()
+        pytest.fail(f"writer child did not start: {line}")
+    return child, int(line[1]), int(line[2])
+
+
+def stop(child: subprocess.Popen, signal_number: int) -> None:
+    child.send_signal(signal_number)
+    try:
+        child.wait(timeout=10)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+        child.stdout.close()
+
+
+def test_a_killed_writer_leaves_a_bag_that_reads_up_to_its_last_flush(tmp_path):
+    folder = tmp_path / "killed"
+    child, flushed, _ = start_writer(folder)
+    stop(child, signal.SIGKILL)
+    assert not (folder / "metadata.yaml").exists()
+    with BagReader(folder) as reader:  # no metadata.yaml: the folder's .mcap is found
+        values = [int(m.message.data) for m in reader.messages()]
+        assert reader.errors == [] and any("no MCAP footer" in note for note in reader.notes)
+    assert values == list(range(flushed))
+
+
+def test_ctrl_c_closes_the_bag_completely(tmp_path):
+    """KeyboardInterrupt ends the program; the writer is closed at exit, unflushed messages included."""
+    folder = tmp_path / "interrupted"
+    child, _, written = start_writer(folder)
+    stop(child, signal.SIGINT)
+    assert (folder / "metadata.yaml").exists(), "close() did not run at exit"
+    with BagReader(folder) as reader:
+        values = [int(m.message.data) for m in reader.messages()]
+        assert reader.errors == [] and reader.notes == []  # summary and footer are there
+        assert reader.metadata.message_count == written
+    assert values == list(range(written))

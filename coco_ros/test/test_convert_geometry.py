@@ -1,0 +1,167 @@
+"""PoseStamped, TransformStamped and TFMessage <-> FramePose and TransformSample."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from coco_core.transforms import se3
+from coco_core.transforms.samples import FramePose, TransformSample
+from coco_ros.convert import converter_for, geometry
+from coco_ros.convert.stamps import RosTime
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
+from rclpy.serialization import deserialize_message, serialize_message
+from std_msgs.msg import Header
+
+poses = converter_for("geometry_msgs/msg/PoseStamped", child_frame="tool")
+transforms = converter_for("geometry_msgs/msg/TransformStamped")
+
+
+def through_the_wire(msg):
+    received = deserialize_message(serialize_message(msg), type(msg))
+    assert received == msg
+    return received
+
+
+def a_transform(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    return se3.make(se3.axis_angle(axis / np.linalg.norm(axis), rng.uniform(-3, 3)), rng.normal(size=3))
+
+
+def quaternion(q: Quaternion) -> np.ndarray:
+    return np.array([q.x, q.y, q.z, q.w])
+
+
+def test_pose_stamped_round_trips():
+    msg = PoseStamped(header=Header(stamp=Time(sec=1_700_000_000, nanosec=1), frame_id="base"),
+                      pose=Pose(position=Point(x=0.1, y=-0.2, z=0.3),
+                                orientation=Quaternion(x=0.0, y=0.0, z=math.sin(0.4), w=math.cos(0.4))))
+    pose = poses.to_coco(through_the_wire(msg))
+    assert isinstance(pose, FramePose) and (pose.target, pose.source) == ("base", "tool")
+    assert pose.stamp == RosTime(1_700_000_000, 1)
+    np.testing.assert_allclose(pose.transform[:3, 3], [0.1, -0.2, 0.3])
+    np.testing.assert_allclose(pose.transform[:3, :3], se3.axis_angle((0, 0, 1), 0.8), atol=1e-15)
+    back = through_the_wire(poses.to_ros(pose))
+    assert back.header == msg.header
+    np.testing.assert_allclose(quaternion(back.pose.orientation), quaternion(msg.pose.orientation), atol=1e-15)
+    assert (back.pose.position.x, back.pose.position.y, back.pose.position.z) == (0.1, -0.2, 0.3)
+
+
+def test_frame_pose_round_trips():
+    pose = FramePose("map", "camera", a_transform(1), 12.75)
+    again = poses.to_coco(poses.to_ros(pose))
+    assert (again.target, again.source, again.stamp) == ("map", "tool", 12.75)  # source: the option
+    np.testing.assert_allclose(again.transform, pose.transform, atol=1e-14)
+    assert converter_for("geometry_msgs/PoseStamped").to_coco(poses.to_ros(pose)).source == ""
+
+
+def test_a_quaternion_is_normalised_and_its_sign_may_flip():
+    msg = PoseStamped(pose=Pose(orientation=Quaternion(x=0.0, y=0.0, z=-2 * math.sin(0.4), w=-2 * math.cos(0.4))))
+    pose = poses.to_coco(msg)
+    np.testing.assert_allclose(pose.transform[:3, :3], se3.axis_angle((0, 0, 1), 0.8), atol=1e-15)
+    assert pose.stamp is None and pose.target == ""
+    written = quaternion(poses.to_ros(pose).pose.orientation)
+    np.testing.assert_allclose(written, [0, 0, math.sin(0.4), math.cos(0.4)], atol=1e-15)  # w >= 0
+
+
+def test_a_zero_quaternion_is_refused():
+    with pytest.raises(ValueError, match="is zero: not a rotation"):
+        poses.to_coco(PoseStamped(pose=Pose(orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=0.0))))
+
+
+def test_transform_stamped_round_trips():
+    msg = TransformStamped(header=Header(stamp=Time(sec=5, nanosec=250_000_000), frame_id="world"),
+                           child_frame_id="marker_7",
+                           transform=Transform(translation=Vector3(x=1.0, y=2.0, z=3.0),
+                                               rotation=Quaternion(x=0.5, y=0.5, z=0.5, w=0.5)))
+    sample = transforms.to_coco(through_the_wire(msg))
+    assert isinstance(sample, TransformSample)
+    assert (sample.parent, sample.child, sample.stamp) == ("world", "marker_7", 5.25)
+    np.testing.assert_allclose(sample.transform[:3, :3], [[0, 0, 1], [1, 0, 0], [0, 1, 0]], atol=1e-15)
+    back = through_the_wire(transforms.to_ros(sample))
+    assert back.header == msg.header and back.child_frame_id == "marker_7"
+    np.testing.assert_allclose(quaternion(back.transform.rotation), [0.5] * 4, atol=1e-15)
+    assert (back.transform.translation.x, back.transform.translation.z) == (1.0, 3.0)
+    sample = TransformSample("base", "camera", a_transform(2), None)
+    again = transforms.to_coco(transforms.to_ros(sample))
+    assert (again.parent, again.child, again.stamp) == ("base", "camera", None)
+    np.testing.assert_allclose(again.transform, sample.transform, atol=1e-14)
+
+
+def test_a_frame_pose_is_published_as_a_transform():
+    msg = transforms.to_ros(FramePose("base", "gripper", a_transform(3), 1.0))
+    assert (msg.header.frame_id, msg.child_frame_id, msg.header.stamp) == ("base", "gripper", Time(sec=1))
+
+
+def test_wrong_values_are_refused():
+    with pytest.raises(TypeError, match="publishes FramePose values as geometry_msgs/msg/PoseStamped, got "
+                                        "TransformSample"):
+        poses.to_ros(TransformSample("a", "b", np.eye(4)))
+    with pytest.raises(ValueError, match="expected a 4x4 transform, got shape \\(3, 3\\)"):
+        transforms.to_ros(TransformSample("a", "b", np.eye(3)))
+    with pytest.raises(TypeError, match="converts geometry_msgs/msg/TransformStamped messages, got PoseStamped"):
+        transforms.to_coco(PoseStamped())
+
+
+# --- TFMessage -------------------------------------------------------------------------------------
+# tf2_msgs is not among the ROS wheels on PyPI: the real message is used when it is installed, and a
+# stand-in of the same shape (a list of TransformStamped named ``transforms``) exercises the
+# conversion either way.
+
+@dataclass
+class TFMessage:  # the name is what the converter checks
+    transforms: list = field(default_factory=list)
+
+
+@pytest.fixture
+def tf_converter(monkeypatch):
+    real = geometry.message_class
+    monkeypatch.setattr(geometry, "message_class",
+                        lambda name: TFMessage if name == "tf2_msgs/msg/TFMessage" else real(name))
+    return converter_for("tf2_msgs/msg/TFMessage")
+
+
+def test_tf_message_to_samples_and_back(tf_converter):
+    samples = [TransformSample("world", "base", a_transform(4), RosTime(7, 1)),
+               TransformSample("base", "camera", a_transform(5), RosTime(7, 2))]
+    msg = tf_converter.to_ros(samples)
+    assert [t.child_frame_id for t in msg.transforms] == ["base", "camera"]
+    back = tf_converter.to_coco(msg)
+    assert [(s.parent, s.child, s.stamp.nanosec) for s in back] == [("world", "base", 1), ("base", "camera", 2)]
+    for sample, again in zip(samples, back):
+        np.testing.assert_allclose(again.transform, sample.transform, atol=1e-14)
+    again = tf_converter.to_ros(tf_converter.to_coco(msg))  # equal up to rounding (quaternion -> matrix -> quaternion)
+    for a, b in zip(again.transforms, msg.transforms, strict=True):
+        assert (a.header, a.child_frame_id) == (b.header, b.child_frame_id)
+        np.testing.assert_allclose(quaternion(a.transform.rotation), quaternion(b.transform.rotation), atol=1e-15)
+        assert a.transform.translation == b.transform.translation
+    one = tf_converter.to_ros(FramePose("map", "robot", np.eye(4)))
+    assert [(t.header.frame_id, t.child_frame_id) for t in one.transforms] == [("map", "robot")]
+    assert tf_converter.to_ros([]).transforms == []
+    with pytest.raises(TypeError, match="publishes a TransformSample or FramePose, or a list of them, got int"):
+        tf_converter.to_ros(3)
+    with pytest.raises(TypeError, match="got str"):
+        tf_converter.to_ros([samples[0], "base"])
+
+
+def test_tf_message_with_the_real_package():
+    tf2_msgs = pytest.importorskip("tf2_msgs.msg", reason="tf2_msgs is not installed (not on PyPI)")
+    converter = converter_for("tf2_msgs/msg/TFMessage")
+    msg = converter.to_ros([TransformSample("world", "base", a_transform(6), 3.5)])
+    assert isinstance(msg, tf2_msgs.TFMessage)
+    received = deserialize_message(serialize_message(msg), tf2_msgs.TFMessage)
+    again = converter.to_ros(converter.to_coco(received))
+    assert again.transforms[0].header == msg.transforms[0].header
+    assert again.transforms[0].transform.translation == msg.transforms[0].transform.translation
+
+
+def test_without_tf2_msgs_the_error_says_what_to_install():
+    if importlib.util.find_spec("tf2_msgs") is not None:
+        pytest.skip("tf2_msgs is installed")
+    with pytest.raises(ImportError, match="needs the tf2_msgs Python package"):
+        converter_for("tf2_msgs/msg/TFMessage")
