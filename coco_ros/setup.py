@@ -17,4 +17,17 @@ setup(
     description="CoCo for ROS 2: the rclpy launcher node, ROSInterface bridges and bag replay.",
     license="MIT",
     tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "launcher = coco_ros.launcher:main",
+            "baxter-import = coco_ros.baxter.importer:main",
+            "baxter-session = coco_ros.baxter.session:main",
+            "coco-replay = coco_ros.replay.cli:main",
+        ],
+        "coco.components": [
+            "BagReplay = coco_ros.replay.component:BagReplay",
+            "BagRecorder = coco_ros.replay.recorder:BagRecorder",
+            "ROSInterface = coco_ros.interface.component:ROSInterface",
+        ],
+    },
 )

@@ -155,6 +155,12 @@ class Activity:
     def stopping(self) -> bool:
         return self._stopping
 
+    @property
+    def wake_pending(self) -> bool:
+        """Whether a wake-up (data, a queued call) is waiting for the next cycle; a host taking the
+        activity over must not lose it."""
+        return self._wake.is_set()
+
     def _loop(self) -> None:
         raise NotImplementedError
 

@@ -159,7 +159,8 @@ def run(options: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return run(make_parser().parse_args(argv))
+    # Intermixed: `app.xml --duration 3 window:=4` puts an argument after an option.
+    return run(make_parser().parse_intermixed_args(argv))
 
 
 if __name__ == "__main__":

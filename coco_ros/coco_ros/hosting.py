@@ -1,0 +1,388 @@
+"""Hosting CoCo activities in an rclpy node: callback groups of a multi-threaded executor, or threads.
+
+Each activity hosted by the executor is one ``MutuallyExclusiveCallbackGroup`` of the launcher's
+node, so its components never run concurrently with each other while different activities run in
+parallel on the executor's threads:
+
+- a *periodic* activity is a timer (steady clock) in its group. Its callbacks are measured against
+  the ideal time grid: the lateness goes into ``activity.stats`` (``--profile`` shows it as the
+  period error) and a callback that starts more than one period after its deadline counts as an
+  overrun, the deadlines it missed being skipped, as the activity's own thread does;
+- a *triggered* activity is a guard condition in its group, triggered by the activity's ``wake``:
+  data on an event port, an operation queued to it, or an explicit ``wake()``. Wake-ups that arrive
+  during a cycle cause one more cycle; none is lost.
+
+Every callback makes the activity the thread's *current activity* while it runs (executor threads
+are shared, so operations called from a component must know whose thread they are in). The first
+callback of an activity configures its components; the activity's last callback runs ``finish``
+(``on_stop``), inside its group, after the application asked for a stop. ``on_config``,
+``on_update`` and ``on_stop`` of an executor-hosted activity may therefore run on *different*
+executor threads (never at the same time): a component that holds a thread-bound resource (an
+OpenGL context, a thread-affine device SDK) needs a dedicated thread.
+
+Which activities get their own thread (coco_core's loop: ``Activity.start``) instead is decided by
+:func:`dedicated_reason`; see ``docs/ros.md`` for the rule and the measured numbers behind it.
+
+How the executor attaches to an activity without changing its class: ``Activity.host`` (coco_core)
+makes ``start`` hand the activity over instead of starting a thread, and the activity's ``wake``,
+``stop`` and (periodic) ``set_period`` are replaced on the instance so that event ports, queued
+operations, ``Application.stop`` and ``Application.set_period`` reach the executor.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from typing import TYPE_CHECKING, Callable, Iterable
+
+from coco_core import Activity, Application, CocoError, Component, PeriodicActivity, SchedulingRequest
+from coco_core.errors import did_you_mean
+from coco_core.operations import set_current_activity
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.clock import Clock, ClockType
+
+if TYPE_CHECKING:
+    from rclpy.callback_groups import CallbackGroup
+    from rclpy.executors import Executor
+    from rclpy.guard_condition import GuardCondition
+    from rclpy.node import Node
+    from rclpy.timer import Timer
+
+log = logging.getLogger("coco")
+
+THREAD_PERIOD = 5e-3
+"""Periodic activities faster than this (seconds) get a dedicated thread: an rclpy timer's p99 period
+error (233 us SingleThreaded, 500 us MultiThreaded at 1 kHz, idle) is a tenth of such a period."""
+
+EXECUTOR = "executor"
+
+PARKED_NS = 86_400 * 10**9
+"""The period (a day) a stopped activity's timer is parked at until the node is destroyed."""
+
+
+def dedicated_reason(activity: Activity, forced: bool = False) -> str | None:
+    """Why ``activity`` needs a thread of its own, or None when the executor may host it.
+
+    A thread is needed by the main activity (it runs in the launcher's main thread), by an activity
+    that asks the OS for anything about its thread (affinity, exclusive cores, real-time class,
+    priority, nice: an executor thread is shared, so none of it could be applied), by a periodic
+    activity faster than :data:`THREAD_PERIOD`, and by one the command line names (``forced``).
+    """
+    if forced:
+        return "asked on the command line"
+    if activity.main:
+        return "main activity (the launcher's main thread)"
+    request = activity.scheduling
+    if request != SchedulingRequest():
+        asked = [name for name, value in (("affinity", request.affinity), ("realtime", request.realtime != "none"),
+                                          ("priority", request.priority is not None),
+                                          ("nice", request.nice is not None)) if value]
+        return f"thread placement ({', '.join(asked) or 'scheduling request'})"
+    if isinstance(activity, PeriodicActivity) and activity.period < THREAD_PERIOD:
+        return f"period {activity.period * 1e3:g} ms < {THREAD_PERIOD * 1e3:g} ms"
+    return None
+
+
+def plan_hosting(app: Application, threads: Iterable[str] = (), all_threads: bool = False) -> dict[str, str]:
+    """Where each activity of ``app`` runs: ``"executor"`` or ``"thread: <reason>"``, by name.
+
+    ``threads`` names activities forced onto their own thread (``--threads``); an unknown name is an
+    error that lists the activities.
+    """
+    forced = set(threads)
+    unknown = sorted(forced - set(app.activities))
+    if unknown:
+        raise CocoError(f"--threads: no activity {', '.join(map(repr, unknown))} in application {app.name}; "
+                        f"{did_you_mean(unknown[0], app.activities)}")
+    plan: dict[str, str] = {}
+    for name, activity in app.activities.items():
+        reason = dedicated_reason(activity, all_threads or name in forced)
+        plan[name] = EXECUTOR if reason is None else f"thread: {reason}"
+    return plan
+
+
+def describe_hosting(app: Application, plan: dict[str, str]) -> str:
+    """One line per activity of ``app``: its schedule and where ``plan`` runs it."""
+    lines = []
+    for name, where in plan.items():
+        activity = app.activities[name]
+        how = "rclpy timer" if isinstance(activity, PeriodicActivity) else "guard condition"
+        lines.append(f"  activity {name}: {activity.describe()} -> "
+                     + (f"executor ({how} in its callback group)" if where == EXECUTOR else where))
+    return "\n".join(lines)
+
+
+class _Hosted:
+    """One activity run by the executor: its callback group, guard condition and (periodic) timer."""
+
+    def __init__(self, host: ExecutorHost, activity: Activity, group: MutuallyExclusiveCallbackGroup) -> None:
+        self.host = host
+        self.activity = activity
+        self.group = group
+        self.started = False
+        self.configured = False
+        self.pending = False
+        """A wake-up (data, a queued operation) not yet served by a cycle."""
+        self.closed = False
+        node = host.node
+        self.guard: GuardCondition = node.create_guard_condition(self._on_guard, callback_group=group)
+        self.timer: Timer | None = None
+        self._lock = threading.Lock()
+        self.deadline = 0.0
+        activity.host = self._start
+        activity.stop = self._stop  # type: ignore[method-assign]
+        if isinstance(activity, PeriodicActivity):
+            self.timer = node.create_timer(activity.period, self._on_timer, callback_group=group,
+                                           clock=host.clock, autostart=False)
+            activity.set_period = self._set_period  # type: ignore[method-assign]
+        else:
+            # A wake-up that came before the executor took over (data written before start) is kept,
+            # as the activity's own thread would find its wake event already set.
+            self.pending = activity.wake_pending
+            activity.wake = self._wake  # type: ignore[method-assign]
+
+    # --- what the activity's hooks do ----------------------------------------------------------
+    def _start(self, activity: Activity) -> None:
+        """``Activity.start``: the executor's first callback of this group configures it."""
+        self.started = True
+        self._trigger()
+
+    def _wake(self) -> None:
+        self.pending = True
+        self._trigger()
+
+    def _stop(self) -> None:
+        type(self.activity).stop(self.activity)  # marks it stopping: a timer callback now returns at once
+        if self.timer is not None:
+            # Park the timer rather than cancel it: cancelling races with an executor that already
+            # took it as ready (rclpy then fails in call_timer). close() destroys it after the spin.
+            with self._lock:
+                self.timer.timer_period_ns = PARKED_NS
+                self.timer.reset()
+        self._trigger()  # the group's next callback runs finish() (on_stop)
+
+    def _set_period(self, period: float) -> None:
+        """A new period: the next cycle comes one new period from now, and the grid continues from it."""
+        activity = self.activity
+        assert isinstance(activity, PeriodicActivity) and self.timer is not None
+        PeriodicActivity.set_period(activity, period)  # checks the value and stores it
+        with self._lock:
+            if activity.stopping:  # the timer stays parked
+                return
+            self.timer.timer_period_ns = int(round(period * 1e9))
+            if self.configured:
+                self.timer.reset()
+                self.deadline = time.perf_counter() + period
+        executor = self.host.node.executor
+        if executor is not None:
+            executor.wake()  # the executor's current wait was computed with the old period
+
+    def _trigger(self) -> None:
+        if self.closed:
+            return
+        try:
+            self.guard.trigger()
+        except Exception:  # destroyed at shutdown: a late writer has nothing left to wake
+            pass
+
+    # --- callbacks, each inside the activity's mutually exclusive group ------------------------
+    def _on_guard(self) -> None:
+        activity = self.activity
+        if not self.started or activity.finished:
+            return
+        set_current_activity(activity)
+        try:
+            if activity.stopping:
+                activity.finish()
+                return
+            if not self.configured:
+                self.configured = True
+                activity.configure()
+                if activity.stopping:
+                    activity.finish()
+                    return
+                if isinstance(activity, PeriodicActivity):
+                    self._begin_grid()  # and run the first cycle now, as the activity's own loop does
+                    activity.cycle()
+                    return
+            if self.pending:
+                self.pending = False
+                activity.cycle()
+        except Exception:  # components isolate their own errors; this is a bug guard
+            self._crashed()
+        finally:
+            set_current_activity(None)
+
+    def _begin_grid(self) -> None:
+        assert self.timer is not None
+        with self._lock:
+            self.timer.reset()  # starts the timer: its grid begins now
+            self.deadline = time.perf_counter() + self.timer.time_until_next_call() / 1e9
+
+    def _on_timer(self) -> None:
+        now = time.perf_counter()
+        activity = self.activity
+        if not self.configured or activity.stopping:
+            return
+        assert isinstance(activity, PeriodicActivity)
+        stats = activity.stats
+        with self._lock:
+            period = activity.period
+            late = now - self.deadline
+            if late >= period:  # started more than one period after its deadline: skip what it missed
+                stats.overruns += 1
+                missed = int(late // period)
+                self.deadline += missed * period
+                late -= missed * period
+            stats.record_error(late)
+            self.deadline += period
+        set_current_activity(activity)
+        try:
+            activity.cycle()
+        except Exception:
+            self._crashed()
+        finally:
+            set_current_activity(None)
+
+    def _crashed(self) -> None:
+        log.exception("activity %s: its executor callback failed; stopping the application", self.activity.name)
+        app = self.host.app
+        app.request_stop(f"activity {self.activity.name} failed")
+
+    def close(self) -> None:
+        """Destroy the timer and the guard condition (after the executor stopped spinning)."""
+        self.closed = True
+        if self.timer is not None:
+            self.host.node.destroy_timer(self.timer)
+        self.host.node.destroy_guard_condition(self.guard)
+
+
+class ExecutorHost:
+    """Runs ``app``'s activities in ``node``: callback groups of the node's executor, or threads.
+
+    Create it after the application was built and before ``app.start()``; add ``node`` to a
+    ``MultiThreadedExecutor`` and spin it while the application runs (the executor needs as many
+    threads as activities it hosts to run them all in parallel: :meth:`executor_threads`). After
+    ``app.stop()``, shut the executor down and call :meth:`close`.
+
+    Every activity, hosted or not, gets a ``MutuallyExclusiveCallbackGroup``
+    (:meth:`callback_group`): the ROS entities of its components (subscriptions, timers) belong there,
+    so that they never run at the same time as the activity's cycle when the executor hosts it.
+    The node and the host are reachable from the application (``app.ros_node``, ``app.ros_host``) and
+    so from any component (:func:`ros_node`, :func:`callback_group`).
+    """
+
+    def __init__(self, node: Node, app: Application, threads: Iterable[str] = (),
+                 all_threads: bool = False) -> None:
+        self.node = node
+        self.app = app
+        self.clock = Clock(clock_type=ClockType.STEADY_TIME)
+        """Activity timers run on the steady clock, like the activities' own threads (not /clock)."""
+        self.plan = plan_hosting(app, threads, all_threads)
+        self.groups: dict[str, MutuallyExclusiveCallbackGroup] = {}
+        self.hosted: dict[str, _Hosted] = {}
+        for name, activity in app.activities.items():
+            group = self.groups[name] = MutuallyExclusiveCallbackGroup()
+            if self.plan[name] == EXECUTOR:
+                self.hosted[name] = _Hosted(self, activity, group)
+        app.ros_node = node  # type: ignore[attr-defined]
+        app.ros_host = self  # type: ignore[attr-defined]
+
+    def callback_group(self, activity: Activity | str) -> CallbackGroup:
+        """The callback group of ``activity`` (by object or name)."""
+        name = activity if isinstance(activity, str) else activity.name
+        try:
+            return self.groups[name]
+        except KeyError:
+            raise CocoError(f"no activity {name!r} in application {self.app.name}; "
+                            f"{did_you_mean(name, self.groups)}") from None
+
+    def executor_threads(self) -> int:
+        """Threads for a ``MultiThreadedExecutor``: one per hosted activity and one more for the ROS
+        entities in other groups, at least two."""
+        return max(2, len(self.hosted) + 1)
+
+    def describe(self) -> str:
+        """One line per activity: its schedule and where it runs."""
+        return describe_hosting(self.app, self.plan)
+
+    def close(self) -> None:
+        """Release the timers and guard conditions; call after the executor stopped spinning."""
+        for hosted in self.hosted.values():
+            hosted.close()
+
+
+class ExecutorThread:
+    """Spins an executor in a thread of its own until :meth:`stop`.
+
+    ``Executor.shutdown()`` destroys the executor's guard condition while handlers it already handed
+    to its worker threads may still use it (rclpy then reports an ``InvalidHandle`` that was "never
+    retrieved"); stopping the spin loop and leaving the executor alive avoids that race. An exception
+    from a handler is given to ``on_error`` and the loop goes on, so that activities can still finish.
+    """
+
+    def __init__(self, executor: Executor, on_error: Callable[[str], None] | None = None,
+                 poll: float = 0.1) -> None:
+        self.executor = executor
+        self.on_error = on_error
+        self.poll = poll
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="coco:executor", daemon=True)
+
+    def start(self) -> ExecutorThread:
+        self._thread.start()
+        return self
+
+    def _loop(self) -> None:
+        executor = self.executor
+        while not self._done.is_set():
+            if not executor.context.ok():
+                if self.on_error is not None:
+                    self.on_error("ROS was shut down")
+                return
+            try:
+                executor.spin_once(timeout_sec=self.poll)
+            except Exception:
+                log.exception("the ROS executor failed")
+                if self.on_error is not None:
+                    self.on_error("the ROS executor failed")
+
+    def stop(self, timeout: float = 1.0) -> bool:
+        """End the spin loop; False when it did not end within ``timeout`` seconds."""
+        self._done.set()
+        try:
+            self.executor.wake()
+        except Exception:  # the context is already shut down
+            pass
+        if self._thread.is_alive():
+            self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+
+def ros_node(app_or_component: Application | Component) -> Node:
+    """The rclpy node hosting the application (what ROS bridges create their entities on).
+
+    Raises :class:`CocoError` when the application is not run by the ROS launcher.
+    """
+    app = app_or_component.app if isinstance(app_or_component, Component) else app_or_component
+    node = getattr(app, "ros_node", None)
+    if node is None:
+        name = app.name if app is not None else "(none)"
+        raise CocoError(f"application {name} has no ROS node: run it with the ROS launcher "
+                        "(ros2 run coco_ros launcher app.xml), not coco-launch")
+    return node
+
+
+def callback_group(component: Component) -> CallbackGroup:
+    """The callback group of the activity that runs ``component`` (peers: their owner's)."""
+    top = component
+    while top.owner is not None:
+        top = top.owner
+    host: ExecutorHost | None = getattr(top.app, "ros_host", None)
+    if host is None:
+        ros_node(component)  # raises the explanation
+        raise AssertionError("unreachable")
+    if top.activity is None:
+        return host.node.default_callback_group
+    return host.callback_group(top.activity)

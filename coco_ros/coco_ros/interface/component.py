@@ -1,0 +1,166 @@
+"""``ROSInterface``: bridges ROS topics and CoCo ports, configured in the application XML.
+
+Attributes (lists of topic specs, syntax in :mod:`coco_ros.interface.topic`)::
+
+    <attribute name="subscribe" value="joints=/joint_states:sensor_msgs/msg/JointState;depth=50"/>
+    <attribute name="publish" value="pose=/tool_pose:geometry_msgs/msg/PoseStamped;reliability=best_effort"/>
+
+- ``subscribe``: each spec gives an **output** port: every message received on the topic is
+  converted (``converter.to_coco``) and written to it, from the subscription callback, which runs in
+  the component's activity's callback group (never during the activity's own cycle).
+- ``publish``: each spec gives an **event input** port: the values written to it are converted
+  (``converter.to_ros``) and published in ``on_update``, all of them, in order. Put the component in a
+  triggered activity to publish as soon as values arrive (or in a periodic one to publish at its rate).
+
+Port types are the converters' ``coco_type`` (``JointSample``, ``Image``, ``FramePose``...).
+A message or value that cannot be converted is counted (``errors()`` operation, per port) and logged
+(the first three in full, then at most once per second per port), naming the topic and the type; the
+bridge goes on.
+
+The component needs the ROS launcher (``ros2 run coco_ros launcher app.xml``): under ``coco-launch``
+there is no node, so ``on_config`` fails with an error saying so, and the component is disabled.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any
+
+from coco_core.attributes import Attribute
+from coco_core.component import Component
+from coco_core.errors import CocoError
+from coco_core.operations import operation
+
+from ..convert.base import Converter
+from .topic import SYNTAX, TopicSpec, check_specs, parse_specs
+
+log = logging.getLogger("coco.ros_interface")
+
+_FULL_ERRORS = 3
+"""Conversion errors logged in full per port before switching to one line per second."""
+
+
+class _Route:
+    """One bridged topic: its spec, converter, port, ROS entity and counters."""
+
+    def __init__(self, spec: TopicSpec, converter: Converter, port: Any) -> None:
+        self.spec = spec
+        self.converter = converter
+        self.port = port
+        self.entity: Any = None
+        self.count = 0
+        self.errors = 0
+        self.last_log = 0.0
+
+    def failed(self, owner: str, direction: str, error: Exception) -> None:
+        self.errors += 1
+        now = time.monotonic()
+        if self.errors <= _FULL_ERRORS:
+            log.error("ROSInterface %s: cannot convert %s %s (%s) on port %s: %s (error %d)", owner, direction,
+                      self.spec.topic, self.spec.type_name, self.spec.port, error, self.errors)
+            self.last_log = now
+        elif now - self.last_log >= 1.0:
+            log.error("ROSInterface %s: %d conversion errors so far on %s (%s), last: %s", owner, self.errors,
+                      self.spec.topic, self.spec.type_name, error)
+            self.last_log = now
+
+
+class ROSInterface(Component):
+    """Subscribes ROS topics into output ports and publishes input ports to ROS topics."""
+
+    subscribe = Attribute(list[str], [], f"topics received into output ports: {SYNTAX}", check=check_specs)
+    publish = Attribute(list[str], [], f"input (event) ports published to topics: {SYNTAX}", check=check_specs)
+
+    def init(self) -> None:
+        subscribed, published = parse_specs(self.subscribe), parse_specs(self.publish)
+        both = sorted({s.port for s in subscribed} & {s.port for s in published})
+        if both:
+            raise CocoError(f"ROSInterface {self.name}: port(s) {', '.join(both)} named in both subscribe "
+                            "and publish; every port needs its own name")
+        self._subscriptions: list[_Route] = []
+        self._publications: list[_Route] = []
+        for spec in subscribed:
+            converter = spec.converter()
+            port = self.add_output(spec.port, converter.coco_type, doc=f"from {spec.topic} ({spec.type_name})")
+            self._subscriptions.append(_Route(spec, converter, port))
+        for spec in published:
+            converter = spec.converter()
+            port = self.add_input(spec.port, converter.coco_type, event=True,
+                                  doc=f"published to {spec.topic} ({spec.type_name})")
+            self._publications.append(_Route(spec, converter, port))
+        self._node: Any = None
+
+    def on_config(self) -> None:
+        from ..hosting import callback_group, ros_node
+
+        try:
+            node = ros_node(self)
+        except CocoError as error:
+            raise CocoError(f"ROSInterface {self.name} needs the ROS launcher to reach ROS "
+                            f"(install/coco_ros/lib/coco_ros/launcher app.xml or ros2 run coco_ros launcher "
+                            f"app.xml): {error}") from None
+        group = callback_group(self)
+        self._node = node
+        for route in self._subscriptions:
+            spec = route.spec
+            route.entity = node.create_subscription(route.converter.message_type, spec.topic,
+                                                    self._receiver(route), spec.qos_profile(),
+                                                    callback_group=group)
+        for route in self._publications:
+            spec = route.spec
+            route.entity = node.create_publisher(route.converter.message_type, spec.topic, spec.qos_profile(),
+                                                 callback_group=group)
+        log.info("ROSInterface %s: subscribed %s; publishing %s", self.name,
+                 ", ".join(r.spec.describe() for r in self._subscriptions) or "nothing",
+                 ", ".join(r.spec.describe() for r in self._publications) or "nothing")
+
+    def _receiver(self, route: _Route):
+        converter, port = route.converter, route.port
+
+        def receive(msg: Any) -> None:
+            try:
+                value = converter.to_coco(msg)
+            except Exception as error:  # a malformed message must not stop the bridge
+                route.failed(self.name, "a message from", error)
+                return
+            route.count += 1
+            port.write(value)
+
+        return receive
+
+    def on_update(self) -> None:
+        for route in self._publications:
+            entity = route.entity
+            for value in route.port.read_all():
+                try:
+                    msg = route.converter.to_ros(value)
+                except Exception as error:
+                    route.failed(self.name, "a value for", error)
+                    continue
+                if entity is not None:
+                    entity.publish(msg)
+                    route.count += 1
+
+    def on_stop(self) -> None:
+        node, self._node = self._node, None
+        if node is None:
+            return
+        for route in self._subscriptions:
+            if route.entity is not None:
+                node.destroy_subscription(route.entity)
+                route.entity = None
+        for route in self._publications:
+            if route.entity is not None:
+                node.destroy_publisher(route.entity)
+                route.entity = None
+
+    @operation
+    def counts(self) -> dict[str, int]:
+        """Messages received (subscribe ports) or published (publish ports) so far, by port."""
+        return {route.spec.port: route.count for route in self._subscriptions + self._publications}
+
+    @operation
+    def errors(self) -> dict[str, int]:
+        """Conversion errors so far, by port."""
+        return {route.spec.port: route.errors for route in self._subscriptions + self._publications}

@@ -1,0 +1,209 @@
+"""``launcher`` of ``coco_ros``: run a CoCo application file inside one rclpy node.
+
+    ros2 run coco_ros launcher app.xml [name:=value ...] [--duration S] [--profile S] [--check] [--list]
+                               [--threads NAME[,NAME]] [--all-threads] [--executor-threads N]
+                               [--ros-args -r __node:=NAME -p param:=value ...]
+
+The command line is ``coco-launch``'s (same file format, same ``name:=value`` arguments, same
+``--profile`` report); everything after ``--ros-args`` goes to ``rclpy.init``: remapping (the node's
+name is the application's, ``-r __node:=NAME`` renames it), parameters (``-p``, declared on the node
+from the overrides), log levels. The application's activities run as callback groups of a
+``MultiThreadedExecutor`` or on threads of their own (:mod:`coco_ros.hosting` decides, ``--threads``
+overrides). Ctrl-C (or SIGTERM) stops every activity within a second, after each component's
+``on_stop`` ran; a second Ctrl-C forces the exit.
+
+Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.ros_node``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import re
+import sys
+import threading
+from typing import Sequence
+
+from coco_core import Application, CocoError
+from coco_core.builder import build_application, configure_logging
+from coco_core.launcher import (
+    describe,
+    install_signal_handlers,
+    list_components,
+    make_parser,
+    parse_assignments,
+    start_profile_printer,
+)
+from coco_core.report import profile_report
+from coco_core.xml import load_application
+
+from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
+
+log = logging.getLogger("coco")
+
+PROG = "ros2 run coco_ros launcher"
+_NAME = "launcher"
+"""How the launcher names itself in its error messages."""
+HUNG = 3
+"""What :func:`run` returns when an activity did not stop within a second (its thread is abandoned);
+:func:`main` then exits with 1 at once instead of waiting for that thread."""
+
+
+def make_ros_parser() -> argparse.ArgumentParser:
+    """``coco-launch``'s parser plus the hosting options of the ROS launcher."""
+    parser = make_parser(prog=PROG)
+    parser.description = ("Run a CoCo application file inside one rclpy node. ROS arguments follow "
+                          "--ros-args (e.g. --ros-args -r __node:=my_name -p param:=value).")
+    parser.add_argument("--threads", action="append", default=[], metavar="NAME[,NAME]",
+                        help="run these activities on threads of their own instead of the executor")
+    parser.add_argument("--all-threads", action="store_true",
+                        help="run every activity on its own thread (as coco-launch does)")
+    parser.add_argument("--executor-threads", type=_positive_int, metavar="N",
+                        help="threads of the MultiThreadedExecutor (default: one per hosted activity, plus one)")
+    return parser
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a number of threads >= 1, got {text}")
+    return value
+
+
+def node_name(app_name: str) -> str:
+    """A valid ROS node name made from an application name (letters, digits, underscores)."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", app_name) or "coco"
+    return f"coco_{name}" if name[0].isdigit() else name
+
+
+def split_ros_args(argv: Sequence[str]) -> list[str]:
+    """The launcher's own words of ``argv``: everything but the ``--ros-args ... [--]`` sections."""
+    from rclpy.utilities import remove_ros_args
+
+    return list(remove_ros_args([_NAME, *argv]))[1:]
+
+
+def _threads(values: Sequence[str]) -> list[str]:
+    return [name.strip() for value in values for name in value.split(",") if name.strip()]
+
+
+def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
+    """Load, build and run according to parsed ``options``; ``ros_args`` go to ``rclpy.init`` (the
+    whole command line may be given: rcl only takes its ``--ros-args`` sections).
+
+    Returns the exit code: 0 after a clean stop, 1 for a wrong file or a component that stopped the
+    application, 2 for a wrong command line, :data:`HUNG` when an activity did not stop in time.
+    """
+    logging.basicConfig(level=options.log_level, format="[%(levelname)s] %(name)s: %(message)s")
+    if options.list:
+        print(list_components())
+        return 0
+    if options.app is None:
+        print(f"{_NAME}: an application file is needed (or --list)", file=sys.stderr)
+        return 2
+    try:
+        spec = load_application(options.app, parse_assignments(options.args))
+        app = build_application(spec)
+        plan = plan_hosting(app, _threads(options.threads), options.all_threads)
+    except CocoError as error:
+        print(f"{_NAME}: {error}", file=sys.stderr)
+        return 1
+    if options.check:
+        print(describe(app))
+        print("hosting in the ROS launcher:")
+        print(describe_hosting(app, plan))
+        return 0
+    configure_logging(spec.log, logging.getLevelName(options.log_level))
+
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
+
+    try:
+        rclpy.init(args=[_NAME, *ros_args], signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as error:  # a malformed --ros-args section
+        print(f"{_NAME}: the ROS arguments were refused: {error}", file=sys.stderr)
+        return 2
+    node = None
+    try:
+        node = Node(node_name(app.name), automatically_declare_parameters_from_overrides=True)
+        host = ExecutorHost(node, app, _threads(options.threads), options.all_threads)
+        executor = MultiThreadedExecutor(num_threads=options.executor_threads or host.executor_threads())
+        executor.add_node(node)
+        log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
+        return _run_hosted(app, host, executor, options)
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace) -> int:
+    """Start ``app`` with ``host``, spin ``executor`` until a stop is asked, stop cleanly."""
+    install_signal_handlers(app)
+    printer = start_profile_printer(app, options.profile) if options.profile else None
+    server = None
+    if options.transforms_server is not None:
+        from coco_core.transforms.server import TransformServer
+
+        server = TransformServer(app.transforms, port=options.transforms_server).start()
+        print(f"transformation graph served at {server.url}", flush=True)
+    spinner = ExecutorThread(executor, on_error=app.request_stop)  # type: ignore[arg-type]
+    timer = None
+    clean = False
+    try:
+        app.start()
+        spinner.start()
+        if options.duration is not None:
+            timer = threading.Timer(options.duration, app.request_stop,
+                                    args=(f"duration of {options.duration:g} s reached",))
+            timer.daemon = True
+            timer.start()
+        main = app.main_activity
+        if main is not None:
+            main.run_here()
+        app.wait()
+    finally:
+        if timer is not None:
+            timer.cancel()
+        clean = app.stop()  # the executor still spins: hosted activities finish in their groups
+        spinner.stop()  # then the node is destroyed and rclpy shut down (see run)
+        if server is not None:
+            server.stop()
+        if printer is not None:
+            printer.set()
+            print(profile_report(app), flush=True)
+        if clean:
+            host.close()
+    if not clean:
+        # A hung on_update keeps an executor worker (or a daemon thread) busy; Python would wait for
+        # the worker at exit, so the entry point leaves at once (see main).
+        return HUNG
+    failed = any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
+    return 1 if failed else 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point (``lib/coco_ros/launcher``): ``argv`` without the program name."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        own = split_ros_args(argv)
+    except Exception as error:  # rcl refuses a malformed --ros-args section
+        print(f"{_NAME}: malformed --ros-args section: {error}", file=sys.stderr)
+        return 2
+    options = make_ros_parser().parse_intermixed_args(own)
+    try:
+        code = run(options, argv)  # rcl takes the --ros-args sections and leaves the rest alone
+    except KeyboardInterrupt:  # the second Ctrl-C: give up at once, whatever still runs
+        code = HUNG
+    if code == HUNG:  # an executor worker may still be inside a hung on_update: do not join it
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(1)
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,424 @@
+"""Activities hosted by an rclpy MultiThreadedExecutor (coco_ros.hosting), in-process.
+
+Each test builds a small application from test-local components, hosts it on a node of its own rclpy
+context (domain 94, localhost only, set before rclpy.init) and stops it at teardown, even when the
+test fails half-way.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable
+
+import pytest
+import rclpy
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+
+from coco_core import (
+    Application,
+    BufferPolicy,
+    CocoError,
+    Component,
+    ConnectionPolicy,
+    InputPort,
+    OutputPort,
+    PeriodicActivity,
+    SchedulingRequest,
+    SyncPolicy,
+    TriggeredActivity,
+    current_activity,
+    operation,
+)
+from coco_ros.hosting import (
+    EXECUTOR,
+    THREAD_PERIOD,
+    ExecutorHost,
+    ExecutorThread,
+    callback_group,
+    dedicated_reason,
+    plan_hosting,
+    ros_node,
+)
+
+BUFFERED = ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 1000)
+
+
+def wait_until(predicate: Callable[[], object], timeout: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.002)
+    return True
+
+
+class Counter(Component):
+    """Writes 0, 1, 2, ... one value per update."""
+
+    out = OutputPort(int)
+
+    def init(self) -> None:
+        self.count = 0
+
+    def on_update(self) -> None:
+        self.out.write(self.count)
+        self.count += 1
+
+
+class Recorder(Component):
+    """Records its life cycle: phase, thread name and current activity of every call."""
+
+    ev = InputPort(int, event=True)
+
+    def init(self) -> None:
+        self.events: list[tuple[str, str, object]] = []
+        self.values: list[int] = []
+        self.updates = 0
+        self.in_update = 0
+        self.max_in_update = 0
+        self.work = 0.0
+        self.lock = threading.Lock()
+
+    def _note(self, phase: str) -> None:
+        activity = current_activity()
+        self.events.append((phase, threading.current_thread().name, activity.name if activity else None))
+
+    def on_config(self) -> None:
+        self._note("on_config")
+
+    def on_update(self) -> None:
+        with self.lock:
+            self.in_update += 1
+            self.max_in_update = max(self.max_in_update, self.in_update)
+        self._note("on_update")
+        self.values += self.ev.read_all()
+        if self.work:
+            time.sleep(self.work)
+        self.updates += 1
+        with self.lock:
+            self.in_update -= 1
+
+    def on_stop(self) -> None:
+        self._note("on_stop")
+
+    @operation
+    def mark(self, label: str) -> str | None:
+        """Runs in the component's activity: returns that activity's name."""
+        self._note(f"op:{label}")
+        activity = current_activity()
+        return activity.name if activity else None
+
+    def phases(self) -> list[str]:
+        return [phase for phase, _, _ in self.events]
+
+
+class Hosting:
+    """One rclpy context, node and executor hosting one application."""
+
+    def __init__(self) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node("coco_test_hosting", context=self.context)
+        self.app: Application | None = None
+        self.host: ExecutorHost | None = None
+        self.spinner: ExecutorThread | None = None
+        self.errors: list[str] = []
+
+    def host_app(self, app: Application, **options: object) -> ExecutorHost:
+        self.app = app
+        self.host = ExecutorHost(self.node, app, **options)  # type: ignore[arg-type]
+        return self.host
+
+    def spin(self) -> None:
+        assert self.host is not None
+        executor = MultiThreadedExecutor(num_threads=self.host.executor_threads(), context=self.context)
+        executor.add_node(self.node)
+        self.spinner = ExecutorThread(executor, on_error=self.errors.append).start()
+
+    def start(self, app: Application, **options: object) -> ExecutorHost:
+        host = self.host_app(app, **options)
+        app.start()
+        self.spin()
+        return host
+
+    def stop(self) -> bool:
+        clean = self.app.stop() if self.app is not None else True
+        if self.spinner is not None:
+            assert self.spinner.stop(), "the spin loop did not end"
+        assert self.errors == [], self.errors
+        return clean
+
+    def close(self) -> None:
+        try:
+            self.stop()
+        finally:
+            self.node.destroy_node()
+            self.context.try_shutdown()
+
+
+@pytest.fixture
+def hosting(monkeypatch: pytest.MonkeyPatch):
+    monkeypatch.setenv("ROS_DOMAIN_ID", "94")  # read by rclpy.init: this test's own domain, this host only
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    rig = Hosting()
+    yield rig
+    rig.close()
+
+
+def pipeline(period: float = 0.01) -> tuple[Application, Counter, Recorder]:
+    """counter (periodic) -> recorder (triggered, event port)."""
+    app = Application("hosted")
+    counter = app.add(Counter("counter"), PeriodicActivity("ticks", period))
+    recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
+    app.connect("counter.out", "recorder.ev", BUFFERED)
+    return app, counter, recorder
+
+
+# --- the hosting rule -----------------------------------------------------------------------------
+
+
+def test_rule_keeps_ordinary_activities_on_the_executor_and_gives_threads_to_the_rest() -> None:
+    assert dedicated_reason(TriggeredActivity("t")) is None
+    assert dedicated_reason(PeriodicActivity("p", THREAD_PERIOD)) is None
+    assert "period" in dedicated_reason(PeriodicActivity("fast", 0.001))
+    assert "main" in dedicated_reason(PeriodicActivity("m", 1.0, main=True))
+    assert "realtime" in dedicated_reason(TriggeredActivity("rt", scheduling=SchedulingRequest(realtime="FIFO")))
+    assert "affinity" in dedicated_reason(TriggeredActivity("pin", scheduling=SchedulingRequest(affinity=[0])))
+    assert "nice" in dedicated_reason(TriggeredActivity("n", scheduling=SchedulingRequest(nice=5)))
+    assert dedicated_reason(TriggeredActivity("t"), forced=True) == "asked on the command line"
+
+
+def test_plan_honours_threads_and_all_threads_and_rejects_unknown_names() -> None:
+    app, _, _ = pipeline()
+    assert plan_hosting(app) == {"ticks": EXECUTOR, "events": EXECUTOR}
+    plan = plan_hosting(app, threads=["events"])
+    assert plan["ticks"] == EXECUTOR and plan["events"].startswith("thread:")
+    assert all(where.startswith("thread:") for where in plan_hosting(app, all_threads=True).values())
+    with pytest.raises(CocoError, match="no activity 'evnts'.*events"):
+        plan_hosting(app, threads=["evnts"])
+
+
+# --- running on the executor ----------------------------------------------------------------------
+
+
+def test_periodic_timer_and_triggered_guard_condition_run_every_sample(hosting: Hosting) -> None:
+    app, counter, recorder = pipeline()
+    host = hosting.start(app)
+    assert set(host.hosted) == {"ticks", "events"}
+    assert wait_until(lambda: len(recorder.values) >= 30)
+    # No activity thread was started: the executor's workers ran everything.
+    assert not {"coco:ticks", "coco:events"} & {t.name for t in threading.enumerate()}
+    assert hosting.stop()
+    # Every sample in order, none lost or repeated (a sample written during the stop may stay unread).
+    assert recorder.values == list(range(len(recorder.values)))
+    ticks, events = app.activity("ticks"), app.activity("events")
+    assert ticks.stats.cycles == counter.count
+    assert events.stats.cycles >= 1
+    # The timer's period error went into the activity's profile.
+    summary = ticks.stats.error_summary()
+    assert summary is not None and summary.samples == ticks.stats.cycles - 1
+    update_threads = {thread for phase, thread, _ in recorder.events if phase == "on_update"}
+    assert update_threads and not update_threads & {"coco:ticks", "coco:events", "coco:executor"}
+
+
+def test_each_callback_runs_as_its_activity(hosting: Hosting) -> None:
+    app, _, recorder = pipeline()
+    hosting.start(app)
+    assert wait_until(lambda: recorder.updates >= 5)
+    assert hosting.stop()
+    phases = recorder.phases()
+    assert phases[0] == "on_config" and phases[-1] == "on_stop"
+    assert phases.count("on_config") == 1 and phases.count("on_stop") == 1
+    assert {activity for _, _, activity in recorder.events} == {"events"}, \
+        "the current activity must be set in every executor callback, configure and stop included"
+
+
+def test_triggered_activity_is_configured_at_start_and_runs_only_when_woken(hosting: Hosting) -> None:
+    app = Application("quiet")
+    source = app.add(Counter("source"))  # in no activity: the test writes for it
+    recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
+    app.connect("source.out", "recorder.ev", BUFFERED)
+    hosting.start(app)
+    assert wait_until(lambda: "on_config" in recorder.phases()), "on_config must not wait for data"
+    time.sleep(0.2)
+    assert recorder.updates == 0, "a triggered activity must not run without a trigger"
+    source.out.write(7)  # from this thread: the event port triggers the guard condition
+    assert wait_until(lambda: recorder.values == [7])
+    app.activity("events").wake()
+    assert wait_until(lambda: recorder.updates == 2)
+    time.sleep(0.1)
+    assert recorder.updates == 2, "one wake, one cycle"
+
+
+def test_data_written_before_start_triggers_the_first_cycle(hosting: Hosting) -> None:
+    app = Application("early")
+    source = app.add(Counter("source"))
+    recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
+    app.connect("source.out", "recorder.ev", BUFFERED)
+    source.out.write(42)
+    hosting.start(app)
+    assert wait_until(lambda: recorder.values == [42])
+
+
+def test_wakes_during_a_cycle_cause_one_more_cycle(hosting: Hosting) -> None:
+    app = Application("busy")
+    source = app.add(Counter("source"))
+    recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
+    app.connect("source.out", "recorder.ev", BUFFERED)
+    recorder.work = 0.05
+    hosting.start(app)
+    assert wait_until(lambda: "on_config" in recorder.phases())
+    writers = [threading.Thread(target=lambda: [source.out.write(i) for i in range(100)]) for _ in range(3)]
+    for writer in writers:
+        writer.start()
+    for writer in writers:
+        writer.join()
+    assert wait_until(lambda: len(recorder.values) == 300), f"{len(recorder.values)} of 300 values read"
+    assert recorder.max_in_update == 1, "the activity's cycles overlapped"
+
+
+def test_operation_queued_to_a_triggered_activity_runs_in_it_before_its_cycle(hosting: Hosting) -> None:
+    app = Application("ops")
+    recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
+    hosting.start(app)
+    assert wait_until(lambda: "on_config" in recorder.phases())
+    future = recorder.operation("mark")("from-test")
+    assert future.result(timeout=5) == "events", "the call must run in the callee's activity"
+    assert wait_until(lambda: recorder.updates == 1), "a queued call wakes a triggered activity"
+    phases = recorder.phases()
+    assert phases.index("op:from-test") < phases.index("on_update")
+    op_thread = next(thread for phase, thread, _ in recorder.events if phase == "op:from-test")
+    assert op_thread != threading.current_thread().name
+
+
+def test_operation_queued_to_a_periodic_activity_runs_before_its_next_update(hosting: Hosting) -> None:
+    app = Application("ops")
+    recorder = app.add(Recorder("recorder"), PeriodicActivity("slow", 0.05))
+    hosting.start(app)
+    assert wait_until(lambda: recorder.updates >= 1)
+    future = recorder.operation("mark")("queued")
+    assert future.result(timeout=5) == "slow"
+    assert wait_until(lambda: recorder.updates >= 3)
+    phases = recorder.phases()
+    position = phases.index("op:queued")
+    assert phases[position + 1] == "on_update", phases
+
+
+def test_callback_group_is_exclusive_within_an_activity_and_parallel_across(hosting: Hosting) -> None:
+    app = Application("groups")
+    one = app.add(Recorder("one"), TriggeredActivity("first"))
+    two = app.add(Recorder("two"), TriggeredActivity("second"))
+    one.work = two.work = 0.2
+    host = hosting.start(app)
+    group = host.callback_group("first")
+    assert isinstance(group, MutuallyExclusiveCallbackGroup)
+    assert group is not host.callback_group("second")
+    assert callback_group(one) is group and ros_node(one) is hosting.node
+    # A ROS timer of component "one", in its activity's group, never runs during one's update.
+    overlaps: list[int] = []
+    ticks: list[int] = []
+
+    def tick() -> None:
+        overlaps.append(one.in_update)
+        ticks.append(1)
+
+    timer = hosting.node.create_timer(0.005, tick, callback_group=group)
+    assert wait_until(lambda: "on_config" in one.phases() and "on_config" in two.phases())
+    together = threading.Barrier(2)
+    both: list[int] = []
+
+    def watch() -> None:
+        together.wait()
+        deadline = time.monotonic() + 3
+        while time.monotonic() < deadline and not (one.in_update and two.in_update):
+            time.sleep(0.001)
+        both.append(one.in_update and two.in_update)
+
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    together.wait()
+    for _ in range(3):
+        app.activity("first").wake()
+        app.activity("second").wake()
+        time.sleep(0.05)
+    watcher.join()
+    assert wait_until(lambda: one.updates >= 2 and two.updates >= 2)
+    assert both == [1], "two activities must run in parallel on the executor's threads"
+    assert ticks, "the component's timer never ran"
+    assert not any(overlaps), "a callback of the activity's group ran during its update"
+    assert one.max_in_update == 1 and two.max_in_update == 1
+    timer.timer_period_ns = 10**15  # parked, so that no tick is in flight when the executor shuts down
+    timer.reset()
+
+
+def test_overrun_is_counted_when_a_cycle_outlasts_its_period(hosting: Hosting) -> None:
+    app = Application("late")
+    recorder = app.add(Recorder("recorder"), PeriodicActivity("tight", 0.02))
+    recorder.work = 0.07  # every update misses at least two deadlines
+    hosting.start(app)
+    assert wait_until(lambda: recorder.updates >= 4)
+    assert hosting.stop()
+    stats = app.activity("tight").stats
+    assert stats.overruns >= 2
+    summary = stats.error_summary()
+    assert summary is not None and summary.max < 0.02, "missed deadlines are skipped, not recorded as error"
+
+
+def test_set_period_reaches_the_timer(hosting: Hosting) -> None:
+    app = Application("period")
+    recorder = app.add(Recorder("recorder"), PeriodicActivity("rate", 1.0))
+    host = hosting.start(app)
+    assert wait_until(lambda: recorder.updates == 1)  # the first cycle runs at once
+    app.set_period("rate", 0.01)
+    assert host.hosted["rate"].timer.timer_period_ns == 10_000_000
+    assert app.activity("rate").period == 0.01
+    assert wait_until(lambda: recorder.updates >= 10), "the new period was not taken"
+    with pytest.raises(ValueError):
+        app.set_period("rate", 0.0)
+
+
+def test_dedicated_threads_run_beside_the_executor(hosting: Hosting) -> None:
+    app, counter, recorder = pipeline(period=0.002)  # faster than THREAD_PERIOD: its own thread
+    host = hosting.start(app, threads=["events"])
+    assert host.hosted == {}
+    assert wait_until(lambda: len(recorder.values) >= 50)
+    names = {t.name for t in threading.enumerate()}
+    assert {"coco:ticks", "coco:events"} <= names
+    assert hosting.stop()
+    assert recorder.values == list(range(len(recorder.values)))
+    assert {thread for phase, thread, _ in recorder.events if phase == "on_update"} == {"coco:events"}
+
+
+def test_stop_is_clean_and_runs_on_stop_once_in_the_activity(hosting: Hosting) -> None:
+    app, _, recorder = pipeline()
+    hosting.start(app)
+    assert wait_until(lambda: recorder.updates >= 3)
+    app.request_stop("test")
+    assert hosting.stop(), "Application.stop must see every hosted activity finish within a second"
+    assert all(activity.finished for activity in app.activities.values())
+    stops = [event for event in recorder.events if event[0] == "on_stop"]
+    assert len(stops) == 1 and stops[0][2] == "events"
+    assert recorder.phases()[-1] == "on_stop"
+    updates = recorder.updates
+    time.sleep(0.1)
+    assert recorder.updates == updates, "no cycle after the stop"
+
+
+def test_stop_requested_before_the_first_callback_configures_nothing(hosting: Hosting) -> None:
+    app, _, recorder = pipeline()
+    hosting.host_app(app)
+    app.start()  # hands the activities to the executor, which does not spin yet
+    app.request_stop("test")
+    hosting.spin()
+    assert app.stop(), "the first callbacks must finish the activities"
+    assert recorder.phases() == [], "neither on_config nor on_stop may run after an early stop"
+
+
+def test_a_component_outside_the_ros_launcher_has_no_node() -> None:
+    app, _, recorder = pipeline()
+    with pytest.raises(CocoError, match="ROS launcher"):
+        ros_node(recorder)
