@@ -1,0 +1,246 @@
+"""``BagReplay``: a CoCo component that replays a rosbag2 bag into output ports (no DDS).
+
+Attributes (all settable from the application XML):
+
+- ``bag``: the bag folder or ``.mcap`` file.
+- ``rate``: speed factor (1 = real time, 2 = twice as fast); ``0``: as fast as possible.
+- ``start_offset``: seconds after the bag start where each pass begins.
+- ``duration``: seconds replayed per pass; ``0``: to the end.
+- ``loop``: replay again from ``start_offset`` after the end.
+- ``topics``: the bag topics to replay (empty: all).
+- ``remap``: ``/from:=/to`` items; the port names follow the remapped topics.
+- ``ports``: ``/topic=port`` items naming the port of a (remapped) topic; the others get a name
+  derived from the topic, ``/robot/joint_states`` -> ``robot_joint_states``.
+- ``output``: what the ports carry. ``coco`` (default): the converter's CoCo value
+  (:func:`coco_ros.convert.converter_for`, port type ``converter.coco_type``), and for a type without
+  converter the deserialized rclpy message (port type ``object``); ``/tf`` and ``/tf_static``
+  become lists of ``TransformSample`` even without tf2_msgs installed. ``ros``: always the
+  deserialized rclpy message. ``bag``: the :class:`~coco_ros.bag.BagMessage` itself (CDR bytes,
+  log time, topic), nothing decoded.
+- ``stop_at_end``: request the application stop once the bag is replayed (not with ``loop``).
+- ``max_per_update``: messages written per update at most (as fast as possible, a large bag would
+  otherwise hold the activity for long); the rest follow at the next updates.
+
+Scheduling: each ``on_update`` writes every message that is due and returns at once, so the
+component must be updated regularly: put it in a **periodic activity of 1-10 ms** (the period is the
+timing resolution of the replay). In a triggered activity it wakes itself when the next message is
+due (a timer thread, or at once when replaying as fast as possible).
+
+Operations: ``pause()``, ``resume()``, ``step(n=1)`` (deliver the next n messages, stay paused),
+``seek(t)`` (continue from ``t`` s after the bag start, latched messages first), ``set_rate(r)``,
+``progress()`` -> ``(time, end)`` in seconds after the bag start.
+
+An ``clock`` output port carries the replayed (simulated) time in seconds after each update that
+delivered messages. A damaged bag is replayed as far as it is readable, then its error (file and
+byte offset) is logged once.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import threading
+from pathlib import Path
+from typing import Any
+
+from coco_core.attributes import Attribute
+from coco_core.component import Component
+from coco_core.errors import CocoError
+from coco_core.operations import operation
+from coco_core.ports import OutputPort
+
+from ..bag import BagError, BagMessage, BagReader
+from .player import Played, Player, parse_remaps
+
+log = logging.getLogger("coco.replay")
+
+_NOT_NAME = re.compile(r"[^A-Za-z0-9_]+")
+
+
+def port_name_for(topic: str) -> str:
+    """``/robot/joint_states`` -> ``robot_joint_states`` (a valid port name from a topic)."""
+    name = _NOT_NAME.sub("_", topic).strip("_")
+    if not name:
+        raise ValueError(f"cannot derive a port name from topic {topic!r}")
+    return f"t_{name}" if name[0].isdigit() else name
+
+
+class _TFList:
+    """tf2_msgs/TFMessage (or the bag's stand-in) -> list of TransformSample, without tf2_msgs."""
+
+    coco_type = list
+
+    def __init__(self) -> None:
+        from ..convert import converter_for
+
+        self._one = converter_for("geometry_msgs/msg/TransformStamped")
+
+    def to_coco(self, msg: Any) -> list:
+        return [self._one.to_coco(t) for t in msg.transforms]
+
+
+def _converter(type_name: str) -> Any | None:
+    from ..convert import converter_for
+
+    try:
+        return converter_for(type_name)
+    except (ValueError, ImportError):
+        if type_name == "tf2_msgs/msg/TFMessage":
+            return _TFList()
+        return None
+
+
+class BagReplay(Component):
+    """Replays a rosbag2 MCAP bag into one output port per topic; see the module docstring."""
+
+    bag = Attribute(Path, Path(""), "bag folder or .mcap file")
+    rate = Attribute(float, 1.0, "speed factor; 0: as fast as possible", min=0.0)
+    start_offset = Attribute(float, 0.0, "seconds after the bag start where replay begins", min=0.0)
+    duration = Attribute(float, 0.0, "seconds replayed per pass; 0: to the end", min=0.0)
+    loop = Attribute(bool, False, "replay again after the end")
+    topics = Attribute(list[str], [], "bag topics to replay; empty: all")
+    remap = Attribute(list[str], [], "'/from:=/to' topic remappings")
+    ports = Attribute(list[str], [], "'/topic=port' port names; others derived from the topic")
+    output = Attribute(str, "coco", "port values: coco (converted), ros (rclpy messages), bag (BagMessage)",
+                       choices=("coco", "ros", "bag"))
+    stop_at_end = Attribute(bool, False, "request the application stop when the bag is replayed")
+    max_per_update = Attribute(int, 256, "messages written per update at most", min=1)
+
+    clock = OutputPort(float, "replayed bag time in seconds since the epoch (simulated time)")
+
+    def init(self) -> None:
+        if not str(self.bag) or str(self.bag) == ".":
+            raise CocoError(f"component {self.name}: attribute 'bag' is required (a bag folder or .mcap file)")
+        self._reader = BagReader(self.bag)
+        self._remaps = parse_remaps(self.remap)
+        names = self._port_names()
+        selected = list(self.topics) or list(self._reader.topics)
+        self._routes: dict[str, tuple[OutputPort, Any]] = {}
+        for topic in selected:
+            if topic not in self._reader.topics:
+                known = ", ".join(self._reader.topics)
+                raise BagError(self._reader.path, f"component {self.name}: no topic {topic!r} in the bag "
+                                                  f"(topics: {known})")
+            type_name = self._reader.topics[topic].type
+            out_topic = self._remaps.get(topic, topic)
+            converter = _converter(type_name) if self.output == "coco" else None
+            port_type: Any = BagMessage if self.output == "bag" else (
+                converter.coco_type if converter is not None else object)
+            port = self.add_output(names.get(out_topic) or names.get(topic) or port_name_for(out_topic),
+                                   port_type, f"{out_topic} ({type_name}) replayed from {self.bag}")
+            self._routes[topic] = (port, converter)
+        self._selected = selected
+        self._player: Player | None = None
+        self._timer: threading.Timer | None = None
+        self._ended = False
+
+    def _port_names(self) -> dict[str, str]:
+        names = {}
+        for item in self.ports:
+            topic, sep, port = item.partition("=")
+            if not sep or not topic.strip() or not port.strip():
+                raise CocoError(f"component {self.name}: expected ports items like '/topic=port', got {item!r}")
+            names[topic.strip()] = port.strip()
+        return names
+
+    def on_config(self) -> None:
+        if self.output != "bag":
+            self._reader.check_types(self._selected)
+        self._player = Player(
+            self._reader, rate=self.rate, start_offset=self.start_offset,
+            duration=self.duration or None, loop=self.loop, topics=self._selected, remap=self._remaps,
+            on_error=self._on_bag_error)
+
+    def _on_bag_error(self, error: BagError) -> None:
+        log.error("component %s: bag damaged, replayed what was readable: %s", self.name, error)
+
+    def on_update(self) -> None:
+        player = self._player
+        if player is None:
+            return
+        played_list = player.poll(self.max_per_update)
+        for played in played_list:
+            self._deliver(played)
+        if played_list:
+            self.clock.write(played_list[-1].due_time / 1e9)
+        if player.finished:
+            if not self._ended:
+                self._ended = True
+                log.info("component %s: bag %s replayed (%d messages)", self.name, self.bag, player.delivered)
+                if self.stop_at_end and self.app is not None:
+                    self.app.request_stop(f"{self.name}: bag {self.bag} replayed")
+            return
+        self._wake_later(player)
+
+    def _deliver(self, played: Played) -> None:
+        port, converter = self._routes[played.message.topic]
+        if self.output == "bag":
+            port.write(played.message)
+        elif converter is not None:
+            port.write(converter.to_coco(played.message.message))
+        else:
+            port.write(played.message.message)
+
+    def _wake_later(self, player: Player) -> None:
+        """In a triggered activity, arrange the next update (a periodic one needs nothing)."""
+        activity = self.activity
+        if activity is None or not activity.wakes_on_data:
+            return
+        delay = player.next_delay()
+        if delay is None:
+            return
+        if delay <= 0:
+            activity.wake()
+        elif self._timer is None or not self._timer.is_alive():
+            self._timer = threading.Timer(min(delay, 0.05), activity.wake)
+            self._timer.daemon = True
+            self._timer.start()
+
+    def on_stop(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+        if self._player is not None:
+            self._player.stop()
+        self._reader.close()
+
+    # -- operations ------------------------------------------------------------------------------
+    def _require_player(self) -> Player:
+        if self._player is None:
+            raise CocoError(f"component {self.name} is not configured yet")
+        return self._player
+
+    @operation
+    def pause(self) -> None:
+        """Hold the replay (the clock stops)."""
+        self._require_player().pause()
+
+    @operation
+    def resume(self) -> None:
+        self._require_player().resume()
+
+    @operation(name="step")
+    def step_messages(self, n: int = 1) -> None:
+        """Operation ``step`` (``Component.step`` is the scheduler's): deliver the next ``n`` messages at the next update, then stay paused."""
+        self._require_player().step(int(n))
+        self._poke()
+
+    @operation
+    def seek(self, t: float) -> None:
+        """Continue from ``t`` seconds after the bag start (latched messages first)."""
+        self._require_player().seek(float(t))
+        self._ended = False
+
+    @operation
+    def set_rate(self, rate: float) -> None:
+        self._require_player().clock.set_rate(rate)
+        self._poke()
+
+    @operation
+    def progress(self) -> tuple[float, float]:
+        """(replayed time, end time) in seconds after the bag start."""
+        return self._require_player().progress()
+
+    def _poke(self) -> None:
+        activity = self.activity
+        if activity is not None and activity.wakes_on_data:
+            activity.wake()
