@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import csv
 import os
+import re
+import signal
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -31,3 +35,36 @@ def start_launcher(script: Path, *args: str) -> subprocess.Popen[str]:
     """Start a launcher in the background (for signal tests)."""
     return subprocess.Popen([str(script), *args], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+
+
+DEMO_APP = "config/demo_pipeline.xml"
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    """The rows of a CSV file written by the demo's recorder."""
+    with path.open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def check_ctrl_c_stops_within_a_second_and_flushes(script: Path, tmp_path: Path) -> None:
+    """Run the demo with a launcher, Ctrl-C it once it records, and check the clean, quick stop and
+    that the recorder flushed complete rows (both launchers must behave alike)."""
+    output = tmp_path / "signal.csv"
+    process = start_launcher(script, DEMO_APP, f"output:={output}", "--duration", "60")
+    try:
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and (not output.exists() or len(read_rows(output)) < 20):
+            time.sleep(0.1)
+        assert output.exists(), "the application never started recording"
+        process.send_signal(signal.SIGINT)
+        out, _ = process.communicate(timeout=10)
+    finally:
+        process.kill()
+    assert process.returncode == 0, out
+    stopped = re.search(r"application demo_pipeline stopped ([0-9.]+) s after the request \(clean\)", out)
+    assert stopped, out
+    assert float(stopped.group(1)) < 1.0
+    assert "received SIGINT" in out
+    # The recorder's on_stop flushed: the file ends with a complete row.
+    rows = read_rows(output)
+    assert rows and all(len(row) == 5 and None not in row.values() for row in rows)

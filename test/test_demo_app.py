@@ -2,20 +2,13 @@
 
 from __future__ import annotations
 
-import csv
 import re
-import signal
-import time
 from pathlib import Path
 
-from conftest import run_launcher, start_launcher
+from conftest import check_ctrl_c_stops_within_a_second_and_flushes, read_rows, run_launcher
 
 APP = "config/demo_pipeline.xml"
 
-
-def read_rows(path: Path) -> list[dict[str, str]]:
-    with path.open(newline="") as handle:
-        return list(csv.DictReader(handle))
 
 
 def test_demo_runs_profiles_and_records(coco_launch: Path, tmp_path: Path) -> None:
@@ -41,25 +34,7 @@ def test_demo_runs_profiles_and_records(coco_launch: Path, tmp_path: Path) -> No
 
 
 def test_ctrl_c_stops_within_a_second_and_flushes(coco_launch: Path, tmp_path: Path) -> None:
-    output = tmp_path / "signal.csv"
-    process = start_launcher(coco_launch, APP, f"output:={output}", "--duration", "60")
-    try:
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and (not output.exists() or len(read_rows(output)) < 20):
-            time.sleep(0.1)
-        assert output.exists(), "the application never started recording"
-        process.send_signal(signal.SIGINT)
-        out, _ = process.communicate(timeout=10)
-    finally:
-        process.kill()
-    assert process.returncode == 0, out
-    stopped = re.search(r"application demo_pipeline stopped ([0-9.]+) s after the request \(clean\)", out)
-    assert stopped, out
-    assert float(stopped.group(1)) < 1.0
-    assert "received SIGINT" in out
-    # The recorder's on_stop flushed: the file ends with a complete row.
-    rows = read_rows(output)
-    assert rows and all(len(row) == 5 and None not in row.values() for row in rows)
+    check_ctrl_c_stops_within_a_second_and_flushes(coco_launch, tmp_path)
 
 
 def test_arguments_override_defaults(coco_launch: Path, tmp_path: Path) -> None:

@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import csv
 import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, run_launcher, start_launcher
+from conftest import ROOT, check_ctrl_c_stops_within_a_second_and_flushes, read_rows, run_launcher, start_launcher
 
 APP = "config/demo_pipeline.xml"
 
@@ -49,10 +47,6 @@ def ros_domain(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("ROS_DOMAIN_ID", "95")
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
-
-def read_rows(path: Path) -> list[dict[str, str]]:
-    with path.open(newline="") as handle:
-        return list(csv.DictReader(handle))
 
 
 def test_demo_runs_in_the_node_with_profile_and_output(ros_launcher: Path, tmp_path: Path) -> None:
@@ -98,25 +92,7 @@ def test_node_name_is_remapped_by_ros_args(ros_launcher: Path, tmp_path: Path) -
 
 
 def test_ctrl_c_stops_within_a_second_and_flushes(ros_launcher: Path, tmp_path: Path) -> None:
-    output = tmp_path / "x.csv"
-    process = start_launcher(ros_launcher, APP, f"output:={output}", "--duration", "60")
-    try:
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and (not output.exists() or len(read_rows(output)) < 20):
-            time.sleep(0.1)
-        assert output.exists(), "the application never started recording"
-        process.send_signal(signal.SIGINT)
-        out, _ = process.communicate(timeout=10)
-    finally:
-        process.kill()
-    assert process.returncode == 0, out
-    stopped = re.search(r"application demo_pipeline stopped ([0-9.]+) s after the request \(clean\)", out)
-    assert stopped, out
-    assert float(stopped.group(1)) < 1.0
-    assert "received SIGINT" in out
-    # The recorder's on_stop (run in its callback group) flushed: the file ends with a complete row.
-    rows = read_rows(output)
-    assert rows and all(len(row) == 5 and None not in row.values() for row in rows)
+    check_ctrl_c_stops_within_a_second_and_flushes(ros_launcher, tmp_path)
 
 
 def test_all_threads_runs_like_coco_launch(ros_launcher: Path, tmp_path: Path) -> None:
