@@ -77,11 +77,25 @@ def node_name(app_name: str) -> str:
     return f"coco_{name}" if name[0].isdigit() else name
 
 
-def split_ros_args(argv: Sequence[str]) -> list[str]:
-    """The launcher's own words of ``argv``: everything but the ``--ros-args ... [--]`` sections."""
-    from rclpy.utilities import remove_ros_args
+def split_ros_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
+    """(the launcher's own words, the ``--ros-args ... [--]`` sections) of ``argv``.
 
-    return list(remove_ros_args([_NAME, *argv]))[1:]
+    Split here rather than by rclpy's ``remove_ros_args``: rcl also takes every ``name:=value``
+    outside those sections as a deprecated remap rule, which would swallow the application's
+    ``<arg>`` values (``bag:=...``) and remap topics called ``bag``.
+    """
+    own: list[str] = []
+    ros: list[str] = []
+    inside = False
+    for word in argv:
+        if word == "--ros-args":
+            inside = True
+            ros.append(word)
+        elif inside and word == "--":
+            inside = False
+        else:
+            (ros if inside else own).append(word)
+    return own, ros
 
 
 def _threads(values: Sequence[str]) -> list[str]:
@@ -124,7 +138,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
     try:
         rclpy.init(args=[_NAME, *ros_args], signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # a malformed --ros-args section
-        print(f"{_NAME}: the ROS arguments were refused: {error}", file=sys.stderr)
+        print(f"{_NAME}: malformed --ros-args section: {error}", file=sys.stderr)
         return 2
     node = None
     try:
@@ -188,14 +202,10 @@ def _run_hosted(app: Application, host: ExecutorHost, executor: object, options:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point (``lib/coco_ros/launcher``): ``argv`` without the program name."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        own = split_ros_args(argv)
-    except Exception as error:  # rcl refuses a malformed --ros-args section
-        print(f"{_NAME}: malformed --ros-args section: {error}", file=sys.stderr)
-        return 2
+    own, ros_args = split_ros_args(argv)
     options = make_ros_parser().parse_intermixed_args(own)
     try:
-        code = run(options, argv)  # rcl takes the --ros-args sections and leaves the rest alone
+        code = run(options, ros_args)  # only the --ros-args sections reach rcl
     except KeyboardInterrupt:  # the second Ctrl-C: give up at once, whatever still runs
         code = HUNG
     if code == HUNG:  # an executor worker may still be inside a hung on_update: do not join it

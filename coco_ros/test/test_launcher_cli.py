@@ -50,13 +50,14 @@ def app_file(tmp_path: Path) -> Path:
 
 def test_ros_arguments_are_split_off_and_the_rest_parsed_intermixed() -> None:
     argv = ["app.xml", "--duration", "2", "out:=x.csv", "--ros-args", "-r", "__node:=my_coco", "-p", "a:=1"]
-    own = launcher.split_ros_args(argv)
+    own, ros = launcher.split_ros_args(argv)
     assert own == ["app.xml", "--duration", "2", "out:=x.csv"]
+    assert ros == ["--ros-args", "-r", "__node:=my_coco", "-p", "a:=1"]
     options = launcher.make_ros_parser().parse_intermixed_args(own + ["--threads", "a,b", "--threads", "c"])
     assert options.duration == 2.0 and options.args == ["out:=x.csv"]
     assert launcher._threads(options.threads) == ["a", "b", "c"]
     # A section closed by "--" gives the words after it back to the launcher.
-    assert launcher.split_ros_args(["app.xml", "--ros-args", "-r", "__node:=n", "--", "--profile", "1"]) == \
+    assert launcher.split_ros_args(["app.xml", "--ros-args", "-r", "__node:=n", "--", "--profile", "1"])[0] == \
         ["app.xml", "--profile", "1"]
 
 
@@ -115,3 +116,14 @@ def test_executor_threads_must_be_positive(app_file: Path, capsys) -> None:
 def test_missing_file_argument_is_a_usage_error(capsys) -> None:
     assert launcher.main([]) == 2
     assert "an application file is needed" in capsys.readouterr().err
+
+
+def test_application_arguments_are_not_taken_for_ros_remap_rules() -> None:
+    """rcl reads `name:=value` outside --ros-args as a deprecated remap rule; the launcher must keep
+    them for the application's <arg>s and give rcl only the --ros-args sections."""
+    from coco_ros.launcher import split_ros_args
+
+    own, ros = split_ros_args(["app.xml", "bag:=/tmp/session", "--ros-args", "-r", "__node:=n",
+                               "-p", "gain:=2.0", "--", "--duration", "3", "output:=out/x"])
+    assert own == ["app.xml", "bag:=/tmp/session", "--duration", "3", "output:=out/x"]
+    assert ros == ["--ros-args", "-r", "__node:=n", "-p", "gain:=2.0"]
