@@ -28,6 +28,8 @@ setup(
             "BagReplay = coco_ros.replay.component:BagReplay",
             "BagRecorder = coco_ros.replay.recorder:BagRecorder",
             "ROSInterface = coco_ros.interface.component:ROSInterface",
+            "EndEffectorDistance = coco_ros.teleop.distance:EndEffectorDistance",
+            "TeleopSummary = coco_ros.teleop.summary:TeleopSummary",
         ],
     },
 )

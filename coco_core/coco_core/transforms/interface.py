@@ -46,7 +46,8 @@ class TransformationInterface(Component):
     publish = Attribute(list[str], [], "lookups to publish on output ports, each 'port=target:source' "
                         "(T_target_source)", check=_check_outputs)
 
-    transform = InputPort(object, event=True, doc="TransformSample, or a list of them, to write into the graph")
+    transform = InputPort(object, event=True, doc="TransformSample or FramePose (target=parent, source=child), "
+                          "or a list of them, to write into the graph")
     joints = InputPort(JointSample, event=True, doc="joint values applied to axis edges and URDF models")
 
     def init(self) -> None:
@@ -79,9 +80,21 @@ class TransformationInterface(Component):
         graph = self.transform_graph
         for item in self.transform.read_all():
             for sample in item if isinstance(item, (list, tuple)) else (item,):
-                graph.set_transform(sample.parent, sample.child, sample.transform, sample.stamp)
+                if isinstance(sample, FramePose):  # T_target_source: target is the parent, source the child
+                    if not sample.source:
+                        self._warn_unnamed(sample)
+                        continue
+                    graph.set_transform(sample.target, sample.source, sample.transform, sample.stamp)
+                else:
+                    graph.set_transform(sample.parent, sample.child, sample.transform, sample.stamp)
         for joints in self.joints.read_all():
             graph.set_joints(joints.as_mapping())
+
+    def _warn_unnamed(self, sample: FramePose) -> None:
+        if not getattr(self, "_warned_unnamed", False):
+            self._warned_unnamed = True
+            log.error("component %s: a FramePose in %r without a source frame cannot be written into the graph "
+                      "(give the converter a child_frame); such poses are ignored", self.name, sample.target)
 
     def _publish(self, port: OutputPort, query: Query, value: np.ndarray) -> None:
         """Write in this component's thread: callbacks run in whichever thread changed the graph."""

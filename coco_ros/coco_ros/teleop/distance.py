@@ -1,0 +1,124 @@
+"""``EndEffectorDistance``: the paper's *UpdateColorCalc* — end-effector to bowl distance and its colour.
+
+Inputs (event ports, a triggered activity runs the component whenever either changes):
+
+- ``gripper``: :class:`FramePose` ``T_base_gripper`` (e.g. a ``TransformationInterface`` lookup);
+- ``bowl``: :class:`FramePose` ``T_base_bowl`` (e.g. ``/bowl/pose`` replayed by ``BagReplay``).
+  Both must be expressed in the same frame (their ``target``); a mismatch is logged once.
+- ``clock`` (data, optional): the replayed bag time (``BagReplay.clock``), used with the inputs'
+  own stamps to time the outputs.
+
+Outputs, written once per update when both poses are known, all with the same :class:`Stamp`:
+
+- ``distance``: ``Stamped[float]``, the Euclidean distance between the two frame origins (m);
+- ``color``: ``Stamped[tuple[float, float, float]]``, RGB in 0..1 (see :func:`distance_color`);
+- ``bag_time``: ``Stamped[float]``, the ROS time (s since the epoch) of the newest input stamp the
+  outputs were computed from (``nan`` when no input carries one).
+
+UpdateColorCalc mapping (:func:`distance_color`): green ``(0, 1, 0)`` at ``near`` m or closer, red
+``(1, 0, 0)`` at ``far`` m or farther, through yellow ``(1, 1, 0)`` half-way; with
+``s = (d - near) / (far - near)``: ``r = min(1, 2 s)``, ``g = min(1, 2 (1 - s))``, ``b = 0``.
+
+Latency: the messages carry only ROS (bag) stamps, not the wall-clock time of their replay, so the
+interval measured is **from the moment this component reads the input that triggered the update to
+the moment its outputs are written** (``Stamp.now()`` taken at the read, ``record_latency`` after the
+writes). The stamp travels with the outputs, so a downstream sink (``TeleopSummary``) measures the
+longer interval *input read here -> its own output* with the same stamp.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from coco_core.attributes import Attribute
+from coco_core.component import Component
+from coco_core.ports import InputPort, OutputPort
+from coco_core.stamps import Stamp, Stamped
+from coco_core.transforms.samples import FramePose
+
+log = logging.getLogger("coco.teleop")
+
+GREEN = (0.0, 1.0, 0.0)
+YELLOW = (1.0, 1.0, 0.0)
+RED = (1.0, 0.0, 0.0)
+
+
+def distance_color(distance: float, near: float = 0.02, far: float = 0.5) -> tuple[float, float, float]:
+    """The UpdateColorCalc colour of a distance: green at ``<= near``, red at ``>= far``, yellow
+    half-way, linear in between (see the module docstring)."""
+    if not far > near:
+        raise ValueError(f"far ({far}) must be greater than near ({near})")
+    if math.isnan(distance):
+        return RED
+    s = min(1.0, max(0.0, (distance - near) / (far - near)))
+    return (min(1.0, 2.0 * s), min(1.0, 2.0 * (1.0 - s)), 0.0)
+
+
+def frame_distance(a: FramePose, b: FramePose) -> float:
+    """Distance between the origins of two poses expressed in the same frame."""
+    return float(np.linalg.norm(np.asarray(a.transform)[:3, 3] - np.asarray(b.transform)[:3, 3]))
+
+
+def _check_far(value: float) -> str | None:
+    return None if value > 0 else "far must be positive"
+
+
+class EndEffectorDistance(Component):
+    """UpdateColorCalc: gripper-to-bowl distance and its colour; see the module docstring."""
+
+    near = Attribute(float, 0.02, "distance (m) at or below which the colour is green", min=0.0)
+    far = Attribute(float, 0.5, "distance (m) at or above which the colour is red", check=_check_far)
+
+    gripper = InputPort(FramePose, event=True, doc="T_base_gripper")
+    bowl = InputPort(FramePose, event=True, doc="T_base_bowl")
+    clock = InputPort(float, doc="replayed bag time (s), optional")
+
+    distance = OutputPort(Stamped, "end-effector to bowl distance (m)")
+    color = OutputPort(Stamped, "UpdateColorCalc RGB colour (0..1) of the distance")
+    bag_time = OutputPort(Stamped, "ROS time (s) of the newest input the outputs were computed from")
+
+    def init(self) -> None:
+        self._gripper: FramePose | None = None
+        self._bowl: FramePose | None = None
+        self._clock = math.nan
+        self._seq = 0
+        self._warned = False
+        self.last_distance = math.nan
+
+    def on_config(self) -> None:
+        if not self.far > self.near:
+            raise ValueError(f"component {self.name}: far ({self.far}) must be greater than near ({self.near})")
+
+    def on_update(self) -> None:
+        stamp_time = None
+        grippers = self.gripper.read_all()
+        bowls = self.bowl.read_all()
+        if grippers or bowls:
+            stamp_time = Stamp.now().time
+        if grippers:
+            self._gripper = grippers[-1]
+        if bowls:
+            self._bowl = bowls[-1]
+        for value in self.clock.read_all():
+            self._clock = float(value)
+        if stamp_time is None or self._gripper is None or self._bowl is None:
+            return
+        gripper, bowl = self._gripper, self._bowl
+        if gripper.target != bowl.target and not self._warned:
+            self._warned = True
+            log.warning("component %s: gripper pose is in %r but bowl pose in %r; the distance assumes one frame",
+                        self.name, gripper.target, bowl.target)
+        self._seq += 1
+        stamp = Stamp(stamp_time, self._seq, self.name)
+        distance = frame_distance(gripper, bowl)
+        self.last_distance = distance
+        times = [t for t in (gripper.stamp, bowl.stamp) if t is not None]
+        if not math.isnan(self._clock):
+            times.append(self._clock)
+        self.distance.write(Stamped(distance, stamp))
+        self.color.write(Stamped(distance_color(distance, self.near, self.far), stamp))
+        self.bag_time.write(Stamped(max(times) if times else math.nan, stamp))
+        self.record_latency(stamp)

@@ -1,0 +1,139 @@
+"""``TeleopSummary``: records the teleoperation distances to CSV and writes a JSON summary at the stop.
+
+Inputs: ``distance`` (``Stamped[float]``, event), ``color`` (``Stamped[(r, g, b)]``), ``bag_time``
+(``Stamped[float]``, ROS seconds), all written by :class:`~.distance.EndEffectorDistance` with one
+shared :class:`Stamp` per sample (matched here by ``stamp.seq``); optional data ports ``bowl`` and
+``target`` (:class:`FramePose` in one frame) for the final bowl-to-target distance.
+
+CSV (``csv`` attribute): ``seq, time, distance, r, g, b, latency_ms`` — ``time`` is seconds after
+``time_origin`` (the ROS time of session time 0; ``0``: the first sample's bag time), ``latency_ms``
+the age of the sample's stamp when its row is written (also recorded for the profiler).
+
+JSON (``json`` attribute, at ``on_stop``, after the last rows are flushed): ``samples``,
+``min_distance``, ``min_distance_time``, ``final_distance``, ``grasp_time`` (first time the
+distance is below ``near``, or null), ``near``, ``time_origin``, ``final_bowl_target_distance``
+(null without ``bowl``/``target``), ``latency_ms`` (mean, max).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+from pathlib import Path
+from typing import IO, Any
+
+from coco_core.attributes import Attribute
+from coco_core.component import Component
+from coco_core.ports import InputPort
+from coco_core.stamps import Stamped
+from coco_core.transforms.samples import FramePose
+
+from .distance import frame_distance
+
+
+def _finite(value: float) -> float | None:
+    return None if value is None or not math.isfinite(value) else float(value)
+
+
+class TeleopSummary(Component):
+    """CSV of every distance sample and a JSON summary at the stop; see the module docstring."""
+
+    csv = Attribute(Path, Path("out/teleop/distance.csv"), "CSV file of the samples; its folder is created")
+    json = Attribute(Path, Path("out/teleop/summary.json"), "JSON summary written at the stop")
+    near = Attribute(float, 0.02, "grasp threshold (m): the grasp time is the first distance below it", min=0.0)
+    time_origin = Attribute(float, 0.0, "ROS time (s) of time 0 in the outputs; 0: the first sample's")
+
+    distance = InputPort(Stamped, event=True, doc="distance samples (m)")
+    color = InputPort(Stamped, doc="colour of each distance sample")
+    bag_time = InputPort(Stamped, doc="ROS time (s) of each distance sample")
+    bowl = InputPort(FramePose, doc="bowl pose, optional (final bowl-to-target distance)")
+    target = InputPort(FramePose, doc="target pose, optional (final bowl-to-target distance)")
+
+    def on_config(self) -> None:
+        self.csv.parent.mkdir(parents=True, exist_ok=True)
+        self.json.parent.mkdir(parents=True, exist_ok=True)
+        self._file: IO[str] = self.csv.open("w", newline="")
+        self._writer = csv.writer(self._file)
+        self._writer.writerow(["seq", "time", "distance", "r", "g", "b", "latency_ms"])
+        self._pending: list[Stamped] = []
+        self._colors: dict[int, Any] = {}
+        self._times: dict[int, float] = {}
+        self._origin = self.time_origin or None
+        self.rows = 0
+        self._min = (math.inf, math.nan)
+        self._final = math.nan
+        self._grasp: float | None = None
+        self._latencies: list[float] = []
+        self._bowl: FramePose | None = None
+        self._target: FramePose | None = None
+
+    def on_update(self) -> None:
+        self._drain(final=False)
+
+    def _drain(self, final: bool) -> None:
+        self._pending.extend(self.distance.read_all())
+        for sample in self.color.read_all():
+            self._colors[sample.stamp.seq] = sample.value
+        for sample in self.bag_time.read_all():
+            self._times[sample.stamp.seq] = sample.value
+        for port, attr in ((self.bowl, "_bowl"), (self.target, "_target")):
+            values = port.read_all()
+            if values:
+                setattr(self, attr, values[-1])
+        if not self._pending:
+            return
+        now = time.perf_counter()
+        waiting = []
+        for sample in self._pending:
+            seq = sample.stamp.seq
+            connected = (self.color.connected, self.bag_time.connected)
+            ready = ((not connected[0] or seq in self._colors) and (not connected[1] or seq in self._times))
+            if not ready and not final:
+                waiting.append(sample)
+                continue
+            self._row(sample, self._colors.pop(seq, (math.nan,) * 3), self._times.pop(seq, math.nan), now)
+        self._pending = waiting
+        self._file.flush()
+
+    def _row(self, sample: Stamped, color: Any, bag_time: float, now: float) -> None:
+        if self._origin is None and math.isfinite(bag_time):
+            self._origin = bag_time
+        t = bag_time - self._origin if self._origin is not None else math.nan
+        distance = float(sample.value)
+        latency = now - sample.stamp.time
+        self._writer.writerow([sample.stamp.seq, f"{t:.4f}", f"{distance:.6f}",
+                               *(f"{c:.4f}" for c in color), f"{latency * 1e3:.3f}"])
+        self.record_latency(sample.stamp)
+        self._latencies.append(latency)
+        self.rows += 1
+        self._final = distance
+        if distance < self._min[0]:
+            self._min = (distance, t)
+        if self._grasp is None and distance < self.near:
+            self._grasp = t
+
+    def summary(self) -> dict[str, Any]:
+        bowl_target = None
+        if self._bowl is not None and self._target is not None:
+            bowl_target = frame_distance(self._bowl, self._target)
+        lat = self._latencies
+        return {
+            "samples": self.rows,
+            "min_distance": _finite(self._min[0]),
+            "min_distance_time": _finite(self._min[1]),
+            "final_distance": _finite(self._final),
+            "grasp_time": self._grasp,
+            "near": self.near,
+            "time_origin": self._origin,
+            "final_bowl_target_distance": bowl_target,
+            "latency_ms": {"mean": sum(lat) / len(lat) * 1e3 if lat else None,
+                           "max": max(lat) * 1e3 if lat else None},
+            "csv": str(self.csv),
+        }
+
+    def on_stop(self) -> None:
+        self._drain(final=True)
+        self._file.close()
+        self.json.write_text(json.dumps(self.summary(), indent=2) + "\n")

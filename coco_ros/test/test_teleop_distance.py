@@ -1,0 +1,110 @@
+"""EndEffectorDistance (UpdateColorCalc) and TeleopSummary, unit and in-process application tests."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+from coco_core.activity import PeriodicActivity
+from coco_core.application import Application
+from coco_core.component import Component
+from coco_core.policy import BufferPolicy, ConnectionPolicy
+from coco_core.ports import OutputPort
+from coco_core.transforms.samples import FramePose
+
+from coco_ros.teleop import EndEffectorDistance, TeleopSummary, distance_color
+from coco_ros.teleop.distance import frame_distance
+
+BUFFER = ConnectionPolicy(BufferPolicy.BUFFER, size=1000)
+
+
+def pose(x: float, y: float = 0.0, z: float = 0.0, stamp: float | None = None, source: str = "") -> FramePose:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return FramePose("base", source, T, stamp)
+
+
+@pytest.mark.parametrize("d, rgb", [
+    (0.0, (0.0, 1.0, 0.0)), (0.02, (0.0, 1.0, 0.0)), (0.26, (1.0, 1.0, 0.0)),
+    (0.5, (1.0, 0.0, 0.0)), (3.0, (1.0, 0.0, 0.0)), (0.14, (0.5, 1.0, 0.0)), (0.38, (1.0, 0.5, 0.0)),
+])
+def test_color_map_green_yellow_red(d, rgb):
+    np.testing.assert_allclose(distance_color(d), rgb, atol=1e-12)
+
+
+def test_color_map_is_monotonic_and_custom_thresholds():
+    ds = np.linspace(0, 1, 201)
+    reds = [distance_color(d, 0.1, 0.9)[0] for d in ds]
+    greens = [distance_color(d, 0.1, 0.9)[1] for d in ds]
+    assert reds == sorted(reds) and greens == sorted(greens, reverse=True)
+    assert distance_color(0.1, 0.1, 0.9) == (0.0, 1.0, 0.0)
+    assert distance_color(0.5, 0.1, 0.9) == (1.0, 1.0, 0.0)
+    assert distance_color(math.nan) == (1.0, 0.0, 0.0)
+    with pytest.raises(ValueError):
+        distance_color(0.1, 0.5, 0.5)
+
+
+def test_frame_distance_uses_translations_only():
+    a = pose(0.3, 0.4)
+    b = FramePose("base", "bowl", np.diag([-1.0, -1.0, 1.0, 1.0]))  # rotated, at the origin
+    assert frame_distance(a, b) == pytest.approx(0.5)
+
+
+class Feeder(Component):
+    """Writes (gripper, bowl) pairs, one per update, then asks the application to stop."""
+
+    gripper = OutputPort(FramePose)
+    bowl = OutputPort(FramePose)
+
+    def init(self) -> None:
+        self.steps = [(pose(0.1 * (10 - i), stamp=100.0 + i), pose(0.0, stamp=100.0 + i, source="bowl"))
+                      for i in range(11)]
+        self.i = 0
+
+    def on_update(self) -> None:
+        if self.i < len(self.steps):
+            gripper, bowl = self.steps[self.i]
+            self.gripper.write(gripper)
+            self.bowl.write(bowl)
+            self.i += 1
+        elif self.i == len(self.steps) + 20 and self.app is not None:
+            self.app.request_stop("fed")
+        else:
+            self.i += 1
+
+
+def test_distance_and_summary_in_an_application(tmp_path):
+    app = Application("teleop")
+    feeder = app.add(Feeder("feeder"))
+    distance = app.add(EndEffectorDistance("distance", near=0.05))
+    summary = app.add(TeleopSummary("summary", csv=tmp_path / "d.csv", json=tmp_path / "s.json", near=0.05,
+                                    time_origin=100.0))
+    app.connect("feeder.gripper", "distance.gripper", BUFFER)
+    app.connect("feeder.bowl", "distance.bowl", BUFFER)
+    for port in ("distance", "color", "bag_time"):
+        app.connect(f"distance.{port}", f"summary.{port}", BUFFER)
+    app.connect("feeder.bowl", "summary.bowl")
+    app.connect("feeder.gripper", "summary.target")
+    activity = PeriodicActivity("loop", 0.005)
+    for component in (feeder, distance, summary):
+        app.schedule(component, activity)
+    app.run(duration=10)
+    assert app.stop_reason.endswith("fed"), app.stop_reason
+    with (tmp_path / "d.csv").open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 11
+    assert [float(r["distance"]) for r in rows] == pytest.approx([0.1 * (10 - i) for i in range(11)])
+    assert [float(r["time"]) for r in rows] == pytest.approx(list(range(11)))
+    assert (float(rows[-1]["r"]), float(rows[-1]["g"])) == (0.0, 1.0)
+    assert all(float(r["latency_ms"]) >= 0 for r in rows)
+    result = json.loads((tmp_path / "s.json").read_text())
+    assert result["samples"] == 11
+    assert result["min_distance"] == pytest.approx(0.0, abs=1e-12)
+    assert result["min_distance_time"] == pytest.approx(10.0)
+    assert result["grasp_time"] == pytest.approx(10.0)  # first distance below 0.05
+    assert result["final_distance"] == pytest.approx(0.0, abs=1e-12)
+    assert result["final_bowl_target_distance"] == pytest.approx(0.0, abs=1e-12)
+    assert distance.stats.latency.count == 11 and summary.stats.latency.count == 11
