@@ -1,6 +1,6 @@
 """Run every benchmark, each in its own process, and collect their JSON (and markdown for the docs).
 
-    PYTHONPATH=coco_core .venv/bin/python bench/run_all.py                 # full run, about 1.5 min
+    PYTHONPATH=coco_core .venv/bin/python bench/run_all.py                 # full run, about 2.5 min
     PYTHONPATH=coco_core .venv/bin/python bench/run_all.py --seconds 2     # quick run
     PYTHONPATH=coco_core .venv/bin/python bench/run_all.py --markdown /tmp/tables.md
 
