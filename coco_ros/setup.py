@@ -28,6 +28,7 @@ setup(
             "BagReplay = coco_ros.replay.component:BagReplay",
             "BagRecorder = coco_ros.replay.recorder:BagRecorder",
             "ROSInterface = coco_ros.interface.component:ROSInterface",
+            "TFBridge = coco_ros.tf.bridge:TFBridge",
             "EndEffectorDistance = coco_ros.teleop.distance:EndEffectorDistance",
             "TeleopSummary = coco_ros.teleop.summary:TeleopSummary",
         ],

@@ -1,10 +1,42 @@
 #!/usr/bin/env bash
-# The main job: set up and build the workspace, then run the default application on generated data
-# (no hardware needed). Extra arguments go to the launcher, e.g. `--duration 30` or `window:=16`.
+# The main job: set up and build the workspace, then run the default application, the Baxter
+# teleoperation replay (config/baxter_teleop_replay.xml), on a generated session (no hardware needed).
+# The session bag is generated once, on first use, into out/baxter_session. Extra arguments go to the
+# launcher, e.g. `rate:=2`, `near:=0.05` or `--duration 5`.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=setup.sh
 source "$ROOT/scripts/setup.sh"
 cd "$ROOT"
-exec "$ROOT/install/coco_core/lib/coco_core/coco-launch" config/demo_pipeline.xml \
-    --duration 6 --profile 3 "$@"
+
+SESSION="out/baxter_session"
+OUTPUT="out/teleop"
+for arg in "$@"; do  # the launcher takes the last value of an argument: so do we
+    case "$arg" in
+        bag:=*) SESSION="${arg#bag:=}" ;;
+        output:=*) OUTPUT="${arg#output:=}" ;;
+    esac
+done
+
+# A session folder only ever appears complete: it is generated beside it and moved in place at the
+# end, so an interrupted generation is simply started again.
+if [ ! -f "$SESSION/metadata.yaml" ]; then
+    if [ -e "$SESSION" ]; then
+        echo "$SESSION exists but holds no complete bag (no metadata.yaml): move it away or pass bag:=<folder>" >&2
+        exit 1
+    fi
+    partial="$(dirname "$SESSION")/.partial-$(basename "$SESSION")"
+    rm -rf "$partial"
+    mkdir -p "$partial"
+    echo "Generating the teleoperation session $SESSION (first run only)"
+    "$ROOT/install/coco_ros/lib/coco_ros/baxter-session" "$partial/$(basename "$SESSION")"
+    mv "$partial/$(basename "$SESSION")" "$SESSION"
+    rmdir "$partial"
+fi
+
+"$ROOT/install/coco_core/lib/coco_core/coco-launch" config/baxter_teleop_replay.xml \
+    bag:="$SESSION" output:="$OUTPUT" --profile 6 "$@"
+
+echo
+echo "Teleoperation summary ($OUTPUT/summary.json):"
+python -m coco_ros.teleop "$OUTPUT/summary.json"

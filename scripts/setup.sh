@@ -56,9 +56,39 @@ ensure_requirements() {
     fi
 }
 
+ensure_wheel_build_paths() {
+    # vendor/tf2_msgs is generated with the rosidl wheels' CMake code, whose exported Python
+    # targets name the wheel builder's interpreter (/opt/python/cpXY-cpXY/include/pythonX.Y and
+    # its numpy include dir) instead of ours. Read the paths they expect from geometry_msgs'
+    # export file (so another Python version's wheels are handled too) and point them at this
+    # interpreter's headers and this venv's numpy headers.
+    local export_file expected python_include numpy_include target sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo="sudo"
+    export_file="$VENV/share/geometry_msgs/cmake/export_geometry_msgs__rosidl_generator_pyExport.cmake"
+    [ -f "$export_file" ] || return 0
+    python_include="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
+    numpy_include="$("$VENV/bin/python" -c 'import numpy; print(numpy.get_include())')"
+    for expected in $(grep -o '/opt/python/[^";) ]*' "$export_file" | sort -u); do
+        case "$expected" in
+            */numpy/_core/include | */numpy/core/include) target="$numpy_include" ;;
+            */include/python3*) target="$python_include" ;;
+            *) continue ;;
+        esac
+        [ -e "$expected" ] && continue
+        log "linking $expected -> $target (path baked into the rosidl wheels)"
+        $sudo mkdir -p "$(dirname "$expected")"
+        $sudo ln -sfn "$target" "$expected"
+    done
+}
+
 build_workspace() {
     log "colcon build"
-    (cd "$COCO_ROOT" && colcon --log-base log build --build-base build --install-base install \
+    # The interface package vendor/tf2_msgs finds ament_cmake and the rosidl generators in the
+    # venv's prefix, where the wheels install them (set for the build only).
+    (cd "$COCO_ROOT" &&
+        AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}" \
+        CMAKE_PREFIX_PATH="$VENV${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}" \
+        colcon --log-base log build --build-base build --install-base install \
         --event-handlers console_direct- console_stderr- summary+ >&2)
 }
 
@@ -67,6 +97,15 @@ ensure_system_packages() {
     local missing=()
     command -v chromium >/dev/null 2>&1 || missing+=(chromium)
     command -v dot >/dev/null 2>&1 || missing+=(graphviz)
+    # vendor/tf2_msgs is an ament_cmake package: its rosidl code is generated and compiled.
+    command -v cmake >/dev/null 2>&1 || missing+=(cmake)
+    command -v g++ >/dev/null 2>&1 || missing+=(g++)
+    # coco_mr_display renders with OpenGL 3.3 through Mesa (llvmpipe when there is no GPU): EGL for
+    # headless output, GLX for GLFW windows; the window tests run under Xvfb.
+    ldconfig -p | grep -q 'libEGL_mesa.so' || missing+=(libegl1 libegl-mesa0)
+    ldconfig -p | grep -q 'libGLX_mesa.so' || missing+=(libgl1 libglx-mesa0)
+    [ -d /usr/lib/x86_64-linux-gnu/dri ] || [ -d /usr/lib/aarch64-linux-gnu/dri ] || missing+=(libgl1-mesa-dri)
+    command -v Xvfb >/dev/null 2>&1 || missing+=(xvfb)
     if [ "${#missing[@]}" -gt 0 ]; then
         apt_install "${missing[@]}"
     fi
@@ -79,6 +118,7 @@ set +u
 # shellcheck disable=SC1091
 source "$VENV/bin/activate"
 set -u
+ensure_wheel_build_paths
 build_workspace
 set +u
 # shellcheck disable=SC1091

@@ -1,5 +1,5 @@
 """The Baxter teleoperation replay app (config/baxter_teleop_replay.xml) on a generated session, run
-through the installed coco-launch as a user does."""
+through the installed coco-launch and the ROS launcher node as a user does."""
 
 from __future__ import annotations
 
@@ -8,11 +8,13 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import ROOT, run_launcher
 
 APP = "config/baxter_teleop_replay.xml"
+URDF = "package://example-robot-data/robots/baxter_description/urdf/baxter.urdf"
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +33,26 @@ def session(tmp_path_factory):
     return folder, info
 
 
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def latency(report: str, component: str) -> tuple[float, float]:
+    """(mean, max) ms of a component's stamp-to-output latency in a profile report."""
+    components = report[report.index("\ncomponent "):]  # the component table (an activity may share the name)
+    line = re.search(rf"^{component}\s.*$", components, re.M).group(0)
+    found = re.search(r"([0-9.]+) / ([0-9.]+)\s*$", line)
+    assert found, f"no latency for {component}: {line}"
+    return float(found.group(1)), float(found.group(2))
+
+
 def test_teleop_app_replays_the_session(coco_launch: Path, session, tmp_path: Path) -> None:
+    from coco_core.transforms.urdf import UrdfModel
+
+    from coco_ros.baxter.ik import NEUTRAL
+    from coco_ros.baxter.joints import ARM_JOINTS
+
     folder, info = session
     output = tmp_path / "teleop"
     result = run_launcher(coco_launch, APP, f"bag:={folder}", f"output:={output}",
@@ -42,14 +63,25 @@ def test_teleop_app_replays_the_session(coco_launch: Path, session, tmp_path: Pa
     assert "Profile of application 'baxter_teleop_replay'" in report, report
     for name in ("replay", "tf", "distance", "summary"):
         assert re.search(rf"^{name}\s", report, re.M), f"{name} missing from the profile:\n{report}"
-    # The distance component reports its stamp-to-output latency (mean/max in ms), not "-".
-    line = re.search(r"^distance\s.*$", report, re.M).group(0)
-    assert re.search(r"[0-9.]+ / [0-9.]+\s*$", line), line
+    # The bowl and the target reach the distance and the summary through the transformation graph.
+    for connection in ("replay.bowl_pose -> tf.transform", "replay.target_pose -> tf.transform",
+                       "tf.bowl -> distance.bowl", "tf.target -> summary.target"):
+        assert connection in report, report
+    # Latency from the replay's emission: the summary's row comes after the distance, for every sample.
+    distance_latency, summary_latency = latency(report, "distance"), latency(report, "summary")
+    assert 0 < distance_latency[0] <= summary_latency[0], report
 
-    with (output / "distance.csv").open(newline="") as handle:
-        rows = list(csv.DictReader(handle))
+    rows = read_csv(output / "distance.csv")
     assert len(rows) > 500, f"only {len(rows)} distance samples in a 12 s session"
     assert all(0.0 <= float(r[c]) <= 1.0 for r in rows for c in ("r", "g", "b"))
+    # Only real data: the first sample is the arm at home (its first joint state), not at zero joints.
+    robot = UrdfModel.load(URDF)
+    robot.set_positions(dict(zip(ARM_JOINTS["left"], NEUTRAL["left"])))
+    home = np.linalg.norm(robot.placement("left_gripper")[:3, 3] - info.bowl[:3, 3])
+    first = rows[0]
+    assert 0.0 <= float(first["time"]) < 0.05, first
+    home_rows = [r for r in rows if float(r["time"]) < 0.45]
+    assert home_rows and all(float(r["distance"]) == pytest.approx(home, abs=2e-6) for r in home_rows), (home, home_rows[:3])
 
     summary = json.loads((output / "summary.json").read_text())
     assert summary["samples"] == len(rows)
@@ -60,6 +92,26 @@ def test_teleop_app_replays_the_session(coco_launch: Path, session, tmp_path: Pa
     assert phases["descend"][0] - 0.1 <= summary["grasp_time"] <= info.grasp_time + 0.1, (summary, info.phases)
     # The closest approach is while the gripper holds the bowl, from the grasp to the release.
     assert phases["grasp"][0] - 0.5 <= summary["min_distance_time"] <= info.release_time + 0.5, summary
-    # After the release and retreat the gripper is away; the bowl was placed on its target.
+    # After the release and retreat the gripper is away; the bowl (frame bowl) was placed on its target (frame target).
     assert summary["final_distance"] > 0.05, summary
     assert summary["final_bowl_target_distance"] < 0.01, summary
+
+
+def test_teleop_app_in_the_ros_launcher(session, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same app hosted by the rclpy launcher node (its activities as executor callback groups)."""
+    monkeypatch.setenv("ROS_DOMAIN_ID", "65")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    launcher = ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
+    if not launcher.exists():
+        pytest.fail(f"{launcher} is missing: build the workspace first (scripts/setup.sh does)")
+    folder, info = session
+    output = tmp_path / "teleop"
+    result = run_launcher(launcher, APP, f"bag:={folder}", f"output:={output}", "rate:=3",
+                          f"time_origin:={info.start_ns / 1e9}", "--profile", "100", "--duration", "60", timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "node /baxter_teleop_replay hosts application baxter_teleop_replay" in result.stderr, result.stderr
+    assert "activity frames: triggered -> executor" in result.stderr, result.stderr
+    latency(result.stdout, "summary")
+    summary = json.loads((output / "summary.json").read_text())
+    assert summary["samples"] == len(read_csv(output / "distance.csv")) > 200, summary
+    assert summary["min_distance"] < 0.02 and summary["final_bowl_target_distance"] < 0.01, summary

@@ -1,4 +1,5 @@
-"""The default application, run through the installed ``coco-launch`` as the README's main job does."""
+"""The demo pipeline (config/demo_pipeline.xml), the README's second example, run through the installed
+``coco-launch``."""
 
 from __future__ import annotations
 

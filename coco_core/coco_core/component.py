@@ -257,7 +257,7 @@ class Component:
         """Run ``on_config`` of the peers, then of this component; False when it failed."""
         for peer in self.peers:
             peer.configure()
-        self._configured = self._guard("on_config", self.on_config)
+        self._configured = self.run_guarded("on_config", self.on_config)
         return self._configured
 
     def step(self) -> None:
@@ -269,7 +269,7 @@ class Component:
         try:
             self.on_update()
         except Exception:
-            self._failed("on_update")
+            self.report_error("on_update")
         self.stats.record(start, time.perf_counter())
         if not self.manages_peers:
             for peer in self.peers:
@@ -279,21 +279,26 @@ class Component:
         """Run ``on_stop`` of this component (if it was configured), then of its peers; errors are
         reported, not raised."""
         if self._configured:
-            self._guard("on_stop", self.on_stop, count_only=True)
+            self.run_guarded("on_stop", self.on_stop, count_only=True)
             self._configured = False
         for peer in self.peers:
             peer.stop()
 
-    def _guard(self, phase: str, callback: Callable[[], None], count_only: bool = False) -> bool:
+    def run_guarded(self, phase: str, callback: Callable[[], None], count_only: bool = False) -> bool:
+        """Run ``callback`` (a life-cycle step named ``phase``) under this component's error policy:
+        an exception is reported and counted, never raised, so that one component cannot take its
+        activity down. Owners that drive their peers' extra phases (GLManager's ``gl_init``) use it too.
+        A failure disables the component unless ``count_only``; True when the callback returned."""
         try:
             callback()
         except Exception:
-            self._failed(phase, disable=not count_only)
+            self.report_error(phase, disable=not count_only)
             return False
         return True
 
-    def _failed(self, phase: str, disable: bool = False) -> None:
-        """Report an exception from ``phase`` and apply the error policy."""
+    def report_error(self, phase: str, disable: bool = False) -> None:
+        """Report the exception being handled, raised in ``phase``, and apply the error policy (call
+        from an ``except`` block)."""
         self.stats.errors += 1
         errors = self.stats.errors
         now = time.monotonic()

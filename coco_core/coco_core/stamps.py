@@ -36,3 +36,13 @@ class Stamped(Generic[T]):
 
     value: T
     stamp: Stamp = field(default_factory=Stamp.now)
+
+
+def unstamped(value: T | Stamped[T]) -> tuple[T, Stamp | None]:
+    """``(value, stamp)`` of a :class:`Stamped` value, ``(value, None)`` of a plain one.
+
+    Lets an input take both, so a producer can start stamping its values (for end-to-end latency)
+    without breaking the consumers that were written for plain ones."""
+    if isinstance(value, Stamped):
+        return value.value, value.stamp
+    return value, None

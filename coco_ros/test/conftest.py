@@ -17,6 +17,10 @@ for _package in sorted(_WORKSPACE.glob("*/package.xml")):
     _name = _package.parent.name
     if (_package.parent / _name / "__init__.py").is_file() and importlib.util.find_spec(_name) is None:
         sys.path.insert(0, str(_package.parent))
+# tf2_msgs is built by colcon (vendor/tf2_msgs): only install/ has its Python module.
+if importlib.util.find_spec("tf2_msgs") is None:
+    for _site in sorted((_WORKSPACE / "install" / "tf2_msgs" / "lib").glob("python3*/site-packages")):
+        sys.path.insert(0, str(_site))
 
 SHARED_DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 """Real recordings from public sources (see shared/data/README.md); tests skip when it is absent."""

@@ -8,9 +8,9 @@ returns what a subscriber joining at ``t`` would have received, for the replay t
 from __future__ import annotations
 
 import pytest
+from tf2_msgs.msg import TFMessage
 
 from coco_ros.bag import TF_STATIC, BagReader, BagWriter, Qos
-from coco_ros.bag.tf_message import TFMessage
 
 T0 = 1_700_000_000_000_000_000
 MS = 1_000_000
@@ -24,7 +24,7 @@ def static(parent: str, child: str, x: float) -> TFMessage:
     t.header.frame_id, t.child_frame_id = parent, child
     t.transform.translation.x = x
     t.transform.rotation.w = 1.0
-    return TFMessage([t])
+    return TFMessage(transforms=[t])
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""The pieces under the bag files: message definitions, QoS profiles, type lookup, the TFMessage codec."""
+"""The pieces under the bag files: message definitions, QoS profiles, type lookup, TFMessage CDR."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 
 from coco_ros.bag import TF_STATIC, MessageTypeError, Qos
 from coco_ros.bag import qos as qos_module
-from coco_ros.bag import tf_message
-from coco_ros.bag.message_types import TypeResolver, normalize_type, type_name_of
+from coco_ros.bag.message_types import TF_MESSAGE, TypeResolver, normalize_type, type_name_of
+from rclpy.serialization import serialize_message as serialize
 from coco_ros.bag.schema import DELIMITER, DefinitionSource, dependencies
 
 TYPES = [
@@ -118,13 +118,14 @@ def test_replay_offer_follows_rosbag2():
 
 def test_type_names():
     from sensor_msgs.msg import JointState
+    from tf2_msgs.msg import TFMessage
 
     assert normalize_type("std_msgs/String") == "std_msgs/msg/String"
     assert normalize_type("std_msgs/msg/String") == "std_msgs/msg/String"
     with pytest.raises(ValueError, match="expected a message type name like"):
         normalize_type("String")
     assert type_name_of(JointState()) == "sensor_msgs/msg/JointState"
-    assert type_name_of(tf_message.TFMessage()) == "tf2_msgs/msg/TFMessage"
+    assert type_name_of(TFMessage()) == "tf2_msgs/msg/TFMessage"
     with pytest.raises(TypeError, match="expected a ROS message object"):
         type_name_of(42)
 
@@ -141,8 +142,9 @@ def test_resolver_caches_classes_and_explains_missing_packages():
         resolver.decoder("std_msgs/msg/Nothing")
 
 
-def random_tf(rng: np.random.Generator, count: int) -> tf_message.TFMessage:
+def random_tf(rng: np.random.Generator, count: int):
     from geometry_msgs.msg import TransformStamped
+    from tf2_msgs.msg import TFMessage
 
     transforms = []
     for i in range(count):
@@ -156,15 +158,18 @@ def random_tf(rng: np.random.Generator, count: int) -> tf_message.TFMessage:
         t.transform.rotation.x, t.transform.rotation.y = float(values[3]), float(values[4])
         t.transform.rotation.z, t.transform.rotation.w = float(values[5]), float(values[6])
         transforms.append(t)
-    return tf_message.TFMessage(transforms)
+    return TFMessage(transforms=transforms)
 
 
-def test_tf_message_codec_matches_rosbags(jazzy):
+def test_tf_message_cdr_matches_rosbags(jazzy):
+    """The workspace's tf2_msgs (vendor/tf2_msgs) writes and reads the CDR of ROS 2 Jazzy's TFMessage,
+    in both byte orders, as rosbags' independent Jazzy definition does."""
     rng = np.random.default_rng(3)
+    decode = TypeResolver().decoder(TF_MESSAGE)
     for count in (0, 1, 2, 5):
         message = random_tf(rng, count)
-        data = tf_message.serialize(message)
-        theirs = jazzy.deserialize_cdr(data, "tf2_msgs/msg/TFMessage")
+        data = serialize(message)
+        theirs = jazzy.deserialize_cdr(data, TF_MESSAGE)
         assert len(theirs.transforms) == count
         for ours, other in zip(message.transforms, theirs.transforms):
             assert ours.header.stamp.sec == other.header.stamp.sec
@@ -172,15 +177,25 @@ def test_tf_message_codec_matches_rosbags(jazzy):
             assert (ours.header.frame_id, ours.child_frame_id) == (other.header.frame_id, other.child_frame_id)
             assert ours.transform.translation.z == other.transform.translation.z
             assert ours.transform.rotation.w == other.transform.rotation.w
-        assert bytes(jazzy.serialize_cdr(theirs, "tf2_msgs/msg/TFMessage", little_endian=True)) == data
-        assert tf_message.deserialize(data) == message
-        big = bytes(jazzy.serialize_cdr(theirs, "tf2_msgs/msg/TFMessage", little_endian=False))
-        assert tf_message.deserialize(big) == message
+        # Same layout; the alignment padding is not compared: Fast CDR leaves it unset.
+        little = bytes(jazzy.serialize_cdr(theirs, TF_MESSAGE, little_endian=True))
+        assert len(little) == len(data)
+        assert decode(little) == message and decode(data) == message
+        big = bytes(jazzy.serialize_cdr(theirs, TF_MESSAGE, little_endian=False))
+        assert decode(big) == message
+
+
+def test_tf_message_definition_and_hash_come_from_the_built_package():
+    source = DefinitionSource()
+    assert source.msg_text(TF_MESSAGE).strip() == "geometry_msgs/TransformStamped[] transforms"
+    # Jazzy's RIHS01 hash of tf2_msgs/msg/TFMessage (rosbag2 writes it into metadata.yaml).
+    assert source.type_hash(TF_MESSAGE) == "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
 
 
 def test_tf_message_rejects_short_data():
-    data = tf_message.serialize(random_tf(np.random.default_rng(1), 2))
-    with pytest.raises(ValueError, match="TFMessage CDR"):
-        tf_message.deserialize(data[:-9])
-    with pytest.raises(ValueError, match="expected CDR data"):
-        tf_message.deserialize(b"\x07\x07\x00\x00\x00\x00\x00\x00")
+    decode = TypeResolver().decoder(TF_MESSAGE)
+    data = serialize(random_tf(np.random.default_rng(1), 2))
+    with pytest.raises(RuntimeError, match="failed to deserialize"):
+        decode(data[:-9])
+    with pytest.raises(RuntimeError, match="failed to deserialize"):
+        decode(b"\x07\x07\x00\x00\x00\x00\x00\x00")

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
@@ -109,20 +107,10 @@ def test_wrong_values_are_refused():
 
 
 # --- TFMessage -------------------------------------------------------------------------------------
-# tf2_msgs is not among the ROS wheels on PyPI: the real message is used when it is installed, and a
-# stand-in of the same shape (a list of TransformStamped named ``transforms``) exercises the
-# conversion either way.
-
-@dataclass
-class TFMessage:  # the name is what the converter checks
-    transforms: list = field(default_factory=list)
-
+# tf2_msgs has no PyPI wheel: the workspace builds it (vendor/tf2_msgs).
 
 @pytest.fixture
-def tf_converter(monkeypatch):
-    real = geometry.message_class
-    monkeypatch.setattr(geometry, "message_class",
-                        lambda name: TFMessage if name == "tf2_msgs/msg/TFMessage" else real(name))
+def tf_converter():
     return converter_for("tf2_msgs/msg/TFMessage")
 
 
@@ -150,7 +138,8 @@ def test_tf_message_to_samples_and_back(tf_converter):
 
 
 def test_tf_message_with_the_real_package():
-    tf2_msgs = pytest.importorskip("tf2_msgs.msg", reason="tf2_msgs is not installed (not on PyPI)")
+    import tf2_msgs.msg as tf2_msgs
+
     converter = converter_for("tf2_msgs/msg/TFMessage")
     msg = converter.to_ros([TransformSample("world", "base", a_transform(6), 3.5)])
     assert isinstance(msg, tf2_msgs.TFMessage)
@@ -160,8 +149,15 @@ def test_tf_message_with_the_real_package():
     assert again.transforms[0].transform.translation == msg.transforms[0].transform.translation
 
 
-def test_without_tf2_msgs_the_error_says_what_to_install():
-    if importlib.util.find_spec("tf2_msgs") is not None:
-        pytest.skip("tf2_msgs is installed")
-    with pytest.raises(ImportError, match="needs the tf2_msgs Python package"):
+def test_without_tf2_msgs_the_error_says_how_to_get_it(monkeypatch):
+    """A shell that did not source the workspace cannot import tf2_msgs: the error says how to get it."""
+    real = geometry.message_class
+
+    def missing(name: str) -> type:
+        if name.startswith("tf2_msgs/"):
+            raise ModuleNotFoundError("No module named 'tf2_msgs'")
+        return real(name)
+
+    monkeypatch.setattr(geometry, "message_class", missing)
+    with pytest.raises(ImportError, match="needs the tf2_msgs Python package .*vendor/tf2_msgs.*scripts/setup.sh"):
         converter_for("tf2_msgs/msg/TFMessage")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -12,9 +13,9 @@ from coco_core.component import Component
 from coco_core.policy import BufferPolicy, ConnectionPolicy
 from coco_core.ports import InputPort
 from coco_core.transforms.samples import JointSample
+from tf2_msgs.msg import TFMessage
 
 from coco_ros.bag import BagReader, BagWriter
-from coco_ros.bag.tf_message import TFMessage
 from coco_ros.replay.component import BagReplay, port_name_for
 from coco_ros.replay.recorder import BagRecorder
 
@@ -42,7 +43,7 @@ def joints_bag(tmp_path_factory) -> Path:
 
     folder = tmp_path_factory.mktemp("replay_component") / "joints"
     with BagWriter(folder) as writer:
-        writer.write("/tf_static", TFMessage([TransformStamped(child_frame_id="tool")]), T0)
+        writer.write("/tf_static", TFMessage(transforms=[TransformStamped(child_frame_id="tool")]), T0)
         for i in range(100):
             msg = JointState(header=Header(stamp=Time(sec=1_700_000_000, nanosec=i * MS)),
                              name=["a", "b"], position=[i * 0.01, -i * 0.02], velocity=[0.5, float(i)], effort=[1.0, -1.0])
@@ -117,8 +118,6 @@ def test_pause_step_operations(joints_bag):
     app.start()
     try:
         replay.call("pause").result(2)
-        import time
-
         time.sleep(0.05)
         before = len(sink.got)
         time.sleep(0.1)
@@ -186,3 +185,82 @@ def test_damaged_bag_replays_what_is_readable(joints_bag, tmp_path, caplog):
     assert len(errors) == 1 and "cut.mcap at byte" in errors[0]
     assert 0 < len(sink.got) < 100
     np.testing.assert_allclose([v.positions[0] for v in sink.got], [i * 0.01 for i in range(len(sink.got))])
+
+
+@pytest.fixture(scope="module")
+def poses_bag(tmp_path_factory) -> Path:
+    """20 bowl poses in ``base`` (x = 0.5 + i cm) and joint states, 10 ms apart."""
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import PoseStamped
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Header
+
+    folder = tmp_path_factory.mktemp("replay_component") / "poses"
+    with BagWriter(folder) as writer:
+        for i in range(20):
+            header = Header(stamp=Time(sec=1_700_000_000, nanosec=i * 10 * MS), frame_id="base")
+            pose = PoseStamped(header=header)
+            pose.pose.position.x, pose.pose.orientation.w = 0.5 + 0.01 * i, 1.0
+            writer.write("/bowl/pose", pose, T0 + i * 10 * MS)
+            writer.write("/joints", JointState(header=header, name=["a"], position=[0.1 * i]), T0 + i * 10 * MS + 1)
+    return folder
+
+
+def test_converter_options_make_the_pose_an_edge_of_the_graph_with_emission_stamps(poses_bag):
+    """``options`` gives PoseStamped its child frame, so a TransformationInterface writes it as the edge
+    base -> bowl; with ``stamped`` the replay's emission stamp travels through the interface's lookups."""
+    from coco_core.activity import TriggeredActivity
+    from coco_core.stamps import Stamped
+    from coco_core.transforms.interface import TransformationInterface
+    from coco_core.transforms.samples import FramePose
+
+    app = Application("bowl")
+    replay = app.add(BagReplay("replay", bag=poses_bag, rate=0, topics=["/bowl/pose", "/joints"],
+                               options=["/bowl/pose;child_frame=bowl"], stamped=True))
+    tf = app.add(TransformationInterface("tf", publish=["bowl=base:bowl"], stamped=True), TriggeredActivity("tf"))
+    sink = app.add(Sink("sink"))
+    emitted = app.add(Sink("emitted"))
+    assert replay.outputs["bowl_pose"].type is Stamped and tf.outputs["bowl"].type is Stamped
+    app.connect("replay.bowl_pose", "tf.transform", BUFFER)
+    app.connect("replay.joints", "emitted.values", BUFFER)
+    app.connect("tf.bowl", "sink.values", BUFFER)
+    activity = PeriodicActivity("loop", 0.002)
+    app.schedule(replay, activity)
+    app.schedule(sink, activity)
+    app.schedule(emitted, activity)
+    app.start()
+    try:
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and (len(sink.got) < 20 or len(emitted.got) < 20):
+            time.sleep(0.01)
+    finally:
+        app.stop()
+    np.testing.assert_allclose(app.transforms.lookup("base", "bowl")[:3, 3], [0.69, 0.0, 0.0])
+    assert len(sink.got) == 20
+    assert all(isinstance(s, Stamped) and isinstance(s.value, FramePose) for s in sink.got)
+    assert [(s.value.target, s.value.source) for s in sink.got[:1]] == [("base", "bowl")]
+    np.testing.assert_allclose([s.value.transform[0, 3] for s in sink.got], [0.5 + 0.01 * i for i in range(20)])
+    # The pose's stamp is the message's ROS stamp; the Stamp is the replay's, taken at emission.
+    assert [s.value.stamp for s in sink.got] == pytest.approx([1_700_000_000 + 0.01 * i for i in range(20)])
+    assert {s.stamp.source for s in sink.got} == {"/bowl/pose"}
+    # One sequence over every topic the replay emits, in emission order.
+    seqs = sorted([s.stamp.seq for s in sink.got] + [s.stamp.seq for s in emitted.got])
+    assert seqs == list(range(1, 41))
+    times = [s.stamp.time for s in sink.got]
+    assert times == sorted(times)
+    assert all(isinstance(s.value, JointSample) for s in emitted.got)
+
+
+@pytest.mark.parametrize("options, output, expected", [
+    (["/other;child_frame=x"], "coco", r"options name topic\(s\) /other that are not replayed \(replayed: /bowl/pose\)"),
+    (["/bowl/pose;frame=x"], "coco", r"options of /bowl/pose \(geometry_msgs/msg/PoseStamped\):.*no option\(s\) frame; "
+                                     r"its options: child_frame"),
+    (["/bowl/pose;child_frame"], "coco", r"options item '/bowl/pose;child_frame': option 'child_frame' is not key=value"),
+    (["bowl;child_frame=x"], "coco", r"expected '/topic;key=value\[;key=value\]'"),
+    (["/bowl/pose;child_frame=x"], "bag", r"converter options need output=coco \(output is bag\)"),
+])
+def test_bad_options_name_the_item_and_what_is_expected(poses_bag, options, output, expected):
+    from coco_core.errors import CocoError
+
+    with pytest.raises(CocoError, match=expected):
+        Application("bad").add(BagReplay("replay", bag=poses_bag, topics=["/bowl/pose"], options=options, output=output))

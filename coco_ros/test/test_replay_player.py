@@ -6,9 +6,9 @@ import time
 from pathlib import Path
 
 import pytest
+from tf2_msgs.msg import TFMessage
 
 from coco_ros.bag import BagReader, BagWriter
-from coco_ros.bag.tf_message import TFMessage
 from coco_ros.replay import PlaybackClock, Player, parse_remaps
 
 T0 = 1_700_000_000_000_000_000
@@ -23,7 +23,7 @@ def bag(tmp_path_factory) -> Path:
 
     folder = tmp_path_factory.mktemp("replay") / "bag"
     with BagWriter(folder) as writer:
-        writer.write("/tf_static", TFMessage([TransformStamped(child_frame_id="camera")]), T0)
+        writer.write("/tf_static", TFMessage(transforms=[TransformStamped(child_frame_id="camera")]), T0)
         for i in range(20):
             writer.write("/chatter", String(data=f"c{i}"), T0 + (i + 1) * 10 * MS)
             if i % 2:

@@ -82,18 +82,11 @@ def test_unknown_type_lists_supported_types() -> None:
         assert name in str(caught.value)
 
 
-def test_tf_message_says_whether_it_can_be_bridged() -> None:
-    try:
-        import tf2_msgs.msg  # noqa: F401
-    except ImportError:
-        with pytest.raises(SpecError) as caught:
-            parse_spec("tf=/tf:tf2_msgs/msg/TFMessage")
-        message = str(caught.value)
-        assert "tf2_msgs" in message and "cannot be bridged in this installation" in message
-        assert "sensor_msgs/msg/JointState" in message  # the types that can
-        assert "tf2_msgs/msg/TFMessage" not in available_types()
-    else:
-        assert parse_spec("tf=/tf:tf2_msgs/msg/TFMessage").type_name == "tf2_msgs/msg/TFMessage"
+def test_tf_message_can_be_bridged() -> None:
+    """tf2_msgs is built in the workspace (vendor/tf2_msgs), so /tf is a topic like any other."""
+    spec = parse_spec("tf=/tf_static:tf2_msgs/msg/TFMessage;depth=1;durability=transient_local")
+    assert spec.type_name == "tf2_msgs/msg/TFMessage" and spec.qos.transient_local
+    assert "tf2_msgs/msg/TFMessage" in available_types()
 
 
 def test_a_port_named_twice_is_refused() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import time
 
 import numpy as np
 import pytest
@@ -12,7 +13,8 @@ from coco_core.activity import PeriodicActivity
 from coco_core.application import Application
 from coco_core.component import Component
 from coco_core.policy import BufferPolicy, ConnectionPolicy
-from coco_core.ports import OutputPort
+from coco_core.ports import InputPort, OutputPort
+from coco_core.stamps import Stamp, Stamped
 from coco_core.transforms.samples import FramePose
 
 from coco_ros.teleop import EndEffectorDistance, TeleopSummary, distance_color
@@ -108,3 +110,56 @@ def test_distance_and_summary_in_an_application(tmp_path):
     assert result["final_distance"] == pytest.approx(0.0, abs=1e-12)
     assert result["final_bowl_target_distance"] == pytest.approx(0.0, abs=1e-12)
     assert distance.stats.latency.count == 11 and summary.stats.latency.count == 11
+
+
+class StampedSink(Component):
+    values = InputPort(Stamped)
+
+    def init(self) -> None:
+        self.got: list = []
+
+    def on_update(self) -> None:
+        self.got.extend(self.values.read_all())
+
+
+class StampedFeeder(Component):
+    """Writes one gripper and one bowl pose, each Stamped at an origin upstream, once."""
+
+    gripper = OutputPort(Stamped)
+    bowl = OutputPort(Stamped)
+
+    def init(self) -> None:
+        self.origins = (Stamp.now(41, "/robot/joint_states"), Stamp.now(42, "/bowl/pose"))
+        self.done = False
+
+    def on_update(self) -> None:
+        if not self.done:
+            self.done = True
+            self.gripper.write(Stamped(pose(0.3, stamp=100.0), self.origins[0]))
+            self.bowl.write(Stamped(pose(0.0, stamp=100.5, source="bowl"), self.origins[1]))
+
+
+def test_stamped_inputs_give_the_latency_from_their_origin():
+    app = Application("stamped")
+    feeder = app.add(StampedFeeder("feeder"))
+    distance = app.add(EndEffectorDistance("distance"))
+    sink = app.add(StampedSink("sink"))
+    app.connect("feeder.gripper", "distance.gripper", BUFFER)
+    app.connect("feeder.bowl", "distance.bowl", BUFFER)
+    app.connect("distance.bag_time", "sink.values", BUFFER)
+    activity = PeriodicActivity("loop", 0.005)
+    for component in (feeder, distance, sink):
+        app.schedule(component, activity)
+    time.sleep(0.05)  # the origins are older than the application's start
+    app.start()
+    try:
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and not sink.got:
+            time.sleep(0.01)
+    finally:
+        app.stop()
+    [sample] = sink.got
+    oldest = feeder.origins[0]
+    assert sample.value == 100.5  # the newest ROS stamp of the poses
+    assert (sample.stamp.time, sample.stamp.seq, sample.stamp.source) == (oldest.time, 1, "/robot/joint_states")
+    assert distance.stats.latency.count == 1 and distance.stats.latency.mean >= 0.05

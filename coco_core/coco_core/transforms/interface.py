@@ -3,6 +3,14 @@
 Transforms and joint states arriving on its ports update the application's graph (a URDF robot is
 updated in bulk through Pinocchio); chosen lookups are published on output ports whenever an edge on
 their path changes; other components may also call its ``lookup`` operation from any activity.
+
+Each published :class:`FramePose` carries, as ``stamp``, the graph-time stamp (e.g. ROS time) of the
+input sample that changed it (None when the change did not come through this component's ports).
+Inputs may be :class:`~coco_core.stamps.Stamped` (e.g. a ``BagReplay`` with ``stamped``); with
+``stamped`` the lookups are published as ``Stamped(FramePose, stamp)`` carrying the stamp of the input
+that caused them, so a consumer's ``record_latency`` measures from that input's origin, through the
+graph. With ``wait_for_joints``, a lookup through a URDF robot is not published before the robot's
+first joint state (its zero-joint pose is no data), as robot_state_publisher; static lookups are.
 """
 
 from __future__ import annotations
@@ -14,7 +22,8 @@ from ..attributes import Attribute
 from ..component import Component
 from ..operations import current_activity, operation
 from ..ports import InputPort, OutputPort
-from .graph import Query
+from ..stamps import Stamp, Stamped, unstamped
+from .graph import KinematicModel, Query
 from .samples import FramePose, JointSample
 
 log = logging.getLogger("coco.transforms")
@@ -45,10 +54,15 @@ class TransformationInterface(Component):
     prefix = Attribute(str, "", "prefix added to the URDF's frame names (several robots in one graph)")
     publish = Attribute(list[str], [], "lookups to publish on output ports, each 'port=target:source' "
                         "(T_target_source)", check=_check_outputs)
+    stamped = Attribute(bool, False, "publish Stamped(FramePose) with the stamp of the input that caused "
+                        "the change (end-to-end latency), instead of plain FramePose")
+    wait_for_joints = Attribute(bool, False, "publish no lookup through a URDF robot before its first joint "
+                                "state (not its zero-joint pose)")
 
     transform = InputPort(object, event=True, doc="TransformSample or FramePose (target=parent, source=child), "
-                          "or a list of them, to write into the graph")
-    joints = InputPort(JointSample, event=True, doc="joint values applied to axis edges and URDF models")
+                          "or a list of them, to write into the graph; optionally Stamped")
+    joints = InputPort(JointSample | Stamped, event=True, doc="joint values applied to axis edges and URDF "
+                       "models; optionally Stamped")
 
     def init(self) -> None:
         if self.urdf:
@@ -57,9 +71,11 @@ class TransformationInterface(Component):
             self.model = load_urdf(self.transform_graph, self.urdf, prefix=self.prefix)
         self._lookups: list[tuple[OutputPort, Query]] = []
         self._published: set[OutputPort] = set()
+        self._cause: tuple[Stamp | None, float | None] = (None, None)
+        """(stamp, graph time) of the input being applied, for the lookups its change publishes."""
         for spec in self.publish:
             port_name, target, source = parse_output(spec)
-            port = self.add_output(port_name, FramePose, f"T_{target}_{source}")
+            port = self.add_output(port_name, Stamped if self.stamped else FramePose, f"T_{target}_{source}")
             query = self.transform_graph.query(target, source)
             # The path may not exist yet: the callback runs once it does, whoever completes it.
             query.on_change(lambda value, port=port, query=query: self._publish(port, query, value))
@@ -77,9 +93,17 @@ class TransformationInterface(Component):
                 pass
 
     def on_update(self) -> None:
+        try:
+            self._apply_inputs()
+        finally:
+            self._cause = (None, None)
+
+    def _apply_inputs(self) -> None:
         graph = self.transform_graph
         for item in self.transform.read_all():
+            item, origin = unstamped(item)
             for sample in item if isinstance(item, (list, tuple)) else (item,):
+                self._cause = (origin, sample.stamp)
                 if isinstance(sample, FramePose):  # T_target_source: target is the parent, source the child
                     if not sample.source:
                         self._warn_unnamed(sample)
@@ -88,6 +112,8 @@ class TransformationInterface(Component):
                 else:
                     graph.set_transform(sample.parent, sample.child, sample.transform, sample.stamp)
         for joints in self.joints.read_all():
+            joints, origin = unstamped(joints)
+            self._cause = (origin, joints.stamp)
             graph.set_joints(joints.as_mapping())
 
     def _warn_unnamed(self, sample: FramePose) -> None:
@@ -97,14 +123,21 @@ class TransformationInterface(Component):
                       "(give the converter a child_frame); such poses are ignored", self.name, sample.target)
 
     def _publish(self, port: OutputPort, query: Query, value: np.ndarray) -> None:
-        """Write in this component's thread: callbacks run in whichever thread changed the graph."""
-        pose = FramePose(query.target, query.source, value)
+        """Write in this component's thread: callbacks run in whichever thread changed the graph
+        (only a change made here, in ``on_update``, has a known cause to stamp the pose with)."""
+        if self.wait_for_joints and any(isinstance(dependency, KinematicModel) and dependency.version == 0
+                                        for dependency in query.dependencies):
+            return  # the robot has had no joint state yet (a model's version counts its changes)
         self._published.add(port)
         activity = self.activity
-        if activity is None or current_activity() is activity or not activity.running:
-            port.write(pose)
+        own = activity is None or current_activity() is activity or not activity.running
+        origin, time = self._cause if own else (None, None)
+        pose = FramePose(query.target, query.source, value, time)
+        out = Stamped(pose, origin or Stamp.now(source=self.name)) if self.stamped else pose
+        if own:
+            port.write(out)
         else:
-            activity.enqueue(lambda: port.write(pose))
+            activity.enqueue(lambda: port.write(out))
 
     @operation
     def lookup(self, target: str, source: str, time: float | None = None) -> np.ndarray:

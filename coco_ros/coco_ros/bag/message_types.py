@@ -3,7 +3,8 @@
 Bags name types ``pkg/msg/Name`` (old ones sometimes ``pkg/Name``); the class is ``Name`` in the
 Python module ``pkg.msg`` that rosidl generates. A class is looked up once per type and the answer,
 found or not, is cached, so a replay of a million messages imports nothing after the first.
-``tf2_msgs/msg/TFMessage`` falls back to :mod:`.tf_message` when tf2_msgs is not installed.
+``tf2_msgs/msg/TFMessage`` is no exception: the workspace builds tf2_msgs (``vendor/tf2_msgs``), so
+/tf and /tf_static are deserialized by rclpy like any other topic.
 """
 
 from __future__ import annotations
@@ -13,14 +14,12 @@ import re
 import threading
 from typing import Any, Callable
 
-from . import tf_message
 from .errors import MessageTypeError
 
 _TYPE_NAME = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)/(?:([A-Za-z][A-Za-z0-9_]*)/)?([A-Za-z][A-Za-z0-9_]*)$")
 
-FALLBACK_TYPES: dict[str, Any] = {tf_message.TYPE_NAME: tf_message}
-"""Types decoded without their package when it is missing: type name -> module with
-``serialize``, ``deserialize``, ``DEFINITION``, ``TYPE_HASH`` and ``MESSAGE_CLASS``."""
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+"""The type of /tf and /tf_static, whose latched messages all count (see ``BagReader.latched``)."""
 
 
 def normalize_type(type_name: str) -> str:
@@ -33,27 +32,14 @@ def normalize_type(type_name: str) -> str:
 
 
 def type_name_of(message: Any) -> str:
-    """The ``pkg/msg/Name`` of a message object (a rosidl-generated class or a fallback stand-in)."""
+    """The ``pkg/msg/Name`` of a message object (a rosidl-generated class)."""
     cls = type(message)
-    declared = getattr(cls, "_type_name", None)
-    if isinstance(declared, str):
-        return declared
     parts = cls.__module__.split(".")
     if len(parts) >= 2 and hasattr(cls, "get_fields_and_field_types"):
         return f"{parts[0]}/{parts[1]}/{cls.__name__}"
     raise TypeError(
         f"expected a ROS message object (a rosidl-generated class), got {cls.__module__}.{cls.__name__}"
     )
-
-
-def serialize(message: Any) -> bytes:
-    """CDR bytes of a message object."""
-    fallback = FALLBACK_TYPES.get(getattr(type(message), "_type_name", ""))
-    if fallback is not None:
-        return fallback.serialize(message)
-    from rclpy.serialization import serialize_message
-
-    return serialize_message(message)
 
 
 class TypeResolver:
@@ -102,10 +88,6 @@ class TypeResolver:
 
             self._classes[full] = cls
             return lambda data: deserialize_message(data, cls)
-        fallback = FALLBACK_TYPES.get(full)
-        if fallback is not None:
-            self._classes[full] = fallback.MESSAGE_CLASS
-            return fallback.deserialize
         return MessageTypeError(
             where or full,
             f"cannot deserialize messages of type {full!r}: {problem}; install the package that "

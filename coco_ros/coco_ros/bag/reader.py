@@ -21,10 +21,9 @@ from typing import Any, Callable, Iterable, Iterator
 
 from coco_core.errors import did_you_mean
 
-from . import tf_message
 from .errors import BagError, MessageTypeError
 from .mcap_file import McapFile, RawMessage
-from .message_types import TypeResolver
+from .message_types import TF_MESSAGE, TypeResolver
 from .metadata import BagMetadata, TopicRecord, read_metadata
 from .qos import Qos, parse_profiles
 
@@ -414,7 +413,7 @@ class BagReader:
         names = [name for name in self._select(topics) if self.topics[name].latched]
         if not names:
             return []
-        keep_all = {name for name in names if self.topics[name].type == tf_message.TYPE_NAME}
+        keep_all = {name for name in names if self.topics[name].type == TF_MESSAGE}
         every: list[BagMessage] = []
         last: dict[str, BagMessage] = {}
         for message in self._iterate(names, None, before, self._record):

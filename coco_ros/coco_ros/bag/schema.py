@@ -20,7 +20,7 @@ import threading
 from pathlib import Path
 
 from .errors import BagError
-from .message_types import FALLBACK_TYPES, normalize_type
+from .message_types import normalize_type
 
 DELIMITER = "=" * 80
 ENCODING = "ros2msg"
@@ -88,8 +88,6 @@ class DefinitionSource:
         path = self._file(full, ".msg")
         if path is not None:
             text = path.read_text(encoding="utf-8")
-        elif full in FALLBACK_TYPES:
-            text = FALLBACK_TYPES[full].DEFINITION
         else:
             searched = ", ".join(str(s) for s in self.share_dirs) or "(none found)"
             package, namespace, name = full.split("/")
@@ -140,5 +138,4 @@ class DefinitionSource:
                         return str(entry.get("hash_string", ""))
             except (OSError, ValueError):
                 return ""
-        fallback = FALLBACK_TYPES.get(full)
-        return fallback.TYPE_HASH if fallback is not None else ""
+        return ""

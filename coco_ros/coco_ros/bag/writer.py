@@ -5,6 +5,14 @@ The MCAP file follows the ``ros2`` profile the way rosbag2's MCAP storage plugin
 whose metadata carries ``offered_qos_profiles`` and ``topic_type_hash``, a ``rosbag2`` metadata record,
 and the summary (chunk indexes, statistics) at the end. ``metadata.yaml`` is version 9 (Jazzy).
 
+Message objects are stored as *canonical* CDR: rclpy's ``serialize_message`` (Fast CDR) leaves the
+alignment padding uninitialised and pads the end to 8 bytes, so two serialisations of equal messages
+can differ, and ``rosbags`` rejects e.g. a JointState ending with an empty ``effort`` ("CDR message
+size mismatch"). Each message is therefore converted field by field to its ``rosbags`` class (Jazzy
+type store; a type it lacks is registered from the definition written in the schema) and serialised
+by rosbags, which zeroes the padding and ends the buffer at the last field: the same messages give
+the same bytes, which rclpy, rosbag2 and rosbags all read. CDR bytes handed in are written as they are.
+
 Interruption: chunks are written out when full and at least every ``flush_interval`` seconds, so a
 process that dies loses at most that much; :class:`~coco_ros.bag.reader.BagReader` reads such a file
 (no summary, no metadata.yaml) by scanning it. ``close()`` finishes the file and writes metadata.yaml;
@@ -20,13 +28,15 @@ import threading
 import time
 import weakref
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Sequence
 
+import numpy as np
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
 
 from .errors import BagError
-from .message_types import normalize_type, serialize, type_name_of
+from .message_types import normalize_type, type_name_of
 from .metadata import FileRecord, TopicRecord, dump_metadata, metadata_document, write_metadata
 from .qos import TF_STATIC, Qos, dump_profiles_string
 from .schema import ENCODING, DefinitionSource
@@ -34,6 +44,58 @@ from .schema import ENCODING, DefinitionSource
 LIBRARY = f"coco_ros.bag; {LIBRARY_IDENTIFIER}"
 
 _COMPRESSION = {"none": CompressionType.NONE, "zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4}
+
+_DTYPES = {
+    "double": np.float64, "float": np.float32, "int8": np.int8, "uint8": np.uint8, "int16": np.int16,
+    "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32, "int64": np.int64, "uint64": np.uint64,
+    "octet": np.uint8, "char": np.uint8, "boolean": np.bool_,
+}
+"""rclpy field types of primitive arrays -> the numpy dtype rosbags expects for them."""
+
+_STORE_LOCK = threading.Lock()
+
+
+@lru_cache(maxsize=1)
+def _store() -> Any:
+    """The rosbags type store (Jazzy), shared: building one takes a while."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _rosbags_message(message: Any, store: Any) -> Any:
+    """The rosbags object of an rclpy message, field by field (nested messages recursively)."""
+    values = {}
+    for name, kind in message.get_fields_and_field_types().items():
+        value = getattr(message, name)
+        base = kind.split("<", 1)[1].rstrip(">") if kind.startswith("sequence<") else kind.split("[", 1)[0]
+        base = base.split(",", 1)[0]
+        if "/" in base and base != kind:
+            values[name] = [_rosbags_message(v, store) for v in value]
+        elif "/" in base:
+            values[name] = _rosbags_message(value, store)
+        elif base in _DTYPES and base != kind:
+            values[name] = np.asarray(value, dtype=_DTYPES[base])
+        elif base.startswith("string") and base != kind:
+            values[name] = list(value)
+        else:
+            values[name] = value
+    return store.types[type_name_of(message)](**values)
+
+
+def canonical_cdr(message: Any, definitions: DefinitionSource) -> bytes:
+    """Zero-padded little-endian CDR of a message object, ending at its last field (see the module
+    docstring); ``definitions`` gives the text of a type the rosbags store does not know yet."""
+    from rosbags.typesys import get_types_from_msg
+
+    store = _store()
+    type_name = type_name_of(message)
+    if type_name not in store.types:
+        with _STORE_LOCK:
+            if type_name not in store.types:
+                found = get_types_from_msg(definitions.full_text(type_name), type_name)
+                store.register({name: fields for name, fields in found.items() if name not in store.fielddefs})
+    return bytes(store.serialize_cdr(_rosbags_message(message, store), type_name))
 
 
 @dataclass
@@ -271,7 +333,7 @@ class BagWriter:
             if type_name and normalize_type(type_name) != actual_type:
                 detail = f"topic {topic}: type_name {type_name!r} but the message is a {actual_type}"
                 raise BagError(state.folder, detail)
-            data = serialize(message)
+            data = canonical_cdr(message, self._definitions)
         with state.lock:
             self._check_open()
             declared = state.topics.get(topic)

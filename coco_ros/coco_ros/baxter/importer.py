@@ -29,7 +29,6 @@ from typing import Callable, Sequence
 
 from coco_core.errors import CocoError
 
-from .cdr import canonical_cdr
 from .joints import ARM_JOINTS, BAXTER_JOINT_NAMES, FINGER_JOINTS, GRIPPER_COLUMNS, gripper_to_fingers
 
 TOPIC = "/robot/joint_states"
@@ -193,8 +192,7 @@ def import_recording(
     with BagWriter(bag_folder) as writer:
         for i, (t, row) in enumerate(zip(recording.times, recording.positions)):
             stamp = start_ns + int(round(t * 1e9))
-            data, type_name = canonical_cdr(joint_state(stamp, BAXTER_JOINT_NAMES, row, velocities[i]))
-            writer.write(TOPIC, data, stamp, type_name=type_name)
+            writer.write(TOPIC, joint_state(stamp, BAXTER_JOINT_NAMES, row, velocities[i]), stamp)
             if progress is not None and (i % 100 == 99 or i == len(recording) - 1):
                 progress(100 if i % 100 == 99 else i % 100 + 1)
     return len(recording)

@@ -27,7 +27,7 @@ topic                    type                           rate    notes
 
 Deterministic: the same arguments give the same message bytes (layout and tracker noise come from
 ``numpy.random.default_rng`` seeded with ``seed``; the stamps start at a fixed epoch by default;
-messages are stored as canonical zero-padded CDR, see :mod:`.cdr`).
+the bag writer stores messages as canonical zero-padded CDR, see :mod:`coco_ros.bag.writer`).
 """
 
 from __future__ import annotations
@@ -42,7 +42,6 @@ from typing import Callable, Sequence
 import numpy as np
 import pinocchio as pin
 
-from .cdr import canonical_cdr
 from .ik import NEUTRAL, ArmIk, load_baxter
 from .importer import finite_difference_velocities, joint_state
 from .joints import ARM_JOINTS, BAXTER_JOINT_NAMES, FINGER_JOINTS, gripper_to_fingers
@@ -368,8 +367,7 @@ def generate_session(
         written = 0
         with BagWriter(folder, custom_data={"generator": "coco_ros.baxter.session", "seed": str(seed)}) as writer:
             for stamp, _, _, topic, make in events:
-                data, type_name = canonical_cdr(make())
-                writer.write(topic, data, stamp, type_name=type_name, qos=qos.get(topic))
+                writer.write(topic, make(), stamp, qos=qos.get(topic))
                 written += 1
                 if step and written % 100 == 0:
                     step(100)

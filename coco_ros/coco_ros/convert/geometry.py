@@ -109,8 +109,9 @@ class TFMessageConverter(Converter[Any, list]):
 
     ``to_ros`` takes one sample or any iterable of them (FramePose values too), which is what the
     transformation interface's ``transform`` port accepts. ``tf2_msgs`` is imported when the
-    converter is made (it is not among the message packages of the ROS wheels on PyPI), so that the
-    other geometry converters work without it.
+    converter is made: no PyPI wheel carries it, the workspace builds it (``vendor/tf2_msgs``), so a
+    shell that did not source the workspace's ``install/setup.bash`` gets an error saying so, while
+    the other geometry converters still work.
     """
 
     type_name = "tf2_msgs/msg/TFMessage"
@@ -120,9 +121,9 @@ class TFMessageConverter(Converter[Any, list]):
         try:
             self._message = message_class(self.type_name)
         except ImportError as error:
-            raise ImportError(f"the {self.type_name} converter needs the tf2_msgs Python package, which is "
-                              f"not installed ({error}); build tf2_msgs (ros2/geometry2) in the workspace "
-                              "or source a ROS 2 installation") from error
+            raise ImportError(f"the {self.type_name} converter needs the tf2_msgs Python package ({error}); "
+                              "it is built in the workspace from vendor/tf2_msgs: run scripts/setup.sh, or "
+                              "source install/setup.bash") from error
 
     @property
     def message_type(self) -> type:

@@ -41,6 +41,23 @@ _FULL_ERRORS = 3
 """Conversion errors logged in full per port before switching to one line per second."""
 
 
+def launcher_node(component: Component) -> tuple[Any, Any]:
+    """The launcher's rclpy node and the callback group of ``component``'s activity, where the ROS
+    entities of a bridge belong (so that their callbacks never overlap the activity's cycle).
+
+    Under ``coco-launch`` there is no node: the error says which launcher to use instead.
+    """
+    from ..hosting import callback_group, ros_node
+
+    try:
+        node = ros_node(component)
+    except CocoError as error:
+        raise CocoError(f"{type(component).__name__} {component.name} needs the ROS launcher to reach ROS "
+                        f"(install/coco_ros/lib/coco_ros/launcher app.xml or ros2 run coco_ros launcher "
+                        f"app.xml): {error}") from None
+    return node, callback_group(component)
+
+
 class _Route:
     """One bridged topic: its spec, converter, port, ROS entity and counters."""
 
@@ -92,15 +109,7 @@ class ROSInterface(Component):
         self._node: Any = None
 
     def on_config(self) -> None:
-        from ..hosting import callback_group, ros_node
-
-        try:
-            node = ros_node(self)
-        except CocoError as error:
-            raise CocoError(f"ROSInterface {self.name} needs the ROS launcher to reach ROS "
-                            f"(install/coco_ros/lib/coco_ros/launcher app.xml or ros2 run coco_ros launcher "
-                            f"app.xml): {error}") from None
-        group = callback_group(self)
+        node, group = launcher_node(self)
         self._node = node
         for route in self._subscriptions:
             spec = route.spec

@@ -112,24 +112,15 @@ def parse_spec(text: str) -> TopicSpec:
         raise _fail(original, f"no converter for message type {type_text!r}; supported: "
                     f"{', '.join(available_types())}")
 
-    raw: dict[str, str] = {}
-    for item in option_items:
-        item = item.strip()
-        if not item:
-            continue
-        key, equals, value = item.partition("=")
-        key = key.strip()
-        if not equals or not key:
-            raise _fail(original, f"option {item!r} is not key=value")
-        if key in raw:
-            raise _fail(original, f"option {key!r} given twice")
-        raw[key] = value.strip()
+    try:
+        raw = parse_options(option_items)
+    except ValueError as error:
+        raise _fail(original, str(error)) from None
 
     qos = _qos(original, raw)
     options = {key: value for key, value in raw.items() if key not in QOS_KEYS}
     try:
-        options = _typed_options(type_name, options)
-        converter_for(type_name, **options)
+        options = converter_options(type_name, options)
     except ImportError as error:
         raise _fail(original, f"{type_name} cannot be bridged in this installation: {error}. Types that "
                     f"can be bridged here: {', '.join(available_types())}") from None
@@ -174,6 +165,35 @@ def _qos(text: str, raw: dict[str, str]) -> Qos:
     if durability not in DURABILITY:
         raise _fail(text, f"durability must be {' or '.join(DURABILITY)}, got {raw['durability']!r}")
     return Qos(depth=depth, reliability=reliability, durability=durability)
+
+
+def parse_options(items: Sequence[str]) -> dict[str, str]:
+    """``key=value`` items (a spec's part after its type, split on ``;``) -> value texts by key.
+
+    Shared with ``BagReplay``'s per-topic converter options, so both read one syntax."""
+    raw: dict[str, str] = {}
+    for item in items:
+        item = item.strip()
+        if not item:
+            continue
+        key, equals, value = item.partition("=")
+        key = key.strip()
+        if not equals or not key:
+            raise ValueError(f"option {item!r} is not key=value")
+        if key in raw:
+            raise ValueError(f"option {key!r} given twice")
+        raw[key] = value.strip()
+    return raw
+
+
+def converter_options(type_name: str, options: dict[str, str]) -> dict[str, Any]:
+    """Option texts -> the typed keywords of ``type_name``'s converter, checked by making one.
+
+    Raises ``ValueError`` naming the converter's options when one is unknown or badly typed, and
+    ``ImportError`` when the type's message package is missing."""
+    typed = _typed_options(type_name, options)
+    converter_for(type_name, **typed)
+    return typed
 
 
 def _typed_options(type_name: str, options: dict[str, str]) -> dict[str, Any]:

@@ -2,10 +2,10 @@
 
 The CDR bytes of the bag are published as they are (``publisher.publish(bytes)``), nothing is
 deserialized; each topic is offered the QoS its recorded publishers offered
-(:func:`coco_ros.bag.qos.for_replay`). ``/tf`` and ``/tf_static`` cannot be published when
-tf2_msgs is not installed (rclpy needs the message class's type support): they are skipped with
-one warning naming them. Exit status: 0, or 1 with the error (file and byte offset) when the bag is
-damaged, after replaying what was readable; Ctrl-C stops within a fraction of a second.
+(:func:`coco_ros.bag.qos.for_replay`). ``/tf`` and ``/tf_static`` are published like any other
+topic (tf2_msgs is built in the workspace, ``vendor/tf2_msgs``). Exit status: 0, or 1 with the
+error (file and byte offset) when the bag is damaged, after replaying what was readable; Ctrl-C
+stops within a fraction of a second.
 """
 
 from __future__ import annotations
@@ -73,8 +73,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _publishers(reader: BagReader, player: Player, node, depth: int) -> dict:
-    from ..bag import tf_message
-
     publishers, skipped = {}, []
     for topic in player.topics:
         info = reader.topics[topic]
@@ -82,9 +80,6 @@ def _publishers(reader: BagReader, player: Player, node, depth: int) -> dict:
             cls = reader.message_class(topic)
         except BagError as error:
             skipped.append(f"{topic} ({error.detail})")
-            continue
-        if cls is tf_message.TFMessage or not hasattr(cls, "_TYPE_SUPPORT") and not hasattr(type(cls), "_TYPE_SUPPORT"):
-            skipped.append(f"{topic} ({info.type}: tf2_msgs is not installed, rclpy cannot publish it)")
             continue
         qos = for_replay(info.offered_qos_profiles, depth=depth).to_rclpy()
         publishers[topic] = node.create_publisher(cls, player.out_topic(topic), qos)

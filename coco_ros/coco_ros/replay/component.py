@@ -11,15 +11,28 @@ Attributes (all settable from the application XML):
 - ``remap``: ``/from:=/to`` items; the port names follow the remapped topics.
 - ``ports``: ``/topic=port`` items naming the port of a (remapped) topic; the others get a name
   derived from the topic, ``/robot/joint_states`` -> ``robot_joint_states``.
+- ``options``: ``/topic;key=value[;key=value...]`` items giving the converter of a (remapped) topic
+  its options, in the syntax of ROSInterface's topic specs (:mod:`coco_ros.interface.topic`), e.g.
+  ``/bowl/pose;child_frame=bowl``: the PoseStamped becomes a FramePose ``base -> bowl`` that a
+  TransformationInterface writes into the graph as an edge. Only with ``output`` ``coco``.
 - ``output``: what the ports carry. ``coco`` (default): the converter's CoCo value
   (:func:`coco_ros.convert.converter_for`, port type ``converter.coco_type``), and for a type without
   converter the deserialized rclpy message (port type ``object``); ``/tf`` and ``/tf_static``
-  become lists of ``TransformSample`` even without tf2_msgs installed. ``ros``: always the
+  become lists of ``TransformSample`` (tf2_msgs' converter). ``ros``: always the
   deserialized rclpy message. ``bag``: the :class:`~coco_ros.bag.BagMessage` itself (CDR bytes,
   log time, topic), nothing decoded.
-- ``stop_at_end``: request the application stop once the bag is replayed (not with ``loop``).
+- ``stop_at_end``: request the application stop once the bag is replayed (not with ``loop``) and the
+  messages are processed downstream: a stop ends every activity at once, so the request waits until
+  the other activities are idle and the application's queued (BUFFER, CIRCULAR) connections empty
+  at two updates in a row, or ``DRAIN_TIMEOUT`` seconds: the last joint state still reaches the last
+  output.
 - ``max_per_update``: messages written per update at most (as fast as possible, a large bag would
   otherwise hold the activity for long); the rest follow at the next updates.
+- ``stamped``: write every value as ``Stamped(value, stamp)`` (port type ``Stamped``), the
+  :class:`~coco_core.stamps.Stamp` taken when the message is emitted (``seq`` counts the messages
+  this component emitted, ``source`` is the topic). Consumers that call ``record_latency`` with it
+  (through a ``stamped`` TransformationInterface too) measure the latency from the replay's emission
+  to their output, which ``--profile`` reports. Off by default: the ports carry plain values.
 
 Scheduling: each ``on_update`` writes every message that is due and returns at once, so the
 component must be updated regularly: put it in a **periodic activity of 1-10 ms** (the period is the
@@ -40,6 +53,7 @@ from __future__ import annotations
 import logging
 import re
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -47,14 +61,22 @@ from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.errors import CocoError
 from coco_core.operations import operation
+from coco_core.policy import BufferPolicy
 from coco_core.ports import OutputPort
+from coco_core.stamps import Stamp, Stamped
 
 from ..bag import BagError, BagMessage, BagReader
+from ..interface.topic import converter_options, parse_options
 from .player import Played, Player, parse_remaps
 
 log = logging.getLogger("coco.replay")
 
 _NOT_NAME = re.compile(r"[^A-Za-z0-9_]+")
+
+DRAIN_TIMEOUT = 2.0
+"""Seconds ``stop_at_end`` waits at most for the downstream connections to empty."""
+DRAIN_CHECK = 0.01
+"""Seconds between two checks of the connections in a triggered activity (a periodic one checks every update)."""
 
 
 def port_name_for(topic: str) -> str:
@@ -65,28 +87,19 @@ def port_name_for(topic: str) -> str:
     return f"t_{name}" if name[0].isdigit() else name
 
 
-class _TFList:
-    """tf2_msgs/TFMessage (or the bag's stand-in) -> list of TransformSample, without tf2_msgs."""
+def _converter(type_name: str, options: dict[str, str]) -> Any | None:
+    """The converter of ``type_name`` with its ``options`` (texts), or None when there is none and no
+    options were asked for; a wrong option raises ``ValueError`` naming the converter's options."""
+    from ..convert import converter_for, supported_types
 
-    coco_type = list
-
-    def __init__(self) -> None:
-        from ..convert import converter_for
-
-        self._one = converter_for("geometry_msgs/msg/TransformStamped")
-
-    def to_coco(self, msg: Any) -> list:
-        return [self._one.to_coco(t) for t in msg.transforms]
-
-
-def _converter(type_name: str) -> Any | None:
-    from ..convert import converter_for
-
+    if options:
+        if type_name not in supported_types():
+            raise ValueError(f"no converter for {type_name}, so no options (types with a converter: "
+                             f"{', '.join(supported_types())})")
+        return converter_for(type_name, **converter_options(type_name, options))
     try:
         return converter_for(type_name)
     except (ValueError, ImportError):
-        if type_name == "tf2_msgs/msg/TFMessage":
-            return _TFList()
         return None
 
 
@@ -103,8 +116,11 @@ class BagReplay(Component):
     ports = Attribute(list[str], [], "'/topic=port' port names; others derived from the topic")
     output = Attribute(str, "coco", "port values: coco (converted), ros (rclpy messages), bag (BagMessage)",
                        choices=("coco", "ros", "bag"))
-    stop_at_end = Attribute(bool, False, "request the application stop when the bag is replayed")
+    stop_at_end = Attribute(bool, False, "request the application stop when the bag is replayed and "
+                            "processed downstream")
     max_per_update = Attribute(int, 256, "messages written per update at most", min=1)
+    options = Attribute(list[str], [], "'/topic;key=value[;key=value]' converter options of a topic")
+    stamped = Attribute(bool, False, "write Stamped(value, emission stamp) instead of plain values")
 
     clock = OutputPort(float, "replayed bag time in seconds since the epoch (simulated time)")
 
@@ -114,6 +130,7 @@ class BagReplay(Component):
         self._reader = BagReader(self.bag)
         self._remaps = parse_remaps(self.remap)
         names = self._port_names()
+        options = self._topic_options()
         selected = list(self.topics) or list(self._reader.topics)
         self._routes: dict[str, tuple[OutputPort, Any]] = {}
         for topic in selected:
@@ -123,16 +140,27 @@ class BagReplay(Component):
                                                   f"(topics: {known})")
             type_name = self._reader.topics[topic].type
             out_topic = self._remaps.get(topic, topic)
-            converter = _converter(type_name) if self.output == "coco" else None
-            port_type: Any = BagMessage if self.output == "bag" else (
+            given = options.pop(out_topic, None) or options.pop(topic, {})
+            try:
+                converter = _converter(type_name, given) if self.output == "coco" else None
+            except (ValueError, ImportError) as error:
+                raise CocoError(f"component {self.name}: options of {out_topic} ({type_name}): {error}") from None
+            port_type: Any = Stamped if self.stamped else BagMessage if self.output == "bag" else (
                 converter.coco_type if converter is not None else object)
             port = self.add_output(names.get(out_topic) or names.get(topic) or port_name_for(out_topic),
                                    port_type, f"{out_topic} ({type_name}) replayed from {self.bag}")
             self._routes[topic] = (port, converter)
+        if options:
+            shown = ", ".join(self._remaps.get(t, t) for t in selected)
+            raise CocoError(f"component {self.name}: options name topic(s) {', '.join(options)} that are not "
+                            f"replayed (replayed: {shown})")
         self._selected = selected
+        self._seq = 0
         self._player: Player | None = None
         self._timer: threading.Timer | None = None
         self._ended = False
+        self._ended_at = 0.0
+        self._idle_checks = 0
 
     def _port_names(self) -> dict[str, str]:
         names = {}
@@ -142,6 +170,25 @@ class BagReplay(Component):
                 raise CocoError(f"component {self.name}: expected ports items like '/topic=port', got {item!r}")
             names[topic.strip()] = port.strip()
         return names
+
+    def _topic_options(self) -> dict[str, dict[str, str]]:
+        """``options`` items -> option texts by topic (checked against the converters in ``init``)."""
+        found: dict[str, dict[str, str]] = {}
+        for item in self.options:
+            topic, *items = item.split(";")
+            topic = topic.strip()
+            where = f"component {self.name}: options item {item!r}"
+            if not topic.startswith("/") or not items:
+                raise CocoError(f"{where}: expected '/topic;key=value[;key=value]', e.g. /bowl/pose;child_frame=bowl")
+            if self.output != "coco":
+                raise CocoError(f"{where}: converter options need output=coco (output is {self.output})")
+            if topic in found:
+                raise CocoError(f"{where}: topic {topic} has options in another item too")
+            try:
+                found[topic] = parse_options(items)
+            except ValueError as error:
+                raise CocoError(f"{where}: {error}") from None
+        return found
 
     def on_config(self) -> None:
         if self.output != "bag":
@@ -165,29 +212,46 @@ class BagReplay(Component):
             self.clock.write(played_list[-1].due_time / 1e9)
         if player.finished:
             if not self._ended:
-                self._ended = True
+                self._ended, self._ended_at, self._idle_checks = True, time.monotonic(), 0
                 log.info("component %s: bag %s replayed (%d messages)", self.name, self.bag, player.delivered)
-                if self.stop_at_end and self.app is not None:
+            if self.stop_at_end and self.app is not None and not self.app.stop_requested:
+                if self._drained():
                     self.app.request_stop(f"{self.name}: bag {self.bag} replayed")
+                else:
+                    self._wake_in(DRAIN_CHECK)
             return
-        self._wake_later(player)
+        delay = player.next_delay()
+        if delay is not None:
+            self._wake_in(delay)
+
+    def _drained(self) -> bool:
+        """Whether the messages replayed have been processed downstream: at two checks in a row, no
+        other activity is in a cycle or has a wake-up waiting, and no queued connection of the
+        application holds data; or ``DRAIN_TIMEOUT`` passed. DATA connections are not counted: a
+        latest value left unread is not data in flight."""
+        app, own = self.app, self.activity
+        busy = any(a is not own and (a.current is not None or a.wake_pending) for a in app.activities.values())
+        queued = any(c.pending for c in app.connections if c.policy.data is not BufferPolicy.DATA)
+        self._idle_checks = 0 if busy or queued else self._idle_checks + 1
+        return self._idle_checks >= 2 or time.monotonic() - self._ended_at > DRAIN_TIMEOUT
 
     def _deliver(self, played: Played) -> None:
         port, converter = self._routes[played.message.topic]
         if self.output == "bag":
-            port.write(played.message)
+            value = played.message
         elif converter is not None:
-            port.write(converter.to_coco(played.message.message))
+            value = converter.to_coco(played.message.message)
         else:
-            port.write(played.message.message)
+            value = played.message.message
+        if self.stamped:
+            self._seq += 1
+            value = Stamped(value, Stamp.now(self._seq, played.topic))
+        port.write(value)
 
-    def _wake_later(self, player: Player) -> None:
-        """In a triggered activity, arrange the next update (a periodic one needs nothing)."""
+    def _wake_in(self, delay: float) -> None:
+        """In a triggered activity, arrange an update in ``delay`` seconds (a periodic one needs nothing)."""
         activity = self.activity
         if activity is None or not activity.wakes_on_data:
-            return
-        delay = player.next_delay()
-        if delay is None:
             return
         if delay <= 0:
             activity.wake()

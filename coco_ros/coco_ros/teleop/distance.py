@@ -1,29 +1,29 @@
 """``EndEffectorDistance``: the paper's *UpdateColorCalc* — end-effector to bowl distance and its colour.
 
-Inputs (event ports, a triggered activity runs the component whenever either changes):
+Inputs (event ports, a triggered activity runs the component whenever either changes), each a
+:class:`FramePose` or a ``Stamped(FramePose)`` (a ``TransformationInterface`` with ``stamped``):
 
-- ``gripper``: :class:`FramePose` ``T_base_gripper`` (e.g. a ``TransformationInterface`` lookup);
-- ``bowl``: :class:`FramePose` ``T_base_bowl`` (e.g. ``/bowl/pose`` replayed by ``BagReplay``).
+- ``gripper``: ``T_base_gripper`` (e.g. the lookup ``gripper=base:left_gripper``);
+- ``bowl``: ``T_base_bowl`` (e.g. the lookup ``bowl=base:bowl`` of ``/bowl/pose`` in the graph).
   Both must be expressed in the same frame (their ``target``); a mismatch is logged once.
-- ``clock`` (data, optional): the replayed bag time (``BagReplay.clock``), used with the inputs'
-  own stamps to time the outputs.
 
 Outputs, written once per update when both poses are known, all with the same :class:`Stamp`:
 
 - ``distance``: ``Stamped[float]``, the Euclidean distance between the two frame origins (m);
 - ``color``: ``Stamped[tuple[float, float, float]]``, RGB in 0..1 (see :func:`distance_color`);
-- ``bag_time``: ``Stamped[float]``, the ROS time (s since the epoch) of the newest input stamp the
-  outputs were computed from (``nan`` when no input carries one).
+- ``bag_time``: ``Stamped[float]``, the ROS time (s since the epoch) of the newest pose stamp the
+  outputs were computed from (``nan`` when no pose carries one).
 
 UpdateColorCalc mapping (:func:`distance_color`): green ``(0, 1, 0)`` at ``near`` m or closer, red
 ``(1, 0, 0)`` at ``far`` m or farther, through yellow ``(1, 1, 0)`` half-way; with
 ``s = (d - near) / (far - near)``: ``r = min(1, 2 s)``, ``g = min(1, 2 (1 - s))``, ``b = 0``.
 
-Latency: the messages carry only ROS (bag) stamps, not the wall-clock time of their replay, so the
-interval measured is **from the moment this component reads the input that triggered the update to
-the moment its outputs are written** (``Stamp.now()`` taken at the read, ``record_latency`` after the
-writes). The stamp travels with the outputs, so a downstream sink (``TeleopSummary``) measures the
-longer interval *input read here -> its own output* with the same stamp.
+Latency (``record_latency``, reported by ``--profile``): the outputs' stamp keeps the ``time`` (and
+``source``) of the oldest :class:`Stamp` among the inputs that triggered the update, so the interval
+measured runs **from the emission of that input upstream** (e.g. ``BagReplay`` with ``stamped``: the
+joint state or bowl pose leaving the replay, through the graph) **to the outputs written here**; its
+``seq`` counts this component's samples. A plain (unstamped) input counts from the moment it is read
+here. The stamp travels with the outputs, so ``TeleopSummary`` measures *emission -> CSV row* with it.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.ports import InputPort, OutputPort
-from coco_core.stamps import Stamp, Stamped
+from coco_core.stamps import Stamp, Stamped, unstamped
 from coco_core.transforms.samples import FramePose
 
 log = logging.getLogger("coco.teleop")
@@ -72,9 +72,8 @@ class EndEffectorDistance(Component):
     near = Attribute(float, 0.02, "distance (m) at or below which the colour is green", min=0.0)
     far = Attribute(float, 0.5, "distance (m) at or above which the colour is red", check=_check_far)
 
-    gripper = InputPort(FramePose, event=True, doc="T_base_gripper")
-    bowl = InputPort(FramePose, event=True, doc="T_base_bowl")
-    clock = InputPort(float, doc="replayed bag time (s), optional")
+    gripper = InputPort(FramePose | Stamped, event=True, doc="T_base_gripper, optionally Stamped")
+    bowl = InputPort(FramePose | Stamped, event=True, doc="T_base_bowl, optionally Stamped")
 
     distance = OutputPort(Stamped, "end-effector to bowl distance (m)")
     color = OutputPort(Stamped, "UpdateColorCalc RGB colour (0..1) of the distance")
@@ -83,7 +82,6 @@ class EndEffectorDistance(Component):
     def init(self) -> None:
         self._gripper: FramePose | None = None
         self._bowl: FramePose | None = None
-        self._clock = math.nan
         self._seq = 0
         self._warned = False
         self.last_distance = math.nan
@@ -93,18 +91,15 @@ class EndEffectorDistance(Component):
             raise ValueError(f"component {self.name}: far ({self.far}) must be greater than near ({self.near})")
 
     def on_update(self) -> None:
-        stamp_time = None
-        grippers = self.gripper.read_all()
-        bowls = self.bowl.read_all()
-        if grippers or bowls:
-            stamp_time = Stamp.now().time
-        if grippers:
-            self._gripper = grippers[-1]
-        if bowls:
-            self._bowl = bowls[-1]
-        for value in self.clock.read_all():
-            self._clock = float(value)
-        if stamp_time is None or self._gripper is None or self._bowl is None:
+        read = Stamp.now()
+        origins: list[Stamp] = []
+        for port, attr in ((self.gripper, "_gripper"), (self.bowl, "_bowl")):
+            values = port.read_all()
+            if values:
+                pose, origin = unstamped(values[-1])
+                setattr(self, attr, pose)
+                origins.append(origin or read)
+        if not origins or self._gripper is None or self._bowl is None:
             return
         gripper, bowl = self._gripper, self._bowl
         if gripper.target != bowl.target and not self._warned:
@@ -112,12 +107,11 @@ class EndEffectorDistance(Component):
             log.warning("component %s: gripper pose is in %r but bowl pose in %r; the distance assumes one frame",
                         self.name, gripper.target, bowl.target)
         self._seq += 1
-        stamp = Stamp(stamp_time, self._seq, self.name)
+        oldest = min(origins, key=lambda origin: origin.time)
+        stamp = Stamp(oldest.time, self._seq, oldest.source or self.name)
         distance = frame_distance(gripper, bowl)
         self.last_distance = distance
         times = [t for t in (gripper.stamp, bowl.stamp) if t is not None]
-        if not math.isnan(self._clock):
-            times.append(self._clock)
         self.distance.write(Stamped(distance, stamp))
         self.color.write(Stamped(distance_color(distance, self.near, self.far), stamp))
         self.bag_time.write(Stamped(max(times) if times else math.nan, stamp))

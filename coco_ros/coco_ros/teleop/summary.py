@@ -3,16 +3,20 @@
 Inputs: ``distance`` (``Stamped[float]``, event), ``color`` (``Stamped[(r, g, b)]``), ``bag_time``
 (``Stamped[float]``, ROS seconds), all written by :class:`~.distance.EndEffectorDistance` with one
 shared :class:`Stamp` per sample (matched here by ``stamp.seq``); optional data ports ``bowl`` and
-``target`` (:class:`FramePose` in one frame) for the final bowl-to-target distance.
+``target`` (:class:`FramePose` in one frame, optionally Stamped) for the final bowl-to-target distance.
 
 CSV (``csv`` attribute): ``seq, time, distance, r, g, b, latency_ms`` — ``time`` is seconds after
 ``time_origin`` (the ROS time of session time 0; ``0``: the first sample's bag time), ``latency_ms``
-the age of the sample's stamp when its row is written (also recorded for the profiler).
+the age of the sample's stamp when its row is written (also recorded for the profiler): with a
+stamped replay and graph upstream, from the emission of the input that caused the sample.
 
 JSON (``json`` attribute, at ``on_stop``, after the last rows are flushed): ``samples``,
 ``min_distance``, ``min_distance_time``, ``final_distance``, ``grasp_time`` (first time the
 distance is below ``near``, or null), ``near``, ``time_origin``, ``final_bowl_target_distance``
 (null without ``bowl``/``target``), ``latency_ms`` (mean, max).
+
+:func:`describe` puts a JSON summary in a few lines: ``python -m coco_ros.teleop summary.json`` (what
+``scripts/run_app.sh`` shows after the run).
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ from typing import IO, Any
 from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.ports import InputPort
-from coco_core.stamps import Stamped
+from coco_core.stamps import Stamped, unstamped
 from coco_core.transforms.samples import FramePose
 
 from .distance import frame_distance
@@ -48,8 +52,8 @@ class TeleopSummary(Component):
     distance = InputPort(Stamped, event=True, doc="distance samples (m)")
     color = InputPort(Stamped, doc="colour of each distance sample")
     bag_time = InputPort(Stamped, doc="ROS time (s) of each distance sample")
-    bowl = InputPort(FramePose, doc="bowl pose, optional (final bowl-to-target distance)")
-    target = InputPort(FramePose, doc="target pose, optional (final bowl-to-target distance)")
+    bowl = InputPort(FramePose | Stamped, doc="bowl pose, optional (final bowl-to-target distance)")
+    target = InputPort(FramePose | Stamped, doc="target pose, optional (final bowl-to-target distance)")
 
     def on_config(self) -> None:
         self.csv.parent.mkdir(parents=True, exist_ok=True)
@@ -81,7 +85,7 @@ class TeleopSummary(Component):
         for port, attr in ((self.bowl, "_bowl"), (self.target, "_target")):
             values = port.read_all()
             if values:
-                setattr(self, attr, values[-1])
+                setattr(self, attr, unstamped(values[-1])[0])
         if not self._pending:
             return
         now = time.perf_counter()
@@ -137,3 +141,25 @@ class TeleopSummary(Component):
         self._drain(final=True)
         self._file.close()
         self.json.write_text(json.dumps(self.summary(), indent=2) + "\n")
+
+
+def describe(summary: dict[str, Any]) -> str:
+    """A few lines for a person: samples, closest approach, grasp, final distances, latency."""
+
+    def metres(value: float | None) -> str:
+        return "-" if value is None else f"{value:.3f} m"
+
+    def seconds(value: float | None) -> str:
+        return "-" if value is None else f"{value:.2f} s"
+
+    lines = [f"{summary['samples']} distance samples in {summary['csv']}",
+             f"closest approach {metres(summary['min_distance'])} at {seconds(summary['min_distance_time'])}; "
+             + (f"within {summary['near']} m of the bowl from {seconds(summary['grasp_time'])}"
+                if summary["grasp_time"] is not None else f"never within {summary['near']} m of the bowl"),
+             f"final gripper-to-bowl distance {metres(summary['final_distance'])}"
+             + (f"; bowl left {metres(summary['final_bowl_target_distance'])} from its target"
+                if summary["final_bowl_target_distance"] is not None else "")]
+    latency = summary["latency_ms"]
+    if latency["mean"] is not None:
+        lines.append(f"latency, replay emission -> CSV row: mean {latency['mean']:.2f} ms, max {latency['max']:.2f} ms")
+    return "\n".join(lines)

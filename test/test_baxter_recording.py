@@ -1,0 +1,84 @@
+"""A real Baxter recording through the teleop app: the SDK's joint_recorder file shake_hand.dat, imported
+with the installed ``baxter-import`` and replayed by config/baxter_teleop_replay.xml with a fixed bowl
+(the recording has no bowl topic). Every distance the app writes must be the one that Pinocchio's
+forward kinematics of the recorded joint values gives."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, SHARED_DATA, run_launcher
+
+APP = "config/baxter_teleop_replay.xml"
+URDF = "package://example-robot-data/robots/baxter_description/urdf/baxter.urdf"
+RECORDING = SHARED_DATA / "baxter" / "shake_hand.dat"
+START = 1_700_000_000.0
+BOWL = np.array([0.9, -0.65, 0.0])
+"""A fixed bowl in ``base`` near the right hand, which shakes hands in this recording (the left arm rests)."""
+
+
+@pytest.fixture(scope="module")
+def imported(tmp_path_factory) -> Path:
+    if not RECORDING.is_file():
+        pytest.skip(f"shared test data absent: expected {RECORDING} (see shared/data/README.md)")
+    script = ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "baxter-import"
+    if not script.exists():
+        pytest.fail(f"{script} is missing: build the workspace first (scripts/setup.sh does)")
+    folder = tmp_path_factory.mktemp("baxter") / "shake_hand"
+    result = run_launcher(script, str(RECORDING), str(folder), "--start", str(START), "--quiet", timeout=120)
+    assert result.returncode == 0, result.stderr
+    return folder
+
+
+def test_recording_without_bowl_needs_fixed_bowl(coco_launch: Path, imported: Path, tmp_path: Path) -> None:
+    result = run_launcher(coco_launch, APP, f"bag:={imported}", f"output:={tmp_path}", timeout=60)
+    assert result.returncode != 0
+    assert "no topic '/bowl/pose' in the bag (topics: /robot/joint_states)" in result.stderr, result.stderr
+
+
+def test_shake_hand_moves_the_gripper_as_recorded(coco_launch: Path, imported: Path, tmp_path: Path) -> None:
+    from coco_core.transforms.urdf import UrdfModel
+
+    from coco_ros.baxter.importer import read_recording
+    from coco_ros.baxter.joints import BAXTER_JOINT_NAMES
+
+    output = tmp_path / "teleop"
+    result = run_launcher(coco_launch, APP, f"bag:={imported}", f"output:={output}", "fixed_bowl:=true",
+                          f"bowl_xyz:={' '.join(map(str, BOWL))}", "arm:=right", f"time_origin:={START}",
+                          "rate:=2", "--profile", "100", "--duration", "60", timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "replayed (813 messages)" in result.stderr, result.stderr
+
+    recording = read_recording(RECORDING)
+    robot = UrdfModel.load(URDF)
+    expected = []
+    for positions in recording.positions:
+        robot.set_positions(dict(zip(BAXTER_JOINT_NAMES, positions)))
+        expected.append(float(np.linalg.norm(robot.placement("right_gripper")[:3, 3] - BOWL)))
+    times = np.array(recording.times)
+
+    with (output / "distance.csv").open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) > len(recording) // 4, f"{len(rows)} samples for {len(recording)} joint states"
+    matched = []
+    for row in rows:
+        index = int(np.argmin(np.abs(times - float(row["time"]))))
+        assert abs(times[index] - float(row["time"])) < 1e-4, row  # each sample is one recorded joint state
+        assert float(row["distance"]) == pytest.approx(expected[index], abs=2e-6), (row, expected[index])
+        matched.append(index)
+    assert matched == sorted(matched) and len(set(matched)) == len(matched)
+    # From the start of the recording (the distance takes the newest pose: it may skip some at the
+    # start while the activities come up) to its very last row; and the hand really moves in it.
+    assert matched[0] < len(recording) // 10 and matched[-1] == len(recording) - 1
+    distances = [float(row["distance"]) for row in rows]
+    assert max(distances) - min(distances) > 0.1
+
+    summary = json.loads((output / "summary.json").read_text())
+    assert summary["samples"] == len(rows)
+    assert summary["final_distance"] == pytest.approx(expected[-1], abs=1e-9)
+    assert summary["final_bowl_target_distance"] is None  # no target in a recording
