@@ -1,8 +1,11 @@
 """Run every benchmark, each in its own process, and collect their JSON (and markdown for the docs).
 
-    PYTHONPATH=coco_core .venv/bin/python bench/run_all.py                 # full run, about 2.5 min
+    PYTHONPATH=coco_core .venv/bin/python bench/run_all.py                 # full run, about 5 min
     PYTHONPATH=coco_core .venv/bin/python bench/run_all.py --seconds 2     # quick run
     PYTHONPATH=coco_core .venv/bin/python bench/run_all.py --markdown /tmp/tables.md
+
+``bench_replay`` and ``bench_latency`` start the installed ROS launcher and ``coco-replay``: build the
+workspace and ``source install/setup.bash`` first.
 
 Each benchmark runs in a fresh interpreter so that one's threads, DDS participants and garbage do
 not weigh on the next. Results go to ``bench/results/<name>.json``, plots to ``docs/img/<name>.png``.
@@ -21,7 +24,7 @@ from pathlib import Path
 from _report import BENCH_DIR, IMG_DIR, REPO
 from _table import Table
 
-BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms"]
+BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms", "bench_replay", "bench_latency"]
 
 
 def markdown(results: Path) -> str:

@@ -1,0 +1,408 @@
+"""Figure 6: the teleop app's stamp-to-output latency over DDS, CoCo ROS launcher vs a plain rclpy node.
+
+A driver (this process) publishes ``/robot/joint_states`` (sensor_msgs/JointState, the 21 names the
+Baxter tools write, stamped with the wall clock at publish time) at 100 Hz and ``/bowl/pose`` at 2 Hz.
+The pipelines run at the same time, each in its own process, on the same input:
+
+- *CoCo*: the installed ROS launcher runs ``test/data/interop_teleop.xml``: ROSInterface ->
+  TransformationInterface (the Baxter URDF in the transformation graph, Pinocchio) ->
+  EndEffectorDistance -> ROSInterface, publishing ``/coco/gripper_pose`` and ``/coco/distance``;
+  twice: activities hosted in the launcher's rclpy executor (its default), and on threads of their
+  own (``--all-threads``, outputs remapped to ``/coco_threads/...``);
+- *anchor*: a plain rclpy node (this script with ``--plain-node``): subscribe, Pinocchio forward
+  kinematics of ``left_gripper``, distance to the bowl, publish ``/plain/gripper_pose`` and
+  ``/plain/distance``.
+
+The driver measures publish -> receive of each output in its own clock. A distance
+(Float64MultiArray) carries no stamp, so outputs are matched to their input by value, both outputs of
+both pipelines alike: the driver sweeps ``left_s0`` through ``--postures`` distinct postures, and
+every posture gives a distinct gripper position and bowl distance (checked at start). The first output per
+published joint state counts (a bowl pose update repeats the last distance). After the run, the
+launcher's profile gives the in-app latency that EndEffectorDistance records (read of its triggering
+input -> outputs written).
+
+    .venv/bin/python bench/bench_latency.py [--seconds 10] [--json PATH] [--no-plot]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+import _report
+from _ros import RosContext  # sets ROS_DOMAIN_ID before rclpy is imported
+from _table import Table, fmt_ratio, fmt_time_ns
+
+if str(_report.REPO / "coco_ros") not in sys.path:
+    sys.path.insert(0, str(_report.REPO / "coco_ros"))
+
+RATE_HZ = 100.0
+BOWL_HZ = 2.0
+BOWL = (0.06, -3.0, -0.2)
+"""Bowl far to the robot's right: the distance grows monotonically as left_s0 sweeps (checked)."""
+S0_RANGE = (-0.6, 0.6)
+TELEOP_APP = _report.REPO / "test" / "data" / "interop_teleop.xml"
+LAUNCHER = _report.REPO / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
+PIPELINES = {"plain rclpy node": "/plain", "CoCo ROS launcher": "/coco",
+             "CoCo ROS launcher --all-threads": "/coco_threads"}
+LAUNCHED = {"CoCo ROS launcher": [], "CoCo ROS launcher --all-threads": [
+    "--all-threads", "--ros-args", "-r", "__node:=interop_teleop_threads",
+    "-r", "/coco/gripper_pose:=/coco_threads/gripper_pose", "-r", "/coco/distance:=/coco_threads/distance"]}
+"""The launcher's two ways of hosting activities: in the rclpy executor (default), on threads of their own."""
+ANCHOR = "plain rclpy node"
+OUTPUTS = ("gripper_pose", "distance")
+MATCH_TOLERANCE = 1e-6
+"""An output matches a posture when within this (m) of its gripper position or bowl distance."""
+
+
+class GripperFk:
+    """Pinocchio forward kinematics of the Baxter's ``left_gripper`` in ``base``, by joint name."""
+
+    def __init__(self) -> None:
+        import pinocchio as pin
+        from coco_core.transforms.resources import resolve
+        from coco_ros.baxter.ik import BAXTER_URDF
+
+        self.pin = pin
+        self.model = pin.buildModelFromUrdf(str(resolve(BAXTER_URDF)))
+        self.data = self.model.createData()
+        self.base, self.gripper = self.model.getFrameId("base"), self.model.getFrameId("left_gripper")
+        self.index = {name: self.model.joints[self.model.getJointId(name)].idx_q
+                      for name in self.model.names[1:] if self.model.joints[self.model.getJointId(name)].nq == 1}
+
+    def pose(self, names: Any, positions: Any) -> np.ndarray:
+        """``T_base_left_gripper`` (4x4); names the URDF does not move are ignored."""
+        q = self.pin.neutral(self.model)
+        index = self.index
+        for name, value in zip(names, positions):
+            i = index.get(name)
+            if i is not None:
+                q[i] = value
+        self.pin.framesForwardKinematics(self.model, self.data, q)
+        return self.data.oMf[self.base].actInv(self.data.oMf[self.gripper]).homogeneous
+
+
+# --- the anchor: a plain rclpy node, run as its own process -----------------------------------------
+
+def plain_node() -> int:
+    """What a user writes by hand: subscribe, FK, distance, publish; until Ctrl-C."""
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.qos import QoSProfile
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+    fk = GripperFk()
+    rclpy.init()
+    node = rclpy.create_node("plain_teleop")
+    pose_out = node.create_publisher(PoseStamped, "/plain/gripper_pose", QoSProfile(depth=50))
+    distance_out = node.create_publisher(Float64MultiArray, "/plain/distance", QoSProfile(depth=50))
+    bowl: list[np.ndarray] = []
+
+    def on_bowl(msg: PoseStamped) -> None:
+        p = msg.pose.position
+        bowl[:] = [np.array([p.x, p.y, p.z])]
+
+    def on_joints(msg: JointState) -> None:
+        T = fk.pose(msg.name, msg.position)
+        pose = PoseStamped()
+        pose.header.stamp, pose.header.frame_id = msg.header.stamp, "base"
+        pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = (float(v) for v in T[:3, 3])
+        x, y, z, w = fk.pin.Quaternion(T[:3, :3]).coeffs()
+        pose.pose.orientation.x, pose.pose.orientation.y, pose.pose.orientation.z, pose.pose.orientation.w = x, y, z, w
+        pose_out.publish(pose)
+        if bowl:
+            distance = Float64MultiArray(data=[float(np.linalg.norm(T[:3, 3] - bowl[0]))])
+            distance.layout.dim = [MultiArrayDimension(label="distance", size=1, stride=1)]
+            distance_out.publish(distance)
+
+    node.create_subscription(JointState, "/robot/joint_states", on_joints, QoSProfile(depth=50))
+    node.create_subscription(PoseStamped, "/bowl/pose", on_bowl, QoSProfile(depth=10))
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+# --- the driver ---------------------------------------------------------------------------------
+
+@dataclass
+class Postures:
+    """The swept postures: joint positions, and the gripper position and bowl distance of each."""
+
+    names: list[str]
+    positions: list[list[float]]
+    gripper: np.ndarray
+    distance: np.ndarray
+
+    @classmethod
+    def sweep(cls, count: int) -> Postures:
+        from coco_ros.baxter.ik import NEUTRAL
+        from coco_ros.baxter.joints import BAXTER_JOINT_NAMES
+
+        fk = GripperFk()
+        names = list(BAXTER_JOINT_NAMES)
+        arm = dict(zip(("left_s0", "left_s1", "left_e0", "left_e1", "left_w0", "left_w1", "left_w2"), NEUTRAL["left"]))
+        positions, grippers = [], []
+        for s0 in np.linspace(*S0_RANGE, count):
+            values = {**arm, "left_s0": float(s0)}
+            row = [values.get(name, 0.0) for name in names]
+            positions.append(row)
+            grippers.append(fk.pose(names, row)[:3, 3])
+        gripper = np.array(grippers)
+        distance = np.linalg.norm(gripper - np.array(BOWL), axis=1)
+        spacing = min(np.min(np.linalg.norm(np.diff(gripper, axis=0), axis=1)), np.min(np.abs(np.diff(distance))))
+        if spacing < 100 * MATCH_TOLERANCE:
+            raise RuntimeError(f"postures too close to tell apart ({spacing:.2g} m): use fewer --postures")
+        return cls(names, positions, gripper, distance)
+
+    def match(self, values: np.ndarray, key: np.ndarray) -> int | None:
+        """Index of the posture whose ``key`` (gripper rows or distances) is ``values``, or None."""
+        errors = np.abs(key - values) if key.ndim == 1 else np.linalg.norm(key - values, axis=1)
+        i = int(np.argmin(errors))
+        return i if errors[i] < MATCH_TOLERANCE else None
+
+
+@dataclass
+class Track:
+    """Latencies of one output topic of one pipeline."""
+
+    pending: dict[int, float] = field(default_factory=dict)
+    latencies: list[float] = field(default_factory=list)
+    unmatched: int = 0
+
+
+class Driver:
+    """Publishes the joint states and the bowl, receives every pipeline's outputs, times them."""
+
+    def __init__(self, context: Any, postures: Postures) -> None:
+        from geometry_msgs.msg import PoseStamped
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from rclpy.qos import QoSProfile
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64MultiArray
+
+        self.postures = postures
+        self.node = Node("bench_latency_driver", context=context)
+        self.joints_out = self.node.create_publisher(JointState, "/robot/joint_states", QoSProfile(depth=50))
+        self.bowl_out = self.node.create_publisher(PoseStamped, "/bowl/pose", QoSProfile(depth=10))
+        self.JointState, self.PoseStamped = JointState, PoseStamped
+        self.tracks = {(pipeline, output): Track() for pipeline in PIPELINES for output in OUTPUTS}
+        for pipeline, prefix in PIPELINES.items():
+            self.node.create_subscription(PoseStamped, f"{prefix}/gripper_pose",
+                                          self._receiver(pipeline, "gripper_pose", self._position),
+                                          QoSProfile(depth=50))
+            self.node.create_subscription(Float64MultiArray, f"{prefix}/distance",
+                                          self._receiver(pipeline, "distance", self._distance), QoSProfile(depth=50))
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.sent = 0
+
+    def _position(self, msg: Any) -> int | None:
+        p = msg.pose.position
+        return self.postures.match(np.array([p.x, p.y, p.z]), self.postures.gripper)
+
+    def _distance(self, msg: Any) -> int | None:
+        return self.postures.match(np.array(msg.data[0]), self.postures.distance) if len(msg.data) == 1 else None
+
+    def _receiver(self, pipeline: str, output: str, match: Callable[[Any], int | None]) -> Callable[[Any], None]:
+        track = self.tracks[(pipeline, output)]
+
+        def receive(msg: Any) -> None:
+            now = time.perf_counter()
+            index = match(msg)
+            if index is None:
+                track.unmatched += 1
+                return
+            sent = track.pending.pop(index, None)
+            if sent is not None:  # later outputs of the same joint state (a bowl update) do not count
+                track.latencies.append(now - sent)
+
+        return receive
+
+    def _publish_joints(self) -> None:
+        index = self.sent % len(self.postures.positions)
+        msg = self.JointState(name=self.postures.names, position=self.postures.positions[index])
+        now = time.perf_counter()
+        for (_, _), track in self.tracks.items():
+            track.pending[index] = now
+        msg.header.stamp = self.node.get_clock().now().to_msg()  # wall clock at publish time
+        self.joints_out.publish(msg)
+        self.sent += 1
+
+    def _publish_bowl(self) -> None:
+        msg = self.PoseStamped()
+        msg.header.stamp, msg.header.frame_id = self.node.get_clock().now().to_msg(), "base"
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = BOWL
+        msg.pose.orientation.w = 1.0
+        self.bowl_out.publish(msg)
+
+    def run(self, seconds: float, until: Callable[[], bool] | None = None) -> None:
+        """Publish at RATE_HZ (and the bowl at BOWL_HZ) on absolute deadlines, receiving in between."""
+        start = time.perf_counter()
+        period, bowl_every = 1.0 / RATE_HZ, round(RATE_HZ / BOWL_HZ)
+        tick = 0
+        while time.perf_counter() - start < seconds and not (until and until()):
+            if tick % bowl_every == 0:
+                self._publish_bowl()
+            self._publish_joints()
+            tick += 1
+            deadline = start + tick * period
+            while (remaining := deadline - time.perf_counter()) > 0:
+                self.executor.spin_once(timeout_sec=remaining)
+
+    def reset(self) -> None:
+        for track in self.tracks.values():
+            track.latencies.clear()
+            track.unmatched = 0
+
+    def destroy(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+def start(command: list[str]) -> subprocess.Popen[str]:
+    """A pipeline process; ``test/data`` on its path for the app's ``interop_components``."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(TELEOP_APP.parent), env.get("PYTHONPATH", "")]))
+    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=_report.REPO,
+                            env=env)
+
+
+def stop(process: subprocess.Popen[str]) -> str:
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        out, _ = process.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        out, _ = process.communicate()
+    return out
+
+
+def profiled_latency(launcher_output: str) -> tuple[float, float] | None:
+    """EndEffectorDistance's latency (mean, max in s) from the launcher's last profile, if it printed one."""
+    found = re.findall(r"^distance\s.*?([0-9.]+) / ([0-9.]+)\s*$", launcher_output, re.M)
+    return (float(found[-1][0]) / 1e3, float(found[-1][1]) / 1e3) if found else None
+
+
+# --- report ---------------------------------------------------------------------------------------
+
+def percentiles(values: list[float]) -> dict[str, float]:
+    if not values:
+        return {"p50": float("nan"), "p90": float("nan"), "p99": float("nan"), "max": float("nan")}
+    p50, p90, p99 = np.percentile(values, [50, 90, 99])
+    return {"p50": float(p50), "p90": float(p90), "p99": float(p99), "max": float(max(values))}
+
+
+def table(driver: Driver, profiles: dict[str, tuple[float, float] | None], args: Any) -> tuple[Table, dict[str, Any]]:
+    t = Table("Figure 6 - teleop app over DDS: joint state published -> output received (driver's clock)",
+              ["pipeline", "output", "samples", "p50", "p90", "p99", "max", "p50 vs plain node", "p99 vs plain node"])
+    results: dict[str, Any] = {}
+    for output in OUTPUTS:
+        anchor = percentiles(driver.tracks[(ANCHOR, output)].latencies)
+        for pipeline in PIPELINES:
+            track = driver.tracks[(pipeline, output)]
+            stats = percentiles(track.latencies)
+            ratio = {k: stats[k] / anchor[k] if anchor[k] > 0 else float("nan") for k in ("p50", "p99")}
+            times = (fmt_time_ns(stats[k] * 1e9) for k in ("p50", "p90", "p99", "max"))
+            t.add(pipeline, output, len(track.latencies), *times, fmt_ratio(ratio["p50"]), fmt_ratio(ratio["p99"]))
+            results[f"{pipeline}: {output}"] = {**stats, "samples": len(track.latencies),
+                                                "unmatched": track.unmatched, "x_anchor": ratio}
+    for name, profile in profiles.items():
+        if profile is None:
+            continue
+        t.add(f"{name}: profiler (in app)", "EndEffectorDistance", "-", f"mean {fmt_time_ns(profile[0] * 1e9)}", "-",
+              "-", fmt_time_ns(profile[1] * 1e9), "-", "-")
+        results[f"{name}: profiler distance"] = {"mean": profile[0], "max": profile[1]}
+    t.notes += [f"{args.seconds:g} s measured after {args.warmup:g} s warm-up; joint states at {RATE_HZ:g} Hz, "
+                f"bowl pose at {BOWL_HZ:g} Hz; all pipelines run at the same time on the same input "
+                "(noise hits them alike).",
+                "The launcher hosts activities in its rclpy executor (default) or, with --all-threads, on threads "
+                "of their own (as coco-launch does). Ratios > 1: slower than the plain node by that factor. The "
+                "profiler rows are "
+                "EndEffectorDistance's own interval (read of its triggering pose -> outputs written), inside "
+                "the app, mean and max.",
+                f"{args.postures} postures swept; an output matches its joint state by value (within "
+                f"{MATCH_TOLERANCE:g} m); the first output per joint state counts."]
+    return t, results
+
+
+def draw(driver: Driver) -> Callable[[Any], Any]:
+    def figure(plt: Any) -> Any:
+        fig, ax = plt.subplots(figsize=(8, 3.8))
+        rows = [(f"{pipeline}: {output}", percentiles(driver.tracks[(pipeline, output)].latencies))
+                for output in OUTPUTS for pipeline in PIPELINES]
+        height = 0.25
+        for k, (key, color) in enumerate((("p50", "tab:blue"), ("p90", "tab:orange"), ("p99", "tab:red"))):
+            ax.barh([y + (k - 1) * height for y in range(len(rows))], [stats[key] * 1e3 for _, stats in rows],
+                    height=height, color=color, label=key)
+        ax.set_yticks(range(len(rows)), [label for label, _ in rows], fontsize=8)
+        ax.invert_yaxis()
+        ax.set_xscale("log")
+        ax.set_xlabel("joint state published -> output received (ms, log scale)")
+        ax.set_title("Teleop app latency over DDS: CoCo ROS launcher vs plain rclpy node")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        return fig
+
+    return figure
+
+
+def main() -> None:
+    p = _report.parser("bench_latency", __doc__.splitlines()[0])
+    p.add_argument("--seconds", type=float, default=15.0, help="seconds measured (default 15)")
+    p.add_argument("--warmup", type=float, default=5.0, help="seconds of outputs discarded after the first "
+                   "(default 5: the launcher drains what queued while it started)")
+    p.add_argument("--postures", type=int, default=600, help="postures swept (default 600: 6 s at 100 Hz)")
+    p.add_argument("--plain-node", action="store_true", help=argparse.SUPPRESS)
+    args = p.parse_args()
+    if args.plain_node:
+        sys.exit(plain_node())
+
+    postures = Postures.sweep(args.postures)
+    with RosContext() as context:
+        driver = Driver(context, postures)
+        processes = {ANCHOR: start([sys.executable, str(Path(__file__).resolve()), "--plain-node"])}
+        for name, options in LAUNCHED.items():
+            processes[name] = start([sys.executable, str(LAUNCHER), str(TELEOP_APP), "--profile", "3600",
+                                     "--log-level", "WARNING", *options])
+        outputs: dict[str, str] = {}
+        try:
+            ready = lambda: all(driver.tracks[(pipeline, "distance")].latencies for pipeline in PIPELINES)  # noqa: E731
+            driver.run(30.0, until=lambda: ready() or any(p.poll() is not None for p in processes.values()))
+            if not ready():
+                raise RuntimeError("a pipeline produced no output within 30 s: "
+                                   + "; ".join(f"{n}: exit {p.poll()}" for n, p in processes.items()))
+            driver.run(args.warmup)
+            driver.reset()
+            driver.run(args.seconds)
+        finally:
+            for name, process in processes.items():
+                outputs[name] = stop(process)
+            driver.destroy()
+    for name, out in outputs.items():
+        if processes[name].returncode not in (0, 130, -signal.SIGINT):
+            print(f"warning: {name} exited {processes[name].returncode}:\n{out[-3000:]}", file=sys.stderr)
+    t, results = table(driver, {name: profiled_latency(outputs[name]) for name in LAUNCHED}, args)
+    _report.emit("bench_latency", args, [t], results)
+    _report.save_plot(args, draw(driver))
+
+
+if __name__ == "__main__":
+    main()
