@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from coco_core.attributes import Attribute
+from coco_core.colors import green_yellow_red
 from coco_core.component import Component
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamp, Stamped, unstamped
@@ -41,9 +42,6 @@ from coco_core.transforms.samples import FramePose
 
 log = logging.getLogger("coco.teleop")
 
-GREEN = (0.0, 1.0, 0.0)
-YELLOW = (1.0, 1.0, 0.0)
-RED = (1.0, 0.0, 0.0)
 
 
 def distance_color(distance: float, near: float = 0.02, far: float = 0.5) -> tuple[float, float, float]:
@@ -51,10 +49,7 @@ def distance_color(distance: float, near: float = 0.02, far: float = 0.5) -> tup
     half-way, linear in between (see the module docstring)."""
     if not far > near:
         raise ValueError(f"far ({far}) must be greater than near ({near})")
-    if math.isnan(distance):
-        return RED
-    s = min(1.0, max(0.0, (distance - near) / (far - near)))
-    return (min(1.0, 2.0 * s), min(1.0, 2.0 * (1.0 - s)), 0.0)
+    return green_yellow_red((distance - near) / (far - near))
 
 
 def frame_distance(a: FramePose, b: FramePose) -> float:

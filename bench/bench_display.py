@@ -1,0 +1,463 @@
+"""Display: frames per second at 640x480 headless (Mesa llvmpipe), Baxter and Baxter + a live RGB-D mesh, vs pyrender.
+
+A *frame* is what a display application does each period: the Baxter joints move (the next row of a
+real recording, ``shared/data/baxter/shake_hand.dat``, set on the transformation graph), a new RGB-D
+frame arrives (the two Redwood frames in turn, 640x480, 307k vertices, 612k grid triangles), the scene
+is drawn and the colour image is read back (the render-to-texture output; it also waits for the GPU).
+
+- CoCo: one ``GLManager.step()`` (headless EGL context, mono) with a GLCameraManager, GLUrdf (Baxter's
+  visual meshes from example-robot-data) and, in the RGB-D rows, GLRGBDImage (``max_edge`` 5 cm; the
+  depth is unprojected on the GPU, a new frame is two texture writes). ``stride 2`` draws one vertex
+  every 2 depth pixels (153k triangles), the knob that trades geometric detail for frame rate.
+- Anchor: pyrender's OffscreenRenderer (EGL) on the same meshes, poses, camera and RGB-D data: each
+  link node gets its pose from the same graph, the RGB-D frame becomes a new mesh each frame (numpy
+  unprojection, triangles filtered by the same rules, per-vertex colours; pyrender uploads it when it
+  renders). pyrender always reads back colour and depth; CoCo reads back colour.
+
+Goal: Baxter + 640x480 RGB-D mesh at >= 30 fps. A second table gives the cost of taking in a new RGB-D
+frame, a third where the time of a CoCo frame goes (cProfile: draw calls, read-back, texture writes,
+Python).
+
+    .venv/bin/python bench/bench_display.py [--json PATH] [--no-plot]
+"""
+
+from __future__ import annotations
+
+import cProfile
+import logging
+import os
+import pstats
+import sys
+import threading
+from itertools import cycle, repeat
+from typing import Any, Callable
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")  # pyrender's context: EGL, no display
+
+import _report
+from _table import Table, fmt_ratio, fmt_time_ns, verdict
+from _timing import Loop, Samples, measure
+
+for _package in ("coco_mr_vision", "coco_mr_display"):
+    if str(_report.REPO / _package) not in sys.path:
+        sys.path.insert(0, str(_report.REPO / _package))
+
+import numpy as np
+
+from coco_core.application import Application
+from coco_core.component import Component
+from coco_core.ports import InputPort, OutputPort
+from coco_core.transforms import se3
+from coco_core.transforms.resources import resolve
+from coco_core.transforms.urdf import load_urdf
+from coco_mr_display.camera import GLCameraManager
+from coco_mr_display.manager import GLManager
+from coco_mr_display.rgbd import GLRGBDImage, grid_indices
+from coco_mr_display.urdf import GLUrdf, load_links, read_visuals
+from coco_mr_vision.image import CameraIntrinsics, Image
+from coco_mr_vision.rgbd import RGBDFrame
+
+BAXTER_URDF = "package://example-robot-data/robots/baxter_description/urdf/baxter.urdf"
+DATA = _report.REPO.parent / "shared" / "data"
+SHAKE_HAND = DATA / "baxter" / "shake_hand.dat"
+REDWOOD = DATA / "rgbd" / "redwood"
+SIZE = (640, 480)
+GOAL_FPS = 30.0
+MAX_EDGE = 0.05
+REPEATS, TARGET_S = 5, 0.6
+MIN_OVERLAP = 0.9
+"""Least intersection over union of the pixels CoCo and pyrender cover, checked before timing (CoCo's
+from its colour read-back: pure black pixels, such as Baxter's head screen, count as empty)."""
+LIGHT = 0.25
+"""GLUrdf ``simplify`` of the light scene: the fraction of Baxter's triangles kept (quadric decimation)."""
+
+VIEWER = {"position": [3.6, 2.0, 1.7], "look_at": [0.6, 0.0, 0.5], "fov_y": 50.0}
+"""Where the display's camera is: Baxter on the left, the RGB-D surface on the right of the view."""
+RGBD_CAMERA = se3.make(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]), (2.6, -1.2, 1.1))
+"""Pose of the RGB-D camera's optical frame in the world: 1.2 m to Baxter's right, looking along -x."""
+
+COCO_BAXTER, COCO_RGBD, COCO_RGBD2, COCO_LIGHT, COCO_RGBD_ONLY = (
+    "CoCo Baxter", "CoCo Baxter + RGB-D", "CoCo Baxter + RGB-D, stride 2",
+    f"CoCo Baxter simplify {LIGHT} + RGB-D, stride 2", "CoCo RGB-D alone")
+PYR_BAXTER, PYR_RGBD = "pyrender Baxter", "pyrender Baxter + RGB-D"
+
+
+# --- shared inputs ------------------------------------------------------------------------------------
+
+def motion() -> list[dict[str, float]]:
+    """Joint values of each row of the recording (the neutral pose when the data is absent)."""
+    if not SHAKE_HAND.exists():
+        print(f"{SHAKE_HAND} is absent: Baxter stays in its neutral pose")
+        return [{}]
+    header = SHAKE_HAND.read_text().splitlines()[0].split(",")
+    rows = np.loadtxt(SHAKE_HAND, delimiter=",", skiprows=1)
+    joints = [(i, name) for i, name in enumerate(header) if name != "time" and not name.endswith("gripper")]
+    return [{name: float(row[i]) for i, name in joints} for row in rows]
+
+
+def rgbd_frames() -> list[RGBDFrame]:
+    if not REDWOOD.exists():
+        raise SystemExit(f"{REDWOOD} is absent: the RGB-D rows need the shared Redwood frames")
+    intrinsics = CameraIntrinsics.from_json(REDWOOD / "camera_primesense.json")
+    return [RGBDFrame.load(REDWOOD / "color" / f"{i:05d}.jpg", REDWOOD / "depth" / f"{i:05d}.png", intrinsics)
+            for i in (0, 1)]
+
+
+def scene_graph(app: Application) -> None:
+    """Baxter's URDF on the graph, standing at the world origin, and the RGB-D camera's frame."""
+    load_urdf(app.transforms, BAXTER_URDF)
+    app.transforms.add_static("world", "base")
+    app.transforms.add_static("world", "rgbd_camera", RGBD_CAMERA)
+
+
+# --- CoCo ---------------------------------------------------------------------------------------------
+
+class Sensor(Component):
+    rgbd = OutputPort(RGBDFrame)
+
+
+class Screen(Component):
+    frames = InputPort(Image)
+
+
+class CocoScene:
+    """A configured GLManager with its peers, stepped by hand (the activity's job) one frame at a time."""
+
+    def __init__(self, name: str, baxter: bool, rgbd: bool, stride: int = 1, simplify: float = 1.0) -> None:
+        self.app = Application(name)
+        scene_graph(self.app)
+        self.manager = GLManager("display", width=SIZE[0], height=SIZE[1], visualization="mono")
+        self.manager.add_peer(GLCameraManager("camera", **VIEWER))
+        self.urdf = self.manager.add_peer(GLUrdf("baxter", urdf=BAXTER_URDF, simplify=simplify)) if baxter else None
+        self.surface = self.manager.add_peer(GLRGBDImage("surface", frame="rgbd_camera", max_edge=MAX_EDGE,
+                                                         stride=stride)) if rgbd else None
+        self.sensor, self.screen = Sensor("sensor"), Screen("screen")
+        for component in (self.manager, self.sensor, self.screen):
+            self.app.add(component)
+        if rgbd:
+            self.app.connect(self.sensor.rgbd, "surface.rgbd")
+        self.app.connect(self.manager.color, self.screen.frames)
+        if not self.manager.configure():
+            raise SystemExit(f"{name}: GLManager could not start (see the log above)")
+        assert self.manager.surface is not None
+        self.ctx = self.manager.surface.ctx
+        if self.urdf is not None:
+            self.urdf.wait_loaded()
+
+    def frame(self, pose: dict[str, float], rgbd: RGBDFrame) -> np.ndarray:
+        """One frame (with this scene's context current): move, send, draw; the image read back."""
+        if self.urdf is not None:
+            self.app.transforms.set_joints(pose)
+        if self.surface is not None:
+            self.sensor.rgbd.write(rgbd)
+        self.manager.step()
+        return self.screen.frames.read()[1].data
+
+    def loop(self, poses: list[dict[str, float]], frames: list[RGBDFrame]) -> Loop:
+        frame, pose_cycle, frame_cycle = self.frame, cycle(poses), cycle(frames)
+
+        def run(n: int) -> None:
+            with self.ctx:  # several contexts live in this process: make this one current
+                for _ in repeat(None, n):
+                    frame(next(pose_cycle), next(frame_cycle))
+
+        return run
+
+    @property
+    def triangles(self) -> int:
+        return self.urdf.triangles if self.urdf is not None else 0
+
+    def close(self) -> None:
+        self.ctx.__enter__()  # current for the release; the context is gone afterwards, nothing to restore
+        self.manager.stop()
+
+
+def upload_loop(scene: CocoScene, frames: list[RGBDFrame]) -> Loop:
+    """A new RGB-D frame into GLRGBDImage: port read, two texture writes, until the GPU has them."""
+    peer, write, frame_cycle = scene.surface, scene.sensor.rgbd.write, cycle(frames)
+    assert peer is not None
+
+    def run(n: int) -> None:
+        with scene.ctx:
+            for _ in repeat(None, n):
+                write(next(frame_cycle))
+                peer.step()
+                peer.upload(scene.ctx)
+                scene.ctx.finish()
+
+    return run
+
+
+# --- pyrender (anchor) --------------------------------------------------------------------------------
+
+class CpuSurface:
+    """The RGB-D frame as a mesh built on the CPU, as a renderer without GPU unprojection needs it."""
+
+    def __init__(self, width: int, height: int) -> None:
+        self.triangles = grid_indices(width, height).reshape(-1, 3)
+
+    def build(self, frame: RGBDFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(positions in the optical frame, colours RGB 0..1, kept triangles): same rules as GLRGBDImage."""
+        k = frame.intrinsics
+        assert k is not None
+        z = frame.depth_metres()
+        height, width = z.shape
+        u = np.arange(width, dtype=np.float32)[None, :]
+        v = np.arange(height, dtype=np.float32)[:, None]
+        points = np.stack([(u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z], axis=-1).reshape(-1, 3)
+        valid = np.isfinite(points[:, 2])
+        triangles = self.triangles[valid[self.triangles].all(axis=1)]
+        a, b, c = (points[triangles[:, k]] for k in range(3))
+        longest = np.max([np.einsum("ij,ij->i", d, d) for d in (b - a, c - b, a - c)], axis=0)
+        triangles = triangles[longest <= MAX_EDGE ** 2]
+        colors = frame.color.to_rgb().reshape(-1, 3).astype(np.float32) / 255.0
+        return np.nan_to_num(points), colors, triangles
+
+
+class PyrenderScene:
+    """The same scene in pyrender: Baxter's links as nodes posed from the graph, the RGB-D mesh rebuilt
+    for each frame."""
+
+    def __init__(self, baxter: bool, rgbd: bool, view_matrix: np.ndarray, simplify: float) -> None:
+        import pyrender
+        import trimesh
+
+        self.pyrender = pyrender
+        self.app = Application("pyrender")
+        scene_graph(self.app)
+        self.scene = pyrender.Scene(bg_color=[0.0, 0.0, 0.0, 1.0], ambient_light=[0.3, 0.3, 0.3])
+        camera = pyrender.PerspectiveCamera(yfov=np.radians(VIEWER["fov_y"]), aspectRatio=SIZE[0] / SIZE[1],
+                                            znear=0.05, zfar=100.0)
+        camera_pose = se3.inverse(view_matrix)
+        self.scene.add(camera, pose=camera_pose)
+        self.scene.add(pyrender.DirectionalLight(intensity=3.0), pose=camera_pose)
+        self.links: list[tuple[str, Any]] = []
+        self.triangles = 0
+        if baxter:
+            _, visuals = read_visuals(resolve(BAXTER_URDF))
+            links = load_links(visuals, (0.6, 0.6, 0.6, 1.0), keep=simplify, cancelled=threading.Event())
+            for link, parts in links.items():
+                meshes = [trimesh.Trimesh(part.positions, part.indices, process=False,
+                                          vertex_colors=part.colors if part.colors is not None else None)
+                          for part in parts]
+                self.triangles += sum(part.triangles for part in parts)
+                node = self.scene.add(pyrender.Mesh([pyrender.Mesh.from_trimesh(m).primitives[0] for m in meshes]))
+                self.links.append((link, node))
+        self.cpu = CpuSurface(*SIZE) if rgbd else None
+        self.surface_node: Any = None
+        self.renderer = pyrender.OffscreenRenderer(*SIZE)
+
+    def new_surface(self, frame: RGBDFrame) -> None:
+        assert self.cpu is not None
+        positions, colors, triangles = self.cpu.build(frame)
+        material = self.pyrender.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0])
+        primitive = self.pyrender.Primitive(positions=positions, indices=triangles, color_0=colors, material=material)
+        if self.surface_node is not None:
+            self.scene.remove_node(self.surface_node)
+        self.surface_node = self.scene.add(self.pyrender.Mesh([primitive]), pose=RGBD_CAMERA)
+
+    def frame(self, pose: dict[str, float], rgbd: RGBDFrame) -> np.ndarray:
+        """One frame: move (link poses from the graph), new surface, render; the depth read back."""
+        if self.links:
+            self.app.transforms.set_joints(pose)
+            for link, node in self.links:
+                self.scene.set_pose(node, self.app.transforms.lookup("world", link))
+        if self.cpu is not None:
+            self.new_surface(rgbd)
+        return self.renderer.render(self.scene)[1]
+
+    def loop(self, poses: list[dict[str, float]], frames: list[RGBDFrame]) -> Loop:
+        frame, pose_cycle, frame_cycle = self.frame, cycle(poses), cycle(frames)
+
+        def run(n: int) -> None:
+            for _ in repeat(None, n):
+                frame(next(pose_cycle), next(frame_cycle))
+
+        return run
+
+
+def same_scene(coco: CocoScene, anchor: PyrenderScene, pose: dict[str, float], rgbd: RGBDFrame) -> float:
+    """Intersection over union of what each renderer covers in the same frame: checks, before timing,
+    that both draw the same scene from the same camera."""
+    with coco.ctx:
+        drawn = coco.frame(pose, rgbd).any(axis=2)
+    covered = anchor.frame(pose, rgbd) > 0
+    return float((drawn & covered).sum() / max(1, (drawn | covered).sum()))
+
+
+# --- profile --------------------------------------------------------------------------------------------
+
+CATEGORIES: list[tuple[str, Callable[[str], bool]]] = [
+    ("GL draw calls (llvmpipe: vertex processing, binning)", lambda f: "'render' of 'mgl.VertexArray'" in f),
+    ("colour read-back (waits for rasterisation)", lambda f: "'read_into' of 'mgl.Framebuffer'" in f),
+    ("texture writes (new RGB-D frame)", lambda f: "'write' of 'mgl.Texture" in f),
+]
+
+
+def profile(run: Loop, frames: int) -> dict[str, float]:
+    """Seconds per frame by category, from cProfile's own time of the moderngl calls; the rest is Python
+    (CoCo's components, the graph, uniforms, numpy) plus profiling overhead."""
+    profiler = cProfile.Profile()
+    profiler.enable()
+    run(frames)
+    profiler.disable()
+    stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
+    total = sum(entry[2] for entry in stats.values())
+    shares = {name: 0.0 for name, _ in CATEGORIES}
+    for (_, _, function), entry in stats.items():
+        for name, matches in CATEGORIES:
+            if matches(function):
+                shares[name] += entry[2]
+    shares["Python (components, graph, uniforms) + profiler"] = total - sum(shares.values())
+    return {name: seconds / frames for name, seconds in shares.items()}
+
+
+# --- tables and plot --------------------------------------------------------------------------------
+
+def fps(samples: Samples) -> float:
+    return 1e9 / samples.median
+
+
+def frame_table(samples: dict[str, Samples], triangles: dict[str, int], overlap: dict[str, float],
+                others: str) -> tuple[Table, dict[str, Any]]:
+    t = Table(f"Display - frames per second, {SIZE[0]}x{SIZE[1]} headless, llvmpipe (median of repeats)",
+              ["scene", "triangles", "ms/frame", "fps", "vs pyrender (x faster)", f"goal >= {GOAL_FPS:g} fps"])
+    results: dict[str, Any] = {}
+    anchors = {COCO_BAXTER: PYR_BAXTER, COCO_RGBD: PYR_RGBD, COCO_RGBD2: PYR_RGBD, COCO_LIGHT: PYR_RGBD}
+    for name, s in samples.items():
+        anchor = samples.get(anchors.get(name, ""))
+        ratio = s.ratio_to(anchor) if anchor is not None else float("nan")
+        goal = fps(s) >= GOAL_FPS if name in (COCO_RGBD, COCO_RGBD2, COCO_LIGHT) else None
+        t.add(name, f"{triangles[name] / 1e3:.0f}k", f"{s.median / 1e6:.1f}", f"{fps(s):.1f}",
+              fmt_ratio(ratio) if anchor is not None else "-", verdict(goal))
+        results[name] = {**s.to_json(), "fps": fps(s), "triangles": triangles[name], "x_faster_than_pyrender":
+                         ratio if anchor is not None else None, "goal_met": goal}
+    t.notes += [
+        "A frame: Baxter joints from the next row of shake_hand.dat, a new RGB-D frame (Redwood 0 and 1 in "
+        "turn), draw, colour read-back. RGB-D triangles: the 640x480 grid (612k; 153k at stride 2) before "
+        f"the geometry shader drops those with an unknown vertex or an edge > {MAX_EDGE * 100:g} cm.",
+        f"simplify {LIGHT}: GLUrdf keeps about {LIGHT:.0%} of Baxter's triangles (quadric decimation at load).",
+        "Same scene: the pixels covered by CoCo and pyrender in the first frame overlap with IoU "
+        + ", ".join(f"{iou:.3f} ({name})" for name, iou in overlap.items()) + " (checked before timing).",
+        "pyrender rebuilds the RGB-D mesh on the CPU each frame (numpy, same triangle rules) and reads back "
+        "colour and depth; it lights the normal-less RGB-D mesh (darker), CoCo shows it unlit. Ratios are "
+        f"medians of per-round ratios ({REPEATS} interleaved rounds); the light scene is compared with "
+        "pyrender's full one.",
+        f"Other processes used {others} of the {os.cpu_count()} cores meanwhile; llvmpipe runs vertex "
+        "processing on the calling thread and rasterises on LP_NUM_THREADS threads "
+        f"({os.environ.get('LP_NUM_THREADS', 'default: one per core')}).",
+    ]
+    return t, results
+
+
+def upload_table(samples: dict[str, Samples]) -> tuple[Table, dict[str, Any]]:
+    coco, anchor, floor = (samples[name] for name in UPLOADS)
+    t = Table("Display - taking in a new 640x480 RGB-D frame (per frame, median of repeats)",
+              ["variant", "time", "vs CPU mesh (x cheaper)", "vs memcpy (x dearer)"])
+    results: dict[str, Any] = {}
+    for name, s in samples.items():
+        t.add(name, fmt_time_ns(s.median), fmt_ratio(s.ratio_to(anchor)), fmt_ratio(floor.ratio_to(s)))
+        results[name] = s.to_json()
+    t.notes += ["CoCo: port read + two texture writes (colour RGB8/BGR8 as is, depth 16 bit), then glFinish. "
+                "CPU mesh: what the anchor does before pyrender uploads (unprojection, triangle filter, "
+                "colours), GPU upload not included. Floor: copying the frame's 1.5 MB in numpy."]
+    return t, results
+
+
+def profile_table(breakdown: dict[str, dict[str, float]]) -> tuple[Table, dict[str, Any]]:
+    names = list(breakdown)
+    t = Table("Display - where a CoCo frame's time goes (cProfile, ms per frame)", ["part", *names])
+    for part in next(iter(breakdown.values())):
+        t.add(part, *(f"{breakdown[name][part] * 1e3:.1f}" for name in names))
+    t.notes += ["Own time of the moderngl calls: a draw call returns once llvmpipe has run the vertex (and "
+                "geometry) shaders and binned the triangles on the calling thread; the read-back waits for "
+                "the rasteriser threads. The Python row is everything else in the frame."]
+    return t, breakdown
+
+
+UPLOADS = ("CoCo GLRGBDImage upload", "CPU mesh (numpy)", "memcpy of the frame (floor)")
+
+
+def draw(frames: dict[str, Samples]) -> Callable[[Any], Any]:
+    def figure(plt: Any) -> Any:
+        names = list(frames)
+        values = [fps(frames[name]) for name in names]
+        colors = ["tab:red" if name.startswith("pyrender") else "tab:blue" for name in names]
+        fig, ax = plt.subplots(figsize=(8, 3.8))
+        ax.barh(names, values, color=colors)
+        ax.invert_yaxis()
+        ax.axvline(GOAL_FPS, color="tab:green", linestyle="--", label=f"goal: {GOAL_FPS:g} fps (Baxter + RGB-D)")
+        for y, value in enumerate(values):
+            ax.text(value + 0.3, y, f"{value:.1f}", va="center", fontsize=8)
+        ax.set_xlabel(f"frames per second, {SIZE[0]}x{SIZE[1]} headless, Mesa llvmpipe (CPU only)")
+        ax.set_title("CoCo display (GLManager) vs pyrender, same scene")
+        ax.legend(loc="lower right", fontsize=8)
+        ax.set_xlim(0, max(max(values) * 1.15, GOAL_FPS * 1.1))
+        return fig
+
+    return figure
+
+
+def main() -> None:
+    args = _report.parser("bench_display", __doc__.splitlines()[0]).parse_args()
+    logging.getLogger("coco.transforms").setLevel(logging.ERROR)  # the recording names gripper-less joints
+    poses, frames = motion(), rgbd_frames()
+    scenes = {COCO_BAXTER: CocoScene("baxter", True, False), COCO_RGBD: CocoScene("baxter_rgbd", True, True),
+              COCO_RGBD2: CocoScene("baxter_rgbd2", True, True, stride=2),
+              COCO_LIGHT: CocoScene("light", True, True, stride=2, simplify=LIGHT),
+              COCO_RGBD_ONLY: CocoScene("rgbd", False, True)}
+    view = scenes[COCO_BAXTER].manager.views()[0].view
+    variants: dict[str, Loop] = {name: scene.loop(poses, frames) for name, scene in scenes.items()}
+    for run in variants.values():
+        run(1)  # GLUrdf uploads its meshes at its first render
+    grid = {1: 2 * (SIZE[0] - 1) * (SIZE[1] - 1), 2: 2 * (SIZE[0] // 2 - 1) * (SIZE[1] // 2 - 1)}
+    triangles = {COCO_BAXTER: scenes[COCO_BAXTER].triangles, COCO_RGBD: scenes[COCO_RGBD].triangles + grid[1],
+                 COCO_RGBD2: scenes[COCO_RGBD2].triangles + grid[2], COCO_LIGHT: scenes[COCO_LIGHT].triangles + grid[2],
+                 COCO_RGBD_ONLY: grid[1]}
+    anchors: dict[str, PyrenderScene] = {}
+    simplify = scenes[COCO_BAXTER].urdf.simplify  # type: ignore[union-attr]
+    try:
+        anchors = {PYR_BAXTER: PyrenderScene(True, False, view, simplify),
+                   PYR_RGBD: PyrenderScene(True, True, view, simplify)}
+    except Exception as error:  # pyrender missing or no EGL for it: CoCo rows alone
+        print(f"pyrender does not run here ({type(error).__name__}: {error}); no anchor rows")
+    overlap = {name: same_scene(scenes[coco], anchors[name], poses[0], frames[0])
+               for coco, name in ((COCO_BAXTER, PYR_BAXTER), (COCO_RGBD, PYR_RGBD)) if name in anchors}
+    for name, iou in overlap.items():
+        if iou < MIN_OVERLAP:
+            raise SystemExit(f"{name} and CoCo cover different pixels (IoU {iou:.3f} < {MIN_OVERLAP}): "
+                             "not the same scene")
+    for name, anchor in anchors.items():
+        variants[name] = anchor.loop(poses, frames)
+        triangles[name] = anchor.triangles + (grid[1] if anchor.cpu is not None else 0)
+
+    cpu = CpuSurface(*SIZE)
+    copies = [np.empty_like(frames[0].color.data), np.empty_like(frames[0].depth.data)]
+    uploads: dict[str, Loop] = {
+        UPLOADS[0]: upload_loop(scenes[COCO_RGBD_ONLY], frames),
+        UPLOADS[1]: lambda n: [cpu.build(frames[i % 2]) for i in range(n)],
+        UPLOADS[2]: lambda n: [(np.copyto(copies[0], frames[i % 2].color.data),
+                                np.copyto(copies[1], frames[i % 2].depth.data)) for i in range(n)],
+    }
+    with _report.LoadMeter() as load:
+        frame_samples = measure(variants, repeats=REPEATS, target_s=TARGET_S)
+        upload_samples = measure(uploads, repeats=REPEATS, target_s=0.1)
+    breakdown = {name: profile(variants[name], 10) for name in (COCO_BAXTER, COCO_RGBD, COCO_RGBD_ONLY)}
+    others = "n/a" if load.others is None else f"{load.others:.0%}"
+
+    t1, r1 = frame_table(frame_samples, triangles, overlap, others)
+    t2, r2 = upload_table(upload_samples)
+    t3, r3 = profile_table(breakdown)
+    renderer = scenes[COCO_BAXTER].ctx.info["GL_RENDERER"]
+    _report.emit("bench_display", args, [t1, t2, t3],
+                 {"frames": r1, "uploads": r2, "profile_s_per_frame": r3, "renderer": renderer, "overlap_iou": overlap,
+                  "others_cpu": load.others})
+    _report.save_plot(args, draw(frame_samples))
+    # pyrender's renderers are left to the end of the process: they share EGL's default display with
+    # moderngl's contexts, and once one side has released its contexts the other cannot make its current.
+    for scene in scenes.values():
+        scene.close()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,164 @@
+"""GLUrdf renders the real Baxter (example-robot-data) headless, posed from the transformation graph that a
+TransformationInterface fills: its silhouette is the one of yourdfpy's model (an independent URDF loader),
+before and after joints move; colour overrides, simplification, background loading, missing
+frames and bad input."""
+
+from __future__ import annotations
+
+import logging
+from typing import Callable
+
+import cv2
+import numpy as np
+import pytest
+
+from conftest import project
+from coco_core import Application
+from coco_core.component import UnknownNameError
+from coco_core.transforms.interface import TransformationInterface
+from coco_core.transforms.resources import ResourceNotFoundError, resolve
+from coco_mr_display.urdf import GLUrdf
+from test_mesh import camera_view, draw, drawn_mask
+
+BAXTER = "package://example-robot-data/robots/baxter_description/urdf/baxter.urdf"
+SIZE = (320, 240)
+MOVED = {"left_s0": 0.7, "left_s1": -0.9, "left_e1": 1.6, "left_w1": 1.0}
+"""Left arm raised and bent (Baxter's left is +y: the right half of the image from the camera below).
+
+The camera looks at the upper body from the front left, where the visuals' origins and scales show
+(drawing every visual at its link origin leaves 10x more pixels wrong than the threshold allows)."""
+
+
+@pytest.fixture(scope="module")
+def baxter_path():
+    pytest.importorskip("collada", reason="Baxter's meshes are DAE files, read through pycollada")
+    pytest.importorskip("pinocchio", reason="the graph computes Baxter's kinematics with Pinocchio")
+    try:
+        return resolve(BAXTER)
+    except ResourceNotFoundError as error:
+        pytest.skip(f"example-robot-data is not installed: {error}")
+
+
+@pytest.fixture(scope="module")
+def reference(baxter_path):
+    """yourdfpy's own model of Baxter with its meshes: the independent answer."""
+    yourdfpy = pytest.importorskip("yourdfpy")
+    return yourdfpy.URDF.load(str(baxter_path), filename_handler=lambda fname: str(resolve(fname, baxter_path.parent)))
+
+
+@pytest.fixture
+def robot(baxter_path, gl_context, framebuffer):
+    """``robot(**attributes)``: a GLUrdf in an application whose TransformationInterface loaded Baxter;
+    returns (the peer, the application, draw one frame)."""
+    app = Application("urdf-test")
+    app.add(TransformationInterface("tf", urdf=BAXTER))
+    fbo = framebuffer(*SIZE)
+    view = camera_view([1.6, 0.8, 1.0], [0.0, 0.0, 0.4], SIZE, up=(0, 0, 1), frame="base")
+    made: list[GLUrdf] = []
+
+    def make(**attributes) -> tuple[GLUrdf, Application, Callable[[], tuple[np.ndarray, np.ndarray]]]:
+        """The peer, its application, and ``frame()``: draw one frame, return (RGB image, silhouette)."""
+        peer = GLUrdf(f"baxter{len(made)}", **{"urdf": BAXTER, **attributes})
+        app.add(peer)
+        assert peer.configure(), "GLUrdf failed to configure (see the log)"
+        peer.gl_init(gl_context)
+        made.append(peer)
+        return peer, app, lambda: (draw(gl_context, fbo, view, peer), drawn_mask(fbo))
+
+    make.view = view
+    yield make
+    for peer in made:
+        peer.on_stop()
+        peer.gl_release()
+
+
+def assert_silhouette(mask: np.ndarray, reference, view, configuration: dict[str, float]) -> None:
+    """``mask`` is the union of yourdfpy's posed visual triangles, projected and filled by OpenCV: the
+    two may differ on the outline (within a pixel), where rasterisation rules differ, and on a few
+    sub-pixel slivers (panels seen edge-on, gaps between parts) that OpenCV fills and GL does not."""
+    reference.update_cfg({name: configuration.get(name, 0.0) for name in reference.actuated_joint_names})
+    mesh = reference.scene.to_geometry()
+    pixels = project(view, mesh.vertices, SIZE[1])
+    triangles = np.round((pixels[mesh.faces] - 0.5) * 16).astype(np.int32)  # 4 bits of sub-pixel precision
+    expected = np.zeros(mask.shape, np.uint8)
+    cv2.fillPoly(expected, list(triangles), 1, lineType=cv2.LINE_8, shift=4)
+    kernel = np.ones((3, 3), np.uint8)
+    outline = cv2.dilate(expected, kernel).astype(bool) & ~cv2.erode(expected, kernel).astype(bool)
+    wrong = np.logical_xor(mask, expected.astype(bool)) & ~outline
+    assert expected.sum() > 5000, "the test view should show the robot large"
+    assert wrong.sum() < 0.002 * expected.sum(), f"{wrong.sum()} of {expected.sum()} pixels differ away from the " \
+        f"outline, e.g. at {np.argwhere(wrong)[:5].tolist()}"
+
+
+def test_baxter_silhouette_matches_yourdfpy_and_changes_when_a_joint_moves(robot, reference):
+    peer, app, frame = robot()
+    if not peer.loaded:
+        assert not frame()[1].any(), "nothing is drawn (and nothing waits) before the meshes are read"
+    peer.wait_loaded(timeout=120)
+    rest = frame()[1]
+    assert peer.triangles > 400_000, "every visual of Baxter is drawn"
+    assert_silhouette(rest, reference, robot.view, {})
+    app.transforms.set_joints(MOVED)
+    moved = frame()[1]
+    assert_silhouette(moved, reference, robot.view, MOVED)
+    changed = np.logical_xor(rest, moved)
+    assert changed.sum() > 1000, "the left arm moved"
+    assert changed[:, SIZE[0] // 2:].sum() > 0.95 * changed.sum(), "only the left arm (image right) moved"
+    app.transforms.set_joints({name: 0.0 for name in MOVED})
+    assert (frame()[1] == rest).all(), "back at rest, the same pixels"
+
+
+def test_link_colour_override_and_default_colour(robot):
+    plain, _, frame = robot()
+    plain.wait_loaded(timeout=120)
+    image = frame()[0]
+    green = (image[..., 1] > 100) & (image[..., 0] < 40) & (image[..., 2] < 40)
+    assert green.sum() == 0
+    coloured, _, frame = robot(colors="left_upper_shoulder=0 1 0, right_upper_shoulder=0 1 0 1",
+                               ambient=1.0, diffuse=0.0, specular=0.0)
+    coloured.wait_loaded(timeout=120)
+    image = frame()[0]
+    green = np.all(image == (0, 255, 0), axis=2)
+    assert green.sum() > 200, "both upper shoulders are drawn in the override colour"
+    assert green[:, :SIZE[0] // 2].sum() > 50 and green[:, SIZE[0] // 2:].sum() > 50
+
+
+def test_simplified_baxter_keeps_its_silhouette(robot):
+    full, _, frame_full = robot()
+    light, _, frame_light = robot(simplify=0.25)
+    full.wait_loaded(timeout=120)
+    light.wait_loaded(timeout=120)
+    a, b = frame_full()[1], frame_light()[1]
+    assert light.triangles < 0.3 * full.triangles
+    assert np.logical_xor(a, b).sum() < 0.08 * a.sum()
+
+
+def test_frames_missing_from_the_graph_are_reported_once(robot, caplog):
+    peer, _, frame = robot(prefix="other/")
+    peer.wait_loaded(timeout=120)
+    with caplog.at_level(logging.WARNING, logger="coco.display"):
+        assert not frame()[1].any()
+        frame()
+    warnings = [record for record in caplog.records if "not drawn until" in record.getMessage()]
+    assert len(warnings) == 1, "reported once, not every frame"
+    assert "other/left_upper_shoulder" in warnings[0].getMessage()
+    assert peer.enabled
+
+
+def test_bad_input_gives_clear_errors(baxter_path, tmp_path):
+    app = Application("urdf-errors")
+    unknown = app.add(GLUrdf("unknown", urdf=BAXTER, colors="left_upper_shouldr=1 0 0"))
+    with pytest.raises(UnknownNameError, match=r"colors names link 'left_upper_shouldr', which baxter.urdf does "
+                                               r"not have; did you mean 'left_upper_shoulder'\? valid: .*torso"):
+        unknown.on_config()
+    with pytest.raises(ValueError, match=r"must look like link=r g b \[a\]"):
+        GLUrdf("syntax", colors="left_upper_shoulder=red")
+    with pytest.raises(ResourceNotFoundError, match=r"nowhere\.urdf does not exist"):
+        app.add(GLUrdf("missing", urdf=str(tmp_path / "nowhere.urdf"))).on_config()
+    broken = tmp_path / "broken.urdf"
+    broken.write_text('<robot name="r"><link name="a"><visual><geometry><mesh filename="meshes/gone.stl"/>'
+                      "</geometry></visual></link></robot>")
+    with pytest.raises(ResourceNotFoundError, match=r"meshes/gone\.stl does not exist"):
+        app.add(GLUrdf("broken", urdf=str(broken))).on_config()
+    with pytest.raises(Exception, match=r"urdf attribute is empty"):
+        app.add(GLUrdf("empty")).on_config()
