@@ -7,8 +7,12 @@ is drawn and the colour image is read back (the render-to-texture output; it als
 
 - CoCo: one ``GLManager.step()`` (headless EGL context, mono) with a GLCameraManager, GLUrdf (Baxter's
   visual meshes from example-robot-data) and, in the RGB-D rows, GLRGBDImage (``max_edge`` 5 cm; the
-  depth is unprojected on the GPU, a new frame is two texture writes). ``stride 2`` draws one vertex
-  every 2 depth pixels (153k triangles), the knob that trades geometric detail for frame rate.
+  depth is unprojected on the GPU, a new frame is two texture writes). Rows: full detail (every depth
+  pixel a vertex, every Baxter triangle), GLRGBDImage's default automatic stride (level of detail from
+  the surface's size on screen, ``vertex_spacing`` 1 px), and the goal configurations: Baxter
+  ``simplify`` 0.25 and ``vertex_spacing`` 1.5 or 2 px, the two quality knobs a user sets.
+- Quality: each CoCo row's first frame is compared with the full-detail render of the same frame:
+  IoU of the pixels covered, and the share of covered pixels whose colour differs by more than 16/255.
 - Anchor: pyrender's OffscreenRenderer (EGL) on the same meshes, poses, camera and RGB-D data: each
   link node gets its pose from the same graph, the RGB-D frame becomes a new mesh each frame (numpy
   unprojection, triangles filtered by the same rules, per-vertex colours; pyrender uploads it when it
@@ -76,9 +80,16 @@ VIEWER = {"position": [3.6, 2.0, 1.7], "look_at": [0.6, 0.0, 0.5], "fov_y": 50.0
 RGBD_CAMERA = se3.make(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]), (2.6, -1.2, 1.1))
 """Pose of the RGB-D camera's optical frame in the world: 1.2 m to Baxter's right, looking along -x."""
 
-COCO_BAXTER, COCO_RGBD, COCO_RGBD2, COCO_LIGHT, COCO_RGBD_ONLY = (
-    "CoCo Baxter", "CoCo Baxter + RGB-D", "CoCo Baxter + RGB-D, stride 2",
-    f"CoCo Baxter simplify {LIGHT} + RGB-D, stride 2", "CoCo RGB-D alone")
+SPACINGS = (1.5, 2.0)
+"""GLRGBDImage ``vertex_spacing`` of the goal configurations (pixels between neighbouring vertices)."""
+COLOUR_TOLERANCE = 16
+"""A pixel's colour 'differs' from the full-detail render when a channel is off by more than this."""
+
+COCO_BAXTER, COCO_RGBD, COCO_AUTO, COCO_LIGHT, COCO_RGBD_ONLY = (
+    "CoCo Baxter", "CoCo Baxter + RGB-D, full detail (stride 1)", "CoCo Baxter + RGB-D, automatic stride",
+    f"CoCo Baxter simplify {LIGHT} + RGB-D, automatic stride", "CoCo RGB-D alone, stride 1")
+COCO_GOALS = [f"CoCo Baxter simplify {LIGHT} + RGB-D, automatic stride, spacing {spacing:g} px" for spacing in SPACINGS]
+GOAL_ROWS = (COCO_RGBD, COCO_AUTO, COCO_LIGHT, *COCO_GOALS)
 PYR_BAXTER, PYR_RGBD = "pyrender Baxter", "pyrender Baxter + RGB-D"
 
 
@@ -123,14 +134,15 @@ class Screen(Component):
 class CocoScene:
     """A configured GLManager with its peers, stepped by hand (the activity's job) one frame at a time."""
 
-    def __init__(self, name: str, baxter: bool, rgbd: bool, stride: int = 1, simplify: float = 1.0) -> None:
+    def __init__(self, name: str, baxter: bool, rgbd: bool, stride: int = 1, simplify: float = 1.0,
+                 spacing: float = 1.0) -> None:
         self.app = Application(name)
         scene_graph(self.app)
         self.manager = GLManager("display", width=SIZE[0], height=SIZE[1], visualization="mono")
         self.manager.add_peer(GLCameraManager("camera", **VIEWER))
         self.urdf = self.manager.add_peer(GLUrdf("baxter", urdf=BAXTER_URDF, simplify=simplify)) if baxter else None
         self.surface = self.manager.add_peer(GLRGBDImage("surface", frame="rgbd_camera", max_edge=MAX_EDGE,
-                                                         stride=stride)) if rgbd else None
+                                                         stride=stride, vertex_spacing=spacing)) if rgbd else None
         self.sensor, self.screen = Sensor("sensor"), Screen("screen")
         for component in (self.manager, self.sensor, self.screen):
             self.app.add(component)
@@ -165,7 +177,17 @@ class CocoScene:
 
     @property
     def triangles(self) -> int:
-        return self.urdf.triangles if self.urdf is not None else 0
+        """Triangles sent to OpenGL per frame (the RGB-D grid at the stride of the last frame, before
+        the geometry shader drops rubber sheets and holes)."""
+        grid = 0
+        if self.surface is not None:
+            columns, rows = (-(-extent // self.surface.last_stride) for extent in SIZE)
+            grid = 2 * (columns - 1) * (rows - 1)
+        return grid + (self.urdf.triangles if self.urdf is not None else 0)
+
+    @property
+    def stride(self) -> str:
+        return str(self.surface.last_stride) if self.surface is not None else "-"
 
     def close(self) -> None:
         self.ctx.__enter__()  # current for the release; the context is gone afterwards, nothing to restore
@@ -276,6 +298,16 @@ class PyrenderScene:
         return run
 
 
+def compare(image: np.ndarray, reference: np.ndarray) -> dict[str, float]:
+    """What a cheaper configuration costs in pixels: IoU of the covered pixels (pure black counts as
+    empty), and the share of pixels covered in both whose colour differs by more than COLOUR_TOLERANCE."""
+    drawn, expected = image.any(axis=2), reference.any(axis=2)
+    both = drawn & expected
+    differs = np.abs(image.astype(int) - reference).max(axis=2) > COLOUR_TOLERANCE
+    return {"iou": float(both.sum() / max(1, (drawn | expected).sum())),
+            "colour_differs": float(differs[both].mean()) if both.any() else 0.0}
+
+
 def same_scene(coco: CocoScene, anchor: PyrenderScene, pose: dict[str, float], rgbd: RGBDFrame) -> float:
     """Intersection over union of what each renderer covers in the same frame: checks, before timing,
     that both draw the same scene from the same camera."""
@@ -318,31 +350,41 @@ def fps(samples: Samples) -> float:
     return 1e9 / samples.median
 
 
-def frame_table(samples: dict[str, Samples], triangles: dict[str, int], overlap: dict[str, float],
+def frame_table(samples: dict[str, Samples], triangles: dict[str, int], strides: dict[str, str],
+                quality: dict[str, dict[str, float]], overlap: dict[str, float],
                 others: str) -> tuple[Table, dict[str, Any]]:
     t = Table(f"Display - frames per second, {SIZE[0]}x{SIZE[1]} headless, llvmpipe (median of repeats)",
-              ["scene", "triangles", "ms/frame", "fps", "vs pyrender (x faster)", f"goal >= {GOAL_FPS:g} fps"])
+              ["scene", "triangles", "RGB-D stride", "ms/frame", "fps", "vs pyrender (x faster)",
+               "vs full detail: IoU", f"colour differs", f"goal >= {GOAL_FPS:g} fps"])
     results: dict[str, Any] = {}
-    anchors = {COCO_BAXTER: PYR_BAXTER, COCO_RGBD: PYR_RGBD, COCO_RGBD2: PYR_RGBD, COCO_LIGHT: PYR_RGBD}
     for name, s in samples.items():
-        anchor = samples.get(anchors.get(name, ""))
+        anchor = samples.get(PYR_BAXTER if name == COCO_BAXTER else PYR_RGBD) if name.startswith("CoCo") else None
         ratio = s.ratio_to(anchor) if anchor is not None else float("nan")
-        goal = fps(s) >= GOAL_FPS if name in (COCO_RGBD, COCO_RGBD2, COCO_LIGHT) else None
-        t.add(name, f"{triangles[name] / 1e3:.0f}k", f"{s.median / 1e6:.1f}", f"{fps(s):.1f}",
-              fmt_ratio(ratio) if anchor is not None else "-", verdict(goal))
-        results[name] = {**s.to_json(), "fps": fps(s), "triangles": triangles[name], "x_faster_than_pyrender":
-                         ratio if anchor is not None else None, "goal_met": goal}
+        goal = fps(s) >= GOAL_FPS if name in GOAL_ROWS else None
+        q = quality.get(name)
+        t.add(name, f"{triangles[name] / 1e3:.0f}k", strides.get(name, "-"), f"{s.median / 1e6:.1f}",
+              f"{fps(s):.1f}", fmt_ratio(ratio) if anchor is not None else "-",
+              f"{q['iou']:.3f}" if q else "-", f"{q['colour_differs']:.1%}" if q else "-", verdict(goal))
+        results[name] = {**s.to_json(), "fps": fps(s), "triangles": triangles[name], "stride": strides.get(name),
+                         "vs_full_detail": q, "x_faster_than_pyrender": ratio if anchor is not None else None,
+                         "goal_met": goal}
     t.notes += [
         "A frame: Baxter joints from the next row of shake_hand.dat, a new RGB-D frame (Redwood 0 and 1 in "
-        "turn), draw, colour read-back. RGB-D triangles: the 640x480 grid (612k; 153k at stride 2) before "
-        f"the geometry shader drops those with an unknown vertex or an edge > {MAX_EDGE * 100:g} cm.",
-        f"simplify {LIGHT}: GLUrdf keeps about {LIGHT:.0%} of Baxter's triangles (quadric decimation at load).",
+        "turn), draw, colour read-back. Triangles: Baxter's (culled back faces included) + the RGB-D grid at "
+        "the row's stride (612k at stride 1, 153k at 2, 68k at 3) before the geometry shader drops those with "
+        f"an unknown vertex or an edge > {MAX_EDGE * 100:g} cm. The automatic stride is chosen per "
+        "frame from the surface's size on screen; the column shows the one of the last frame.",
+        f"simplify {LIGHT}: GLUrdf keeps about {LIGHT:.0%} of Baxter's triangles (quadric decimation at load). "
+        "spacing: GLRGBDImage's vertex_spacing, the most screen pixels between neighbouring vertices that the "
+        "automatic stride allows (default 1).",
+        f"vs full detail: the first frame compared with '{COCO_RGBD}' (Baxter alone with itself): IoU of the "
+        f"covered pixels, share of pixels covered in both whose colour differs by > {COLOUR_TOLERANCE}/255.",
         "Same scene: the pixels covered by CoCo and pyrender in the first frame overlap with IoU "
         + ", ".join(f"{iou:.3f} ({name})" for name, iou in overlap.items()) + " (checked before timing).",
-        "pyrender rebuilds the RGB-D mesh on the CPU each frame (numpy, same triangle rules) and reads back "
-        "colour and depth; it lights the normal-less RGB-D mesh (darker), CoCo shows it unlit. Ratios are "
-        f"medians of per-round ratios ({REPEATS} interleaved rounds); the light scene is compared with "
-        "pyrender's full one.",
+        "pyrender rebuilds the full-resolution RGB-D mesh on the CPU each frame (numpy, same triangle rules) and "
+        "reads back colour and depth; it lights the normal-less RGB-D mesh (darker), CoCo shows it unlit. "
+        f"Ratios are medians of per-round ratios ({REPEATS} interleaved rounds); every RGB-D row is compared "
+        "with pyrender's full-detail scene.",
         f"Other processes used {others} of the {os.cpu_count()} cores meanwhile; llvmpipe runs vertex "
         "processing on the calling thread and rasterises on LP_NUM_THREADS threads "
         f"({os.environ.get('LP_NUM_THREADS', 'default: one per core')}).",
@@ -378,21 +420,26 @@ def profile_table(breakdown: dict[str, dict[str, float]]) -> tuple[Table, dict[s
 UPLOADS = ("CoCo GLRGBDImage upload", "CPU mesh (numpy)", "memcpy of the frame (floor)")
 
 
-def draw(frames: dict[str, Samples]) -> Callable[[Any], Any]:
+def draw(frames: dict[str, Samples], triangles: dict[str, int],
+         quality: dict[str, dict[str, float]]) -> Callable[[Any], Any]:
     def figure(plt: Any) -> Any:
         names = list(frames)
         values = [fps(frames[name]) for name in names]
         colors = ["tab:red" if name.startswith("pyrender") else "tab:blue" for name in names]
-        fig, ax = plt.subplots(figsize=(8, 3.8))
+        fig, ax = plt.subplots(figsize=(10, 4.4))
         ax.barh(names, values, color=colors)
         ax.invert_yaxis()
+        ax.tick_params(axis="y", labelsize=8)
         ax.axvline(GOAL_FPS, color="tab:green", linestyle="--", label=f"goal: {GOAL_FPS:g} fps (Baxter + RGB-D)")
-        for y, value in enumerate(values):
-            ax.text(value + 0.3, y, f"{value:.1f}", va="center", fontsize=8)
+        for y, (name, value) in enumerate(zip(names, values)):
+            q = quality.get(name)
+            label = f"{value:.1f} fps, {triangles[name] / 1e3:.0f}k triangles" + (
+                f", IoU {q['iou']:.2f} vs full detail" if q and name not in (COCO_BAXTER, COCO_RGBD) else "")
+            ax.text(value + 0.3, y, label, va="center", fontsize=7)
         ax.set_xlabel(f"frames per second, {SIZE[0]}x{SIZE[1]} headless, Mesa llvmpipe (CPU only)")
         ax.set_title("CoCo display (GLManager) vs pyrender, same scene")
         ax.legend(loc="lower right", fontsize=8)
-        ax.set_xlim(0, max(max(values) * 1.15, GOAL_FPS * 1.1))
+        ax.set_xlim(0, max(max(values) * 1.6, GOAL_FPS * 1.1))
         return fig
 
     return figure
@@ -403,17 +450,25 @@ def main() -> None:
     logging.getLogger("coco.transforms").setLevel(logging.ERROR)  # the recording names gripper-less joints
     poses, frames = motion(), rgbd_frames()
     scenes = {COCO_BAXTER: CocoScene("baxter", True, False), COCO_RGBD: CocoScene("baxter_rgbd", True, True),
-              COCO_RGBD2: CocoScene("baxter_rgbd2", True, True, stride=2),
-              COCO_LIGHT: CocoScene("light", True, True, stride=2, simplify=LIGHT),
+              COCO_AUTO: CocoScene("baxter_auto", True, True, stride=0),
+              COCO_LIGHT: CocoScene("light", True, True, stride=0, simplify=LIGHT),
+              **{name: CocoScene(f"goal{i}", True, True, stride=0, simplify=LIGHT, spacing=spacing)
+                 for i, (name, spacing) in enumerate(zip(COCO_GOALS, SPACINGS))},
               COCO_RGBD_ONLY: CocoScene("rgbd", False, True)}
     view = scenes[COCO_BAXTER].manager.views()[0].view
-    variants: dict[str, Loop] = {name: scene.loop(poses, frames) for name, scene in scenes.items()}
+    variants: dict[str, Loop] = {name: scene.loop(poses, frames) for name, scene in scenes.items()
+                                 if name != COCO_RGBD_ONLY}  # that scene measures the upload alone
     for run in variants.values():
         run(1)  # GLUrdf uploads its meshes at its first render
-    grid = {1: 2 * (SIZE[0] - 1) * (SIZE[1] - 1), 2: 2 * (SIZE[0] // 2 - 1) * (SIZE[1] // 2 - 1)}
-    triangles = {COCO_BAXTER: scenes[COCO_BAXTER].triangles, COCO_RGBD: scenes[COCO_RGBD].triangles + grid[1],
-                 COCO_RGBD2: scenes[COCO_RGBD2].triangles + grid[2], COCO_LIGHT: scenes[COCO_LIGHT].triangles + grid[2],
-                 COCO_RGBD_ONLY: grid[1]}
+    images = {}
+    for name in variants:
+        with scenes[name].ctx:
+            images[name] = scenes[name].frame(poses[0], frames[0])
+    quality = {name: compare(images[name], images[COCO_BAXTER if name == COCO_BAXTER else COCO_RGBD])
+               for name in variants}
+    triangles = {name: scenes[name].triangles for name in variants}
+    strides = {name: scenes[name].stride for name in variants}
+    grid = 2 * (SIZE[0] - 1) * (SIZE[1] - 1)
     anchors: dict[str, PyrenderScene] = {}
     simplify = scenes[COCO_BAXTER].urdf.simplify  # type: ignore[union-attr]
     try:
@@ -429,7 +484,7 @@ def main() -> None:
                              "not the same scene")
     for name, anchor in anchors.items():
         variants[name] = anchor.loop(poses, frames)
-        triangles[name] = anchor.triangles + (grid[1] if anchor.cpu is not None else 0)
+        triangles[name] = anchor.triangles + (grid if anchor.cpu is not None else 0)
 
     cpu = CpuSurface(*SIZE)
     copies = [np.empty_like(frames[0].color.data), np.empty_like(frames[0].depth.data)]
@@ -442,17 +497,17 @@ def main() -> None:
     with _report.LoadMeter() as load:
         frame_samples = measure(variants, repeats=REPEATS, target_s=TARGET_S)
         upload_samples = measure(uploads, repeats=REPEATS, target_s=0.1)
-    breakdown = {name: profile(variants[name], 10) for name in (COCO_BAXTER, COCO_RGBD, COCO_RGBD_ONLY)}
+    breakdown = {name: profile(variants[name], 10) for name in (COCO_BAXTER, COCO_RGBD, COCO_GOALS[0])}
     others = "n/a" if load.others is None else f"{load.others:.0%}"
 
-    t1, r1 = frame_table(frame_samples, triangles, overlap, others)
+    t1, r1 = frame_table(frame_samples, triangles, strides, quality, overlap, others)
     t2, r2 = upload_table(upload_samples)
     t3, r3 = profile_table(breakdown)
     renderer = scenes[COCO_BAXTER].ctx.info["GL_RENDERER"]
     _report.emit("bench_display", args, [t1, t2, t3],
                  {"frames": r1, "uploads": r2, "profile_s_per_frame": r3, "renderer": renderer, "overlap_iou": overlap,
                   "others_cpu": load.others})
-    _report.save_plot(args, draw(frame_samples))
+    _report.save_plot(args, draw(frame_samples, triangles, quality))
     # pyrender's renderers are left to the end of the process: they share EGL's default display with
     # moderngl's contexts, and once one side has released its contexts the other cannot make its current.
     for scene in scenes.values():

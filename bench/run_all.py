@@ -1,6 +1,6 @@
 """Run every benchmark, each in its own process, and collect their JSON (and markdown for the docs).
 
-    PYTHONPATH=coco_core .venv/bin/python bench/run_all.py                 # full run, about 5 min
+    PYTHONPATH=coco_core .venv/bin/python bench/run_all.py                 # full run, about 6 min
     PYTHONPATH=coco_core .venv/bin/python bench/run_all.py --seconds 2     # quick run
     PYTHONPATH=coco_core .venv/bin/python bench/run_all.py --markdown /tmp/tables.md
 
@@ -24,7 +24,8 @@ from pathlib import Path
 from _report import BENCH_DIR, IMG_DIR, REPO
 from _table import Table
 
-BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms", "bench_replay", "bench_latency"]
+BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms", "bench_replay", "bench_latency",
+              "bench_display"]
 
 
 def markdown(results: Path) -> str:

@@ -13,12 +13,23 @@ vertices. That keeps the upload off the render loop's critical path: at 640x480 
   proportional to depth.
 - **Rubber-sheet removal** (``max_edge``, metres): between a foreground and a background surface the
   grid makes long, nearly edge-on triangles. A geometry shader drops every triangle with an edge
-  longer than ``max_edge``, and always those with a vertex of unknown depth.
+  longer than ``max_edge``, and always those with a vertex of unknown depth. The limit is the same
+  at every stride: scaling it with the stride (edges of a sloped surface grow with it) fills walls
+  seen at a grazing angle that full detail leaves open, which differed more from the full-detail
+  picture than the few sloped triangles a fixed limit drops. (Measured on llvmpipe, the geometry
+  shader costs about a fifth of the surface's time; the same test done per vertex, fetching the
+  neighbours' depths in the vertex shader and discarding by ``gl_PrimitiveID`` in the fragment
+  shader, was slower.)
 - **Stride** (``stride`` = s): one vertex every s depth pixels, s^2 times fewer triangles, the colour
   still sampled at full resolution. On a software rasteriser (Mesa llvmpipe) vertex and primitive
   processing run on the drawing thread at roughly 0.1-0.2 us per triangle, so the full 640x480 grid
-  (612k triangles) alone takes longer than a 30 Hz frame there (see ``bench/bench_display.py``);
-  ``stride`` 2 trades geometric detail for frame rate.
+  (612k triangles) alone takes longer than a 30 Hz frame there (see ``bench/bench_display.py``).
+- **Automatic stride** (``stride`` 0, the default): a level of detail chosen per view from the
+  surface's size on screen. Seen from across a room, a 640x480 frame covers a few ten thousand pixels
+  and most of its 612k triangles are smaller than a pixel: drawing them costs the whole frame and
+  shows nothing more. Each view takes the largest stride that keeps neighbouring vertices at most
+  ``vertex_spacing`` pixels apart on screen (measured on a sparse sample of the newest depth frame);
+  seen from its own camera the surface keeps every pixel.
 
 The camera is the depth camera's optical frame (x right, y down, z forward, as ROS ``*_optical_frame``
 and OpenCV); its pose comes from the transformation graph (``frame``) or from ``xyz``/``rpy``.
@@ -46,6 +57,10 @@ if TYPE_CHECKING:
 
 MAX_AVERAGE = 32
 """Most frames ``average`` may span: each one is a texture fetch per vertex per view."""
+MAX_STRIDE = 16
+"""Coarsest grid: one vertex every 16 depth pixels (1,200 triangles at 640x480)."""
+LOD_SAMPLE = 16
+"""The automatic stride measures the surface's size on screen at one depth pixel in LOD_SAMPLE^2."""
 
 _VERTEX = """
 #version 330
@@ -127,6 +142,47 @@ def grid_indices(width: int, height: int) -> np.ndarray:
     return np.stack([top_left, below, right, right, below, below + 1], axis=1).ravel()
 
 
+def sample_points(depth: Image, depth_scale: float, intrinsics: tuple[float, float, float, float]) -> np.ndarray:
+    """(3, n, 3): points of every LOD_SAMPLE-th valid depth pixel in the optical frame (metres), and the
+    same points moved by one depth pixel along x and along y: what the automatic stride projects."""
+    fx, fy, cx, cy = intrinsics
+    z = depth.data[::LOD_SAMPLE, ::LOD_SAMPLE].astype(np.float32)
+    if depth.format is ImageFormat.DEPTH16:
+        z /= depth_scale
+    v, u = np.nonzero(z > 0.0)  # False for 0 (unknown) and NaN
+    z = z[v, u]
+    x, y = (u * LOD_SAMPLE - cx) / fx * z, (v * LOD_SAMPLE - cy) / fy * z
+    points = np.stack([x, y, z], axis=1)
+    zero = np.zeros_like(z)
+    return np.stack([points, points + np.c_[z / fx, zero, zero], points + np.c_[zero, z / fy, zero]])
+
+
+def automatic_stride(samples: np.ndarray, model_view_projection: np.ndarray, viewport: tuple[int, int, int, int],
+                     spacing: float) -> int:
+    """The largest stride keeping neighbouring grid vertices at most ``spacing`` pixels apart on screen.
+
+    The screen distance of one depth pixel is the median, over the samples in the view, of the longer
+    of its two projected steps (the longer one: a surface seen at a grazing angle keeps its detail
+    along the direction that is stretched). Nothing in the view (nothing drawn): the largest stride.
+    """
+    if samples.shape[1] == 0:
+        return MAX_STRIDE
+    clip = np.concatenate([samples, np.ones((*samples.shape[:2], 1), np.float32)], axis=2) @ model_view_projection.T
+    w = clip[..., 3]
+    in_front = (w > 1e-6).all(axis=0)
+    if not in_front.any():
+        return MAX_STRIDE
+    ndc = clip[:, in_front, :2] / w[:, in_front, None]
+    inside = (np.abs(ndc[0]) <= 1.0).all(axis=1)
+    if inside.any():
+        ndc = ndc[:, inside]
+    half = np.array(viewport[2:], np.float32) / 2.0
+    steps = np.maximum(np.linalg.norm((ndc[1] - ndc[0]) * half, axis=1),
+                       np.linalg.norm((ndc[2] - ndc[0]) * half, axis=1))
+    pixel = float(np.median(steps))
+    return int(np.clip(np.floor(spacing / max(pixel, 1e-9)), 1, MAX_STRIDE))
+
+
 def _three(value: tuple[float, ...]) -> str | None:
     return None if len(value) == 3 else f"expected 3 numbers, got {len(value)}"
 
@@ -199,7 +255,11 @@ class GLRGBDImage(GLPeer):
     xyz = Attribute(tuple[float, ...], (0.0, 0.0, 0.0), "camera position in the world frame (m)", check=_three)
     rpy = Attribute(tuple[float, ...], (0.0, 0.0, 0.0), "camera roll, pitch, yaw (rad, URDF convention)",
                     check=_three)
-    stride = Attribute(int, 1, "one vertex every this many depth pixels (1: every pixel)", min=1, max=16)
+    stride = Attribute(int, 0, "one vertex every this many depth pixels (1: every pixel; 0: automatic, from "
+                       "the surface's size on screen, see vertex_spacing)", min=0, max=MAX_STRIDE)
+    vertex_spacing = Attribute(float, 1.0, "with stride 0: most screen pixels between neighbouring vertices "
+                               "(1: about a vertex per pixel, as much detail as the screen shows; 2: about 4x "
+                               "fewer triangles)", min=0.1)
     average = Attribute(int, 1, "average each pixel's valid depth over this many frames", min=1,
                         max=MAX_AVERAGE)
     max_edge = Attribute(float, 0.0, "drop triangles with an edge longer than this (m); 0: keep all",
@@ -215,10 +275,13 @@ class GLRGBDImage(GLPeer):
         self._program: moderngl.Program | None = None
         self._colors: ImageTexture | None = None
         self._depths: _DepthRing | None = None
-        self._mesh: moderngl.VertexArray | None = None
-        self._indices: moderngl.Buffer | None = None
-        self._grid: tuple[tuple[int, int], int] | None = None
+        self._grids: dict[int, tuple[moderngl.Buffer, moderngl.VertexArray]] = {}
+        """Index buffer and vertex array of each stride drawn at the current depth size."""
+        self._grid_size: tuple[int, int] | None = None
+        self._samples = np.zeros((3, 0, 3), np.float32)
         self._ready = False
+        self.last_stride = 0
+        """Stride of the last view drawn (what the automatic stride chose; tools and benchmarks)."""
 
     # --- ports (step) -----------------------------------------------------------------------------
     def on_update(self) -> None:
@@ -268,7 +331,8 @@ class GLRGBDImage(GLPeer):
         self._depths = _DepthRing(ctx)
 
     def upload(self, ctx: moderngl.Context) -> None:
-        """Texture writes of what arrived since the last frame; the index buffer on a new resolution."""
+        """Texture writes of what arrived since the last frame, and the sparse sample of the new depth
+        frame that the automatic stride projects (a few hundred points)."""
         assert self._colors is not None and self._depths is not None and self._program is not None
         if self._color is not None:
             self._colors.write(self._color)
@@ -276,52 +340,60 @@ class GLRGBDImage(GLPeer):
         if self._depth is not None:
             depth, scale = self._depth
             self._depths.write(depth, scale, self.average)
+            if self._pinhole is not None:
+                self._samples = sample_points(depth, scale, self._pinhole)
             self._depth = None
-        self._ensure_grid(ctx)
-        self._ready = self._mesh is not None and self._colors.size is not None
+        self._ready = self._depths.size is not None and self._colors.size is not None
 
-    def _ensure_grid(self, ctx: moderngl.Context) -> None:
-        """The index buffer of the current depth size and ``stride`` (built again only on a change)."""
-        assert self._depths is not None and self._program is not None
-        size = self._depths.size
-        if size is None or (size, self.stride) == self._grid:
-            return
-        for resource in (self._mesh, self._indices):
-            if resource is not None:
-                resource.release()
-        columns, rows = (-(-extent // self.stride) for extent in size)
-        self._indices = ctx.buffer(grid_indices(columns, rows))
-        self._mesh = ctx.vertex_array(self._program, [], index_buffer=self._indices, index_element_size=4)
-        self._grid = (size, self.stride)
+    def _grid(self, ctx: moderngl.Context, stride: int) -> moderngl.VertexArray:
+        """The vertex array drawing the grid of the current depth size at ``stride`` (index buffers are
+        built once per stride and kept: the automatic stride moves between a few values)."""
+        assert self._depths is not None and self._program is not None and self._depths.size is not None
+        if self._depths.size != self._grid_size:
+            self._release_grids()
+            self._grid_size = self._depths.size
+        if stride not in self._grids:
+            columns, rows = (-(-extent // stride) for extent in self._depths.size)
+            indices = ctx.buffer(grid_indices(columns, rows))
+            self._grids[stride] = (indices, ctx.vertex_array(self._program, [], index_buffer=indices,
+                                                             index_element_size=4))
+        return self._grids[stride][1]
+
+    def _release_grids(self) -> None:
+        for indices, mesh in self._grids.values():
+            mesh.release()
+            indices.release()
+        self._grids = {}
 
     def render(self, ctx: moderngl.Context, view: RenderView) -> None:
         assert self._program is not None, "GLRGBDImage.render() before gl_init()"
         if self._color is not None or self._depth is not None:
             self.upload(ctx)
-        else:
-            self._ensure_grid(ctx)  # stride may have changed at run time
         if not self._ready or self._pinhole is None:
             return
-        assert self._mesh is not None and self._colors is not None and self._depths is not None
+        assert self._colors is not None and self._depths is not None
+        model_view = view.view @ self.camera_pose(view.frame)
+        stride = self.stride or automatic_stride(self._samples, view.projection @ model_view, view.viewport,
+                                                 self.vertex_spacing)
         program = self._program
         program["layers"] = self._depths.layers
-        program["stride"] = self.stride
+        program["stride"] = stride
         program["depth_unit"] = self._depths.depth_unit
         program["intrinsics"] = self._pinhole
         program["max_edge"] = self.max_edge
-        model_view = view.view @ self.camera_pose(view.frame)
         program["model_view"].write(model_view.T.astype("f4").tobytes())
         program["projection"].write(view.projection.T.astype("f4").tobytes())
         self._depths.texture.use(0)
         self._colors.use(1)
-        self._mesh.render(moderngl.TRIANGLES)
+        self._grid(ctx, stride).render(moderngl.TRIANGLES)
+        self.last_stride = stride
 
     def gl_release(self) -> None:
-        for resource in (self._mesh, self._indices, self._program):
-            if resource is not None:
-                resource.release()
+        self._release_grids()
+        if self._program is not None:
+            self._program.release()
         for textures in (self._colors, self._depths):
             if textures is not None:
                 textures.release()
-        self._mesh = self._indices = self._program = self._colors = self._depths = None
-        self._grid, self._ready = None, False
+        self._program = self._colors = self._depths = None
+        self._grid_size, self._ready = None, False

@@ -101,6 +101,23 @@ def test_face_colours_stay_per_face():
     np.testing.assert_allclose(part.positions[part.indices], box.vertices[box.faces], atol=1e-6)
 
 
+def test_repeated_vertices_are_welded_unless_their_colours_differ():
+    """A mesh that repeats its vertices per face (as DAE and STL files do) is drawn with each distinct
+    vertex once; vertices of one position but different colours stay apart."""
+    sphere = primitive("sphere", [1.0])
+    unwelded = trimesh.Trimesh(sphere.vertices[sphere.faces].reshape(-1, 3),
+                               np.arange(3 * len(sphere.faces)).reshape(-1, 3), process=False)
+    [part] = parts_of(unwelded, color=(0.2, 0.4, 0.6))
+    assert len(part.positions) == len(sphere.vertices) and part.triangles == len(sphere.faces)
+    np.testing.assert_array_equal(part.positions[part.indices], unwelded.vertices[unwelded.faces].astype("f4"))
+    box = primitive("box")
+    box.visual.face_colors = np.repeat([[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255]], 4, axis=0)
+    [coloured] = parts_of(box)
+    corners = {(vertex, tuple(colour)) for face, colour in zip(box.faces, box.visual.face_colors) for vertex in face}
+    assert len(coloured.positions) == len(corners) < 3 * len(box.faces), "one vertex per corner and colour"
+    assert (coloured.colors[coloured.indices] == box.visual.face_colors[:, None, :]).all()
+
+
 def test_merge_keeps_one_part_per_kind():
     red = primitive("box")
     red.visual.face_colors = (255, 0, 0, 255)

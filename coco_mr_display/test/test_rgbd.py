@@ -24,7 +24,8 @@ from coco_mr_display.camera import GLCameraManager
 from coco_mr_display.image import GLImage
 from coco_mr_display.manager import GLManager
 from coco_mr_display.pinhole import optical_view, pinhole_projection
-from coco_mr_display.rgbd import GLRGBDImage, grid_indices
+from coco_mr_display.rgbd import (LOD_SAMPLE, MAX_STRIDE, GLRGBDImage, automatic_stride, grid_indices,
+                                  sample_points)
 from coco_mr_display.view import RenderView
 from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
 from coco_mr_vision.rgbd import RGBDFrame
@@ -254,12 +255,55 @@ def test_stride_keeps_the_surface_with_fewer_vertices(stage):
     scene.send(rgbd=frame)
     full_rgb, full_depth = scene.frame(view)
     scene.peer.set_attribute_now("stride", 2)
+    assert scene.peer.last_stride == 1, "seen from its own camera the automatic stride keeps every pixel"
     rgb, depth = scene.frame(view)  # no new frame: the grid alone is rebuilt
-    assert scene.peer._indices.size == grid_indices(320, 240).nbytes
+    assert scene.peer.last_stride == 2 and scene.peer._grids[2][0].size == grid_indices(320, 240).nbytes
     both = np.isfinite(full_depth) & np.isfinite(depth)
     assert both.mean() > 0.75
     assert np.median(np.abs(depth - full_depth)[both]) < 2e-3
     assert np.abs(rgb.astype(int) - full_rgb)[both].mean() < 3
+
+
+def plane(distance: float, size: tuple[int, int] = (320, 240)) -> RGBDFrame:
+    """A grey plane ``distance`` metres in front of the camera (STEP_INTRINSICS)."""
+    width, height = size
+    return RGBDFrame(Image(np.full((height, width, 3), 128, np.uint8), ImageFormat.RGB8),
+                     Image(np.full((height, width), distance, np.float32), ImageFormat.DEPTH32F),
+                     CameraIntrinsics(width, height, *STEP_INTRINSICS))
+
+
+@pytest.mark.parametrize("spacing, expected", [(1.0, 4), (0.5, 2), (3.0, 12)])
+def test_automatic_stride_from_the_size_on_screen(spacing, expected):
+    """A plane 2 m away seen by the same camera 8.5 m away: a depth pixel spans 2 / 8.5 screen pixels,
+    so about 4.25 of them make ``spacing`` 1 pixel."""
+    frame = plane(2.0)
+    samples = sample_points(frame.depth, 1.0, STEP_INTRINSICS)
+    assert samples.shape[1] == (240 // LOD_SAMPLE) * (320 // LOD_SAMPLE)
+    view = camera_view(se3.make(translation=(0.0, 0.0, -6.5)), STEP_INTRINSICS, (320, 240))
+    model_view_projection = view.projection @ view.view
+    assert automatic_stride(samples, model_view_projection, view.viewport, spacing) == expected
+    behind = camera_view(se3.make(translation=(0.0, 0.0, 10.0)), STEP_INTRINSICS, (320, 240))
+    assert automatic_stride(samples, behind.projection @ behind.view, behind.viewport, 1.0) == MAX_STRIDE
+    assert automatic_stride(samples[:, :0], model_view_projection, view.viewport, 1.0) == MAX_STRIDE
+
+
+def test_automatic_stride_draws_the_same_surface_from_afar(stage):
+    """From 3 m behind the camera the surface covers a fraction of the screen: the automatic stride
+    draws far fewer triangles and covers the same pixels with the same colours as every pixel would."""
+    frame = redwood()
+    view = camera_view(se3.make(translation=(0.3, -0.2, -3.0)), PRIMESENSE, (640, 480))
+    scene = stage(max_edge=0.05, stride=1)
+    scene.send(rgbd=frame)
+    full_rgb, full_depth = scene.frame(view)
+    scene.peer.set_attribute_now("stride", 0)
+    rgb, depth = scene.frame(view)
+    assert scene.peer.last_stride >= 2
+    full, drawn = np.isfinite(full_depth), np.isfinite(depth)
+    assert (full & drawn).sum() / (full | drawn).sum() > 0.9
+    assert np.median(np.abs(rgb.astype(int) - full_rgb).max(axis=2)[full & drawn]) <= 8
+    scene.peer.set_attribute_now("vertex_spacing", 2.0)
+    scene.frame(view)
+    assert scene.peer.last_stride >= 4
 
 
 def test_grid_triangles_are_counter_clockwise_from_the_camera():
