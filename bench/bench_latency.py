@@ -7,19 +7,21 @@ The pipelines run at the same time, each in its own process, on the same input:
 - *CoCo*: the installed ROS launcher runs ``test/data/interop_teleop.xml``: ROSInterface ->
   TransformationInterface (the Baxter URDF in the transformation graph, Pinocchio) ->
   EndEffectorDistance -> ROSInterface, publishing ``/coco/gripper_pose`` and ``/coco/distance``;
-  twice: activities hosted in the launcher's rclpy executor (its default), and on threads of their
-  own (``--all-threads``, outputs remapped to ``/coco_threads/...``);
+  three times: one activity per stage hosted in the launcher's rclpy executor (its default), the
+  same on threads of their own (``--all-threads``, outputs remapped to ``/coco_threads/...``), and
+  the whole pipeline in one triggered activity (``one_activity:=true``, outputs remapped to
+  ``/coco_one/...``), the schedule a user picks for latency;
 - *anchor*: a plain rclpy node (this script with ``--plain-node``): subscribe, Pinocchio forward
   kinematics of ``left_gripper``, distance to the bowl, publish ``/plain/gripper_pose`` and
-  ``/plain/distance``.
+  ``/plain/distance`` (std_msgs/Float64, as the app).
 
-The driver measures publish -> receive of each output in its own clock. A distance
-(Float64MultiArray) carries no stamp, so outputs are matched to their input by value, both outputs of
-both pipelines alike: the driver sweeps ``left_s0`` through ``--postures`` distinct postures, and
+The driver measures publish -> receive of each output in its own clock. A distance (Float64)
+carries no stamp, so outputs are matched to their input by value, all outputs of all pipelines
+alike: the driver sweeps ``left_s0`` through ``--postures`` distinct postures, and
 every posture gives a distinct gripper position and bowl distance (checked at start). The first output per
 published joint state counts (a bowl pose update repeats the last distance). After the run, the
-launcher's profile gives the in-app latency that EndEffectorDistance records (read of its triggering
-input -> outputs written).
+launchers' profiles give the in-app latencies: EndEffectorDistance's (read of its triggering input ->
+outputs written) and the bridge's (that read -> the distance handed to DDS).
 
     .venv/bin/python bench/bench_latency.py [--seconds 10] [--json PATH] [--no-plot]
 """
@@ -27,7 +29,6 @@ input -> outputs written).
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import signal
 import subprocess
@@ -53,12 +54,21 @@ BOWL = (0.06, -3.0, -0.2)
 S0_RANGE = (-0.6, 0.6)
 TELEOP_APP = _report.REPO / "test" / "data" / "interop_teleop.xml"
 LAUNCHER = _report.REPO / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
+ONE_ACTIVITY = "CoCo ROS launcher, one activity"
 PIPELINES = {"plain rclpy node": "/plain", "CoCo ROS launcher": "/coco",
-             "CoCo ROS launcher --all-threads": "/coco_threads"}
-LAUNCHED = {"CoCo ROS launcher": [], "CoCo ROS launcher --all-threads": [
-    "--all-threads", "--ros-args", "-r", "__node:=interop_teleop_threads",
-    "-r", "/coco/gripper_pose:=/coco_threads/gripper_pose", "-r", "/coco/distance:=/coco_threads/distance"]}
-"""The launcher's two ways of hosting activities: in the rclpy executor (default), on threads of their own."""
+             "CoCo ROS launcher --all-threads": "/coco_threads", ONE_ACTIVITY: "/coco_one"}
+
+
+def _renamed(suffix: str) -> list[str]:
+    """ROS arguments giving a second launcher of the app its own node name and output topics."""
+    return ["--ros-args", "-r", f"__node:=interop_teleop_{suffix}",
+            "-r", f"/coco/gripper_pose:=/coco_{suffix}/gripper_pose", "-r", f"/coco/distance:=/coco_{suffix}/distance"]
+
+
+LAUNCHED = {"CoCo ROS launcher": [], "CoCo ROS launcher --all-threads": ["--all-threads", *_renamed("threads")],
+            ONE_ACTIVITY: ["one_activity:=true", *_renamed("one")]}
+"""One activity per stage hosted in the rclpy executor (default) or on threads of their own, and the
+whole pipeline in one triggered activity hosted in the executor."""
 ANCHOR = "plain rclpy node"
 OUTPUTS = ("gripper_pose", "distance")
 MATCH_TOLERANCE = 1e-6
@@ -101,13 +111,13 @@ def plain_node() -> int:
     from rclpy.executors import ExternalShutdownException
     from rclpy.qos import QoSProfile
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+    from std_msgs.msg import Float64
 
     fk = GripperFk()
     rclpy.init()
     node = rclpy.create_node("plain_teleop")
     pose_out = node.create_publisher(PoseStamped, "/plain/gripper_pose", QoSProfile(depth=50))
-    distance_out = node.create_publisher(Float64MultiArray, "/plain/distance", QoSProfile(depth=50))
+    distance_out = node.create_publisher(Float64, "/plain/distance", QoSProfile(depth=50))
     bowl: list[np.ndarray] = []
 
     def on_bowl(msg: PoseStamped) -> None:
@@ -123,9 +133,7 @@ def plain_node() -> int:
         pose.pose.orientation.x, pose.pose.orientation.y, pose.pose.orientation.z, pose.pose.orientation.w = x, y, z, w
         pose_out.publish(pose)
         if bowl:
-            distance = Float64MultiArray(data=[float(np.linalg.norm(T[:3, 3] - bowl[0]))])
-            distance.layout.dim = [MultiArrayDimension(label="distance", size=1, stride=1)]
-            distance_out.publish(distance)
+            distance_out.publish(Float64(data=float(np.linalg.norm(T[:3, 3] - bowl[0]))))
 
     node.create_subscription(JointState, "/robot/joint_states", on_joints, QoSProfile(depth=50))
     node.create_subscription(PoseStamped, "/bowl/pose", on_bowl, QoSProfile(depth=10))
@@ -196,7 +204,7 @@ class Driver:
         from rclpy.node import Node
         from rclpy.qos import QoSProfile
         from sensor_msgs.msg import JointState
-        from std_msgs.msg import Float64MultiArray
+        from std_msgs.msg import Float64
 
         self.postures = postures
         self.node = Node("bench_latency_driver", context=context)
@@ -208,7 +216,7 @@ class Driver:
             self.node.create_subscription(PoseStamped, f"{prefix}/gripper_pose",
                                           self._receiver(pipeline, "gripper_pose", self._position),
                                           QoSProfile(depth=50))
-            self.node.create_subscription(Float64MultiArray, f"{prefix}/distance",
+            self.node.create_subscription(Float64, f"{prefix}/distance",
                                           self._receiver(pipeline, "distance", self._distance), QoSProfile(depth=50))
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
@@ -219,7 +227,7 @@ class Driver:
         return self.postures.match(np.array([p.x, p.y, p.z]), self.postures.gripper)
 
     def _distance(self, msg: Any) -> int | None:
-        return self.postures.match(np.array(msg.data[0]), self.postures.distance) if len(msg.data) == 1 else None
+        return self.postures.match(np.array(msg.data), self.postures.distance)
 
     def _receiver(self, pipeline: str, output: str, match: Callable[[Any], int | None]) -> Callable[[Any], None]:
         track = self.tracks[(pipeline, output)]
@@ -278,11 +286,8 @@ class Driver:
 
 
 def start(command: list[str]) -> subprocess.Popen[str]:
-    """A pipeline process; ``test/data`` on its path for the app's ``interop_components``."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(TELEOP_APP.parent), env.get("PYTHONPATH", "")]))
-    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=_report.REPO,
-                            env=env)
+    """A pipeline process, its output kept for the profile it prints at the end."""
+    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=_report.REPO)
 
 
 def stop(process: subprocess.Popen[str]) -> str:
@@ -296,9 +301,13 @@ def stop(process: subprocess.Popen[str]) -> str:
     return out
 
 
-def profiled_latency(launcher_output: str) -> tuple[float, float] | None:
-    """EndEffectorDistance's latency (mean, max in s) from the launcher's last profile, if it printed one."""
-    found = re.findall(r"^distance\s.*?([0-9.]+) / ([0-9.]+)\s*$", launcher_output, re.M)
+PROFILED = {"distance": "EndEffectorDistance", "bridge": "bridge: distance published"}
+"""Components whose latency the launcher's profile reports, and the row label of each."""
+
+
+def profiled_latency(launcher_output: str, component: str) -> tuple[float, float] | None:
+    """``component``'s recorded latency (mean, max in s) from the launcher's last profile, if any."""
+    found = re.findall(rf"^{component}\s.*?([0-9.]+) / ([0-9.]+)\s*$", launcher_output, re.M)
     return (float(found[-1][0]) / 1e3, float(found[-1][1]) / 1e3) if found else None
 
 
@@ -311,7 +320,8 @@ def percentiles(values: list[float]) -> dict[str, float]:
     return {"p50": float(p50), "p90": float(p90), "p99": float(p99), "max": float(max(values))}
 
 
-def table(driver: Driver, profiles: dict[str, tuple[float, float] | None], args: Any) -> tuple[Table, dict[str, Any]]:
+def table(driver: Driver, profiles: dict[tuple[str, str], tuple[float, float] | None],
+          args: Any) -> tuple[Table, dict[str, Any]]:
     t = Table("Figure 6 - teleop app over DDS: joint state published -> output received (driver's clock)",
               ["pipeline", "output", "samples", "p50", "p90", "p99", "max", "p50 vs plain node", "p99 vs plain node"])
     results: dict[str, Any] = {}
@@ -325,20 +335,21 @@ def table(driver: Driver, profiles: dict[str, tuple[float, float] | None], args:
             t.add(pipeline, output, len(track.latencies), *times, fmt_ratio(ratio["p50"]), fmt_ratio(ratio["p99"]))
             results[f"{pipeline}: {output}"] = {**stats, "samples": len(track.latencies),
                                                 "unmatched": track.unmatched, "x_anchor": ratio}
-    for name, profile in profiles.items():
+    for (name, component), profile in profiles.items():
         if profile is None:
             continue
-        t.add(f"{name}: profiler (in app)", "EndEffectorDistance", "-", f"mean {fmt_time_ns(profile[0] * 1e9)}", "-",
+        t.add(f"{name}: profiler (in app)", PROFILED[component], "-", f"mean {fmt_time_ns(profile[0] * 1e9)}", "-",
               "-", fmt_time_ns(profile[1] * 1e9), "-", "-")
-        results[f"{name}: profiler distance"] = {"mean": profile[0], "max": profile[1]}
+        results[f"{name}: profiler {component}"] = {"mean": profile[0], "max": profile[1]}
     t.notes += [f"{args.seconds:g} s measured after {args.warmup:g} s warm-up; joint states at {RATE_HZ:g} Hz, "
                 f"bowl pose at {BOWL_HZ:g} Hz; all pipelines run at the same time on the same input "
                 "(noise hits them alike).",
                 "The launcher hosts activities in its rclpy executor (default) or, with --all-threads, on threads "
-                "of their own (as coco-launch does). Ratios > 1: slower than the plain node by that factor. The "
-                "profiler rows are "
-                "EndEffectorDistance's own interval (read of its triggering pose -> outputs written), inside "
-                "the app, mean and max.",
+                "of their own (as coco-launch does); 'one activity': the whole pipeline in one triggered activity "
+                "(one_activity:=true), in the executor. Ratios > 1: slower than the plain node by that factor, "
+                "< 1: faster. The profiler rows are inside the app, mean and max: EndEffectorDistance's interval "
+                "(read of its triggering pose -> outputs written) and the bridge's (that read -> the distance "
+                "handed to DDS).",
                 f"{args.postures} postures swept; an output matches its joint state by value (within "
                 f"{MATCH_TOLERANCE:g} m); the first output per joint state counts."]
     return t, results
@@ -346,7 +357,7 @@ def table(driver: Driver, profiles: dict[str, tuple[float, float] | None], args:
 
 def draw(driver: Driver) -> Callable[[Any], Any]:
     def figure(plt: Any) -> Any:
-        fig, ax = plt.subplots(figsize=(8, 3.8))
+        fig, ax = plt.subplots(figsize=(8, 4.6))
         rows = [(f"{pipeline}: {output}", percentiles(driver.tracks[(pipeline, output)].latencies))
                 for output in OUTPUTS for pipeline in PIPELINES]
         height = 0.25
@@ -399,7 +410,8 @@ def main() -> None:
     for name, out in outputs.items():
         if processes[name].returncode not in (0, 130, -signal.SIGINT):
             print(f"warning: {name} exited {processes[name].returncode}:\n{out[-3000:]}", file=sys.stderr)
-    t, results = table(driver, {name: profiled_latency(outputs[name]) for name in LAUNCHED}, args)
+    t, results = table(driver, {(name, component): profiled_latency(outputs[name], component)
+                                for name in LAUNCHED for component in PROFILED}, args)
     _report.emit("bench_latency", args, [t], results)
     _report.save_plot(args, draw(driver))
 

@@ -2,7 +2,7 @@
 # The main job: set up and build the workspace, then run the default application, the Baxter
 # teleoperation replay (config/baxter_teleop_replay.xml), on a generated session (no hardware needed).
 # The session bag is generated once, on first use, into out/baxter_session. Extra arguments go to the
-# launcher, e.g. `rate:=2`, `near:=0.05` or `--duration 5`.
+# launcher, e.g. `rate:=2`, `near:=0.05`, `display:=false` (no rendering) or `--duration 5`.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=setup.sh
@@ -34,9 +34,23 @@ if [ ! -f "$SESSION/metadata.yaml" ]; then
     rmdir "$partial"
 fi
 
+started="$(mktemp)"  # what this run rendered is newer than this file (the folder may hold older runs')
+trap 'rm -f "$started"' EXIT
 "$ROOT/install/coco_core/lib/coco_core/coco-launch" config/baxter_teleop_replay.xml \
     bag:="$SESSION" output:="$OUTPUT" --profile 6 "$@"
 
 echo
 echo "Teleoperation summary ($OUTPUT/summary.json):"
 python -m coco_ros.teleop "$OUTPUT/summary.json"
+
+# The augmented teleoperation view (not with display:=false): a video or PNG sequence, and a contact sheet.
+if [ "$OUTPUT/contact_sheet.png" -nt "$started" ]; then
+    echo
+    if [ "$OUTPUT/frames.mp4" -nt "$started" ]; then
+        echo "Rendered view:  $OUTPUT/frames.mp4"
+    else
+        frames=("$OUTPUT"/frames_*.png)
+        echo "Rendered view:  $OUTPUT/frames_*.png (${#frames[@]} frames)"
+    fi
+    echo "Contact sheet:  $OUTPUT/contact_sheet.png"
+fi

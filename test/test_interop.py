@@ -1,20 +1,23 @@
 """Interoperability with plain ROS 2 nodes over real DDS, between processes.
 
 - The installed ROS launcher runs ``test/data/interop_teleop.xml`` (ROSInterface -> Baxter URDF in
-  the transformation graph -> EndEffectorDistance -> ROSInterface); this test's own rclpy node, in
+  the transformation graph -> EndEffectorDistance -> ROSInterface), with one activity per stage and
+  with the whole pipeline in one activity (``one_activity:=true``); this test's own rclpy node, in
   its own process, publishes joint states and a bowl pose and receives the gripper pose (stamped
-  with the joint state it comes from) and the distance, which it checks against Pinocchio forward
-  kinematics computed here from the URDF.
+  with the joint state it comes from) and the distance (std_msgs/Float64, published from
+  EndEffectorDistance's ``Stamped[float]`` by the bridge itself), which it checks against Pinocchio
+  forward kinematics computed here from the URDF.
 - A generated Baxter session bag is replayed to DDS topics, by the launcher (BagReplay ->
   ROSInterface, ``test/data/interop_replay.xml``) and by the ``coco-replay`` CLI; this test's node
   receives every message, checked in count and content against the bag.
 
-Every test has its own DDS domain (70-72), discovery on localhost only.
+Every test has its own DDS domain (70-72, 81), discovery on localhost only.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -86,9 +89,8 @@ def peer(request, monkeypatch: pytest.MonkeyPatch) -> Iterator[Peer]:
 
 
 def start(domain: str, *command: str | Path) -> subprocess.Popen[str]:
-    """Start an installed script in its own process on ``domain``, with ``test/data`` importable."""
+    """Start an installed script in its own process on ``domain``."""
     env = dict(os.environ, ROS_DOMAIN_ID=domain, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", PYTHONUNBUFFERED="1")
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(DATA), env.get("PYTHONPATH", "")]))
     return subprocess.Popen([sys.executable, *map(str, command)], cwd=ROOT, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
 
@@ -156,21 +158,22 @@ POSTURES = [left_arm(0.0, -0.55, 0.0, 0.75, 0.0, 1.26, 0.0),          # baxter_i
 BOWLS = [(0.75, 0.25, -0.15), (0.6, 0.45, -0.05)]
 
 
-@pytest.mark.parametrize("peer", [70], indirect=True)
-def test_launcher_computes_the_gripper_pose_and_distance_of_published_joint_states(peer: Peer) -> None:
+@pytest.mark.parametrize(("peer", "schedule"), [(70, "one_activity:=false"), (81, "one_activity:=true")],
+                         indirect=["peer"], ids=["activity_per_stage", "one_activity"])
+def test_launcher_computes_the_gripper_pose_and_distance_of_published_joint_states(peer: Peer, schedule: str) -> None:
     from coco_ros.baxter.joints import BAXTER_JOINT_NAMES
     from geometry_msgs.msg import PoseStamped
     from rclpy.qos import QoSProfile
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64MultiArray
+    from std_msgs.msg import Float64
 
     fk = BaxterFk()
     expected_poses = [fk.left_gripper(posture) for posture in POSTURES]
     poses: list[PoseStamped] = []
-    distances: list[Float64MultiArray] = []
+    distances: list[Float64] = []
     node = peer.node
     node.create_subscription(PoseStamped, "/coco/gripper_pose", poses.append, QoSProfile(depth=200))
-    node.create_subscription(Float64MultiArray, "/coco/distance", distances.append, QoSProfile(depth=200))
+    node.create_subscription(Float64, "/coco/distance", distances.append, QoSProfile(depth=200))
     joints_out = node.create_publisher(JointState, "/robot/joint_states", QoSProfile(depth=50))
     bowl_out = node.create_publisher(PoseStamped, "/bowl/pose", QoSProfile(depth=10))
 
@@ -198,9 +201,10 @@ def test_launcher_computes_the_gripper_pose_and_distance_of_published_joint_stat
         """The newest outputs are those of the posture and bowl being published."""
         return bool(poses and distances) \
             and np.allclose(pose_matrix(poses[-1].pose), expected_poses[current["posture"]], atol=1e-9) \
-            and abs(distances[-1].data[0] - expected_distance()) < 1e-9
+            and abs(distances[-1].data - expected_distance()) < 1e-9
 
-    process = start(peer.domain, LAUNCHER, DATA / "interop_teleop.xml", "--duration", "60")
+    process = start(peer.domain, LAUNCHER, DATA / "interop_teleop.xml", schedule, "--duration", "60", "--profile",
+                    "3600")
     reached = []
     try:
         for posture, bowl in [(0, 0), (1, 0), (2, 0), (2, 1)]:
@@ -230,8 +234,10 @@ def test_launcher_computes_the_gripper_pose_and_distance_of_published_joint_stat
     known = expected_poses + [zero]
     pairs = [float(np.linalg.norm(T[:3, 3] - np.array(b))) for T in known for b in BOWLS]
     for distance in distances:
-        assert distance.layout.dim[0].label == "distance" and len(distance.data) == 1
-        assert min(abs(distance.data[0] - d) for d in pairs) < 1e-9, (distance.data[0], pairs)
+        assert min(abs(distance.data - d) for d in pairs) < 1e-9, (distance.data, pairs)
+    # The bridge profiled each published distance's age (EndEffectorDistance's Stamp -> handed to DDS).
+    profiled = re.findall(r"^bridge\s+.*\s([0-9.]+) / ([0-9.]+)\s*$", output, re.M)
+    assert profiled and 0 < float(profiled[-1][0]) <= float(profiled[-1][1]), output
 
 
 # --- 2. a bag replayed to DDS topics ----------------------------------------------------------------

@@ -14,6 +14,7 @@ better than an rclpy timer.
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 import time
 from collections import deque
@@ -58,6 +59,8 @@ class Activity:
         self.stats = ActivityStats()
         self.current: Component | None = None
         """The component being updated right now: named when the activity does not stop in time."""
+        self._position = sys.maxsize
+        """Index of ``current`` in ``components`` during a cycle; ``sys.maxsize`` between cycles."""
         self._ops: deque[Callable[[], None]] = deque()
         self._wake = threading.Event()
         self._stopping = False
@@ -78,13 +81,28 @@ class Activity:
             raise ValueError(f"component {component.name} is already in activity {component.activity.name}")
         component.activity = self
         self.components.append(component)
-        self._bind_wake(component)
+        self._bind_wake(len(self.components) - 1, component)
 
-    def _bind_wake(self, component: Component) -> None:
-        """Let every input of ``component`` and its peers wake this activity (event ports use it)."""
+    def _bind_wake(self, position: int, component: Component) -> None:
+        """Let every input of ``component`` (at ``position`` in the order) and its peers wake this
+        activity (event ports use it)."""
+        wake = self._waker(position) if self.wakes_on_data else None
         for member in component.walk():
             for port in member.inputs.values():
-                port.set_wake(self.wake if self.wakes_on_data else None)
+                port.set_wake(wake)
+
+    def _waker(self, position: int) -> Callable[[], None]:
+        """The wake-up of the inputs of the component at ``position``: none while a cycle has yet to
+        update that component (an earlier one of the pipeline wrote to it, or another thread did
+        before the cycle reached it), since that cycle reads the data; otherwise :meth:`wake`, so the
+        data gets a cycle of its own. Without this, every pipeline in one activity ran one empty cycle
+        after each real one. ``_position`` only grows during a cycle, and the data is stored before
+        the wake-up, so a skipped wake-up's data is always read."""
+        def wake() -> None:
+            if position <= self._position:
+                self.wake()  # looked up at each call: a host may replace ``wake``
+
+        return wake
 
     @property
     def running(self) -> bool:
@@ -100,8 +118,8 @@ class Activity:
         if self._started:
             raise RuntimeError(f"activity {self.name} was already started")
         self._started = True
-        for component in self.components:  # ports and peers may have been added since add()
-            self._bind_wake(component)
+        for position, component in enumerate(self.components):  # ports and peers may have been added
+            self._bind_wake(position, component)
         if self.host is not None:
             self._entered = True
             self.host(self)
@@ -137,10 +155,12 @@ class Activity:
         """One activation: queued operation calls, then every component in order."""
         if self._ops:
             self._run_pending()
-        for component in self.components:
-            self.current = component
-            component.step()
-        self.current = None
+        try:
+            for position, component in enumerate(self.components):
+                self.current, self._position = component, position
+                component.step()
+        finally:  # a stale position would keep later wake-ups from waking the activity
+            self.current, self._position = None, sys.maxsize
         self.stats.cycles += 1
 
     def finish(self) -> None:
@@ -278,7 +298,9 @@ class PeriodicActivity(Activity):
 class TriggeredActivity(Activity):
     """Runs one cycle each time it is woken: data on an event port, a queued operation, or ``wake()``.
 
-    Wake-ups that arrive during a cycle are not lost: they cause one more cycle.
+    Wake-ups that arrive during a cycle are not lost: they cause one more cycle, unless the data is
+    for a component that cycle has yet to update (a pipeline's stages in one activity: each stage's
+    output is read by the next in the same cycle).
     """
 
     kind = "triggered"

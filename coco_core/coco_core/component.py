@@ -71,6 +71,10 @@ class Component:
 
     manages_peers: ClassVar[bool] = False
     """True when the component runs its peers itself (``peer.step()``) instead of after ``on_update``."""
+    thread_bound: ClassVar[bool] = False
+    """True when the component holds a resource tied to the thread that created it (an OpenGL context
+    is current in one thread only): its activity must then run every cycle in one thread, which a host
+    that spreads callbacks over a thread pool (the ROS launcher's executor) has to honour."""
 
     _attribute_decls: ClassVar[dict[str, Attribute]] = {}
     _port_decls: ClassVar[dict[str, Port]] = {}

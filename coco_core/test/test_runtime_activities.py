@@ -501,3 +501,53 @@ def test_stop_after_start_does_not_wait_for_a_main_activity_that_never_ran(make_
     errors = [r.getMessage() for r in caplog.records if r.name == "coco"]
     assert clean is True and errors == [], errors
     assert elapsed < 0.5, f"stop() waited {elapsed:.2f} s for a main activity that never ran"
+
+
+class Stage(Component):
+    """Reads every value; passes each one below 100 on, plus one."""
+
+    inp = InputPort(int, event=True)
+    out = OutputPort(int)
+
+    def init(self) -> None:
+        self.seen: list[int] = []
+
+    def on_update(self) -> None:
+        for value in self.inp.read_all():
+            self.seen.append(value)
+            if value < 100:
+                self.out.write(value + 1)
+
+
+def two_stages(make_app, feedback: bool):
+    """source -> first -> second, both stages in one triggered activity, optionally second -> first."""
+    app = make_app("stages")
+    source = app.add(Source("source"))
+    activity = TriggeredActivity("pipeline")
+    first, second = app.add(Stage("first"), activity), app.add(Stage("second"), activity)
+    app.connect("source.out", "first.inp", BUFFERED)
+    app.connect("first.out", "second.inp", BUFFERED)
+    if feedback:
+        app.connect("second.out", "first.inp", BUFFERED)
+    app.start()
+    return source, first, second, activity
+
+
+def test_a_pipeline_in_one_triggered_activity_runs_one_cycle_per_input(make_app, wait_until):
+    """What a stage writes to a later stage of its activity is read in the same cycle: no other cycle."""
+    source, first, second, activity = two_stages(make_app, feedback=False)
+    for value in (0, 10, 20):
+        source.out.write(value)
+        assert wait_until(lambda: second.seen[-1:] == [value + 1])
+    time.sleep(0.1)
+    assert activity.stats.cycles == 3, "one cycle per input: the stage-to-stage write is read in it"
+    assert first.seen == [0, 10, 20] and second.seen == [1, 11, 21]
+
+
+def test_data_for_a_stage_the_cycle_already_ran_gets_a_cycle_of_its_own(make_app, wait_until):
+    source, first, second, activity = two_stages(make_app, feedback=True)
+    source.out.write(95)
+    assert wait_until(lambda: second.seen[-1:] == [100])
+    time.sleep(0.1)
+    assert first.seen == [95, 97, 99] and second.seen == [96, 98, 100]
+    assert activity.stats.cycles == 3

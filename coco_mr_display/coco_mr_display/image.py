@@ -17,6 +17,7 @@ import moderngl
 from coco_core.attributes import Attribute
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
+from coco_core.stamps import Stamped, unstamped
 from coco_mr_vision.image import Image
 
 from .image_texture import ImageTexture
@@ -67,7 +68,8 @@ def fit_scale(image_size: tuple[int, int], viewport_size: tuple[int, int], fit: 
 class GLImage(GLPeer):
     """Draws the latest image of its ``image`` input over the whole viewport, behind everything."""
 
-    image = InputPort(Image, doc="camera images, any coco_mr_vision format (depth shows as grey)")
+    image = InputPort(Image | Stamped, doc="camera images, any coco_mr_vision format (depth shows as grey), "
+                      "optionally Stamped (a stamped BagReplay's or ROSInterface's)")
     fit = Attribute(str, "contain", "how the image meets the viewport: contain | cover | stretch",
                     choices=FITS)
 
@@ -79,9 +81,12 @@ class GLImage(GLPeer):
         self._quad: moderngl.VertexArray | None = None
 
     def on_update(self) -> None:
-        status, image = self.image.read()
+        status, value = self.image.read()
         if status is NEW_DATA:
+            image, stamp = unstamped(value)
             self._pending = image
+            if stamp is not None:
+                self.record_latency(stamp)  # drawn this frame
 
     def gl_init(self, ctx: moderngl.Context) -> None:
         self._program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)

@@ -48,6 +48,7 @@ class GLManager(Component):
     """An OpenGL 3.3 core output rendering its peers; the rendered frame goes out as an image."""
 
     manages_peers = True
+    thread_bound = True  # its OpenGL context is current in the activity thread that created it
 
     width = Attribute(int, 640, "framebuffer (window) width in pixels", min=1)
     height = Attribute(int, 480, "framebuffer (window) height in pixels", min=1)

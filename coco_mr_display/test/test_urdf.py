@@ -162,3 +162,19 @@ def test_bad_input_gives_clear_errors(baxter_path, tmp_path):
         app.add(GLUrdf("broken", urdf=str(broken))).on_config()
     with pytest.raises(Exception, match=r"urdf attribute is empty"):
         app.add(GLUrdf("empty")).on_config()
+
+
+def test_preload_reads_the_meshes_while_the_application_is_built(robot):
+    """With preload the meshes are read in init(): the first frame after configuration shows the robot."""
+    peer, _, frame = robot(preload=True, simplify=0.25)
+    assert peer.loaded, "preload must have read the meshes before the application starts"
+    _, mask = frame()
+    assert mask.sum() > 5000, "the first frame after a preload shows the robot"
+
+
+def test_preload_reports_a_bad_mesh_when_the_application_is_built(tmp_path):
+    broken = tmp_path / "broken.urdf"
+    broken.write_text('<robot name="r"><link name="a"><visual><geometry><mesh filename="meshes/gone.stl"/>'
+                      "</geometry></visual></link></robot>")
+    with pytest.raises(ResourceNotFoundError, match=r"meshes/gone\.stl does not exist"):
+        Application("urdf-preload").add(GLUrdf("broken", urdf=str(broken), preload=True))

@@ -10,7 +10,13 @@ parallel on the executor's threads:
   overrun, the deadlines it missed being skipped, as the activity's own thread does;
 - a *triggered* activity is a guard condition in its group, triggered by the activity's ``wake``:
   data on an event port, an operation queued to it, or an explicit ``wake()``. Wake-ups that arrive
-  during a cycle cause one more cycle; none is lost.
+  during a cycle cause one more cycle; none is lost. Wake-ups are coalesced: while one is pending,
+  the next trigger nothing; one from inside the group's own callbacks is served at the end of that
+  callback (one guard condition trigger at most); and a ROS entity callback wrapped by
+  :func:`activity_callback` (a ROSInterface subscription) runs the cycle its data asked for right
+  after it, in the same executor callback: the guard condition round trip (trigger, executor
+  wake-up, wait-set rebuild, dispatch to a worker) is the costliest hop of a pipeline, measured in
+  ``docs/benchmarks.md`` (Figure 6).
 
 Every callback makes the activity the thread's *current activity* while it runs (executor threads
 are shared, so operations called from a component must know whose thread they are in). The first
@@ -31,6 +37,7 @@ operations, ``Application.stop`` and ``Application.set_period`` reach the execut
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 import time
@@ -44,6 +51,7 @@ from rclpy.clock import Clock, ClockType
 
 if TYPE_CHECKING:
     from rclpy.callback_groups import CallbackGroup
+    from rclpy.context import Context
     from rclpy.executors import Executor
     from rclpy.guard_condition import GuardCondition
     from rclpy.node import Node
@@ -57,6 +65,9 @@ error (233 us SingleThreaded, 500 us MultiThreaded at 1 kHz, idle) is a tenth of
 
 EXECUTOR = "executor"
 
+MULTI_POLL = 0.1
+"""Seconds a multi-threaded executor's spin waits at most (see :class:`ExecutorThread`)."""
+
 PARKED_NS = 86_400 * 10**9
 """The period (a day) a stopped activity's timer is parked at until the node is destroyed."""
 
@@ -67,7 +78,9 @@ def dedicated_reason(activity: Activity, forced: bool = False) -> str | None:
     A thread is needed by the main activity (it runs in the launcher's main thread), by an activity
     that asks the OS for anything about its thread (affinity, exclusive cores, real-time class,
     priority, nice: an executor thread is shared, so none of it could be applied), by a periodic
-    activity faster than :data:`THREAD_PERIOD`, and by one the command line names (``forced``).
+    activity faster than :data:`THREAD_PERIOD`, by one running a ``thread_bound`` component (or peer:
+    an OpenGL context works only in the thread that made it, and executor callbacks hop between the
+    pool's threads), and by one the command line names (``forced``).
     """
     if forced:
         return "asked on the command line"
@@ -81,6 +94,9 @@ def dedicated_reason(activity: Activity, forced: bool = False) -> str | None:
         return f"thread placement ({', '.join(asked) or 'scheduling request'})"
     if isinstance(activity, PeriodicActivity) and activity.period < THREAD_PERIOD:
         return f"period {activity.period * 1e3:g} ms < {THREAD_PERIOD * 1e3:g} ms"
+    bound = [c.name for top in activity.components for c in top.walk() if c.thread_bound]
+    if bound:
+        return f"thread-bound component{'s' if len(bound) > 1 else ''} {', '.join(bound)}"
     return None
 
 
@@ -125,6 +141,9 @@ class _Hosted:
         self.pending = False
         """A wake-up (data, a queued operation) not yet served by a cycle."""
         self.closed = False
+        self.inside = False
+        """A callback of this activity's group runs now (the group lets one run at a time): a wake-up
+        then only marks ``pending``, and that callback serves it when it ends."""
         node = host.node
         self.guard: GuardCondition = node.create_guard_condition(self._on_guard, callback_group=group)
         self.timer: Timer | None = None
@@ -149,8 +168,24 @@ class _Hosted:
         self._trigger()
 
     def _wake(self) -> None:
+        """Trigger the guard condition only when no wake-up is pending: a pending one already has a
+        trigger (or the running callback, ``inside``) that will serve it, and the cycle it leads to
+        clears ``pending`` before reading the ports, so it sees this wake-up's data too. Every
+        trigger saved is an executor wake-up, wait-set rebuild and dispatch of an empty callback."""
+        if self.pending:
+            return
         self.pending = True
-        self._trigger()
+        if not self.inside:
+            self._trigger()
+
+    def _leave(self) -> None:
+        """End of a callback of the group: a wake-up that came meanwhile gets its cycle. ``inside`` is
+        cleared before ``pending`` is read, so a wake-up from another thread is never lost: either it
+        sees ``inside`` False and triggers, or this sees its ``pending``."""
+        set_current_activity(None)
+        self.inside = False
+        if self.pending:
+            self._trigger()
 
     def _stop(self) -> None:
         type(self.activity).stop(self.activity)  # marks it stopping: a timer callback now returns at once
@@ -191,6 +226,7 @@ class _Hosted:
         activity = self.activity
         if not self.started or activity.finished:
             return
+        self.inside = True
         set_current_activity(activity)
         try:
             if activity.stopping:
@@ -212,7 +248,25 @@ class _Hosted:
         except Exception:  # components isolate their own errors; this is a bug guard
             self._crashed()
         finally:
-            set_current_activity(None)
+            self._leave()
+
+    def run_entity_callback(self, callback: Callable[..., None], *args: object) -> None:
+        """A ROS entity callback of this group (so never during a cycle), as the activity, then at
+        once the cycle its writes asked for: the data reaches the components in this executor
+        callback instead of one guard condition round trip later."""
+        activity = self.activity
+        self.inside = True
+        set_current_activity(activity)
+        try:
+            callback(*args)
+            if self.pending and self.configured and not activity.stopping and not activity.finished:
+                self.pending = False
+                try:
+                    activity.cycle()
+                except Exception:  # components isolate their own errors; this is a bug guard
+                    self._crashed()
+        finally:
+            self._leave()
 
     def _begin_grid(self) -> None:
         assert self.timer is not None
@@ -261,10 +315,10 @@ class _Hosted:
 class ExecutorHost:
     """Runs ``app``'s activities in ``node``: callback groups of the node's executor, or threads.
 
-    Create it after the application was built and before ``app.start()``; add ``node`` to a
-    ``MultiThreadedExecutor`` and spin it while the application runs (the executor needs as many
-    threads as activities it hosts to run them all in parallel: :meth:`executor_threads`). After
-    ``app.stop()``, shut the executor down and call :meth:`close`.
+    Create it after the application was built and before ``app.start()``; add ``node`` to the
+    executor of :meth:`create_executor` and spin it while the application runs (a
+    ``MultiThreadedExecutor`` with as many threads as activities it hosts, to run them all in
+    parallel: :meth:`executor_threads`). After ``app.stop()``, stop spinning and call :meth:`close`.
 
     Every activity, hosted or not, gets a ``MutuallyExclusiveCallbackGroup``
     (:meth:`callback_group`): the ROS entities of its components (subscriptions, timers) belong there,
@@ -299,9 +353,31 @@ class ExecutorHost:
                             f"{did_you_mean(name, self.groups)}") from None
 
     def executor_threads(self) -> int:
-        """Threads for a ``MultiThreadedExecutor``: one per hosted activity and one more for the ROS
-        entities in other groups, at least two."""
+        """Executor threads: one per hosted activity and one more for the ROS entities in other
+        groups, at least two; but 1 when the executor hosts every activity and there is at most one:
+        every callback is then in that activity's group, except those of components in no activity
+        (the node's default group), so there is next to nothing to run in parallel, and
+        :meth:`create_executor` makes it a ``SingleThreadedExecutor``."""
+        if len(self.hosted) <= 1 and len(self.hosted) == len(self.app.activities):
+            return 1
         return max(2, len(self.hosted) + 1)
+
+    def create_executor(self, threads: int | None = None, context: Context | None = None) -> Executor:
+        """The executor to add the node to: a ``MultiThreadedExecutor`` with ``threads`` workers
+        (default :meth:`executor_threads`), or for one thread a ``SingleThreadedExecutor``.
+
+        One thread is not a ``MultiThreadedExecutor(num_threads=1)``: that one still hands every
+        callback to its worker while its spinning thread polls the wait set again, which costs (rclpy
+        7.1, measured with one hosted activity at 100 messages/s) 1.5-6x the CPU of running the callback
+        in the spinning thread and a tail of tens to hundreds of milliseconds (docs/benchmarks.md,
+        Figure 6).
+        """
+        from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+
+        threads = threads or self.executor_threads()
+        if threads == 1:
+            return SingleThreadedExecutor(context=context)
+        return MultiThreadedExecutor(num_threads=threads, context=context)
 
     def describe(self) -> str:
         """One line per activity: its schedule and where it runs."""
@@ -320,14 +396,28 @@ class ExecutorThread:
     to its worker threads may still use it (rclpy then reports an ``InvalidHandle`` that was "never
     retrieved"); stopping the spin loop and leaving the executor alive avoids that race. An exception
     from a handler is given to ``on_error`` and the loop goes on, so that activities can still finish.
+
+    ``poll`` is the longest wait of one spin. By default a ``SingleThreadedExecutor`` waits without
+    one: every callback, :meth:`stop` (a future the spin waits for, and ``executor.wake()``) and a ROS
+    shutdown (rclpy wakes its executors) end the wait, and rclpy creates a timer for every wait that
+    has a timeout (about 20 us per executor callback, measured). Another executor polls every
+    :data:`MULTI_POLL` seconds: rclpy 7.1's ``MultiThreadedExecutor`` can miss a wake-up (a guard
+    condition ping-pong between two callback groups of a node without parameter services stalled
+    about 15 ms per hop without a timeout), which the poll bounds.
     """
 
     def __init__(self, executor: Executor, on_error: Callable[[str], None] | None = None,
-                 poll: float = 0.1) -> None:
+                 poll: float | None = None) -> None:
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.task import Future
+
         self.executor = executor
         self.on_error = on_error
+        if poll is None and not isinstance(executor, SingleThreadedExecutor):
+            poll = MULTI_POLL
         self.poll = poll
-        self._done = threading.Event()
+        self._done = Future()
+        """Done when :meth:`stop` was called: the spin's wait condition."""
         self._thread = threading.Thread(target=self._loop, name="coco:executor", daemon=True)
 
     def start(self) -> ExecutorThread:
@@ -335,14 +425,18 @@ class ExecutorThread:
         return self
 
     def _loop(self) -> None:
-        executor = self.executor
-        while not self._done.is_set():
+        from rclpy.executors import ExternalShutdownException
+
+        executor, done = self.executor, self._done
+        while not done.done():
             if not executor.context.ok():
                 if self.on_error is not None:
                     self.on_error("ROS was shut down")
                 return
             try:
-                executor.spin_once(timeout_sec=self.poll)
+                executor.spin_once_until_future_complete(done, timeout_sec=self.poll)
+            except ExternalShutdownException:  # the single-threaded executor's way to say it
+                continue
             except Exception:
                 log.exception("the ROS executor failed")
                 if self.on_error is not None:
@@ -350,7 +444,8 @@ class ExecutorThread:
 
     def stop(self, timeout: float = 1.0) -> bool:
         """End the spin loop; False when it did not end within ``timeout`` seconds."""
-        self._done.set()
+        if not self._done.done():
+            self._done.set_result(None)
         try:
             self.executor.wake()
         except Exception:  # the context is already shut down
@@ -374,8 +469,8 @@ def ros_node(app_or_component: Application | Component) -> Node:
     return node
 
 
-def callback_group(component: Component) -> CallbackGroup:
-    """The callback group of the activity that runs ``component`` (peers: their owner's)."""
+def _scheduled(component: Component) -> tuple[ExecutorHost, Activity | None]:
+    """The host of ``component``'s application and the activity that runs it (peers: their owner's)."""
     top = component
     while top.owner is not None:
         top = top.owner
@@ -383,6 +478,29 @@ def callback_group(component: Component) -> CallbackGroup:
     if host is None:
         ros_node(component)  # raises the explanation
         raise AssertionError("unreachable")
-    if top.activity is None:
+    return host, top.activity
+
+
+def callback_group(component: Component) -> CallbackGroup:
+    """The callback group of the activity that runs ``component`` (peers: their owner's)."""
+    host, activity = _scheduled(component)
+    if activity is None:
         return host.node.default_callback_group
-    return host.callback_group(top.activity)
+    return host.callback_group(activity)
+
+
+def activity_callback(component: Component, callback: Callable[..., None]) -> Callable[..., None]:
+    """``callback`` made fit for a ROS entity in ``callback_group(component)`` (a subscription).
+
+    When the executor hosts ``component``'s activity, the returned callback runs ``callback`` as that
+    activity (``current_activity()``) and, if its writes woke the (triggered) activity, the activity's
+    cycle right after it in the same executor callback: sound because the group never runs that
+    callback during a cycle, and it saves the guard condition round trip to the next executor
+    callback. On a dedicated thread the activity's own loop runs the cycle: ``callback`` is returned
+    as it is.
+    """
+    host, activity = _scheduled(component)
+    hosted = host.hosted.get(activity.name) if activity is not None else None
+    if hosted is None:
+        return callback
+    return functools.partial(hosted.run_entity_callback, callback)

@@ -7,9 +7,9 @@
 The command line is ``coco-launch``'s (same file format, same ``name:=value`` arguments, same
 ``--profile`` report); everything after ``--ros-args`` goes to ``rclpy.init``: remapping (the node's
 name is the application's, ``-r __node:=NAME`` renames it), parameters (``-p``, declared on the node
-from the overrides), log levels. The application's activities run as callback groups of a
-``MultiThreadedExecutor`` or on threads of their own (:mod:`coco_ros.hosting` decides, ``--threads``
-overrides). Ctrl-C (or SIGTERM) stops every activity within a second, after each component's
+from the overrides), log levels. The application's activities run as callback groups of an rclpy
+executor (multi-threaded; single-threaded when it hosts the only activity) or on threads of their own
+(:mod:`coco_ros.hosting` decides, ``--threads`` overrides). Ctrl-C (or SIGTERM) stops every activity within a second, after each component's
 ``on_stop`` ran; a second Ctrl-C forces the exit.
 
 Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.ros_node``).
@@ -60,7 +60,8 @@ def make_ros_parser() -> argparse.ArgumentParser:
     parser.add_argument("--all-threads", action="store_true",
                         help="run every activity on its own thread (as coco-launch does)")
     parser.add_argument("--executor-threads", type=_positive_int, metavar="N",
-                        help="threads of the MultiThreadedExecutor (default: one per hosted activity, plus one)")
+                        help="executor threads (default: one per hosted activity, plus one; 1 when the "
+                        "executor hosts the only activity); 1 gives a SingleThreadedExecutor")
     return parser
 
 
@@ -131,7 +132,6 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
     configure_logging(spec.log, logging.getLevelName(options.log_level))
 
     import rclpy
-    from rclpy.executors import MultiThreadedExecutor
     from rclpy.node import Node
     from rclpy.signals import SignalHandlerOptions
 
@@ -144,7 +144,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
     try:
         node = Node(node_name(app.name), automatically_declare_parameters_from_overrides=True)
         host = ExecutorHost(node, app, _threads(options.threads), options.all_threads)
-        executor = MultiThreadedExecutor(num_threads=options.executor_threads or host.executor_threads())
+        executor = host.create_executor(options.executor_threads)
         executor.add_node(node)
         log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
         return _run_hosted(app, host, executor, options)

@@ -19,6 +19,7 @@ REQUIRED = {
     "geometry_msgs/msg/TransformStamped": TransformSample,
     "tf2_msgs/msg/TFMessage": list,
     "std_msgs/msg/Float64MultiArray": np.ndarray,
+    "std_msgs/msg/Float64": float,
 }
 
 

@@ -1,4 +1,4 @@
-"""Activities hosted by an rclpy MultiThreadedExecutor (coco_ros.hosting), in-process.
+"""Activities hosted by an rclpy executor (coco_ros.hosting), in-process.
 
 Each test builds a small application from test-local components, hosts it on a node of its own rclpy
 context (domain 94, localhost only, set before rclpy.init) and stops it at teardown, even when the
@@ -15,7 +15,7 @@ import pytest
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 
 from coco_core import (
@@ -38,6 +38,7 @@ from coco_ros.hosting import (
     THREAD_PERIOD,
     ExecutorHost,
     ExecutorThread,
+    activity_callback,
     callback_group,
     dedicated_reason,
     plan_hosting,
@@ -135,7 +136,7 @@ class Hosting:
 
     def spin(self) -> None:
         assert self.host is not None
-        executor = MultiThreadedExecutor(num_threads=self.host.executor_threads(), context=self.context)
+        executor = self.host.create_executor(context=self.context)
         executor.add_node(self.node)
         self.spinner = ExecutorThread(executor, on_error=self.errors.append).start()
 
@@ -190,6 +191,19 @@ def test_rule_keeps_ordinary_activities_on_the_executor_and_gives_threads_to_the
     assert "affinity" in dedicated_reason(TriggeredActivity("pin", scheduling=SchedulingRequest(affinity=[0])))
     assert "nice" in dedicated_reason(TriggeredActivity("n", scheduling=SchedulingRequest(nice=5)))
     assert dedicated_reason(TriggeredActivity("t"), forced=True) == "asked on the command line"
+
+
+class _BoundPeer(Component):
+    """Holds a thread-bound resource, as GLManager's OpenGL context does."""
+
+    thread_bound = True
+
+
+def test_an_activity_running_a_thread_bound_component_or_peer_gets_its_own_thread() -> None:
+    owner = Component("owner")
+    owner.add_peer(_BoundPeer("context"))
+    assert "thread-bound component context" in dedicated_reason(TriggeredActivity("display", [owner]))
+    assert dedicated_reason(TriggeredActivity("plain", [Component("c")])) is None
 
 
 def test_plan_honours_threads_and_all_threads_and_rejects_unknown_names() -> None:
@@ -422,3 +436,63 @@ def test_a_component_outside_the_ros_launcher_has_no_node() -> None:
     app, _, recorder = pipeline()
     with pytest.raises(CocoError, match="ROS launcher"):
         ros_node(recorder)
+
+
+def test_an_entity_callback_runs_the_cycle_it_woke_before_returning(hosting: Hosting) -> None:
+    app = Application("direct")
+    source = app.add(Counter("source"))  # in no activity: the timer callback writes for it
+    recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
+    app.connect("source.out", "recorder.ev", BUFFERED)
+    host = hosting.start(app)
+    assert wait_until(lambda: "on_config" in recorder.phases())
+    seen: list[tuple[object, int]] = []
+
+    def write() -> None:  # what a ROSInterface subscription does: write a port in the activity's group
+        seen.append((current_activity(), recorder.updates))
+        source.on_update()
+
+    wrapped = activity_callback(recorder, write)
+    after: list[tuple[int, list[int]]] = []
+
+    def tick() -> None:
+        wrapped()
+        after.append((recorder.updates, list(recorder.values)))
+
+    timer = hosting.node.create_timer(0.01, tick, callback_group=callback_group(recorder))
+    assert wait_until(lambda: len(after) >= 5)
+    timer.timer_period_ns = 10**15  # parked, so that no tick is in flight when the executor shuts down
+    timer.reset()
+    assert hosting.stop()
+    # Each tick's value was read by the cycle that ran inside the tick, as the activity.
+    for k, (updates, values) in enumerate(after[:5]):
+        assert updates == k + 1 and values == list(range(k + 1)), after
+    assert all(activity is app.activity("events") for activity, _ in seen)
+    assert app.activity("events").stats.cycles == recorder.updates
+    assert "events" in host.hosted
+
+
+def test_an_entity_callback_of_a_threaded_activity_is_left_as_it_is(hosting: Hosting) -> None:
+    app, _, recorder = pipeline()
+    hosting.host_app(app, threads=["events"])
+    callback = lambda: None  # noqa: E731
+    assert activity_callback(recorder, callback) is callback
+
+
+def test_one_hosted_activity_gets_a_single_threaded_executor_and_more_get_worker_threads(hosting: Hosting) -> None:
+    app = Application("alone")
+    recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
+    app.add(Counter("source"))  # in no activity: its entities would be in the node's default group
+    host = hosting.host_app(app)
+    assert host.executor_threads() == 1
+    executor = host.create_executor(context=hosting.context)
+    assert isinstance(executor, SingleThreadedExecutor)
+    assert isinstance(host.create_executor(3, context=hosting.context), MultiThreadedExecutor)
+    app.start()
+    hosting.spin()
+    recorder.operation("mark")("single")
+    assert wait_until(lambda: recorder.updates == 1), "the single-threaded executor runs the activity"
+    two, _, _ = pipeline()
+    assert ExecutorHost(hosting.node, two).executor_threads() == 3
+    threaded, _, _ = pipeline()
+    assert ExecutorHost(hosting.node, threaded, threads=["ticks"]).executor_threads() == 2, \
+        "an activity on its own thread may have entities in its group: they get a worker of their own"

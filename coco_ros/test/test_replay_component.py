@@ -264,3 +264,18 @@ def test_bad_options_name_the_item_and_what_is_expected(poses_bag, options, outp
 
     with pytest.raises(CocoError, match=expected):
         Application("bad").add(BagReplay("replay", bag=poses_bag, topics=["/bowl/pose"], options=options, output=output))
+
+
+def test_replay_in_a_triggered_activity_starts_by_itself(talker_bag):
+    """A triggered activity runs only when woken and BagReplay has no inputs: it must wake itself for
+    its first update (then each update asks for the next), on the activity's own thread."""
+    from coco_core.activity import TriggeredActivity
+
+    app = Application("triggered_replay")
+    activity = TriggeredActivity("a")
+    replay = app.add(BagReplay("replay", bag=talker_bag, rate=0.0, topics=["/topic"], stop_at_end=True), activity)
+    sink = app.add(Sink("sink"), activity)
+    app.connect("replay.topic", "sink.values", BUFFER)
+    run(app, timeout=5.0)
+    assert replay._player.delivered == 10
+    assert [m.data for m in sink.got] == [f"Hello, world! {i}" for i in range(10)]

@@ -1,8 +1,8 @@
 """Conversions between ROS messages and the values that flow on CoCo ports.
 
-One module per message family (``joints``, ``images``, ``clouds``, ``geometry``, ``arrays``), each
-converter with ``to_coco(msg)`` and ``to_ros(value)``; :func:`converter_for` finds the converter of a
-message type by name, which is how a ROSInterface configured in XML gets one::
+One module per message family (``joints``, ``images``, ``clouds``, ``geometry``, ``arrays``,
+``scalars``), each converter with ``to_coco(msg)`` and ``to_ros(value)``; :func:`converter_for` finds
+the converter of a message type by name, which is how a ROSInterface configured in XML gets one::
 
     converter = converter_for("geometry_msgs/msg/PoseStamped", child_frame="tool")
     pose = converter.to_coco(msg)          # a FramePose, T_<header.frame_id>_tool
@@ -30,6 +30,7 @@ _CONVERTERS: dict[str, tuple[str, str]] = {
     "geometry_msgs/msg/PoseStamped": ("geometry", "PoseStampedConverter"),
     "geometry_msgs/msg/TransformStamped": ("geometry", "TransformStampedConverter"),
     "tf2_msgs/msg/TFMessage": ("geometry", "TFMessageConverter"),
+    "std_msgs/msg/Float64": ("scalars", "Float64Converter"),
     **{f"std_msgs/msg/{element}{suffix}MultiArray": ("arrays", "MultiArrayConverter")
        for element in ("Float", "Int", "UInt") for suffix in ("8", "16", "32", "64")
        if not (element == "Float" and suffix in ("8", "16"))},

@@ -7,12 +7,20 @@ Attributes (lists of topic specs, syntax in :mod:`coco_ros.interface.topic`)::
 
 - ``subscribe``: each spec gives an **output** port: every message received on the topic is
   converted (``converter.to_coco``) and written to it, from the subscription callback, which runs in
-  the component's activity's callback group (never during the activity's own cycle).
+  the component's activity's callback group (never during the activity's own cycle). When the
+  executor hosts that activity and it is triggered, the cycle the message woke runs right after, in
+  the same callback (:func:`coco_ros.hosting.activity_callback`): components scheduled after the
+  bridge in that activity see the message without another executor hop.
 - ``publish``: each spec gives an **event input** port: the values written to it are converted
   (``converter.to_ros``) and published in ``on_update``, all of them, in order. Put the component in a
   triggered activity to publish as soon as values arrive (or in a periodic one to publish at its rate).
+  A ``Stamped(value, stamp)`` is accepted on every publish port (its type is the converter's
+  ``coco_type`` or ``Stamped``): the converter gets ``value``, and once the message is published the
+  component records the stamp's age (``record_latency``), so ``--profile`` shows the latency from
+  the stamp's origin to the message handed to DDS.
 
-Port types are the converters' ``coco_type`` (``JointSample``, ``Image``, ``FramePose``...).
+Port types are the converters' ``coco_type`` (``JointSample``, ``Image``, ``FramePose``...); publish
+ports take ``Stamped`` values too.
 A message or value that cannot be converted is counted (``errors()`` operation, per port) and logged
 (the first three in full, then at most once per second per port), naming the topic and the type; the
 bridge goes on.
@@ -25,12 +33,13 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Any
+from typing import Any, Union
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.errors import CocoError
 from coco_core.operations import operation
+from coco_core.stamps import Stamped
 
 from ..convert.base import Converter
 from .topic import SYNTAX, TopicSpec, check_specs, parse_specs
@@ -103,19 +112,22 @@ class ROSInterface(Component):
             self._subscriptions.append(_Route(spec, converter, port))
         for spec in published:
             converter = spec.converter()
-            port = self.add_input(spec.port, converter.coco_type, event=True,
+            accepted = converter.coco_type if isinstance(converter.coco_type, tuple) else (converter.coco_type,)
+            port = self.add_input(spec.port, Union[(*accepted, Stamped)], event=True,
                                   doc=f"published to {spec.topic} ({spec.type_name})")
             self._publications.append(_Route(spec, converter, port))
         self._node: Any = None
 
     def on_config(self) -> None:
+        from ..hosting import activity_callback
+
         node, group = launcher_node(self)
         self._node = node
         for route in self._subscriptions:
             spec = route.spec
             route.entity = node.create_subscription(route.converter.message_type, spec.topic,
-                                                    self._receiver(route), spec.qos_profile(),
-                                                    callback_group=group)
+                                                    activity_callback(self, self._receiver(route)),
+                                                    spec.qos_profile(), callback_group=group)
         for route in self._publications:
             spec = route.spec
             route.entity = node.create_publisher(route.converter.message_type, spec.topic, spec.qos_profile(),
@@ -142,6 +154,9 @@ class ROSInterface(Component):
         for route in self._publications:
             entity = route.entity
             for value in route.port.read_all():
+                stamp = None
+                if isinstance(value, Stamped):
+                    value, stamp = value.value, value.stamp
                 try:
                     msg = route.converter.to_ros(value)
                 except Exception as error:
@@ -150,6 +165,8 @@ class ROSInterface(Component):
                 if entity is not None:
                     entity.publish(msg)
                     route.count += 1
+                    if stamp is not None:
+                        self.record_latency(stamp)
 
     def on_stop(self) -> None:
         node, self._node = self._node, None

@@ -37,7 +37,8 @@ Attributes (all settable from the application XML):
 Scheduling: each ``on_update`` writes every message that is due and returns at once, so the
 component must be updated regularly: put it in a **periodic activity of 1-10 ms** (the period is the
 timing resolution of the replay). In a triggered activity it wakes itself when the next message is
-due (a timer thread, or at once when replaying as fast as possible).
+due (a timer thread, or at once when replaying as fast as possible), the first time from
+``on_config``: nothing else would wake a replay that has no inputs.
 
 Operations: ``pause()``, ``resume()``, ``step(n=1)`` (deliver the next n messages, stay paused),
 ``seek(t)`` (continue from ``t`` s after the bag start, latched messages first), ``set_rate(r)``,
@@ -197,6 +198,7 @@ class BagReplay(Component):
             self._reader, rate=self.rate, start_offset=self.start_offset,
             duration=self.duration or None, loop=self.loop, topics=self._selected, remap=self._remaps,
             on_error=self._on_bag_error)
+        self._wake_in(0.0)  # the first update; each update then asks for the next
 
     def _on_bag_error(self, error: BagError) -> None:
         log.error("component %s: bag damaged, replayed what was readable: %s", self.name, error)
