@@ -43,6 +43,7 @@ import numpy as np
 import _report
 from _ros import RosContext  # sets ROS_DOMAIN_ID before rclpy is imported
 from _table import Table, fmt_ratio, fmt_time_ns
+from coco_core.interrupt import interrupt
 
 if str(_report.REPO / "coco_ros") not in sys.path:
     sys.path.insert(0, str(_report.REPO / "coco_ros"))
@@ -290,17 +291,6 @@ def start(command: list[str]) -> subprocess.Popen[str]:
     return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=_report.REPO)
 
 
-def stop(process: subprocess.Popen[str]) -> str:
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        out, _ = process.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        out, _ = process.communicate()
-    return out
-
-
 PROFILED = {"distance": "EndEffectorDistance", "bridge": "bridge: distance published"}
 """Components whose latency the launcher's profile reports, and the row label of each."""
 
@@ -405,7 +395,7 @@ def main() -> None:
             driver.run(args.seconds)
         finally:
             for name, process in processes.items():
-                outputs[name] = stop(process)
+                outputs[name] = interrupt(process)[1]
             driver.destroy()
     for name, out in outputs.items():
         if processes[name].returncode not in (0, 130, -signal.SIGINT):

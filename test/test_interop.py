@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import os
 import re
-import signal
 import subprocess
 import sys
 import time
@@ -29,6 +28,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from coco_core.interrupt import interrupt
 from conftest import ROOT
 
 DATA = ROOT / "test" / "data"
@@ -93,19 +93,6 @@ def start(domain: str, *command: str | Path) -> subprocess.Popen[str]:
     env = dict(os.environ, ROS_DOMAIN_ID=domain, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", PYTHONUNBUFFERED="1")
     return subprocess.Popen([sys.executable, *map(str, command)], cwd=ROOT, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-
-
-def stop(process: subprocess.Popen[str]) -> tuple[int, str]:
-    """Ctrl-C the process (if it still runs) and return its exit code and output."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        output, _ = process.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        output, _ = process.communicate()
-        return -9, output
-    return process.returncode, output
 
 
 # --- 1. joint states and a bowl pose in, gripper pose and distance out ------------------------------
@@ -213,7 +200,7 @@ def test_launcher_computes_the_gripper_pose_and_distance_of_published_joint_stat
                 break
             reached.append((posture, bowl))
     finally:
-        code, output = stop(process)
+        code, output = interrupt(process)
 
     assert reached == [(0, 0), (1, 0), (2, 0), (2, 1)], \
         f"outputs never matched posture/bowl {current}; last pose {poses[-1:]}, " \
@@ -304,7 +291,7 @@ def test_launcher_replays_a_bag_to_topics_a_ros_node_receives(peer: Peer, sessio
         peer.spin_until(complete, 30, process=process)
         peer.spin_until(lambda: False, 0.3)  # anything beyond the bag would arrive now
     finally:
-        code, output = stop(process)
+        code, output = interrupt(process)
 
     assert code == 0 and "(clean)" in output, output
     for topic in REPLAYED:
@@ -334,7 +321,7 @@ def test_coco_replay_publishes_every_message_byte_for_byte(peer: Peer, session: 
         peer.spin_until(lambda: process.poll() is not None, 30)
         peer.spin_until(lambda: all(len(received[t]) >= len(bag[t]) for t in REPLAYED), 5)
     finally:
-        code, output = stop(process)
+        code, output = interrupt(process)
 
     assert code == 0, output
     total = sum(len(messages) for messages in bag.values())

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -25,6 +24,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
+
+from coco_core.interrupt import interrupt
 
 WORKSPACE = Path(__file__).resolve().parents[2]
 LAUNCHER = WORKSPACE / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
@@ -126,18 +127,6 @@ def ros(monkeypatch: pytest.MonkeyPatch):
     context.try_shutdown()
 
 
-def _stop(process: subprocess.Popen) -> tuple[int, str]:
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        output, _ = process.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        output, _ = process.communicate()
-        return -9, output
-    return process.returncode, output
-
-
 @pytest.mark.skipif(not LAUNCHER.exists(), reason="workspace not built (source scripts/setup.sh)")
 @pytest.mark.parametrize("hosting", [[], ["--all-threads"]], ids=["executor", "threads"])
 def test_launcher_bridges_joint_states_in_and_arrays_out(tmp_path: Path, ros, hosting: list[str]) -> None:
@@ -178,7 +167,7 @@ def test_launcher_bridges_joint_states_in_and_arrays_out(tmp_path: Path, ros, ho
             if len(lines) >= 5 and len(received) >= 5:
                 break
     finally:
-        code, output = _stop(process)
+        code, output = interrupt(process)
 
     assert code == 0, output
     assert "ROSInterface bridge: subscribed joints=/joint_states" in output, output

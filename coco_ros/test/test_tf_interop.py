@@ -19,7 +19,6 @@ import importlib.util
 import json
 import os
 import re
-import signal
 import subprocess
 import sys
 import time
@@ -27,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from coco_core.interrupt import interrupt
 from coco_core.transforms import se3
 
 TESTS = Path(__file__).resolve().parent
@@ -45,19 +46,6 @@ def start(domain: int, cwd: Path, *command: str | Path) -> subprocess.Popen[str]
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(DATA), env.get("PYTHONPATH", "")]))
     return subprocess.Popen([sys.executable, *map(str, command)], cwd=cwd, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-
-
-def stop(process: subprocess.Popen[str]) -> tuple[int, str]:
-    """Ctrl-C the process (if it still runs); its exit code and output."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        output, _ = process.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        output, _ = process.communicate()
-        return -9, output
-    return process.returncode, output
 
 
 def wait_for(condition, timeout: float, *processes: subprocess.Popen[str]) -> bool:
@@ -104,8 +92,8 @@ def test_external_tf_and_latched_tf_static_enter_the_graph(tmp_path: Path) -> No
         assert wait_for(complete, 20, launcher), "the graph never got both edges"
         time.sleep(0.5)  # a few more /tf samples
     finally:
-        code, output = stop(launcher) if launcher is not None else (None, "")
-        stop(talker)
+        code, output = interrupt(launcher) if launcher is not None else (None, "")
+        interrupt(talker)
     assert code == 0, output
     assert "TFBridge tf: broadcasting nothing yet; ingesting /tf and /tf_static with prefix 'ext/'" in output, output
     received = re.search(r"TFBridge tf: received (\d+) transforms \(ingested (\d+), echoes 0, rejected 0, "
@@ -181,9 +169,9 @@ def test_baxter_frames_reach_a_late_listener_matching_pinocchio(tmp_path: Path) 
         listened = listener.communicate(timeout=30)[0]
         assert listener.returncode == 0, listened
     finally:
-        code, output = stop(launcher)
+        code, output = interrupt(launcher)
         if listener is not None and listener.poll() is None:
-            stop(listener)
+            interrupt(listener)
     assert code == 0, output
     received = json.loads(output_json.read_text())
 
