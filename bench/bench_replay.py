@@ -20,7 +20,8 @@ Over DDS, each publisher in its own process, received here (raw subscriptions, r
   ``mcap`` reader + ``deserialize_message`` + ``publish``;
 - ``coco-replay --fast --loop`` (publishes the bag's CDR bytes, nothing deserialised);
 - the ROS launcher running ``test/data/interop_replay.xml`` (BagReplay rate 0, loop ->
-  ROSInterface publications).
+  ROSInterface publications): with ``output=coco`` every message is decoded, converted to a CoCo
+  value and back to a message; with ``output=bag`` the recorded CDR passes through untouched.
 
 Each DDS row also gives the publisher's CPU use (from /proc) and the receiver's: one rclpy
 subscriber in Python receives at most some thousand messages per second, and when it is saturated
@@ -63,7 +64,8 @@ REPLAY_APP = _report.REPO / "test" / "data" / "interop_replay.xml"
 FLOOR = "mcap + deserialize_message (floor, no delivery)"
 ANCHOR = "plain rclpy node: mcap + deserialize + publish"
 PORT_ROWS = ("CoCo BagReplay -> ports, output=coco", "CoCo BagReplay -> ports, output=bag")
-DDS_ROWS = ("coco-replay --fast --loop", "ROS launcher: BagReplay -> ROSInterface")
+DDS_ROWS = ("coco-replay --fast --loop", "ROS launcher: BagReplay -> ROSInterface",
+            "ROS launcher: BagReplay output=bag -> ROSInterface (CDR passed through)")
 
 
 # --- the anchor publisher, run as its own process -------------------------------------------------
@@ -297,8 +299,9 @@ def dds_commands(bag: Path, mcap_path: Path) -> dict[str, list[str]]:
         ANCHOR: [python, str(Path(__file__).resolve()), "--plain-publisher", str(mcap_path)],
         DDS_ROWS[0]: [python, str(INSTALLED / "coco-replay"), str(bag), "--fast", "--loop", "--topics", *TOPICS,
                       "--delay", "0", "--depth", str(DEPTH), "--no-progress"],
-        DDS_ROWS[1]: [python, str(INSTALLED / "launcher"), str(REPLAY_APP), f"bag:={bag}", "rate:=0", "loop:=true",
-                      f"depth:={DEPTH}", "--duration", "120", "--log-level", "WARNING"],
+        **{row: [python, str(INSTALLED / "launcher"), str(REPLAY_APP), f"bag:={bag}", "rate:=0", "loop:=true",
+                 f"output:={output}", f"depth:={DEPTH}", "--duration", "120", "--log-level", "WARNING"]
+           for row, output in ((DDS_ROWS[1], "coco"), (DDS_ROWS[2], "bag"))},
     }
 
 

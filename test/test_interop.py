@@ -272,8 +272,9 @@ def assert_same_pose(got: Any, want: Any) -> None:
     np.testing.assert_allclose(pose_matrix(got.pose), pose_matrix(want.pose), atol=1e-12)
 
 
-@pytest.mark.parametrize("peer", [71], indirect=True)
-def test_launcher_replays_a_bag_to_topics_a_ros_node_receives(peer: Peer, session: Path) -> None:
+@pytest.mark.parametrize("peer, output", [(71, "coco"), (73, "bag")], indirect=["peer"])
+def test_launcher_replays_a_bag_to_topics_a_ros_node_receives(peer: Peer, session: Path, output: str) -> None:
+    """output=coco: through CoCo values and back to messages; output=bag: the recorded CDR passed through."""
     from geometry_msgs.msg import PoseStamped
     from sensor_msgs.msg import JointState
 
@@ -286,7 +287,7 @@ def test_launcher_replays_a_bag_to_topics_a_ros_node_receives(peer: Peer, sessio
         return all(len(received[t]) >= len(bag[t]) for t in REPLAYED)
 
     process = start(peer.domain, LAUNCHER, DATA / "interop_replay.xml", f"bag:={session}", "rate:=2",
-                    "--duration", "60")
+                    f"output:={output}", "--duration", "60")
     try:
         peer.spin_until(complete, 30, process=process)
         peer.spin_until(lambda: False, 0.3)  # anything beyond the bag would arrive now

@@ -120,3 +120,40 @@ def test_a_plain_float_is_published_and_a_wrong_value_is_counted_not_raised(rig)
     assert [msg.data for msg in received] == [1.5, 2.5]
     assert bridge.call("errors").result(1)["value"] == 2
     assert bridge.stats.latency.count == 1, "only the Stamped value has a stamp to measure from"
+
+
+def test_a_recorded_message_is_published_as_its_bytes_and_a_wrong_type_is_counted(rig) -> None:
+    """A BagMessage (BagReplay output=bag) goes to DDS as its recorded CDR, undecoded; one of another
+    type than the publication's is refused and counted."""
+    from rclpy.serialization import serialize_message
+
+    from coco_ros.bag import BagMessage
+
+    def recorded(type_name: str, message) -> BagMessage:
+        def undecodable(_: bytes):
+            raise AssertionError("a passed-through message must not be decoded")
+
+        return BagMessage("/recorded", type_name, 0, 0, serialize_message(message), undecodable)
+
+    hosting, peer, executor = rig
+    app = Application("hosted_bytes")
+    feeder = app.add(Feeder("feeder"))
+    bridge = app.add(ROSInterface("bridge", publish=["value=/hosted/bytes:std_msgs/msg/Float64"]),
+                     TriggeredActivity("publishing"))
+    app.connect("feeder.out", "bridge.value", BUFFERED)
+    received: list[Float64] = []
+    peer.create_subscription(Float64, "/hosted/bytes", received.append, QoSProfile(depth=50))
+    hosting.start(app)
+    assert wait_until(lambda: peer.count_publishers("/hosted/bytes") == 1)
+    assert wait_until(lambda: peer.count_subscribers("/hosted/bytes") == 1)
+    time.sleep(0.2)
+    for value in (recorded("std_msgs/msg/Float64", Float64(data=4.25)),
+                  recorded("sensor_msgs/msg/JointState", JointState(name=["a"], position=[1.0])),
+                  recorded("std_msgs/Float64", Float64(data=-2.0))):
+        feeder.out.write(value)
+    deadline = time.monotonic() + 10
+    while len(received) < 2 and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    assert hosting.stop()
+    assert [msg.data for msg in received] == [4.25, -2.0]
+    assert bridge.call("errors").result(1)["value"] == 1

@@ -17,7 +17,9 @@ Attributes (lists of topic specs, syntax in :mod:`coco_ros.interface.topic`)::
   A ``Stamped(value, stamp)`` is accepted on every publish port (its type is the converter's
   ``coco_type`` or ``Stamped``): the converter gets ``value``, and once the message is published the
   component records the stamp's age (``record_latency``), so ``--profile`` shows the latency from
-  the stamp's origin to the message handed to DDS.
+  the stamp's origin to the message handed to DDS. A :class:`~coco_ros.bag.BagMessage` of the port's
+  type (a ``BagReplay`` with ``output=bag``) is published as its recorded CDR bytes, nothing decoded
+  or converted: replaying a bag onto DDS through an application then costs what ``coco-replay`` does.
 
 Port types are the converters' ``coco_type`` (``JointSample``, ``Image``, ``FramePose``...); publish
 ports take ``Stamped`` values too.
@@ -41,6 +43,8 @@ from coco_core.errors import CocoError
 from coco_core.operations import operation
 from coco_core.stamps import Stamped
 
+from ..bag import BagMessage
+from ..bag.message_types import normalize_type
 from ..convert.base import Converter
 from .topic import SYNTAX, TopicSpec, check_specs, parse_specs
 
@@ -113,7 +117,7 @@ class ROSInterface(Component):
         for spec in published:
             converter = spec.converter()
             accepted = converter.coco_type if isinstance(converter.coco_type, tuple) else (converter.coco_type,)
-            port = self.add_input(spec.port, Union[(*accepted, Stamped)], event=True,
+            port = self.add_input(spec.port, Union[(*accepted, Stamped, BagMessage)], event=True,
                                   doc=f"published to {spec.topic} ({spec.type_name})")
             self._publications.append(_Route(spec, converter, port))
         self._node: Any = None
@@ -158,7 +162,8 @@ class ROSInterface(Component):
                 if isinstance(value, Stamped):
                     value, stamp = value.value, value.stamp
                 try:
-                    msg = route.converter.to_ros(value)
+                    msg = self._passed_through(route, value) if isinstance(value, BagMessage) else \
+                        route.converter.to_ros(value)
                 except Exception as error:
                     route.failed(self.name, "a value for", error)
                     continue
@@ -167,6 +172,14 @@ class ROSInterface(Component):
                     route.count += 1
                     if stamp is not None:
                         self.record_latency(stamp)
+
+    @staticmethod
+    def _passed_through(route: _Route, message: BagMessage) -> bytes:
+        """The CDR bytes of a recorded message, published as they are (rclpy publishes bytes raw)."""
+        if normalize_type(message.type) != normalize_type(route.spec.type_name):
+            raise TypeError(f"a recorded {message.type} message from {message.topic} cannot go to "
+                            f"{route.spec.topic}, which publishes {route.spec.type_name}")
+        return message.data
 
     def on_stop(self) -> None:
         node, self._node = self._node, None
