@@ -247,6 +247,16 @@ class Application:
         for activity in self.activities.values():
             activity.stop()
 
+    def in_flight(self, besides: Activity | None = None) -> bool:
+        """Whether data is still moving through the application: an activity (other than ``besides``,
+        typically the caller's own) is in a cycle or has a wake-up waiting, or a queued (BUFFER,
+        CIRCULAR) connection holds data. Latest-value connections (DATA, POOL) do not count: a value
+        left unread there is not in flight. A producer that is done asks this before stopping the
+        application, so that what it produced last is processed, not dropped."""
+        busy = any(a is not besides and (a.current is not None or a.wake_pending) for a in self.activities.values())
+        return busy or any(c.pending for c in self.connections
+                           if c.policy.data in (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR))
+
     @property
     def stop_requested(self) -> bool:
         return self._stop_requested.is_set()

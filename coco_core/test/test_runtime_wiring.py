@@ -236,3 +236,22 @@ def test_registry_library_mismatch_is_reported():
     assert registry.load("RuntimeTestWidget", library) is Widget
     with pytest.raises(registry.UnknownComponentError, match="not 'elsewhere'"):
         registry.load("RuntimeTestWidget", "elsewhere")
+
+
+def test_in_flight_counts_queued_data_and_busy_activities_not_latest_values() -> None:
+    app = Application("flight")
+    nums = app.add(Numbers("nums"), TriggeredActivity("source"))
+    texts = app.add(Texts("texts"), TriggeredActivity("sink"))
+    app.connect("nums.ints", "texts.number", ConnectionPolicy(BufferPolicy.BUFFER, size=4))
+    app.connect("nums.anything", "texts.text")  # DATA: a latest value
+    assert not app.in_flight()
+    nums.anything.write("latest")
+    assert not app.in_flight(), "an unread latest value is not in flight"
+    nums.ints.write(1)
+    assert app.in_flight(), "a queued value is"
+    assert texts.number.read_all() == [1]
+    assert not app.in_flight()
+    sink = app.activities["sink"]
+    sink.wake()
+    assert app.in_flight(), "a wake-up waiting means a cycle is still to come"
+    assert not app.in_flight(besides=sink), "the caller's own activity is left out"

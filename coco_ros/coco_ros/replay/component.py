@@ -62,7 +62,6 @@ from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.errors import CocoError
 from coco_core.operations import operation
-from coco_core.policy import BufferPolicy
 from coco_core.ports import OutputPort
 from coco_core.stamps import Stamp, Stamped
 
@@ -227,14 +226,10 @@ class BagReplay(Component):
             self._wake_in(delay)
 
     def _drained(self) -> bool:
-        """Whether the messages replayed have been processed downstream: at two checks in a row, no
-        other activity is in a cycle or has a wake-up waiting, and no queued connection of the
-        application holds data; or ``DRAIN_TIMEOUT`` passed. DATA connections are not counted: a
-        latest value left unread is not data in flight."""
-        app, own = self.app, self.activity
-        busy = any(a is not own and (a.current is not None or a.wake_pending) for a in app.activities.values())
-        queued = any(c.pending for c in app.connections if c.policy.data is not BufferPolicy.DATA)
-        self._idle_checks = 0 if busy or queued else self._idle_checks + 1
+        """Whether the messages replayed have been processed downstream: nothing in flight in the
+        application (:meth:`~coco_core.application.Application.in_flight`) at two checks in a row
+        (a consumer may be between reading and writing on), or ``DRAIN_TIMEOUT`` passed."""
+        self._idle_checks = 0 if self.app.in_flight(besides=self.activity) else self._idle_checks + 1
         return self._idle_checks >= 2 or time.monotonic() - self._ended_at > DRAIN_TIMEOUT
 
     def _deliver(self, played: Played) -> None:
