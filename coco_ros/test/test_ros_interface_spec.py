@@ -16,6 +16,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 from coco_core import Application, AttributeValueError, CocoError, TriggeredActivity
 from coco_core.stamps import Stamped
 from coco_core.transforms.samples import FramePose, JointSample
+from coco_ros.bag import BagMessage
 from coco_ros.interface.component import ROSInterface
 from coco_ros.interface.topic import SYNTAX, SpecError, available_types, parse_spec, parse_specs
 
@@ -103,7 +104,7 @@ def test_ports_follow_the_specs() -> None:
     assert set(bridge.outputs) == {"joints", "pose"} and set(bridge.inputs) == {"cmd"}
     assert bridge.outputs["joints"].type is JointSample and bridge.outputs["pose"].type is FramePose
     # A publish port takes the converter's type or a Stamped one (published unwrapped, its age profiled).
-    assert bridge.inputs["cmd"].type == np.ndarray | Stamped and bridge.inputs["cmd"].event
+    assert bridge.inputs["cmd"].type == np.ndarray | Stamped | BagMessage and bridge.inputs["cmd"].event
 
 
 def test_attribute_error_names_component_and_spec() -> None:
