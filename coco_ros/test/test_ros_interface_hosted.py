@@ -98,25 +98,33 @@ def test_one_activity_relays_a_message_to_dds_and_profiles_the_stamp_to_publish_
     assert latency.count == published and 0 < latency.mean < 1.0
 
 
-def test_a_plain_float_is_published_and_a_wrong_value_is_counted_not_raised(rig) -> None:
+def publish_through_a_bridge(rig, topic: str, values: list, expected: int) -> tuple[ROSInterface, list[Float64]]:
+    """Write ``values`` into a hosted ROSInterface publishing std_msgs/Float64 on ``topic`` and wait
+    for ``expected`` messages at the test's subscription; the bridge and what arrived."""
     hosting, peer, executor = rig
     app = Application("hosted_values")
     feeder = app.add(Feeder("feeder"))  # in no activity: the test writes for it
-    bridge = app.add(ROSInterface("bridge", publish=["value=/hosted/value:std_msgs/msg/Float64"]),
+    bridge = app.add(ROSInterface("bridge", publish=[f"value={topic}:std_msgs/msg/Float64"]),
                      TriggeredActivity("publishing"))
     app.connect("feeder.out", "bridge.value", BUFFERED)
     received: list[Float64] = []
-    peer.create_subscription(Float64, "/hosted/value", received.append, QoSProfile(depth=50))
+    peer.create_subscription(Float64, topic, received.append, QoSProfile(depth=50))
     hosting.start(app)
-    assert wait_until(lambda: peer.count_publishers("/hosted/value") == 1)
-    assert wait_until(lambda: peer.count_subscribers("/hosted/value") == 1)
+    assert wait_until(lambda: peer.count_publishers(topic) == 1)
+    assert wait_until(lambda: peer.count_subscribers(topic) == 1)
     time.sleep(0.2)  # discovery matched: what is written now reaches the subscription
-    for value in (Stamped(1.5, Stamp.now()), "not a number", 2.5, True):
+    for value in values:
         feeder.out.write(value)
     deadline = time.monotonic() + 10
-    while len(received) < 2 and time.monotonic() < deadline:
+    while len(received) < expected and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
     assert hosting.stop()
+    return bridge, received
+
+
+def test_a_plain_float_is_published_and_a_wrong_value_is_counted_not_raised(rig) -> None:
+    bridge, received = publish_through_a_bridge(rig, "/hosted/value",
+                                                [Stamped(1.5, Stamp.now()), "not a number", 2.5, True], 2)
     assert [msg.data for msg in received] == [1.5, 2.5]
     assert bridge.call("errors").result(1)["value"] == 2
     assert bridge.stats.latency.count == 1, "only the Stamped value has a stamp to measure from"
@@ -135,25 +143,9 @@ def test_a_recorded_message_is_published_as_its_bytes_and_a_wrong_type_is_counte
 
         return BagMessage("/recorded", type_name, 0, 0, serialize_message(message), undecodable)
 
-    hosting, peer, executor = rig
-    app = Application("hosted_bytes")
-    feeder = app.add(Feeder("feeder"))
-    bridge = app.add(ROSInterface("bridge", publish=["value=/hosted/bytes:std_msgs/msg/Float64"]),
-                     TriggeredActivity("publishing"))
-    app.connect("feeder.out", "bridge.value", BUFFERED)
-    received: list[Float64] = []
-    peer.create_subscription(Float64, "/hosted/bytes", received.append, QoSProfile(depth=50))
-    hosting.start(app)
-    assert wait_until(lambda: peer.count_publishers("/hosted/bytes") == 1)
-    assert wait_until(lambda: peer.count_subscribers("/hosted/bytes") == 1)
-    time.sleep(0.2)
-    for value in (recorded("std_msgs/msg/Float64", Float64(data=4.25)),
-                  recorded("sensor_msgs/msg/JointState", JointState(name=["a"], position=[1.0])),
-                  recorded("std_msgs/Float64", Float64(data=-2.0))):
-        feeder.out.write(value)
-    deadline = time.monotonic() + 10
-    while len(received) < 2 and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.05)
-    assert hosting.stop()
+    bridge, received = publish_through_a_bridge(rig, "/hosted/bytes", [
+        recorded("std_msgs/msg/Float64", Float64(data=4.25)),
+        recorded("sensor_msgs/msg/JointState", JointState(name=["a"], position=[1.0])),
+        recorded("std_msgs/Float64", Float64(data=-2.0))], 2)
     assert [msg.data for msg in received] == [4.25, -2.0]
     assert bridge.call("errors").result(1)["value"] == 1
