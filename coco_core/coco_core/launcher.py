@@ -10,12 +10,13 @@ command line.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import signal
 import sys
 import threading
 from pathlib import Path
-from typing import Sequence
+from typing import Iterator, Sequence
 
 from . import registry
 from .application import Application
@@ -118,6 +119,35 @@ def start_profile_printer(app: Application, every: float) -> threading.Event:
     return done
 
 
+@contextlib.contextmanager
+def launcher_services(app: Application, options: argparse.Namespace) -> Iterator[None]:
+    """What every launcher runs around an application: Ctrl-C handling, the profile (every
+    ``--profile`` seconds and once at the end) and the transformation graph's server
+    (``--transforms-server``); the server stops and the final profile prints when the block ends."""
+    install_signal_handlers(app)
+    printer = start_profile_printer(app, options.profile) if options.profile else None
+    server = None
+    if options.transforms_server is not None:
+        from .transforms.server import TransformServer
+
+        server = TransformServer(app.transforms, port=options.transforms_server).start()
+        print(f"transformation graph served at {server.url}", flush=True)
+    try:
+        yield
+    finally:
+        if server is not None:
+            server.stop()
+        if printer is not None:
+            printer.set()
+            print(profile_report(app), flush=True)
+
+
+def stopped_by_a_failure(app: Application) -> bool:
+    """Whether a component's error stopped the application (its ``on_error`` policy): the launcher
+    then exits with 1, so that scripts notice."""
+    return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
+
+
 def run(options: argparse.Namespace) -> int:
     """Load, build and run according to parsed ``options``; returns the exit code."""
     logging.basicConfig(level=options.log_level, format="[%(levelname)s] %(name)s: %(message)s")
@@ -137,25 +167,10 @@ def run(options: argparse.Namespace) -> int:
         print(describe(app))
         return 0
     configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
-    install_signal_handlers(app)
-    printer = start_profile_printer(app, options.profile) if options.profile else None
-    server = None
-    if options.transforms_server is not None:
-        from .transforms.server import TransformServer
-
-        server = TransformServer(app.transforms, port=options.transforms_server).start()
-        print(f"transformation graph served at {server.url}", flush=True)
-    try:
+    with launcher_services(app, options):
         app.run(options.duration)
-    finally:
-        if server is not None:
-            server.stop()
-        if printer is not None:
-            printer.set()
-            print(profile_report(app), flush=True)
     clean = app.stop()
-    failed = any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
-    return 0 if clean and not failed else 1
+    return 0 if clean and not stopped_by_a_failure(app) else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -29,13 +29,12 @@ from coco_core import Application, CocoError
 from coco_core.builder import build_application, configure_logging
 from coco_core.launcher import (
     describe,
-    install_signal_handlers,
+    launcher_services,
     list_components,
     make_parser,
     parse_assignments,
-    start_profile_printer,
+    stopped_by_a_failure,
 )
-from coco_core.report import profile_report
 from coco_core.xml import load_application
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
@@ -156,47 +155,33 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
 
 def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace) -> int:
     """Start ``app`` with ``host``, spin ``executor`` until a stop is asked, stop cleanly."""
-    install_signal_handlers(app)
-    printer = start_profile_printer(app, options.profile) if options.profile else None
-    server = None
-    if options.transforms_server is not None:
-        from coco_core.transforms.server import TransformServer
-
-        server = TransformServer(app.transforms, port=options.transforms_server).start()
-        print(f"transformation graph served at {server.url}", flush=True)
     spinner = ExecutorThread(executor, on_error=app.request_stop)  # type: ignore[arg-type]
     timer = None
     clean = False
-    try:
-        app.start()
-        spinner.start()
-        if options.duration is not None:
-            timer = threading.Timer(options.duration, app.request_stop,
-                                    args=(f"duration of {options.duration:g} s reached",))
-            timer.daemon = True
-            timer.start()
-        main = app.main_activity
-        if main is not None:
-            main.run_here()
-        app.wait()
-    finally:
-        if timer is not None:
-            timer.cancel()
-        clean = app.stop()  # the executor still spins: hosted activities finish in their groups
-        spinner.stop()  # then the node is destroyed and rclpy shut down (see run)
-        if server is not None:
-            server.stop()
-        if printer is not None:
-            printer.set()
-            print(profile_report(app), flush=True)
-        if clean:
-            host.close()
+    with launcher_services(app, options):
+        try:
+            app.start()
+            spinner.start()
+            if options.duration is not None:
+                timer = threading.Timer(options.duration, app.request_stop,
+                                        args=(f"duration of {options.duration:g} s reached",))
+                timer.daemon = True
+                timer.start()
+            main = app.main_activity
+            if main is not None:
+                main.run_here()
+            app.wait()
+        finally:
+            if timer is not None:
+                timer.cancel()
+            clean = app.stop()  # the executor still spins: hosted activities finish in their groups
+            spinner.stop()  # then the node is destroyed and rclpy shut down (see run)
     if not clean:
         # A hung on_update keeps an executor worker (or a daemon thread) busy; Python would wait for
         # the worker at exit, so the entry point leaves at once (see main).
         return HUNG
-    failed = any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
-    return 1 if failed else 0
+    host.close()
+    return 1 if stopped_by_a_failure(app) else 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+from typing import Any, Callable
 from pathlib import Path
 
 _WORKSPACE = Path(__file__).resolve().parents[2]
@@ -36,3 +37,21 @@ def talker_bag() -> Path:
     if not (folder / "talker.mcap").is_file() or not (folder / "metadata.yaml").is_file():
         pytest.skip(f"shared test data absent: expected {folder}/talker.mcap and metadata.yaml")
     return folder
+
+
+def python_lines(call: Callable[[], Any]) -> tuple[Any, int]:
+    """(result, number of Python lines executed by ``call``): a per-pixel or per-point loop would run
+    at least one line per element, wherever it hides (including rclpy's field checks)."""
+    count = 0
+
+    def local(frame, event, arg):
+        nonlocal count
+        count += event == "line"
+        return local
+
+    sys.settrace(lambda frame, event, arg: local)
+    try:
+        result = call()
+    finally:
+        sys.settrace(None)
+    return result, count

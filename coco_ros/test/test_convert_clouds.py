@@ -4,11 +4,11 @@ colours, byte order, NaN points."""
 from __future__ import annotations
 
 import array
-import sys
 
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
+from conftest import python_lines
 from coco_mr_vision.pointcloud import PointCloud
 from coco_ros.convert import converter_for
 from coco_ros.convert.stamps import RosTime
@@ -186,23 +186,6 @@ def test_bad_clouds_are_refused(change, error):
         setattr(msg, name, value)
     with pytest.raises(ValueError, match=error):
         clouds.to_coco(msg)
-
-
-def python_lines(call):
-    """(result, Python lines executed by ``call``): a loop over points runs >= 1 line per point."""
-    count = 0
-
-    def local(frame, event, arg):
-        nonlocal count
-        count += event == "line"
-        return local
-
-    sys.settrace(lambda frame, event, arg: local)
-    try:
-        result = call()
-    finally:
-        sys.settrace(None)
-    return result, count
 
 
 def test_a_large_cloud_is_converted_without_a_python_loop():

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
+from conftest import python_lines
 from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
 from coco_ros.convert import converter_for
 from coco_ros.convert.stamps import RosTime
@@ -194,24 +195,6 @@ def test_wrong_types_are_refused():
 
 
 # --- no Python loop over pixels -------------------------------------------------------------------
-
-def python_lines(call):
-    """(result, number of Python lines executed by ``call``): a per-pixel loop would run >= 1 line
-    per pixel, wherever it hides (including rclpy's field checks)."""
-    count = 0
-
-    def local(frame, event, arg):
-        nonlocal count
-        count += event == "line"
-        return local
-
-    sys.settrace(lambda frame, event, arg: local)
-    try:
-        result = call()
-    finally:
-        sys.settrace(None)
-    return result, count
-
 
 @pytest.mark.parametrize("image_format", [ImageFormat.RGB8, ImageFormat.BGR8, ImageFormat.DEPTH16,
                                           ImageFormat.YUYV, ImageFormat.I420])
