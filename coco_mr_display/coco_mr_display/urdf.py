@@ -38,6 +38,7 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.component import UnknownNameError
 from coco_core.errors import CocoError, did_you_mean
+from coco_core.transforms.graph import KinematicModel
 from coco_core.transforms.resources import resolve
 
 from .mesh import GpuMesh, MeshPart, color_problem, load_geometry, merge_parts, parts_of, primitive
@@ -169,6 +170,9 @@ class GLUrdf(PhongPeer):
                          min=0.01, max=1.0)
     cull_back_faces = Attribute(bool, True, "skip triangles facing away, as RViz does: robot meshes are closed "
                                 "and wound outwards; draws Baxter 1.6x faster")
+    wait_for_joints = Attribute(bool, False, "draw no link that a robot model places before that model's first "
+                                "joint state (the all-zero pose loaded at start is not the robot's), as "
+                                "TransformationInterface's attribute of that name publishes nothing then")
     preload = Attribute(bool, False, "read the meshes while the application is built (init), so that the first "
                         "frame shows the robot; the start waits for them (about 2 s for Baxter)")
 
@@ -236,6 +240,9 @@ class GLUrdf(PhongPeer):
                     missing.append(link.frame)
                     self._missing.add(link.frame)
                     first_error = first_error or str(error)
+                continue
+            if self.wait_for_joints and any(isinstance(dependency, KinematicModel) and dependency.version == 0
+                                            for dependency in graph.query(world, link.frame).dependencies):
                 continue
             model_view = view_matrix @ pose
             for mesh in link.meshes:

@@ -178,3 +178,15 @@ def test_preload_reports_a_bad_mesh_when_the_application_is_built(tmp_path):
                       "</geometry></visual></link></robot>")
     with pytest.raises(ResourceNotFoundError, match=r"meshes/gone\.stl does not exist"):
         Application("urdf-preload").add(GLUrdf("broken", urdf=str(broken), preload=True))
+
+
+def test_wait_for_joints_draws_nothing_before_the_first_joint_state(robot):
+    """The graph holds Baxter at its all-zero pose until a joint state arrives: with wait_for_joints
+    that pose is not drawn (every Baxter link is placed by the model), and the first joint state shows it."""
+    peer, app, frame = robot(wait_for_joints=True, simplify=0.25)
+    peer.wait_loaded(timeout=120)
+    _, before = frame()
+    app.transforms.set_joints(MOVED)
+    _, after = frame()
+    assert after.sum() > 5000, "after a joint state the robot is drawn"
+    assert before.sum() == 0, "the all-zero pose loaded at start is not drawn"
