@@ -13,10 +13,11 @@ import moderngl
 import numpy as np
 import pytest
 
+from conftest import Frames, render_once
 from coco_core.application import Application
 from coco_core.attributes import AttributeValueError
 from coco_core.component import Component
-from coco_core.ports import InputPort, OutputPort
+from coco_core.ports import OutputPort
 from coco_mr_display.image import GLImage, fit_scale
 from coco_mr_display.image_texture import ImageTexture
 from coco_mr_display.manager import GLManager
@@ -215,29 +216,19 @@ def test_nothing_is_drawn_before_the_first_image(stage):
 
 # --- in a GLManager -------------------------------------------------------------------------------
 
-class Recorder(Component):
-    frames = InputPort(Image)
-
-
 def test_background_of_a_headless_glmanager_in_2d():
     """The manager's 2D mode, its state reset between peers and its colour output, end to end."""
     rgb = redwood_rgb()
     app = Application("test_image_manager")
     manager = GLManager("display", width=320, height=240, visualization="2d")
     manager.add_peer(GLImage("background"))
-    camera, recorder = Camera("camera"), Recorder("recorder")
+    camera, recorder = Camera("camera"), Frames("recorder")
     for component in (manager, camera, recorder):
         app.add(component)
     app.connect(camera.images, "background.image")
-    app.connect(manager.color, recorder.frames)
+    app.connect(manager.color, recorder.image)
     camera.images.write(Image(rgb, ImageFormat.RGB8))
-    if not manager.configure():
-        pytest.skip("GLManager could not configure a headless OpenGL context here")
-    try:
-        manager.step()
-        _, frame = recorder.frames.read()
-    finally:
-        manager.stop()
+    frame = render_once(manager, recorder.image)
     assert frame.format is ImageFormat.RGB8 and frame.size == (320, 240)
     difference = np.abs(frame.data.astype(int) - cv2.resize(rgb, (320, 240), interpolation=cv2.INTER_LINEAR))
     assert difference.mean() < 1.0
