@@ -1,14 +1,16 @@
-"""Activities: the threads of the scheduling tree.
+"""Activities: the scheduling tree's level between processes and components.
 
-An activity runs its components in order, either periodically (absolute, drift-free deadlines with a
-precise sleep) or when triggered (data arriving on an event port of one of its components, or an
-operation queued to it). Before each cycle it runs the operation calls queued to it, so components
-only ever see their state touched by their own thread. One activity may be the application's *main*
-activity and run in the launcher's main thread.
+An activity runs its components in order, either periodically (on the absolute, drift-free time grid
+of :mod:`coco_core.period`) or when triggered (data arriving on an event port of one of its
+components, or an operation queued to it). Before each cycle it runs the operation calls queued to it,
+so components only ever see their state touched by their own activity.
 
-Timing numbers that decided the design are in the architecture notes: a plain thread that sleeps to
-0.2 ms before the deadline and then spins holds a 1 kHz period to a few microseconds at p99, far
-better than an rclpy timer.
+What an activity *is* lives here: its components, operation queue, the three steps of its life
+(``configure``, ``cycle``, ``finish``), its stats and its schedule. What *drives* it (a thread of its
+own, the launcher's main thread, an rclpy executor, ...) is a separate :mod:`driver
+<coco_core.drivers>` object, chosen before the activity starts; the activity's ``wake``, ``stop``,
+``set_period`` and ``join`` go to that driver, so nothing that talks to an activity knows what drives
+it.
 """
 
 from __future__ import annotations
@@ -16,19 +18,21 @@ from __future__ import annotations
 import logging
 import sys
 import threading
-import time
 from collections import deque
 from typing import Callable, Iterable
 
 from .component import Component
-from .operations import set_current_activity
+from .drivers import DEFAULT_SPIN, Driver, MainThreadDriver, ThreadDriver
+from .errors import CocoError
+from .period import PeriodGrid
 from .profiling import ActivityStats
-from .scheduling import SchedulingRequest, apply_to_current_thread
+from .scheduling import SchedulingRequest
 
 log = logging.getLogger("coco")
 
-DEFAULT_SPIN = 200e-6
-"""Seconds before a periodic deadline at which the coarse sleep ends and spinning begins."""
+
+class ActivityError(CocoError, ValueError):
+    """A wrong use of an activity: a component scheduled twice, a bad period, a second start."""
 
 
 class Activity:
@@ -37,10 +41,6 @@ class Activity:
     kind = "activity"
     wakes_on_data = True
     """Whether data arriving on an event port starts a cycle (triggered) or waits for one (periodic)."""
-    host: Callable[[Activity], None] | None = None
-    """Set by another host before :meth:`start` (``coco_ros`` runs activities as callback groups of an
-    rclpy executor): ``start`` then calls ``host(self)`` instead of starting a thread, and that host
-    drives :meth:`configure`, :meth:`cycle` and :meth:`finish`."""
 
     def __init__(
         self,
@@ -62,26 +62,42 @@ class Activity:
         self._position = sys.maxsize
         """Index of ``current`` in ``components`` during a cycle; ``sys.maxsize`` between cycles."""
         self._ops: deque[Callable[[], None]] = deque()
-        self._wake = threading.Event()
+        self._driver: Driver = MainThreadDriver() if main else ThreadDriver()
         self._stopping = False
         self._started = False
-        self._entered = False
-        """Whether a thread runs (or will run) the body: a main activity enters it only in run_here."""
         self._finished = threading.Event()
-        self._thread: threading.Thread | None = None
         for component in components:
             self.add(component)
 
+    # --- composition and driver -----------------------------------------------------------------
     def add(self, component: Component) -> None:
         """Schedule ``component`` (and so its peers) in this activity."""
         if component.owner is not None:
-            raise ValueError(f"component {component.name} is a peer of {component.owner.name}; "
-                             "peers are run by their owner, not scheduled")
+            raise ActivityError(f"component {component.name} is a peer of {component.owner.name}; "
+                                "peers are run by their owner, not scheduled")
         if component.activity is not None and component.activity is not self:
-            raise ValueError(f"component {component.name} is already in activity {component.activity.name}")
+            raise ActivityError(f"component {component.name} is already in activity {component.activity.name}")
         component.activity = self
         self.components.append(component)
         self._bind_wake(len(self.components) - 1, component)
+
+    @property
+    def driver(self) -> Driver:
+        """What drives this activity (a :class:`~coco_core.drivers.ThreadDriver` unless a host chose
+        another with :meth:`drive_with`)."""
+        return self._driver
+
+    def drive_with(self, driver: Driver) -> None:
+        """Have ``driver`` drive this activity instead of its own thread; before :meth:`start` only.
+        A wake-up already pending (data written before the start) is handed to the new driver."""
+        if self._started:
+            raise ActivityError(f"activity {self.name} already started: its driver cannot change")
+        pending = self._driver.wake_pending
+        self._driver = driver
+        if pending:
+            driver.wake()
+        for position, component in enumerate(self.components):
+            self._bind_wake(position, component)
 
     def _bind_wake(self, position: int, component: Component) -> None:
         """Let every input of ``component`` (at ``position`` in the order) and its peers wake this
@@ -94,16 +110,19 @@ class Activity:
     def _waker(self, position: int) -> Callable[[], None]:
         """The wake-up of the inputs of the component at ``position``: none while a cycle has yet to
         update that component (an earlier one of the pipeline wrote to it, or another thread did
-        before the cycle reached it), since that cycle reads the data; otherwise :meth:`wake`, so the
+        before the cycle reached it), since that cycle reads the data; otherwise the driver's, so the
         data gets a cycle of its own. Without this, every pipeline in one activity ran one empty cycle
         after each real one. ``_position`` only grows during a cycle, and the data is stored before
         the wake-up, so a skipped wake-up's data is always read."""
-        def wake() -> None:
+        wake = self._driver.wake
+
+        def waker() -> None:
             if position <= self._position:
-                self.wake()  # looked up at each call: a host may replace ``wake``
+                wake()
 
-        return wake
+        return waker
 
+    # --- state ----------------------------------------------------------------------------------
     @property
     def running(self) -> bool:
         """Started and not yet finished: calls from other threads must be queued."""
@@ -113,40 +132,42 @@ class Activity:
     def finished(self) -> bool:
         return self._finished.is_set()
 
+    @property
+    def stopping(self) -> bool:
+        return self._stopping
+
+    @property
+    def wake_pending(self) -> bool:
+        """Whether a wake-up (data, a queued call) is waiting for a cycle that has not begun."""
+        return self._driver.wake_pending
+
+    def wait_finished(self, timeout: float | None = None) -> bool:
+        """Block until :meth:`finish` ran; False on timeout (for drivers' ``join``)."""
+        return self._finished.wait(timeout)
+
+    # --- life -----------------------------------------------------------------------------------
     def start(self) -> None:
-        """Start the thread (a main activity only marks itself started: call :meth:`run_here`)."""
+        """Hand the activity to its driver (a main activity's driver waits for :meth:`run_here`)."""
         if self._started:
-            raise RuntimeError(f"activity {self.name} was already started")
+            raise ActivityError(f"activity {self.name} was already started")
         self._started = True
         for position, component in enumerate(self.components):  # ports and peers may have been added
             self._bind_wake(position, component)
-        if self.host is not None:
-            self._entered = True
-            self.host(self)
-        elif not self.main:
-            self._entered = True
-            self._thread = threading.Thread(target=self.run_here, name=f"coco:{self.name}", daemon=True)
-            self._thread.start()
+        self._driver.start(self)
 
     def run_here(self) -> None:
-        """The activity's body, in the calling thread: configure, loop until stopped, stop components."""
-        self._started = self._entered = True
-        set_current_activity(self)
-        try:
-            for warning in apply_to_current_thread(self.scheduling, self.reserved_cores):
-                log.warning("activity %s: %s", self.name, warning)
-            self.configure()
-            if not self._stopping:
-                self._loop()
-        finally:
-            self.finish()
-            set_current_activity(None)
+        """Run the activity in the calling thread until it stops (the main activity)."""
+        driver = self._driver
+        if not isinstance(driver, ThreadDriver):
+            raise ActivityError(f"activity {self.name} is driven by {type(driver).__name__}; "
+                                "only a thread driver runs in the calling thread")
+        self._started = True
+        driver.run(self)
 
-    # The three steps of an activity's life, public so that another host (an rclpy executor running
-    # the activity as a callback group) can drive them instead of the activity's own thread.
+    # The three steps of an activity's life: every driver calls them, in the driver's thread.
     def configure(self) -> None:
         """Configure the components, in order, unless a stop was asked meanwhile."""
-        self._started = self._entered = True
+        self._started = True
         for component in self.components:
             if not self._stopping:
                 component.configure()
@@ -171,19 +192,6 @@ class Activity:
         self._finished.set()
         self._run_pending()
 
-    @property
-    def stopping(self) -> bool:
-        return self._stopping
-
-    @property
-    def wake_pending(self) -> bool:
-        """Whether a wake-up (data, a queued call) is waiting for the next cycle; a host taking the
-        activity over must not lose it."""
-        return self._wake.is_set()
-
-    def _loop(self) -> None:
-        raise NotImplementedError
-
     def _run_pending(self) -> None:
         ops = self._ops
         while ops:
@@ -192,6 +200,7 @@ class Activity:
             except Exception:  # an operation's own errors go to its future; this is a bug guard
                 log.exception("activity %s: queued call failed", self.name)
 
+    # --- what other threads ask (each goes to the driver) ---------------------------------------
     def enqueue(self, call: Callable[[], None]) -> None:
         """Queue ``call`` to run in this activity before its next cycle."""
         self._ops.append(call)
@@ -202,16 +211,16 @@ class Activity:
 
     def wake(self) -> None:
         """Ask a triggered activity for one more cycle (what event ports call on new data)."""
-        self._wake.set()
+        self._driver.wake()
 
     def stop(self) -> None:
         """Ask the activity to finish its current cycle and stop; returns at once."""
         self._stopping = True
-        self._wake.set()
+        self._driver.stop()
 
     def join(self, timeout: float | None = None) -> bool:
         """Wait until the activity has finished; False on timeout."""
-        return self._finished.wait(timeout) if self._entered else True
+        return self._driver.join(timeout)
 
     def describe(self) -> str:
         return self.kind
@@ -221,75 +230,38 @@ class Activity:
 
 
 class PeriodicActivity(Activity):
-    """Runs every ``period`` seconds on absolute deadlines: late cycles never shift later ones.
-
-    A cycle that ends after the next deadline is an *overrun*; the deadlines it missed are skipped so
-    the activity stays on its time grid. Queued operations and data on event ports wait for the next
-    deadline.
-    """
+    """Runs every ``period`` seconds on absolute deadlines (its :class:`~coco_core.period.PeriodGrid`):
+    late cycles never shift later ones, and missed deadlines are skipped and counted as overruns.
+    Queued operations and data on event ports wait for the next deadline."""
 
     kind = "periodic"
     wakes_on_data = False
 
     def __init__(self, name: str, period: float, components: Iterable[Component] = (), *,
                  spin: float = DEFAULT_SPIN, **options: object) -> None:
-        super().__init__(name, components, **options)  # type: ignore[arg-type]
         if period <= 0:
-            raise ValueError(f"activity {name}: the period must be positive, got {period}")
+            raise ActivityError(f"activity {name}: the period must be positive, got {period}")
+        super().__init__(name, components, **options)  # type: ignore[arg-type]
         self._period = period
         self.spin = spin
-        self._interrupt = threading.Event()
-        """Ends the coarse sleep early: a stop or a period change (data never does)."""
+        """Seconds before each deadline at which a thread driver stops sleeping and spins."""
+        self.grid = PeriodGrid(period, self.stats)
+        """The time grid; the driver keeps it (in the driver's thread)."""
 
     @property
     def period(self) -> float:
         return self._period
 
     def set_period(self, period: float) -> None:
-        """Change the period at run time: the next cycle comes ``period`` after the last one began
+        """Change the period at run time: the next cycle comes ``period`` after the last one was due
         (at once if that is already past), and the time grid continues from there."""
         if period <= 0:
-            raise ValueError(f"activity {self.name}: the period must be positive, got {period}")
+            raise ActivityError(f"activity {self.name}: the period must be positive, got {period}")
         self._period = period
-        self._interrupt.set()
+        self._driver.set_period(period)
 
     def wake(self) -> None:
         """Data on an event port does not advance a periodic activity: it is read at the next cycle."""
-
-    def stop(self) -> None:
-        super().stop()
-        self._interrupt.set()
-
-    def _loop(self) -> None:
-        clock = time.perf_counter
-        stats = self.stats
-        period = self._period
-        deadline = clock()
-        while not self._stopping:
-            self.cycle()
-            deadline += period
-            now = clock()
-            if now > deadline:
-                stats.overruns += 1
-                deadline += (int((now - deadline) / period) + 1) * period
-            woke = self._sleep_until(deadline)
-            while woke is None:  # interrupted: stopping, or a new period
-                if self._stopping:
-                    return
-                deadline, period = max(deadline - period + self._period, clock()), self._period
-                woke = self._sleep_until(deadline)
-            stats.record_error(woke - deadline)
-
-    def _sleep_until(self, deadline: float) -> float | None:
-        """Sleep coarsely, then spin to ``deadline``; the wake-up time, or None when interrupted."""
-        remaining = deadline - time.perf_counter()
-        if remaining > self.spin and self._interrupt.wait(remaining - self.spin):
-            self._interrupt.clear()
-            return None
-        while (now := time.perf_counter()) < deadline:
-            if self._stopping:
-                return None
-        return now
 
     def describe(self) -> str:
         return f"periodic {self._period * 1e3:g} ms"
@@ -304,12 +276,3 @@ class TriggeredActivity(Activity):
     """
 
     kind = "triggered"
-
-    def _loop(self) -> None:
-        wait, clear = self._wake.wait, self._wake.clear
-        while not self._stopping:
-            wait()
-            clear()
-            if self._stopping:
-                break
-            self.cycle()

@@ -29,10 +29,10 @@ OpenGL context, a thread-affine device SDK) needs a dedicated thread.
 Which activities get their own thread (coco_core's loop: ``Activity.start``) instead is decided by
 :func:`dedicated_reason`; see ``docs/ros.md`` for the rule and the measured numbers behind it.
 
-How the executor attaches to an activity without changing its class: ``Activity.host`` (coco_core)
-makes ``start`` hand the activity over instead of starting a thread, and the activity's ``wake``,
-``stop`` and (periodic) ``set_period`` are replaced on the instance so that event ports, queued
-operations, ``Application.stop`` and ``Application.set_period`` reach the executor.
+How the executor attaches to an activity: an :class:`ExecutorDriver` is the activity's driver
+(``Activity.drive_with``, the protocol of :mod:`coco_core.drivers`), so event ports, queued
+operations, ``Application.stop``, ``Application.set_period`` and ``Application.in_flight`` reach the
+executor through the activity's own methods; nothing is replaced on the activity.
 """
 
 from __future__ import annotations
@@ -129,8 +129,10 @@ def describe_hosting(app: Application, plan: dict[str, str]) -> str:
     return "\n".join(lines)
 
 
-class _Hosted:
-    """One activity run by the executor: its callback group, guard condition and (periodic) timer."""
+class ExecutorDriver:
+    """The driver (:class:`coco_core.drivers.Driver`) of one activity run by the executor: its callback
+    group, guard condition and (periodic) timer. The activity keeps its own class and methods: its
+    ``wake``, ``stop``, ``set_period`` and ``join`` come here because this is its driver."""
 
     def __init__(self, host: ExecutorHost, activity: Activity, group: MutuallyExclusiveCallbackGroup) -> None:
         self.host = host
@@ -148,26 +150,18 @@ class _Hosted:
         self.guard: GuardCondition = node.create_guard_condition(self._on_guard, callback_group=group)
         self.timer: Timer | None = None
         self._lock = threading.Lock()
-        self.deadline = 0.0
-        activity.host = self._start
-        activity.stop = self._stop  # type: ignore[method-assign]
         if isinstance(activity, PeriodicActivity):
             self.timer = node.create_timer(activity.period, self._on_timer, callback_group=group,
                                            clock=host.clock, autostart=False)
-            activity.set_period = self._set_period  # type: ignore[method-assign]
-        else:
-            # A wake-up that came before the executor took over (data written before start) is kept,
-            # as the activity's own thread would find its wake event already set.
-            self.pending = activity.wake_pending
-            activity.wake = self._wake  # type: ignore[method-assign]
+        activity.drive_with(self)  # a wake-up pending from before (data written early) comes along
 
-    # --- what the activity's hooks do ----------------------------------------------------------
-    def _start(self, activity: Activity) -> None:
-        """``Activity.start``: the executor's first callback of this group configures it."""
+    # --- the driver protocol (called through the activity) ---------------------------------------
+    def start(self, activity: Activity) -> None:
+        """The executor's first callback of this group configures the activity."""
         self.started = True
         self._trigger()
 
-    def _wake(self) -> None:
+    def wake(self) -> None:
         """Trigger the guard condition only when no wake-up is pending: a pending one already has a
         trigger (or the running callback, ``inside``) that will serve it, and the cycle it leads to
         clears ``pending`` before reading the ports, so it sees this wake-up's data too. Every
@@ -175,9 +169,45 @@ class _Hosted:
         if self.pending:
             return
         self.pending = True
-        if not self.inside:
+        if not self.inside and self.started:
             self._trigger()
 
+    @property
+    def wake_pending(self) -> bool:
+        return self.pending
+
+    def stop(self) -> None:
+        """The activity is marked stopping: a timer callback now returns at once, and the group's
+        next callback runs ``finish`` (``on_stop``)."""
+        if self.timer is not None:
+            # Park the timer rather than cancel it: cancelling races with an executor that already
+            # took it as ready (rclpy then fails in call_timer). close() destroys it after the spin.
+            with self._lock:
+                self.timer.timer_period_ns = PARKED_NS
+                self.timer.reset()
+        self._trigger()
+
+    def set_period(self, period: float) -> None:
+        """A new period (stored by the activity): the next cycle comes one new period after the last
+        one was due, and the grid continues from it."""
+        activity = self.activity
+        assert isinstance(activity, PeriodicActivity) and self.timer is not None
+        with self._lock:
+            activity.grid.period = period
+            if activity.stopping:  # the timer stays parked
+                return
+            self.timer.timer_period_ns = int(round(period * 1e9))
+            if self.configured:
+                self.timer.reset()  # the timer's next call is one new period from now: so is the grid's
+                activity.grid.begin(time.perf_counter() + period)
+        executor = self.host.node.executor
+        if executor is not None:
+            executor.wake()  # the executor's current wait was computed with the old period
+
+    def join(self, timeout: float | None = None) -> bool:
+        return self.activity.wait_finished(timeout) if self.started else True
+
+    # --- callbacks, each inside the activity's mutually exclusive group ------------------------
     def _leave(self) -> None:
         """End of a callback of the group: a wake-up that came meanwhile gets its cycle. ``inside`` is
         cleared before ``pending`` is read, so a wake-up from another thread is never lost: either it
@@ -187,32 +217,6 @@ class _Hosted:
         if self.pending:
             self._trigger()
 
-    def _stop(self) -> None:
-        type(self.activity).stop(self.activity)  # marks it stopping: a timer callback now returns at once
-        if self.timer is not None:
-            # Park the timer rather than cancel it: cancelling races with an executor that already
-            # took it as ready (rclpy then fails in call_timer). close() destroys it after the spin.
-            with self._lock:
-                self.timer.timer_period_ns = PARKED_NS
-                self.timer.reset()
-        self._trigger()  # the group's next callback runs finish() (on_stop)
-
-    def _set_period(self, period: float) -> None:
-        """A new period: the next cycle comes one new period from now, and the grid continues from it."""
-        activity = self.activity
-        assert isinstance(activity, PeriodicActivity) and self.timer is not None
-        PeriodicActivity.set_period(activity, period)  # checks the value and stores it
-        with self._lock:
-            if activity.stopping:  # the timer stays parked
-                return
-            self.timer.timer_period_ns = int(round(period * 1e9))
-            if self.configured:
-                self.timer.reset()
-                self.deadline = time.perf_counter() + period
-        executor = self.host.node.executor
-        if executor is not None:
-            executor.wake()  # the executor's current wait was computed with the old period
-
     def _trigger(self) -> None:
         if self.closed:
             return
@@ -221,7 +225,6 @@ class _Hosted:
         except Exception:  # destroyed at shutdown: a late writer has nothing left to wake
             pass
 
-    # --- callbacks, each inside the activity's mutually exclusive group ------------------------
     def _on_guard(self) -> None:
         activity = self.activity
         if not self.started or activity.finished:
@@ -239,7 +242,7 @@ class _Hosted:
                     activity.finish()
                     return
                 if isinstance(activity, PeriodicActivity):
-                    self._begin_grid()  # and run the first cycle now, as the activity's own loop does
+                    self._begin_grid(activity)  # and run the first cycle now, as a thread driver does
                     activity.cycle()
                     return
             if self.pending:
@@ -268,11 +271,11 @@ class _Hosted:
         finally:
             self._leave()
 
-    def _begin_grid(self) -> None:
+    def _begin_grid(self, activity: PeriodicActivity) -> None:
         assert self.timer is not None
         with self._lock:
             self.timer.reset()  # starts the timer: its grid begins now
-            self.deadline = time.perf_counter() + self.timer.time_until_next_call() / 1e9
+            activity.grid.begin(time.perf_counter() + self.timer.time_until_next_call() / 1e9)
 
     def _on_timer(self) -> None:
         now = time.perf_counter()
@@ -280,17 +283,8 @@ class _Hosted:
         if not self.configured or activity.stopping:
             return
         assert isinstance(activity, PeriodicActivity)
-        stats = activity.stats
         with self._lock:
-            period = activity.period
-            late = now - self.deadline
-            if late >= period:  # started more than one period after its deadline: skip what it missed
-                stats.overruns += 1
-                missed = int(late // period)
-                self.deadline += missed * period
-                late -= missed * period
-            stats.record_error(late)
-            self.deadline += period
+            activity.grid.fired(now)
         set_current_activity(activity)
         try:
             activity.cycle()
@@ -335,11 +329,11 @@ class ExecutorHost:
         """Activity timers run on the steady clock, like the activities' own threads (not /clock)."""
         self.plan = plan_hosting(app, threads, all_threads)
         self.groups: dict[str, MutuallyExclusiveCallbackGroup] = {}
-        self.hosted: dict[str, _Hosted] = {}
+        self.hosted: dict[str, ExecutorDriver] = {}
         for name, activity in app.activities.items():
             group = self.groups[name] = MutuallyExclusiveCallbackGroup()
             if self.plan[name] == EXECUTOR:
-                self.hosted[name] = _Hosted(self, activity, group)
+                self.hosted[name] = ExecutorDriver(self, activity, group)
         app.ros_node = node  # type: ignore[attr-defined]
         app.ros_host = self  # type: ignore[attr-defined]
 

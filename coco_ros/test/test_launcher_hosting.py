@@ -278,6 +278,25 @@ def test_data_written_before_start_triggers_the_first_cycle(hosting: Hosting) ->
     assert wait_until(lambda: recorder.values == [42])
 
 
+def test_a_pending_wake_of_a_hosted_activity_keeps_the_application_in_flight(hosting: Hosting) -> None:
+    """A wake-up the executor has not served yet is data in flight: a producer that asks
+    ``in_flight()`` before stopping (BagReplay's stop_at_end) must wait for it. The latest-value
+    connection holds no queue, so only the hosted activity's pending wake-up says so."""
+    app = Application("pending")
+    source = app.add(Counter("source"))
+    recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
+    app.connect("source.out", "recorder.ev", ConnectionPolicy(BufferPolicy.DATA, SyncPolicy.LOCKED))
+    hosting.host_app(app)
+    app.start()  # the executor does not spin yet: nothing serves the wake-up
+    assert not app.in_flight()
+    source.out.write(7)
+    assert app.activity("events").wake_pending
+    assert app.in_flight(), "a pending wake-up of a hosted activity is data in flight"
+    hosting.spin()
+    assert wait_until(lambda: recorder.values == [7])
+    assert wait_until(lambda: not app.in_flight())
+
+
 def test_wakes_during_a_cycle_cause_one_more_cycle(hosting: Hosting) -> None:
     app = Application("busy")
     source = app.add(Counter("source"))

@@ -1,0 +1,157 @@
+"""What drives an activity: its own thread, the launcher's main thread, or another host.
+
+An :class:`~coco_core.activity.Activity` is what runs (components, operation queue, ``configure`` /
+``cycle`` / ``finish``, stats, its schedule); a *driver* decides when and in which thread. This is
+OROCOS RTT's split of ``RunnableInterface`` (the activity's steps) from ``ActivityInterface`` (a
+thread, a slave driven by another, ...): the same activity runs unchanged under every driver, and a
+host (``coco_ros`` runs activities as callback groups of an rclpy executor) brings its own driver
+instead of changing the activity. Every driver has the protocol of :class:`Driver`.
+
+The thread drivers sleep coarsely and then spin to each periodic deadline: the architecture notes
+measured that a plain thread doing so holds a 1 kHz period to a few microseconds at p99, far better
+than an rclpy timer.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from typing import TYPE_CHECKING, Protocol
+
+from .operations import set_current_activity
+from .scheduling import apply_to_current_thread
+
+if TYPE_CHECKING:
+    from .activity import Activity, PeriodicActivity
+
+log = logging.getLogger("coco")
+
+DEFAULT_SPIN = 200e-6
+"""Seconds before a periodic deadline at which the coarse sleep ends and spinning begins."""
+
+
+class Driver(Protocol):
+    """When and where an activity's steps run. Called by the activity only (its methods of the same
+    names delegate here), so that ports, operations and the application never know the driver."""
+
+    def start(self, activity: Activity) -> None:
+        """Begin driving ``activity``: configure it, then cycle it by its schedule until stopped."""
+
+    def wake(self) -> None:
+        """One more cycle of a triggered activity (data on an event port, a queued operation)."""
+
+    @property
+    def wake_pending(self) -> bool:
+        """Whether a wake-up waits for a cycle that has not begun: data is still in flight."""
+
+    def stop(self) -> None:
+        """End after the current cycle (``finish`` runs ``on_stop``); returns at once."""
+
+    def set_period(self, period: float) -> None:
+        """The activity's period changed (it is stored already): apply it from the next cycle on."""
+
+    def join(self, timeout: float | None = None) -> bool:
+        """Wait until the activity has finished; False on timeout."""
+
+
+class ThreadDriver:
+    """Runs the activity in a thread of its own: periodic on the activity's time grid with a precise
+    sleep, triggered on each wake-up. Wake-ups that arrive during a cycle are not lost: they cause one
+    more cycle."""
+
+    def __init__(self) -> None:
+        self._wake = threading.Event()
+        self._interrupt = threading.Event()
+        """Ends a periodic activity's coarse sleep early: a stop or a period change (data never does)."""
+        self._activity: Activity | None = None
+        self._entered = False
+        """Whether a thread runs (or will run) the activity: a main activity's only once it is run."""
+        self._thread: threading.Thread | None = None
+
+    def start(self, activity: Activity) -> None:
+        self._activity, self._entered = activity, True
+        self._thread = threading.Thread(target=self.run, args=(activity,), name=f"coco:{activity.name}",
+                                        daemon=True)
+        self._thread.start()
+
+    def run(self, activity: Activity) -> None:
+        """The activity's life in the calling thread: configure, loop until stopped, finish."""
+        self._activity, self._entered = activity, True
+        set_current_activity(activity)
+        try:
+            for warning in apply_to_current_thread(activity.scheduling, activity.reserved_cores):
+                log.warning("activity %s: %s", activity.name, warning)
+            activity.configure()
+            if not activity.stopping:
+                from .activity import PeriodicActivity
+
+                if isinstance(activity, PeriodicActivity):
+                    self._periodic(activity)
+                else:
+                    self._triggered(activity)
+        finally:
+            activity.finish()
+            set_current_activity(None)
+
+    def _triggered(self, activity: Activity) -> None:
+        wait, clear = self._wake.wait, self._wake.clear
+        while not activity.stopping:
+            wait()
+            clear()
+            if activity.stopping:
+                break
+            activity.cycle()
+
+    def _periodic(self, activity: PeriodicActivity) -> None:
+        clock = time.perf_counter
+        grid = activity.grid
+        grid.begin(clock())
+        while not activity.stopping:
+            activity.cycle()
+            deadline = grid.after_cycle(clock())
+            woke = self._sleep_until(activity, deadline)
+            while woke is None:  # interrupted: stopping, or a new period
+                if activity.stopping:
+                    return
+                deadline = grid.change_period(activity.period, clock())
+                woke = self._sleep_until(activity, deadline)
+            grid.woke(woke)
+
+    def _sleep_until(self, activity: PeriodicActivity, deadline: float) -> float | None:
+        """Sleep coarsely, then spin to ``deadline``; the wake-up time, or None when interrupted."""
+        remaining = deadline - time.perf_counter()
+        spin = activity.spin
+        if remaining > spin and self._interrupt.wait(remaining - spin):
+            self._interrupt.clear()
+            return None
+        while (now := time.perf_counter()) < deadline:
+            if activity.stopping:
+                return None
+        return now
+
+    def wake(self) -> None:
+        self._wake.set()
+
+    @property
+    def wake_pending(self) -> bool:
+        return self._wake.is_set()
+
+    def stop(self) -> None:
+        self._wake.set()
+        self._interrupt.set()
+
+    def set_period(self, period: float) -> None:
+        self._interrupt.set()
+
+    def join(self, timeout: float | None = None) -> bool:
+        activity = self._activity
+        return activity.wait_finished(timeout) if activity is not None and self._entered else True
+
+
+class MainThreadDriver(ThreadDriver):
+    """Runs the activity in the thread that calls :meth:`run` (the launcher's main thread, which
+    some GUI toolkits require): ``start`` only marks it started, ``Activity.run_here`` runs it."""
+
+    def start(self, activity: Activity) -> None:
+        self._activity = activity
