@@ -52,6 +52,8 @@ class Activity:
     ) -> None:
         self.name = name
         self.main = main
+        self.process = ""
+        """The ``<process>`` that runs this activity; empty: the launcher's own process."""
         self.scheduling = scheduling or SchedulingRequest()
         self.reserved_cores: set[int] = set()
         """Cores held exclusively by other activities (set by the application)."""

@@ -11,7 +11,7 @@ import logging
 import threading
 import time
 from types import UnionType
-from typing import Union, get_args, get_origin
+from typing import Callable, Union, get_args, get_origin
 from .activity import Activity, PeriodicActivity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
@@ -58,14 +58,20 @@ class Application:
     def __init__(self, name: str = "coco", on_error: ErrorPolicy = ErrorPolicy.CONTINUE) -> None:
         self.name = name
         self.on_error = on_error
+        self.process = ""
+        """Which ``<process>`` of the application this object runs; empty: the launcher's own. The
+        launcher's application also holds stand-ins of the activities its child processes run."""
         self._components: dict[str, Component] = {}
         self.activities: dict[str, Activity] = {}
         self.connections: list[Connection] = []
         self._stop_requested = threading.Event()
+        self._stop_listeners: list[Callable[[str], None]] = []
         self._stop_requested_at = 0.0
         self.stop_reason = ""
         self._started = False
         self._stopped = False
+        self._clean = True
+        """Whether the stop was clean (every activity finished in time): what later stop() calls say."""
         self.started_at = 0.0
         self.transforms = TransformGraph()
         """The application's transformation graph, shared by every component (thread-safe)."""
@@ -239,13 +245,22 @@ class Application:
 
     def request_stop(self, reason: str = "stop requested") -> None:
         """Ask every activity to stop; returns at once (safe from signal handlers and components)."""
-        if not self._stop_requested.is_set():
+        first = not self._stop_requested.is_set()
+        if first:
             self.stop_reason = reason
             self._stop_requested_at = time.monotonic()
             log.info("stopping application %s: %s", self.name, reason)
         self._stop_requested.set()
         for activity in self.activities.values():
             activity.stop()
+        if first:
+            for listener in self._stop_listeners:
+                listener(reason)
+
+    def add_stop_listener(self, listener: Callable[[str], None]) -> None:
+        """Call ``listener(reason)`` once, when a stop is first requested (the process level tells the
+        other processes of the application)."""
+        self._stop_listeners.append(listener)
 
     def in_flight(self, besides: Activity | None = None) -> bool:
         """Whether data is still moving through the application: an activity (other than ``besides``,
@@ -268,7 +283,7 @@ class Application:
     def stop(self, timeout: float = STOP_TIMEOUT) -> bool:
         """Stop every activity, waiting at most ``timeout`` seconds in total; False if one hung."""
         if self._stopped:
-            return True
+            return self._clean
         self._stopped = True
         self.request_stop(self.stop_reason or "stop requested")
         deadline = time.monotonic() + timeout
@@ -281,6 +296,7 @@ class Application:
                           activity.name, timeout, where)
         for component in self.unscheduled():
             component.stop()
+        self._clean = clean
         log.info("application %s stopped %.3f s after the request (%s)", self.name,
                  time.monotonic() - self._stop_requested_at, "clean" if clean else "some activities did not stop")
         return clean

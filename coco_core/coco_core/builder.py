@@ -15,9 +15,10 @@ from .activity import Activity, PeriodicActivity, TriggeredActivity
 from .application import Application
 from .attributes import AttributeValueError
 from .component import Component, ErrorPolicy
-from .errors import CocoError, ConfigError, ConfigErrors
+from .errors import CocoError, ConfigError, ConfigErrors, did_you_mean
 from .model import ActivitySpec, AppSpec, ComponentSpec, LogSpec
 from .policy import ConnectionPolicy
+from .processes.placement import LAUNCHER, Placement
 from .scheduling import SchedulingRequest
 
 log = logging.getLogger("coco")
@@ -131,13 +132,21 @@ class _Builder:
                 self.fail(f"<urdf> {error}", urdf)
         graph.strict = spec.strict
 
-    def build(self) -> Application:
+    def build(self, process: str = LAUNCHER) -> Application:
         spec = self.spec
+        placement = Placement.of(spec)
+        if process and process not in placement.processes:
+            raise ConfigError(f"no process {process!r} in the application; "
+                              f"{did_you_mean(process, placement.processes)}")
+        mine = [c for c in spec.components if placement.process_of(c.name) == process]
         app = Application(spec.name or Path(spec.file).stem, on_error=ErrorPolicy(spec.on_error or "continue"))
-        self.install_transforms(app)
-        components = [c for c in map(self.instantiate, spec.components) if c is not None]
+        app.process = process
+        self.errors.extend(placement.problems(spec))
+        if process == LAUNCHER:  # the transformation graph stays whole in the launcher's process
+            self.install_transforms(app)
+        components = [c for c in map(self.instantiate, mine) if c is not None]
         self.check()
-        by_name = {c.name: s for c, s in zip(components, spec.components)}
+        by_name = {c.name: s for c, s in zip(components, mine)}
         for component in components:
             try:
                 app.add(component)
@@ -145,13 +154,21 @@ class _Builder:
                 self.fail(f"component {component.name}: init() failed: {error!r}", by_name.get(component.name))
         self.check()
         for activity_spec in spec.activities:
+            owner = placement.of_activity[activity_spec.name]
+            if owner != process and process != LAUNCHER:
+                continue  # a child knows only its own activities
             try:
                 activity = app.add_activity(self.activity(activity_spec))
+                activity.process = owner
+                if owner != process:
+                    continue  # the launcher's stand-in of a child's activity runs no component here
                 for name in activity_spec.components:
                     activity.add(app.component(name))
             except (CocoError, ValueError, KeyError) as error:
                 self.fail(error, activity_spec)
         for connection_spec in spec.connections:
+            if placement.crosses(connection_spec) or placement.process_of(connection_spec.src.component) != process:
+                continue  # another process's, or a shared-memory channel made by the process level
             try:
                 app.connect(str(connection_spec.src), str(connection_spec.dest),
                             ConnectionPolicy(connection_spec.data, connection_spec.policy,
@@ -167,9 +184,14 @@ class _Builder:
         return app
 
 
-def build_application(spec: AppSpec) -> Application:
-    """Instantiate, configure and wire ``spec``; raise :class:`ConfigErrors` listing every problem."""
-    return _Builder(spec).build()
+def build_application(spec: AppSpec, process: str = LAUNCHER) -> Application:
+    """Instantiate, configure and wire ``spec``; raise :class:`ConfigErrors` listing every problem.
+
+    With ``<process>`` elements, only the part of ``process`` (the launcher's: ``""``) is built: its
+    components, its activities and the connections inside it. The launcher's application also holds a
+    stand-in (no components) of every child's activity, for a driver to reach it by name; the
+    connections between processes are left to :mod:`coco_core.processes`."""
+    return _Builder(spec).build(process)
 
 
 def configure_logging(spec: LogSpec | None, default_level: int = logging.INFO) -> None:

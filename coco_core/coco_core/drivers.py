@@ -15,6 +15,8 @@ than an rclpy timer.
 from __future__ import annotations
 
 import logging
+import os
+import select
 import threading
 import time
 from typing import TYPE_CHECKING, Protocol
@@ -155,3 +157,34 @@ class MainThreadDriver(ThreadDriver):
 
     def start(self, activity: Activity) -> None:
         self._activity = activity
+
+
+class EventfdDriver(ThreadDriver):
+    """A thread driver woken through a Linux ``eventfd``: a kernel counter that any process holding
+    the descriptor can increment. A triggered activity that reads a connection from another process
+    is driven by one, so the writer's process wakes it directly (one ``write`` system call), without
+    a relay thread; wake-ups from its own process go the same way. Only triggered activities use it:
+    a periodic one is never woken by data."""
+
+    def __init__(self, fd: int) -> None:
+        super().__init__()
+        self.fd = fd
+
+    def wake(self) -> None:
+        os.eventfd_write(self.fd, 1)
+
+    @property
+    def wake_pending(self) -> bool:
+        return bool(select.select([self.fd], [], [], 0)[0])
+
+    def stop(self) -> None:
+        super().stop()
+        os.eventfd_write(self.fd, 1)
+
+    def _triggered(self, activity: Activity) -> None:
+        read, fd = os.eventfd_read, self.fd
+        while not activity.stopping:
+            read(fd)  # blocks with the GIL released until the counter is non-zero, then clears it
+            if activity.stopping:
+                break
+            activity.cycle()

@@ -16,13 +16,17 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 from . import registry
 from .application import Application
 from .builder import build_application, configure_logging
-from .errors import CocoError
+from .connections import Connection
+from .errors import CocoError, ConfigError, ConfigErrors
+from .model import AppSpec
+from .policy import ConnectionPolicy
 from .ports import InputPort
+from .processes import LAUNCHER, Placement, ProcessError, ProcessSupervisor, process_level
 from .report import profile_report
 from .xml import load_application
 
@@ -77,20 +81,63 @@ def list_components() -> str:
     return "\n".join(lines)
 
 
-def describe(app: Application) -> str:
-    """The scheduling tree and the connections, for ``--check``."""
-    lines = [f"application {app.name}"]
+def _activity_lines(app: Application, indent: str) -> list[str]:
+    lines = []
     for activity, components in app.schedule_tree():
-        lines.append(f"  activity {activity.name}: {activity.describe()}" if activity else "  (no activity)")
+        if activity is not None and activity.process != app.process:
+            continue  # the launcher's stand-in of a child's activity: the child's part shows it
+        lines.append(f"{indent}activity {activity.name}: {activity.describe()}" if activity else f"{indent}(no activity)")
         for top in components:
             for component in top.walk():
                 depth = 0
                 owner = component.owner
                 while owner is not None:
                     depth, owner = depth + 1, owner.owner
-                lines.append(f"    {'  ' * depth}{component.name} ({type(component).__name__})")
-    for connection in app.connections:
-        lines.append(f"  {connection.source.qualified_name} -> {connection.sink.qualified_name}  {connection.policy}")  # type: ignore[union-attr]
+                lines.append(f"{indent}  {'  ' * depth}{component.name} ({type(component).__name__})")
+    return lines
+
+
+def _connection_line(connection: Connection, indent: str) -> str:
+    return f"{indent}{connection.source.qualified_name} -> {connection.sink.qualified_name}  {connection.policy}"  # type: ignore[union-attr]
+
+
+def describe(app: Application) -> str:
+    """The scheduling tree and the connections, for ``--check``."""
+    lines = [f"application {app.name}", *_activity_lines(app, "  ")]
+    lines += [_connection_line(connection, "  ") for connection in app.connections]
+    return "\n".join(lines)
+
+
+def describe_processes(spec: AppSpec, launcher_part: Application) -> str:
+    """The scheduling tree with its process level, for ``--check``: every child's part is built here
+    too (``init`` only, nothing runs), so a wrong component in any process is reported now."""
+    placement = Placement.of(spec)
+    parts = {LAUNCHER: launcher_part}
+    errors: list[ConfigError] = []
+    for name in placement.processes:
+        try:
+            parts[name] = build_application(spec, name)
+        except ConfigErrors as error:
+            errors += error.errors
+    if errors:
+        raise ConfigErrors(errors)
+    lines = [f"application {launcher_part.name}"]
+    for name, part in parts.items():
+        process = placement.processes.get(name)
+        placed = [f"affinity {','.join(map(str, process.affinity))}" if process and process.affinity else "",
+                  f"nice {process.nice}" if process and process.nice is not None else ""]
+        details = ", ".join(word for word in placed if word)
+        lines.append(f"  process {name or 'launcher'}" + (f" ({details})" if details else ""))
+        lines += _activity_lines(part, "    ")
+        lines += [_connection_line(connection, "    ") for connection in part.connections]
+    crossing = placement.crossing(spec)
+    if crossing:
+        lines.append("  between processes (shared memory):")
+        for connection in crossing:
+            src, dest = placement.process_of(connection.src.component), placement.process_of(connection.dest.component)
+            policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
+            lines.append(f"    {connection.src} -> {connection.dest}  {policy}  "
+                         f"({src or 'launcher'} -> {dest or 'launcher'})")
     return "\n".join(lines)
 
 
@@ -107,25 +154,28 @@ def install_signal_handlers(app: Application) -> None:
     signal.signal(signal.SIGTERM, handle)
 
 
-def start_profile_printer(app: Application, every: float) -> threading.Event:
-    """Print the profile every ``every`` seconds until the returned event is set."""
+def start_profile_printer(report: Callable[[], str], every: float) -> threading.Event:
+    """Print ``report()`` every ``every`` seconds until the returned event is set."""
     done = threading.Event()
 
     def loop() -> None:
         while not done.wait(every):
-            print(profile_report(app), flush=True)
+            print(report(), flush=True)
 
     threading.Thread(target=loop, name="coco:profile", daemon=True).start()
     return done
 
 
 @contextlib.contextmanager
-def launcher_services(app: Application, options: argparse.Namespace) -> Iterator[None]:
+def launcher_services(app: Application, options: argparse.Namespace,
+                      processes: ProcessSupervisor | None = None) -> Iterator[None]:
     """What every launcher runs around an application: Ctrl-C handling, the profile (every
-    ``--profile`` seconds and once at the end) and the transformation graph's server
-    (``--transforms-server``); the server stops and the final profile prints when the block ends."""
+    ``--profile`` seconds and once at the end, of every process of the application) and the
+    transformation graph's server (``--transforms-server``); the server stops and the final profile
+    prints when the block ends."""
     install_signal_handlers(app)
-    printer = start_profile_printer(app, options.profile) if options.profile else None
+    report = processes.report if processes is not None else lambda: profile_report(app)
+    printer = start_profile_printer(report, options.profile) if options.profile else None
     server = None
     if options.transforms_server is not None:
         from .transforms.server import TransformServer
@@ -139,7 +189,7 @@ def launcher_services(app: Application, options: argparse.Namespace) -> Iterator
             server.stop()
         if printer is not None:
             printer.set()
-            print(profile_report(app), flush=True)
+            print(report(), flush=True)
 
 
 def stopped_by_a_failure(app: Application) -> bool:
@@ -164,13 +214,23 @@ def run(options: argparse.Namespace) -> int:
         print(f"coco-launch: {error}", file=sys.stderr)
         return 1
     if options.check:
-        print(describe(app))
+        try:
+            print(describe_processes(spec, app) if spec.processes else describe(app))
+        except CocoError as error:
+            print(f"coco-launch: {error}", file=sys.stderr)
+            return 1
         return 0
     configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
-    with launcher_services(app, options):
-        app.run(options.duration)
-    clean = app.stop()
-    return 0 if clean and not stopped_by_a_failure(app) else 1
+    try:
+        with process_level(spec, app, logging.getLevelName(options.log_level)) as processes:
+            with launcher_services(app, options, processes):
+                app.run(options.duration)
+            clean = app.stop()
+    except ProcessError as error:
+        print(f"coco-launch: {error}", file=sys.stderr)
+        return 1
+    failed = stopped_by_a_failure(app) or (processes is not None and processes.failed)
+    return 0 if clean and not failed else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -95,6 +95,20 @@ class ActivitySpec:
     schedule: ScheduleSpec
     components: list[str] = field(default_factory=list)
     location: Location | None = None
+    process: str = ""
+    """The ``<process>`` that runs it; empty: the launcher's own process."""
+
+
+@dataclass
+class ProcessSpec:
+    """``<process>``: a child process of the launcher running the activities declared inside it."""
+
+    name: str
+    affinity: list[int] = field(default_factory=list)
+    """Cores the whole process may run on; empty: any."""
+    nice: int | None = None
+    """Nice value of the whole process (-20..19)."""
+    location: Location | None = None
 
 
 @dataclass
@@ -200,6 +214,8 @@ class AppSpec:
     """Top-level components in file order (peers are inside their owners)."""
     connections: list[ConnectionSpec] = field(default_factory=list)
     activities: list[ActivitySpec] = field(default_factory=list)
+    processes: list[ProcessSpec] = field(default_factory=list)
+    """Child processes declared by ``<process>``; activities name theirs in ``ActivitySpec.process``."""
     paths: list[str] = field(default_factory=list)
     """Resource search paths (``<paths>``, ``<resourcespaths>``), absolute, in file order."""
     args: dict[str, str] = field(default_factory=dict)

@@ -1,24 +1,40 @@
 """The profiler's report: what ``coco-launch --profile`` prints.
 
-Per activity: cycles, overruns and period error percentiles. Per component: executions, total time,
-mean and standard deviation of compute time and of service time (time between activations), errors,
-and stamp-to-output latency when the component records it. Per connection: flow counters.
+Per process (when the application has several): pid, CPU time and resident memory. Per activity:
+cycles, overruns and period error percentiles. Per component: executions, total time, mean and
+standard deviation of compute time and of service time (time between activations), errors, and
+stamp-to-output latency when the component records it. Per connection: flow counters.
+
+A report is rendered from :class:`ProfileSnapshot` objects, one per process: plain data that a child
+process sends to the launcher, so that one report shows every process of the application.
 """
 
 from __future__ import annotations
 
+import os
+import resource
 import time
+from dataclasses import dataclass, field
 
 from .activity import PeriodicActivity
 from .application import Application
 
 
-def _table(header: list[str], rows: list[list[str]]) -> str:
-    widths = [max(len(str(cell)) for cell in column) for column in zip(header, *rows)]
-    lines = ["  ".join(cell.ljust(width) for cell, width in zip(header, widths)).rstrip()]
-    lines.append("  ".join("-" * width for width in widths))
-    lines += ["  ".join(str(cell).ljust(width) for cell, width in zip(row, widths)).rstrip() for row in rows]
-    return "\n".join(lines)
+@dataclass
+class ProfileSnapshot:
+    """The profile of the part of an application that one process runs, as plain rows."""
+
+    process: str
+    """The ``<process>`` name; empty: the launcher's own."""
+    pid: int
+    elapsed: float
+    cpu: float
+    """User + system CPU seconds of the whole process so far."""
+    rss: int
+    """Resident memory in bytes."""
+    activities: list[list[str]] = field(default_factory=list)
+    components: list[list[str]] = field(default_factory=list)
+    connections: list[list[str]] = field(default_factory=list)
 
 
 def _us(seconds: float) -> str:
@@ -29,45 +45,88 @@ def _ms(seconds: float) -> str:
     return f"{seconds * 1e3:.3f}"
 
 
-def profile_report(app: Application) -> str:
-    """The whole profile of ``app`` as text tables."""
-    elapsed = time.perf_counter() - app.started_at if app.started_at else 0.0
-    parts = [f"Profile of application {app.name!r} after {elapsed:.1f} s"]
+def _rss() -> int:
+    """Resident memory of this process, from /proc (Linux), else the peak from getrusage."""
+    try:
+        with open("/proc/self/statm") as statm:
+            return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
-    rows = []
-    for activity in app.activities.values():
+
+def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
+    """The profile of what this process runs of ``app``: its own activities (not the stand-ins of
+    activities that other processes run) and the connections it reads."""
+    times = os.times()
+    shot = ProfileSnapshot(process, os.getpid(), time.perf_counter() - app.started_at if app.started_at else 0.0,
+                           times.user + times.system, _rss())
+    local = [activity for activity in app.activities.values() if activity.process == app.process]
+    for activity in local:
         summary = activity.stats.error_summary() if isinstance(activity, PeriodicActivity) else None
-        error = (f"{_us(summary.p50)} / {_us(summary.p99)} / {_us(summary.max)}" if summary else "-")
-        rows.append([activity.name + (" (main)" if activity.main else ""), activity.describe(),
-                     str(activity.stats.cycles), str(activity.stats.overruns), error])
-    parts.append(_table(["activity", "schedule", "cycles", "overruns", "period error p50/p99/max us"], rows))
-
-    rows = []
+        error = f"{_us(summary.p50)} / {_us(summary.p99)} / {_us(summary.max)}" if summary else "-"
+        shot.activities.append([activity.name + (" (main)" if activity.main else ""), activity.describe(),
+                                str(activity.stats.cycles), str(activity.stats.overruns), error])
     for activity, components in app.schedule_tree():
+        if activity is not None and activity.process != app.process:
+            continue
         for top in components:
             for component in top.walk():
                 stats = component.stats
                 latency = stats.latency
-                rows.append([
+                shot.components.append([
                     component.name if component.owner is None else f"  {component.name} (peer)",
                     activity.name if activity else "-",
-                    str(stats.executions),
-                    _ms(stats.compute.total),
+                    str(stats.executions), _ms(stats.compute.total),
                     _us(stats.compute.mean), _us(stats.compute.std),
                     _ms(stats.service.mean), _ms(stats.service.std),
                     str(stats.errors),
                     f"{_ms(latency.mean)} / {_ms(latency.max)}" if latency.count else "-",
                 ])
-    parts.append(_table(["component", "activity", "execs", "total ms", "compute mean us", "compute std us",
-                         "service mean ms", "service std ms", "errors", "latency mean/max ms"], rows))
-
-    rows = []
     for connection in app.connections:
         counters = connection.counters()
-        rows.append([f"{connection.source.qualified_name if connection.source else '?'} -> "
-                     f"{connection.sink.qualified_name if connection.sink else '?'}",
-                     str(connection.policy), str(counters["written"]), str(counters["read"]),
-                     str(counters["dropped"]), str(counters["pending"])])
-    if rows:
-        parts.append(_table(["connection", "policy", "written", "read", "dropped", "pending"], rows))
+        shot.connections.append([
+            f"{connection.source.qualified_name if connection.source else '?'} -> "
+            f"{connection.sink.qualified_name if connection.sink else '?'}",
+            str(connection.policy), str(counters["written"]), str(counters["read"]),
+            str(counters["dropped"]), str(counters["pending"])])
+    return shot
+
+
+def _table(header: list[str], rows: list[list[str]]) -> str:
+    widths = [max(len(str(cell)) for cell in column) for column in zip(header, *rows)]
+    lines = ["  ".join(cell.ljust(width) for cell, width in zip(header, widths)).rstrip()]
+    lines.append("  ".join("-" * width for width in widths))
+    lines += ["  ".join(str(cell).ljust(width) for cell, width in zip(row, widths)).rstrip() for row in rows]
+    return "\n".join(lines)
+
+
+def render(name: str, snapshots: list[ProfileSnapshot]) -> str:
+    """One report of the snapshots of every process of application ``name``; a column names the
+    process of each row when there is more than one."""
+    elapsed = max((shot.elapsed for shot in snapshots), default=0.0)
+    parts = [f"Profile of application {name!r} after {elapsed:.1f} s"]
+    several = len(snapshots) > 1
+
+    def rows(attribute: str) -> list[list[str]]:
+        return [([shot.process or "launcher"] if several else []) + row
+                for shot in snapshots for row in getattr(shot, attribute)]
+
+    where = ["process"] if several else []
+    if several:
+        parts.append(_table(["process", "pid", "cpu s", "rss MB"],
+                            [[shot.process or "launcher", str(shot.pid), f"{shot.cpu:.2f}", f"{shot.rss / 2**20:.1f}"]
+                             for shot in snapshots]))
+    parts.append(_table([*where, "activity", "schedule", "cycles", "overruns", "period error p50/p99/max us"],
+                        rows("activities")))
+    parts.append(_table([*where, "component", "activity", "execs", "total ms", "compute mean us", "compute std us",
+                         "service mean ms", "service std ms", "errors", "latency mean/max ms"],
+                        rows("components")))
+    connections = rows("connections")
+    if connections:
+        parts.append(_table([*where, "connection", "policy", "written", "read", "dropped", "pending"], connections))
     return "\n\n".join(parts)
+
+
+def profile_report(app: Application) -> str:
+    """The whole profile of ``app`` run in this one process, as text tables."""
+    return render(app.name, [snapshot(app)])

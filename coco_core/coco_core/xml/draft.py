@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from ..errors import Location
-from ..model import ActivitySpec, AttributeSpec, ComponentSpec, ConnectionSpec, LogSpec, PortRef
+from ..model import ActivitySpec, AttributeSpec, ComponentSpec, ConnectionSpec, LogSpec, PortRef, ProcessSpec
 
 if TYPE_CHECKING:
     from .transforms import TransformsDraft
@@ -42,6 +42,7 @@ class Draft:
     components: list[ComponentSpec] = field(default_factory=list)
     connections: list[ConnectionSpec] = field(default_factory=list)
     activities: list[ActivitySpec] = field(default_factory=list)
+    processes: list[ProcessSpec] = field(default_factory=list)
     paths: list[str] = field(default_factory=list)
     log: LogSpec | None = None
     scheduled: list[Scheduled] = field(default_factory=list)

@@ -20,6 +20,7 @@ from .components import ON_ERROR, read_component
 from .connections import read_connection
 from .draft import Draft
 from .pipeline import read_pipeline
+from .process import read_process
 from .reader import CONDITIONS, FileReader
 from .references import check_draft
 from .resources import find_resource, not_found_message
@@ -108,6 +109,7 @@ class _Loader:
             components=self.draft.components,
             connections=self.draft.connections,
             activities=self.draft.activities,
+            processes=self.draft.processes,
             paths=self.draft.paths,
             args=dict(self.arguments.values),
             on_error=on_error,
@@ -180,17 +182,23 @@ class _Loader:
                     self.draft.components.append(spec)
 
     def _activities(self, reader: FileReader, element: Element, on_error: str) -> None:
-        for child in reader.container(element, ("activity", "farm", "pipeline")):
+        def read_child(child: Element) -> None:
+            if child.tag == "activity":
+                read_activity(reader, child, self.draft, on_error)
+            else:
+                read_pipeline(reader, child, self.draft)
+
+        for child in reader.container(element, ("activity", "farm", "pipeline", "process")):
             if child.tag == "farm":
                 reader.error(
                     "<farm> is not supported; build it from <pipeline> and <activity> elements",
                     child,
                 )
             elif reader.kept(child):
-                if child.tag == "activity":
-                    read_activity(reader, child, self.draft, on_error)
+                if child.tag == "process":
+                    read_process(reader, child, self.draft, read_child)
                 else:
-                    read_pipeline(reader, child, self.draft)
+                    read_child(child)
 
     def _log(self, reader: FileReader, element: Element) -> None:
         children = reader.container(element, LOG_CHILDREN)

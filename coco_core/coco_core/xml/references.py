@@ -10,7 +10,7 @@ attribute and ``<urdf>`` file, and ``event`` on connections that feed a pipeline
 from __future__ import annotations
 
 from ..errors import ConfigError, Location, did_you_mean
-from ..model import ActivitySpec, ComponentSpec
+from ..model import ActivitySpec, ComponentSpec, ProcessSpec
 from .draft import Draft
 from .resources import find_resource, not_found_message
 from .transforms import check_transforms
@@ -59,6 +59,7 @@ def check_draft(draft: Draft) -> list[ConfigError]:
             known(ref.component, ref.location, f'<{tag} task="{ref.component}">', every_name)
 
     _check_activities(draft.activities, errors)
+    _check_processes(draft.processes, draft.activities, errors)
     _resolve_files(draft, errors)
     if draft.transforms is not None:
         errors.extend(check_transforms(draft.transforms, draft.paths))
@@ -114,6 +115,30 @@ def _check_activities(activities: list[ActivitySpec], errors: list[ConfigError])
                 ))
             else:
                 main = activity
+
+
+def _check_processes(
+    processes: list[ProcessSpec], activities: list[ActivitySpec], errors: list[ConfigError]
+) -> None:
+    """Process names are unique, and the main thread is the launcher's: a child has none to give."""
+    first_named: dict[str, ProcessSpec] = {}
+    for process in processes:
+        if process.name in first_named:
+            errors.append(ConfigError(
+                f"process name {process.name!r} is already used at {first_named[process.name].location}; "
+                "put all of its activities in one <process>",
+                process.location,
+            ))
+        else:
+            first_named[process.name] = process
+    for activity in activities:
+        if activity.process and activity.schedule.main:
+            errors.append(ConfigError(
+                f"activity {activity.name!r} asks for the main thread, but it is in process "
+                f"{activity.process!r}: the main thread is the launcher's (move the activity out of "
+                "the <process>, or drop main=)",
+                activity.schedule.location,
+            ))
 
 
 def _resolve_files(draft: Draft, errors: list[ConfigError]) -> None:

@@ -39,7 +39,7 @@ def read_schedule(reader: FileReader, element: Element, values: dict[str, str]) 
         main=bool(reader.parsed(element, values, "main", parse_bool)),
         realtime=_realtime(reader, element, values),
         priority=reader.parsed(element, values, "priority", parse_int),
-        nice=reader.parsed(element, values, "nice", _nice),
+        nice=reader.parsed(element, values, "nice", parse_nice),
         affinity=reader.parsed(element, values, "affinity", parse_cores) or [],
         exclusive_affinity=reader.parsed(element, values, "exclusive_affinity", parse_cores) or [],
         location=element.location,
@@ -101,7 +101,8 @@ def _milliseconds(text: str) -> float:
     return parse_number(text, "a number of milliseconds")
 
 
-def _nice(text: str) -> int:
+def parse_nice(text: str) -> int:
+    """A nice value, checked against the range the OS accepts."""
     expected = "a nice value from -20 (most favourable) to 19"
     value = parse_int(text, expected)
     if not -20 <= value <= 19:

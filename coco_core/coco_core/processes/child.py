@@ -1,0 +1,164 @@
+"""A child process of the launcher: ``python -m coco_core.processes.child FD PARENT_PID``.
+
+It receives the application model over its control link (descriptor ``FD``), builds only the
+components of its ``<process>``, says so, waits for the word to start, and runs its activities until
+the launcher (or one of its components) asks for a stop; then every activity runs ``on_stop`` in its
+own thread and the child sends its final profile. It is a plain CoCo process: the same builder,
+activities and drivers as the launcher's.
+
+It never outlives the launcher: the kernel sends it SIGTERM when its parent dies
+(``PR_SET_PDEATHSIG``), and a child orphaned that way also unlinks the launch's shared-memory
+segments, which the launcher could not do. Ctrl-C at a terminal reaches every process of the group:
+a child ignores SIGINT and lets the launcher decide.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import os
+import signal
+import sys
+import threading
+from typing import Any
+
+from ..application import Application
+from ..builder import build_application
+from ..drivers import EventfdDriver
+from ..errors import CocoError
+from ..report import snapshot
+from .control import ControlLink
+
+log = logging.getLogger("coco")
+
+PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent: int) -> None:
+    """Have the kernel send SIGTERM when the launcher dies; exit now if it already did."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the control link's end still stops the child
+        pass
+    if os.getppid() != parent:
+        sys.exit(1)
+
+
+def apply_process_placement(affinity: list[int], nice: int | None) -> None:
+    """The ``<process>``'s cores and nice value, for every thread of the process."""
+    if affinity:
+        try:
+            os.sched_setaffinity(0, affinity)
+        except OSError as error:
+            log.warning("cannot run on cores %s: %s", affinity, error.strerror)
+    if nice is not None:
+        try:
+            os.nice(nice - os.nice(0))
+        except OSError as error:
+            log.warning("cannot set nice %d (%s): lowering a nice value needs CAP_SYS_NICE", nice, error.strerror)
+
+
+class ChildProcess:
+    """One child's life: configure, build, start, serve the control link, stop."""
+
+    def __init__(self, link: ControlLink, parent: int) -> None:
+        self.link = link
+        self.parent = parent
+        self.app: Application | None = None
+        self.launch = ""
+        self.orphaned = False
+
+    def run(self) -> int:
+        config = self.link.receive()
+        if config is None or config.get("kind") != "config":
+            return 2
+        process: str = config["process"]
+        self.launch = config["launch"]
+        logging.basicConfig(level=config["log_level"],
+                            format=f"[%(levelname)s] %(name)s[{process}]: %(message)s")
+        spec = config["spec"]
+        placement = next(p for p in spec.processes if p.name == process)
+        apply_process_placement(placement.affinity, placement.nice)
+        try:
+            app = self.app = build_application(spec, process)
+        except CocoError as error:
+            self.link.send("error", text=str(error))
+            return 1
+        for name, fd in config["wakes"].items():
+            app.activities[name].drive_with(EventfdDriver(fd))
+        app.add_stop_listener(self._stop_requested_here)
+        self.link.send("built")
+        while True:  # every process builds, then all start: wait for the word
+            try:
+                message = self.link.receive()
+            except EOFError:
+                self.orphaned = True
+                return 1
+            if message is not None and message["kind"] == "start":
+                break
+            if message is not None and message["kind"] == "stop":
+                return 0
+        listener = threading.Thread(target=self._serve, name="coco:control", daemon=True)
+        listener.start()
+        app.run()
+        clean = app.stop()
+        failed = any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
+        self.link.send("stopped", clean=clean, failed=failed, snapshot=snapshot(app, process))
+        return 0 if clean else 1
+
+    def _stop_requested_here(self, reason: str) -> None:
+        """A stop that began in this process (a component's error policy) stops the whole application."""
+        if not reason.startswith("launcher:"):
+            self.link.send("stop_request", reason=reason)
+
+    def _serve(self) -> None:
+        app = self.app
+        assert app is not None
+        while True:
+            try:
+                message = self.link.receive()
+            except EOFError:  # the launcher is gone
+                self.orphaned = True
+                app.request_stop("launcher: gone")
+                return
+            if message is not None:
+                self._handle(app, message)
+
+    def _handle(self, app: Application, message: dict[str, Any]) -> None:
+        kind = message["kind"]
+        if kind == "stop":
+            app.request_stop(f"launcher: {message['reason']}")
+        elif kind == "profile":
+            self.link.send("reply", id=message["id"], value=snapshot(app, app.process))
+        elif kind == "set_period":
+            try:
+                app.set_period(message["activity"], message["period"])
+            except CocoError as error:
+                log.error("%s", error)
+
+
+def main(argv: list[str] | None = None) -> int:
+    fd, parent = (int(word) for word in (argv or sys.argv[1:])[:2])
+    die_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher handles Ctrl-C for the whole group
+    child = ChildProcess(ControlLink(fd), parent)
+
+    def terminate(_signum: int, _frame: object) -> None:
+        child.orphaned = child.orphaned or os.getppid() != parent
+        if child.app is None:
+            sys.exit(1)
+        child.app.request_stop("launcher: SIGTERM")
+
+    signal.signal(signal.SIGTERM, terminate)
+    try:
+        return child.run()
+    finally:
+        if child.orphaned and child.launch:
+            from ..shm import sweep
+
+            sweep(child.launch)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,72 @@
+"""Which process runs what: the scheduling tree's process level, read from an application model.
+
+Every activity belongs to one process (its ``<process>``, or the launcher's own, named ``""``); a
+component belongs to the process of the activity that runs it, a peer to its owner's, and a
+component that no activity runs stays in the launcher's process (where it serves operations, like
+the TransformationInterface that keeps the transformation graph whole). A connection whose two ends
+are in different processes *crosses*: it becomes a shared-memory channel with the same policy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..errors import ConfigError
+from ..model import AppSpec, ConnectionSpec, ProcessSpec
+from ..policy import SyncPolicy
+
+LAUNCHER = ""
+"""The name of the launcher's own process in a placement."""
+
+
+@dataclass
+class Placement:
+    """The process of every activity and component of one application."""
+
+    processes: dict[str, ProcessSpec] = field(default_factory=dict)
+    """The child processes, by name, in file order."""
+    of_activity: dict[str, str] = field(default_factory=dict)
+    of_component: dict[str, str] = field(default_factory=dict)
+    """Every component (peers too) -> its process."""
+
+    @classmethod
+    def of(cls, spec: AppSpec) -> Placement:
+        placement = cls({process.name: process for process in spec.processes})
+        for activity in spec.activities:
+            placement.of_activity[activity.name] = activity.process
+        scheduled = {name: activity.process for activity in spec.activities for name in activity.components}
+        for top in spec.components:
+            process = scheduled.get(top.name, LAUNCHER)
+            stack = [top]
+            while stack:
+                component = stack.pop()
+                placement.of_component[component.name] = process
+                stack.extend(component.peers)
+        return placement
+
+    @property
+    def several(self) -> bool:
+        """Whether the application has child processes at all."""
+        return bool(self.processes)
+
+    def process_of(self, component: str) -> str:
+        return self.of_component.get(component, LAUNCHER)
+
+    def crosses(self, connection: ConnectionSpec) -> bool:
+        return self.process_of(connection.src.component) != self.process_of(connection.dest.component)
+
+    def crossing(self, spec: AppSpec) -> list[ConnectionSpec]:
+        """The connections of ``spec`` that join two processes, in file order."""
+        return [connection for connection in spec.connections if self.crosses(connection)]
+
+    def problems(self, spec: AppSpec) -> list[ConfigError]:
+        """What cannot run across processes: an UNSYNC connection between two processes."""
+        errors = []
+        for connection in self.crossing(spec):
+            if connection.policy is SyncPolicy.UNSYNC:
+                src, dest = self.process_of(connection.src.component), self.process_of(connection.dest.component)
+                errors.append(ConfigError(
+                    f"UNSYNC connection {connection.src} -> {connection.dest} joins process "
+                    f"{src or 'launcher'!r} and process {dest or 'launcher'!r}; UNSYNC is only valid inside "
+                    "one activity (use LOCKED or LOCK_FREE)", connection.location))
+        return errors

@@ -1,0 +1,304 @@
+"""The launcher's side of the process level: one child process per ``<process>``.
+
+The launcher builds its own part of the application (its components and activities, and a stand-in
+of every child's activity), then a :class:`ProcessSupervisor` starts the children. Each child gets
+the application model over its control link, builds only its own components and says so: the
+application starts only once *every* process was built (one wrong component anywhere and nothing
+runs). Then every process starts its activities together.
+
+Faults: a child that dies (an exception at start, ``kill -9``, a segfault) is reported by process
+name and exit signal or status, and the application stops cleanly (exit status 1). Children die with
+the launcher (a parent-death signal, set by the child itself), and the shared-memory segments of the
+launch are unlinked by the launcher at its end, or by the children when the launcher died first.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import secrets
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..activity import Activity
+from ..application import Application
+from ..errors import CocoError
+from ..model import AppSpec
+from ..report import ProfileSnapshot, render, snapshot
+from .control import ControlLink
+from .placement import LAUNCHER, Placement
+
+log = logging.getLogger("coco")
+
+BUILD_TIMEOUT = 120.0
+"""Seconds a child may take to build its components (a URDF with meshes, an OpenGL context)."""
+PROFILE_TIMEOUT = 1.0
+"""Seconds the launcher waits for a child's profile before printing without it."""
+
+
+class ProcessError(CocoError):
+    """A child process could not be started or built, or died."""
+
+
+def exit_description(code: int | None) -> str:
+    """How a process ended, in words: ``killed by SIGKILL``, ``exit status 1``."""
+    if code is None:
+        return "still running"
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit status {code}"
+
+
+@dataclass
+class Child:
+    """One child process as the launcher sees it."""
+
+    name: str
+    link: ControlLink
+    popen: subprocess.Popen[bytes]
+    activities: list[str]
+    started: bool = False
+    stopped: threading.Event = field(default_factory=threading.Event)
+    """Set when the child said it stopped, or it exited."""
+    clean: bool = False
+    failed: bool = False
+    """A component of the child stopped the application by its error policy."""
+    last: ProfileSnapshot | None = None
+    """The child's final profile, sent when it stopped."""
+    replies: dict[int, Any] = field(default_factory=dict)
+    reply: threading.Condition = field(default_factory=threading.Condition)
+
+
+class ProcessDriver:
+    """The driver of a child's activity, as the launcher holds it (the stand-in activity): the
+    protocol of :mod:`coco_core.drivers`, carried out by the child that runs the activity. Lets the
+    launcher's application stop, join, re-period and ask the state of every activity by name,
+    wherever it runs."""
+
+    def __init__(self, supervisor: ProcessSupervisor, child: Child, activity: Activity, wake_fd: int | None) -> None:
+        self.supervisor = supervisor
+        self.child = child
+        self.activity = activity
+        self.wake_fd = wake_fd
+        activity.drive_with(self)
+
+    def start(self, activity: Activity) -> None:
+        """The launcher's application starts: so does the child (once, for all its activities)."""
+        self.supervisor.start_child(self.child)
+
+    def wake(self) -> None:
+        if self.wake_fd is not None:
+            os.eventfd_write(self.wake_fd, 1)
+
+    @property
+    def wake_pending(self) -> bool:
+        if self.wake_fd is None:
+            return False
+        import select
+
+        return bool(select.select([self.wake_fd], [], [], 0)[0])
+
+    def stop(self) -> None:
+        self.supervisor.stop_child(self.child, self.supervisor.app.stop_reason or "stop requested")
+
+    def set_period(self, period: float) -> None:
+        self.child.link.send("set_period", activity=self.activity.name, period=period)
+
+    def join(self, timeout: float | None = None) -> bool:
+        return self.child.stopped.wait(timeout)
+
+
+class ProcessSupervisor:
+    """Starts, watches and stops the child processes of ``app`` (the launcher's part of ``spec``)."""
+
+    def __init__(self, spec: AppSpec, app: Application, log_level: int = logging.INFO) -> None:
+        self.spec = spec
+        self.app = app
+        self.placement = Placement.of(spec)
+        self.log_level = log_level
+        self.launch_id = f"{os.getpid()}-{secrets.token_hex(3)}"
+        self.children: dict[str, Child] = {}
+        self._fds: list[int] = []
+        """Descriptors the launcher made for the children (eventfds), closed at the end."""
+        self._wakes: dict[str, int] = {}
+        """activity -> eventfd, for every triggered activity of a child."""
+        self._stopping = False
+        self._lock = threading.Lock()
+        self.failure = ""
+        """Why the application failed because of a child (its death), for the exit status."""
+        self._next_request = 0
+
+    # --- start ----------------------------------------------------------------------------------
+    def launch(self) -> None:
+        """Start every child and wait until each has built its part; raises :class:`ProcessError`
+        (after stopping the others) when one could not."""
+        from ..activity import TriggeredActivity
+
+        for activity in self.app.activities.values():
+            if activity.process != LAUNCHER and isinstance(activity, TriggeredActivity):
+                fd = os.eventfd(0, os.EFD_CLOEXEC)
+                self._fds.append(fd)
+                self._wakes[activity.name] = fd
+        try:
+            for name in self.placement.processes:
+                self.children[name] = self._spawn(name)
+            for child in self.children.values():
+                self._wait_built(child)
+        except BaseException:
+            self.kill_all()
+            self.close()
+            raise
+        for child in self.children.values():
+            for name in child.activities:
+                ProcessDriver(self, child, self.app.activities[name], self._wakes.get(name))
+            threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True).start()
+        self.app.add_stop_listener(self._stop_all)
+
+    def _spawn(self, name: str) -> Child:
+        link, theirs = ControlLink.pair()
+        activities = [a for a, process in self.placement.of_activity.items() if process == name]
+        wakes = {a: self._wakes[a] for a in activities if a in self._wakes}
+        try:
+            popen = subprocess.Popen(
+                [sys.executable, "-m", "coco_core.processes.child", str(theirs), str(os.getpid())],
+                pass_fds=(theirs, *wakes.values()), stdin=subprocess.DEVNULL)
+        finally:
+            os.close(theirs)
+        link.send("config", spec=self.spec, process=name, launch=self.launch_id, wakes=wakes,
+                  log_level=self.log_level)
+        return Child(name, link, popen, activities)
+
+    def _wait_built(self, child: Child) -> None:
+        deadline = time.monotonic() + BUILD_TIMEOUT
+        while True:
+            try:
+                message = child.link.receive(timeout=0.1)
+            except EOFError:
+                message = None
+            if message is not None:
+                if message["kind"] == "built":
+                    return
+                if message["kind"] == "error":
+                    raise ProcessError(f"process {child.name}: {message['text']}")
+            code = child.popen.poll()
+            if code is not None:
+                raise ProcessError(f"process {child.name} ended while building its components "
+                                   f"({exit_description(code)})")
+            if time.monotonic() > deadline:
+                raise ProcessError(f"process {child.name} did not build its components within {BUILD_TIMEOUT:g} s")
+
+    def start_child(self, child: Child) -> None:
+        """Tell ``child`` to start its activities, once: every process was built by now."""
+        with self._lock:
+            if child.started:
+                return
+            child.started = True
+        child.link.send("start")
+
+    # --- running --------------------------------------------------------------------------------
+    def _watch(self, child: Child) -> None:
+        """Read the child's messages until it is gone; a death that nobody asked for stops the app."""
+        while True:
+            try:
+                message = child.link.receive()
+            except EOFError:
+                break
+            if message is None:
+                continue
+            kind = message["kind"]
+            if kind == "stopped":
+                child.clean, child.failed, child.last = message["clean"], message["failed"], message["snapshot"]
+            elif kind == "stop_request":
+                self.app.request_stop(f"process {child.name}: {message['reason']}")
+            elif kind == "reply":
+                with child.reply:
+                    child.replies[message["id"]] = message["value"]
+                    child.reply.notify_all()
+        code = child.popen.wait()
+        child.stopped.set()
+        if child.last is not None and code == 0:
+            return  # it stopped as asked
+        what = exit_description(code)
+        log.error("process %s (pid %d) died: %s", child.name, child.popen.pid, what)
+        with self._lock:
+            self.failure = self.failure or f"process {child.name} died: {what}"
+        self.app.request_stop(f"process {child.name} died ({what})")
+
+    def _stop_all(self, reason: str) -> None:
+        for child in self.children.values():
+            self.stop_child(child, reason)
+
+    def stop_child(self, child: Child, reason: str) -> None:
+        self._stopping = True
+        child.link.send("stop", reason=reason)
+
+    def request(self, child: Child, kind: str, timeout: float, **fields: Any) -> Any:
+        """Send a request and wait for its reply; None on timeout or when the child is gone."""
+        with self._lock:
+            self._next_request += 1
+            ident = self._next_request
+        if not child.link.send(kind, id=ident, **fields):
+            return None
+        deadline = time.monotonic() + timeout
+        with child.reply:
+            while ident not in child.replies:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or child.stopped.is_set():
+                    return None
+                child.reply.wait(min(remaining, 0.05))
+            return child.replies.pop(ident)
+
+    def snapshots(self) -> list[ProfileSnapshot]:
+        """The launcher's profile and every child's (its last one once it stopped)."""
+        shots = [snapshot(self.app)]
+        for child in self.children.values():
+            shot = child.last if child.stopped.is_set() else self.request(child, "profile", PROFILE_TIMEOUT)
+            shots.append(shot if shot is not None else ProfileSnapshot(child.name, child.popen.pid, 0.0, 0.0, 0))
+        return shots
+
+    def report(self) -> str:
+        """The profile of the whole application, every process in one report."""
+        return render(self.app.name, self.snapshots())
+
+    @property
+    def failed(self) -> bool:
+        """Whether a child died unasked or a child's component stopped the application."""
+        return bool(self.failure) or any(child.failed for child in self.children.values())
+
+    # --- end ------------------------------------------------------------------------------------
+    def join(self, timeout: float) -> bool:
+        """Wait for every child to exit; the ones still there after ``timeout`` are killed."""
+        deadline = time.monotonic() + timeout
+        clean = True
+        for child in self.children.values():
+            try:
+                child.popen.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                log.error("process %s did not stop within %.1f s; killing it", child.name, timeout)
+                child.popen.kill()
+                child.popen.wait()
+                clean = False
+            clean = clean and child.clean
+        return clean
+
+    def kill_all(self) -> None:
+        for child in self.children.values():
+            if child.popen.poll() is None:
+                child.popen.kill()
+                child.popen.wait()
+
+    def close(self) -> None:
+        """Release the control links and descriptors (after the children exited)."""
+        for child in self.children.values():
+            child.link.close()
+        for fd in self._fds:
+            os.close(fd)
+        self._fds.clear()

@@ -1,0 +1,53 @@
+"""``<process>``: the scheduling tree's top level, around activities and pipelines.
+
+    <activities>
+        <process name="haptics" affinity="1" nice="-5">
+            <activity name="loop"> ... </activity>
+        </process>
+        <activity name="display"> ... </activity>   <!-- the launcher's own process -->
+    </activities>
+
+Activities outside any ``<process>`` run in the launcher's process, as they always did; each
+``<process>`` becomes a child process of the launcher that builds only the components of its own
+activities. ``affinity`` (cores) and ``nice`` apply to the whole child process; an activity's own
+``<schedule>`` settings still apply to its thread inside it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from ..model import ProcessSpec
+from .draft import Draft
+from .reader import CONDITIONS, FileReader
+from .tree import Element
+from .schedule import parse_nice
+from .values import parse_cores
+
+PROCESS_ATTRIBUTES = ("affinity", "name", "nice", *CONDITIONS)
+PROCESS_CHILDREN = ("activity", "pipeline")
+
+
+def read_process(
+    reader: FileReader, element: Element, draft: Draft, read_child: Callable[[Element], None]
+) -> None:
+    """Add a ``<process>`` whose conditions held, and the activities inside it, to ``draft``;
+    ``read_child`` reads one ``<activity>`` or ``<pipeline>`` as outside a process."""
+    values = reader.attributes(element, PROCESS_ATTRIBUTES, required=("name",))
+    name = values.get("name", "").strip()
+    spec = ProcessSpec(
+        name=name,
+        affinity=reader.parsed(element, values, "affinity", parse_cores) or [],
+        nice=reader.parsed(element, values, "nice", parse_nice),
+        location=element.location,
+    )
+    first = len(draft.activities)
+    for child in reader.children(element, PROCESS_CHILDREN):
+        if reader.kept(child):
+            read_child(child)
+    for activity in draft.activities[first:]:
+        activity.process = name
+    if first == len(draft.activities):
+        reader.error(f"<process> {name!r} has no activity: give it <activity> or <pipeline> elements",
+                     element)
+    draft.processes.append(spec)
