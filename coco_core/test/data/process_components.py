@@ -1,0 +1,79 @@
+"""Components for the process-level tests: each child process imports them by ``module:Class``
+(the tests put this folder on PYTHONPATH), so they run in real child processes of the launcher."""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import time
+from pathlib import Path
+
+from coco_core import Attribute, Component, InputPort, OutputPort, Stamped, operation
+
+
+class Ticker(Component):
+    """Writes 0, 1, 2, ... stamped, one per update; records its pid in ``pid_file`` at config."""
+
+    pid_file = Attribute(str, "", "where to write this process's pid")
+    fault = Attribute(str, "", "after `fault_after` updates: `segfault`, `exit` or `raise_init` (at init)")
+    fault_after = Attribute(int, 5, "updates before the fault")
+    out = OutputPort(Stamped)
+
+    def init(self) -> None:
+        if self.fault == "raise_init":
+            raise RuntimeError("this component refuses to start")
+        self.count = 0
+
+    def on_config(self) -> None:
+        if self.pid_file:
+            Path(self.pid_file).write_text(str(os.getpid()))
+
+    def on_update(self) -> None:
+        self.out.write(Stamped(self.count))
+        self.count += 1
+        if self.fault and self.count == self.fault_after:
+            if self.fault == "segfault":
+                ctypes.string_at(0)
+            elif self.fault == "exit":
+                os._exit(3)
+            elif self.fault == "kill":
+                os.kill(os.getpid(), signal.SIGKILL)
+
+    @operation
+    def scale(self, factor: int) -> int:
+        """Returns count * factor, in the component's own activity (and process)."""
+        if factor < 0:
+            raise ValueError(f"factor must not be negative, got {factor}")
+        return self.count * factor
+
+
+class Sink(Component):
+    """Appends every value it reads to ``path`` (one line each) and records its pid and on_stop."""
+
+    path = Attribute(str, "sink.txt", "output file")
+    value = InputPort(Stamped, event=True)
+
+    def on_config(self) -> None:
+        self.file = open(self.path, "w")
+        self.file.write(f"pid {os.getpid()}\n")
+        self.file.flush()
+
+    def on_update(self) -> None:
+        for sample in self.value.read_all():
+            self.file.write(f"{sample.value}\n")
+
+    def on_stop(self) -> None:
+        self.file.write("stopped\n")
+        self.file.close()
+
+
+class Busy(Component):
+    """Burns the CPU in pure Python for ``work`` seconds per update (holds the GIL)."""
+
+    work = Attribute(float, 0.05, "seconds of pure-Python work per update")
+
+    def on_update(self) -> None:
+        end = time.perf_counter() + self.work
+        while time.perf_counter() < end:
+            pass

@@ -1,0 +1,174 @@
+"""The process level: child processes of a real ``coco-launch``, their life and their faults.
+
+Every test runs the launcher as a separate process on an application whose ``<process>`` runs in a
+child process, with components from ``data/process_components.py`` (on PYTHONPATH, so the child
+imports them too), and checks what a user sees: the exit status, the messages, the files, and that no
+process is left behind.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+DATA = Path(__file__).parent / "data"
+
+APP = """<package name="procs">
+  <components>
+    <component><name>ticker</name><task>process_components:Ticker</task>
+      <attributes>
+        <attribute name="pid_file" value="{tmp}/ticker.pid"/>
+        <attribute name="fault" value="{fault}"/>
+        <attribute name="fault_after" value="{fault_after}"/>
+      </attributes></component>
+    <component><name>sink</name><task>process_components:Sink</task>
+      <attributes><attribute name="path" value="{tmp}/sink.txt"/></attributes></component>
+  </components>
+  <activities>
+    <process name="worker">
+      <activity name="ticks"><schedule type="periodic" period="{period}"/>
+        <components><component name="ticker"/></components></activity>
+    </process>
+    <activity name="sinking"><schedule type="triggered"/>
+      <components><component name="sink"/></components></activity>
+  </activities>
+</package>
+"""
+
+
+def write_app(tmp_path: Path, fault: str = "", fault_after: int = 5, period: float = 10) -> Path:
+    path = tmp_path / "app.xml"
+    path.write_text(APP.format(tmp=tmp_path, fault=fault, fault_after=fault_after, period=period))
+    return path
+
+
+def launch(app: Path, *args: str) -> subprocess.Popen[str]:
+    env = dict(os.environ, PYTHONPATH=f"{DATA}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    return subprocess.Popen([sys.executable, "-m", "coco_core.launcher", str(app), *args], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+
+def wait_for_file(path: Path, timeout: float = 20.0) -> str:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if path.exists() and path.read_text().strip():
+            return path.read_text()
+        time.sleep(0.02)
+    raise AssertionError(f"{path} did not appear within {timeout} s")
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:  # a zombie is dead
+        return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
+    except OSError:
+        return False
+
+
+def wait_dead(pid: int, timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while alive(pid):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+@pytest.fixture
+def reap():
+    """Kill whatever process group a test leaves running."""
+    started: list[subprocess.Popen[str]] = []
+    yield started.append
+    for popen in started:
+        if popen.poll() is None:
+            os.killpg(popen.pid, signal.SIGKILL)
+            popen.wait()
+
+
+def test_check_prints_the_tree_with_its_processes(tmp_path: Path) -> None:
+    launcher = launch(write_app(tmp_path), "--check")
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 0, out
+    assert "process launcher" in out and "process worker" in out, out
+    assert out.index("process worker") < out.index("activity ticks: periodic 10 ms"), out
+
+
+def test_child_runs_its_part_and_stops_with_the_launcher(tmp_path: Path, reap) -> None:
+    launcher = launch(write_app(tmp_path), "--duration", "1.5", "--profile", "10")
+    reap(launcher)
+    child = int(wait_for_file(tmp_path / "ticker.pid"))
+    assert child != launcher.pid
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 0, out
+    assert "process   pid" in out and "worker" in out, "one profile lists every process"
+    ticks = next(line for line in out.splitlines() if line.startswith("worker") and " ticks " in line)
+    assert int(ticks.split()[5]) >= 50, ticks  # cycles of the periodic 10 ms activity in the child
+    assert wait_dead(child, 1.0)
+
+
+def test_a_component_that_cannot_be_built_in_a_child_stops_everything_before_it_runs(tmp_path: Path, reap) -> None:
+    launcher = launch(write_app(tmp_path, fault="raise_init"), "--duration", "30")
+    reap(launcher)
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 1, out
+    assert "process worker" in out and "this component refuses to start" in out, out
+    assert not (tmp_path / "sink.txt").exists(), "nothing ran: the launcher's part was never started"
+
+
+@pytest.mark.parametrize("fault, signal_name", [("segfault", "SIGSEGV"), ("kill", "SIGKILL")])
+def test_a_child_that_dies_is_named_with_its_signal_and_the_application_stops(
+        tmp_path: Path, reap, fault: str, signal_name: str) -> None:
+    launcher = launch(write_app(tmp_path, fault=fault, fault_after=20), "--duration", "30")
+    reap(launcher)
+    started = time.monotonic()
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 1, out
+    assert f"process worker" in out and f"died: killed by {signal_name}" in out, out
+    assert time.monotonic() - started < 20
+    assert (tmp_path / "sink.txt").read_text().endswith("stopped\n"), "the launcher's part stopped cleanly"
+
+
+def test_a_child_that_exits_by_itself_is_reported_with_its_status(tmp_path: Path, reap) -> None:
+    launcher = launch(write_app(tmp_path, fault="exit", fault_after=20), "--duration", "30")
+    reap(launcher)
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 1, out
+    assert "process worker" in out and "died: exit status 3" in out, out
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_to_the_launcher_stops_every_process_within_a_second(tmp_path: Path, reap, signum: int) -> None:
+    launcher = launch(write_app(tmp_path), "--duration", "60")
+    reap(launcher)
+    child = int(wait_for_file(tmp_path / "ticker.pid"))
+    wait_for_file(tmp_path / "sink.txt")
+    time.sleep(0.3)
+    sent = time.monotonic()
+    if signum == signal.SIGINT:  # Ctrl-C at a terminal: the whole process group gets it
+        os.killpg(launcher.pid, signum)
+    else:
+        launcher.send_signal(signum)
+    out, _ = launcher.communicate(timeout=30)
+    assert time.monotonic() - sent < 2.0, out  # 1 s to stop, plus the interpreter's exit
+    assert launcher.returncode == 0, out
+    assert "stopped" in out and "(clean)" in out, out
+    assert wait_dead(child, 1.0)
+    assert (tmp_path / "sink.txt").read_text().endswith("stopped\n")
+
+
+def test_children_die_with_a_killed_launcher(tmp_path: Path, reap) -> None:
+    launcher = launch(write_app(tmp_path), "--duration", "60")
+    reap(launcher)
+    child = int(wait_for_file(tmp_path / "ticker.pid"))
+    launcher.kill()
+    launcher.wait()
+    assert wait_dead(child, 2.0), "the child outlived its launcher"
