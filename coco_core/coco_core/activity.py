@@ -23,16 +23,12 @@ from typing import Callable, Iterable
 
 from .component import Component
 from .drivers import DEFAULT_SPIN, Driver, MainThreadDriver, ThreadDriver
-from .errors import CocoError
+from .errors import ActivityError
 from .period import PeriodGrid
 from .profiling import ActivityStats
 from .scheduling import SchedulingRequest
 
 log = logging.getLogger("coco")
-
-
-class ActivityError(CocoError, ValueError):
-    """A wrong use of an activity: a component scheduled twice, a bad period, a second start."""
 
 
 class Activity:

@@ -17,7 +17,9 @@ from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
 from .errors import CocoError, did_you_mean
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from .operations import Operation
 from .ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
+from .processes.remote import RemoteOperation, Router
 from .scheduling import available_cores
 from .transforms.graph import TransformGraph
 
@@ -61,6 +63,10 @@ class Application:
         self.process = ""
         """Which ``<process>`` of the application this object runs; empty: the launcher's own. The
         launcher's application also holds stand-ins of the activities its child processes run."""
+        self.elsewhere: dict[str, str] = {}
+        """Components that another process of the application runs -> that process."""
+        self.router: Router | None = None
+        """What carries operation calls to the other processes (set by the process level)."""
         self._components: dict[str, Component] = {}
         self.activities: dict[str, Activity] = {}
         self.connections: list[Connection] = []
@@ -111,6 +117,11 @@ class Application:
         try:
             return self._components[name]
         except KeyError:
+            if name in self.elsewhere:
+                raise UnknownNameError(
+                    f"component {name!r} runs in process {self.elsewhere[name] or 'launcher'}, not in this one "
+                    f"({self.process or 'launcher'}): reach it through its ports, or call its operations "
+                    f"by name (Component.find_operation)") from None
             raise UnknownNameError(f"no component {name!r} in application {self.name}; "
                                    f"{did_you_mean(name, self._components)}") from None
 
@@ -118,6 +129,14 @@ class Application:
     def components(self) -> dict[str, Component]:
         """Every component by instance name, peers included."""
         return dict(self._components)
+
+    def operation(self, component: str, name: str) -> Operation | RemoteOperation:
+        """The operation ``name`` of ``component``, called by name: a local one, or one that another
+        process of the application runs (its result comes back to the Future all the same)."""
+        process = self.elsewhere.get(component)
+        if process is not None:
+            return RemoteOperation(self, process, component, name)
+        return self.component(component).operation(name)
 
     def activity(self, name: str) -> Activity:
         try:

@@ -141,6 +141,7 @@ class _Builder:
         mine = [c for c in spec.components if placement.process_of(c.name) == process]
         app = Application(spec.name or Path(spec.file).stem, on_error=ErrorPolicy(spec.on_error or "continue"))
         app.process = process
+        app.elsewhere = {name: owner for name, owner in placement.of_component.items() if owner != process}
         self.errors.extend(placement.problems(spec))
         if process == LAUNCHER:  # the transformation graph stays whole in the launcher's process
             self.install_transforms(app)

@@ -34,6 +34,7 @@ from .profiling import ComponentStats
 from .stamps import Stamp
 
 if TYPE_CHECKING:
+    from .processes.remote import RemoteOperation
     from .activity import Activity
     from .application import Application
     from .transforms.graph import TransformGraph
@@ -209,6 +210,13 @@ class Component:
         if self.app is None:
             raise CocoError(f"component {self.name} is not part of an application")
         return self.app.component(name)
+
+    def find_operation(self, component: str, operation: str) -> Operation | RemoteOperation:
+        """An operation of another component of the application, by names: callable the same way
+        whether that component runs in this process or in another one."""
+        if self.app is None:
+            raise CocoError(f"component {self.name} is not part of an application")
+        return self.app.operation(component, operation)
 
     @property
     def transform_graph(self) -> TransformGraph:

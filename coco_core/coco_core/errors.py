@@ -49,3 +49,24 @@ def did_you_mean(name: str, valid: "list[str] | set[str] | dict[str, object]") -
     close = difflib.get_close_matches(name, names, n=1)
     hint = f"did you mean {close[0]!r}? " if close else ""
     return f"{hint}valid: {', '.join(names)}"
+
+
+class ActivityError(CocoError, ValueError):
+    """A wrong use of an activity: a component scheduled twice, a bad period, a second start."""
+
+
+class ProcessError(CocoError):
+    """A child process of the launcher could not be started or built, or died."""
+
+
+class RemoteError(CocoError):
+    """An operation that ran in another process raised: its type, message and traceback come along
+    as text (the exception itself may not exist, or not be picklable, in the caller's process)."""
+
+    def __init__(self, process: str, target: str, type_name: str, message: str, remote_traceback: str) -> None:
+        self.process = process
+        self.target = target
+        self.type_name = type_name
+        self.message = message
+        self.remote_traceback = remote_traceback
+        super().__init__(f"{target} in process {process or 'launcher'} raised {type_name}: {message}")

@@ -26,7 +26,10 @@ from .errors import CocoError, ConfigError, ConfigErrors
 from .model import AppSpec
 from .policy import ConnectionPolicy
 from .ports import InputPort
-from .processes import LAUNCHER, Placement, ProcessError, ProcessSupervisor, process_level
+from .errors import ProcessError
+from .processes.level import process_level
+from .processes.placement import LAUNCHER, Placement
+from .processes.supervisor import ProcessSupervisor
 from .report import profile_report
 from .xml import load_application
 

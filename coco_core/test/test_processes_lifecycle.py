@@ -172,3 +172,40 @@ def test_children_die_with_a_killed_launcher(tmp_path: Path, reap) -> None:
     launcher.kill()
     launcher.wait()
     assert wait_dead(child, 2.0), "the child outlived its launcher"
+
+
+CALLS = """<package name="calls">
+  <components>
+    <component><name>ticker</name><task>process_components:Ticker</task></component>
+    <component><name>caller</name><task>process_components:Caller</task>
+      <attributes><attribute name="path" value="{tmp}/calls.txt"/></attributes></component>
+  </components>
+  <activities>
+    <process name="{ticker_process}">
+      <activity name="ticks"><schedule type="periodic" period="10"/>
+        <components><component name="ticker"/></components></activity>
+    </process>
+    {caller_open}
+      <activity name="calling"><schedule type="periodic" period="100"/>
+        <components><component name="caller"/></components></activity>
+    {caller_close}
+  </activities>
+</package>
+"""
+
+
+@pytest.mark.parametrize("caller_process", ["", "other"], ids=["launcher_to_child", "child_to_child"])
+def test_operations_are_called_by_name_across_processes(tmp_path: Path, reap, caller_process: str) -> None:
+    app = tmp_path / "calls.xml"
+    wrap = (f'<process name="{caller_process}">', "</process>") if caller_process else ("", "")
+    app.write_text(CALLS.format(tmp=tmp_path, ticker_process="worker", caller_open=wrap[0], caller_close=wrap[1]))
+    launcher = launch(app, "--duration", "1.5")
+    reap(launcher)
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 0, out
+    lines = (tmp_path / "calls.txt").read_text().splitlines()
+    values = [int(line.split()[1]) for line in lines if line.startswith("ok")]
+    assert len(values) >= 5 and values == sorted(values) and values[-1] > 0, lines
+    assert all(value % 2 == 0 for value in values), "scale(2) ran in the ticker's process"
+    errors = [line for line in lines if line.startswith("error")]
+    assert errors and set(errors) == {"error RemoteError ValueError"}, lines

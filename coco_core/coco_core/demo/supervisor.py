@@ -27,7 +27,7 @@ class Supervisor(Component):
         self.replies: list[object] = []
 
     def on_config(self) -> None:
-        self._operation = self.find_component(self.target).operation(self.operation_name)
+        self._operation = self.find_operation(self.target, self.operation_name)
 
     def on_update(self) -> None:
         value = self.values[self.calls % len(self.values)]

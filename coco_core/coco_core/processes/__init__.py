@@ -5,36 +5,3 @@ stays in the launcher's process, exactly as without them. :func:`process_level` 
 launchers wrap around a run: it starts the children (each builds only its own components), ties
 their life to the application's, and gives the one profile report of every process.
 """
-
-from __future__ import annotations
-
-import contextlib
-import logging
-from collections.abc import Iterator
-
-from ..application import Application
-from ..model import AppSpec
-from .placement import LAUNCHER, Placement
-from .supervisor import ProcessDriver, ProcessError, ProcessSupervisor, exit_description
-
-__all__ = ["LAUNCHER", "Placement", "ProcessDriver", "ProcessError", "ProcessSupervisor", "exit_description",
-           "process_level"]
-
-
-@contextlib.contextmanager
-def process_level(spec: AppSpec, app: Application, log_level: int = logging.INFO) -> Iterator[ProcessSupervisor | None]:
-    """Start the children of ``spec`` around a run of ``app`` (the launcher's part); None when the
-    application has no ``<process>``. Raises :class:`ProcessError` when a child cannot be built. At
-    the end, children still running are given the rest of the stop time, then killed, and every
-    resource of the launch is released."""
-    if not spec.processes:
-        yield None
-        return
-    supervisor = ProcessSupervisor(spec, app, log_level)
-    supervisor.launch()
-    try:
-        yield supervisor
-    finally:
-        app.request_stop(app.stop_reason or "launcher ends")
-        supervisor.join(1.0)
-        supervisor.close()

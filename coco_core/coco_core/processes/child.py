@@ -20,14 +20,16 @@ import os
 import signal
 import sys
 import threading
-from typing import Any
+from concurrent.futures import Future
+from typing import Any, Callable
 
 from ..application import Application
 from ..builder import build_application
 from ..drivers import EventfdDriver
-from ..errors import CocoError
+from ..errors import CocoError, ProcessError
 from ..report import snapshot
 from .control import ControlLink
+from .remote import serve_call, settle
 
 log = logging.getLogger("coco")
 
@@ -68,6 +70,10 @@ class ChildProcess:
         self.app: Application | None = None
         self.launch = ""
         self.orphaned = False
+        self._lock = threading.Lock()
+        self._next = 0
+        self._pending: dict[int, Callable[[dict[str, Any]], None]] = {}
+        """What to do with the ``result`` of each call this process sent, by call id."""
 
     def run(self) -> int:
         config = self.link.receive()
@@ -88,6 +94,7 @@ class ChildProcess:
         for name, fd in config["wakes"].items():
             app.activities[name].drive_with(EventfdDriver(fd))
         app.add_stop_listener(self._stop_requested_here)
+        app.router = self
         self.link.send("built")
         while True:  # every process builds, then all start: wait for the word
             try:
@@ -106,6 +113,23 @@ class ChildProcess:
         failed = any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
         self.link.send("stopped", clean=clean, failed=failed, snapshot=snapshot(app, process))
         return 0 if clean else 1
+
+    def call(self, process: str, component: str, operation: str, args: tuple[Any, ...],
+             kwargs: dict[str, Any]) -> Future[Any]:
+        """An operation of a component in another process (the :class:`Router` protocol): the
+        launcher runs it or passes it to the process that runs it."""
+        future: Future[Any] = Future()
+        target = f"{component}.{operation}"
+        with self._lock:
+            self._next += 1
+            ident = self._next
+            self._pending[ident] = lambda message: settle(future, message, process, target)
+        if not self.link.send("call", id=ident, process=process, component=component, operation=operation,
+                              args=args, kwargs=kwargs):
+            with self._lock:
+                self._pending.pop(ident, None)
+            future.set_exception(ProcessError("the launcher is gone"))
+        return future
 
     def _stop_requested_here(self, reason: str) -> None:
         """A stop that began in this process (a component's error policy) stops the whole application."""
@@ -130,7 +154,14 @@ class ChildProcess:
         if kind == "stop":
             app.request_stop(f"launcher: {message['reason']}")
         elif kind == "profile":
-            self.link.send("reply", id=message["id"], value=snapshot(app, app.process))
+            self.link.send("result", id=message["id"], ok=True, value=snapshot(app, app.process))
+        elif kind == "call":
+            serve_call(app, message, lambda result: self.link.send("result", id=message["id"], **result))
+        elif kind == "result":
+            with self._lock:
+                done = self._pending.pop(message["id"], None)
+            if done is not None:
+                done(message)
         elif kind == "set_period":
             try:
                 app.set_period(message["activity"], message["period"])

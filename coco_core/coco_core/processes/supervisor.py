@@ -23,15 +23,18 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from concurrent.futures import Future
+from concurrent.futures import TimeoutError as FutureTimeout
+from typing import Any, Callable
 
 from ..activity import Activity
 from ..application import Application
-from ..errors import CocoError
+from ..errors import ProcessError
 from ..model import AppSpec
 from ..report import ProfileSnapshot, render, snapshot
 from .control import ControlLink
 from .placement import LAUNCHER, Placement
+from .remote import serve_call, settle
 
 log = logging.getLogger("coco")
 
@@ -39,10 +42,6 @@ BUILD_TIMEOUT = 120.0
 """Seconds a child may take to build its components (a URDF with meshes, an OpenGL context)."""
 PROFILE_TIMEOUT = 1.0
 """Seconds the launcher waits for a child's profile before printing without it."""
-
-
-class ProcessError(CocoError):
-    """A child process could not be started or built, or died."""
 
 
 def exit_description(code: int | None) -> str:
@@ -73,8 +72,8 @@ class Child:
     """A component of the child stopped the application by its error policy."""
     last: ProfileSnapshot | None = None
     """The child's final profile, sent when it stopped."""
-    replies: dict[int, Any] = field(default_factory=dict)
-    reply: threading.Condition = field(default_factory=threading.Condition)
+    pending: dict[int, Callable[[dict[str, Any]], None]] = field(default_factory=dict)
+    """What to do with the ``result`` of each request sent to the child, by request id."""
 
 
 class ProcessDriver:
@@ -161,6 +160,7 @@ class ProcessSupervisor:
                 ProcessDriver(self, child, self.app.activities[name], self._wakes.get(name))
             threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True).start()
         self.app.add_stop_listener(self._stop_all)
+        self.app.router = self
 
     def _spawn(self, name: str) -> Child:
         link, theirs = ControlLink.pair()
@@ -218,12 +218,20 @@ class ProcessSupervisor:
                 child.clean, child.failed, child.last = message["clean"], message["failed"], message["snapshot"]
             elif kind == "stop_request":
                 self.app.request_stop(f"process {child.name}: {message['reason']}")
-            elif kind == "reply":
-                with child.reply:
-                    child.replies[message["id"]] = message["value"]
-                    child.reply.notify_all()
+            elif kind == "result":
+                with self._lock:
+                    done = child.pending.pop(message["id"], None)
+                if done is not None:
+                    done(message)
+            elif kind == "call":
+                self._route(child, message)
         code = child.popen.wait()
         child.stopped.set()
+        with self._lock:
+            orphans, child.pending = list(child.pending.values()), {}
+        for done in orphans:
+            done({"ok": False, "type": "ProcessError", "message": f"process {child.name} ended "
+                  f"({exit_description(code)}) before it answered", "traceback": ""})
         if child.last is not None and code == 0:
             return  # it stopped as asked
         what = exit_description(code)
@@ -240,27 +248,60 @@ class ProcessSupervisor:
         self._stopping = True
         child.link.send("stop", reason=reason)
 
-    def request(self, child: Child, kind: str, timeout: float, **fields: Any) -> Any:
-        """Send a request and wait for its reply; None on timeout or when the child is gone."""
+    def send_request(self, child: Child, kind: str, done: Callable[[dict[str, Any]], None], **fields: Any) -> None:
+        """Send a request to ``child``; ``done(result message)`` runs when it answers (or ends)."""
         with self._lock:
             self._next_request += 1
             ident = self._next_request
+            child.pending[ident] = done
         if not child.link.send(kind, id=ident, **fields):
-            return None
-        deadline = time.monotonic() + timeout
-        with child.reply:
-            while ident not in child.replies:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0 or child.stopped.is_set():
-                    return None
-                child.reply.wait(min(remaining, 0.05))
-            return child.replies.pop(ident)
+            with self._lock:
+                child.pending.pop(ident, None)
+            done({"ok": False, "type": "ProcessError", "message": f"process {child.name} is gone", "traceback": ""})
+
+    def call(self, process: str, component: str, operation: str, args: tuple[Any, ...],
+             kwargs: dict[str, Any]) -> Future[Any]:
+        """An operation of a component that child ``process`` runs (the :class:`Router` protocol)."""
+        future: Future[Any] = Future()
+        target = f"{component}.{operation}"
+        self.send_request(self.children[process], "call", lambda message: settle(future, message, process, target),
+                          component=component, operation=operation, args=args, kwargs=kwargs)
+        return future
+
+    def _route(self, caller: Child, message: dict[str, Any]) -> None:
+        """A child calls an operation of another process: run it here, or pass it on and pass back
+        the result as it came (so the exception's own type name reaches the caller)."""
+        def reply(result: dict[str, Any]) -> None:
+            result = {key: value for key, value in result.items() if key not in ("kind", "id")}
+            caller.link.send("result", id=message["id"], **result)
+
+        process = message["process"]
+        if process == LAUNCHER:
+            serve_call(self.app, message, reply)
+        elif process in self.children:
+            self.send_request(self.children[process], "call", reply, component=message["component"],
+                              operation=message["operation"], args=message["args"], kwargs=message["kwargs"])
+        else:
+            reply({"ok": False, "type": "ProcessError", "message": f"no process {process!r}", "traceback": ""})
 
     def snapshots(self) -> list[ProfileSnapshot]:
         """The launcher's profile and every child's (its last one once it stopped)."""
         shots = [snapshot(self.app)]
+        waiting: list[tuple[Child, Future[Any]]] = []
         for child in self.children.values():
-            shot = child.last if child.stopped.is_set() else self.request(child, "profile", PROFILE_TIMEOUT)
+            future: Future[Any] = Future()
+            if not child.stopped.is_set():
+                self.send_request(child, "profile", lambda message, future=future: future.set_result(
+                    message.get("value")))
+            waiting.append((child, future))
+        deadline = time.monotonic() + PROFILE_TIMEOUT
+        for child, future in waiting:
+            shot = child.last
+            if not child.stopped.is_set():
+                try:
+                    shot = future.result(max(0.0, deadline - time.monotonic()))
+                except FutureTimeout:
+                    shot = None
             shots.append(shot if shot is not None else ProfileSnapshot(child.name, child.popen.pid, 0.0, 0.0, 0))
         return shots
 

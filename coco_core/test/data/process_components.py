@@ -77,3 +77,32 @@ class Busy(Component):
         end = time.perf_counter() + self.work
         while time.perf_counter() < end:
             pass
+
+
+class Caller(Component):
+    """Calls ``target``'s ``scale`` operation by name with ``factor`` once per update (and once with
+    -1, which raises there), and writes each outcome to ``path``: ``ok <value>`` or
+    ``error <type> <remote type>``."""
+
+    target = Attribute(str, "ticker", "component whose operation is called")
+    factor = Attribute(int, 2, "argument")
+    path = Attribute(str, "calls.txt", "output file")
+
+    def on_config(self) -> None:
+        self.operation = self.find_operation(self.target, "scale")
+        self.file = open(self.path, "w")
+
+    def on_update(self) -> None:
+        for factor in (self.factor, -1):
+            self.operation.send(factor, callback=self._record)
+
+    def _record(self, future) -> None:
+        error = future.exception()
+        if error is None:
+            self.file.write(f"ok {future.result()}\n")
+        else:
+            self.file.write(f"error {type(error).__name__} {getattr(error, 'type_name', '')}\n")
+        self.file.flush()
+
+    def on_stop(self) -> None:
+        self.file.close()

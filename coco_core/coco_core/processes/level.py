@@ -1,0 +1,31 @@
+"""``process_level``: what both launchers wrap around a run of an application with ``<process>``."""
+
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Iterator
+
+from ..application import Application
+from ..model import AppSpec
+from .supervisor import ProcessSupervisor
+
+
+@contextlib.contextmanager
+def process_level(spec: AppSpec, app: Application, log_level: int = logging.INFO) -> Iterator[ProcessSupervisor | None]:
+    """Start the children of ``spec`` around a run of ``app`` (the launcher's part); None when the
+    application has no ``<process>``. Raises :class:`ProcessError` when a child cannot be built. At
+    the end, children still running are given the rest of the stop time, then killed, and every
+    resource of the launch is released."""
+    if not spec.processes:
+        yield None
+        return
+    supervisor = ProcessSupervisor(spec, app, log_level)
+    supervisor.launch()
+    try:
+        yield supervisor
+    finally:
+        app.request_stop(app.stop_reason or "launcher ends")
+        supervisor.join(1.0)
+        supervisor.close()
