@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Callable, Iterable
 
 from coco_core import Activity, Application, CocoError, Component, PeriodicActivity, SchedulingRequest
 from coco_core.errors import did_you_mean
+from coco_core.drivers import EventfdDriver
 from coco_core.operations import set_current_activity
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType
@@ -75,7 +76,8 @@ PARKED_NS = 86_400 * 10**9
 def dedicated_reason(activity: Activity, forced: bool = False) -> str | None:
     """Why ``activity`` needs a thread of its own, or None when the executor may host it.
 
-    A thread is needed by the main activity (it runs in the launcher's main thread), by an activity
+    A thread is needed by an activity that another process wakes (a connection from a child process
+    ends in it: the writer's process wakes its thread through an eventfd), by the main activity (it runs in the launcher's main thread), by an activity
     that asks the OS for anything about its thread (affinity, exclusive cores, real-time class,
     priority, nice: an executor thread is shared, so none of it could be applied), by a periodic
     activity faster than :data:`THREAD_PERIOD`, by one running a ``thread_bound`` component (or peer:
@@ -84,6 +86,8 @@ def dedicated_reason(activity: Activity, forced: bool = False) -> str | None:
     """
     if forced:
         return "asked on the command line"
+    if isinstance(activity.driver, EventfdDriver):
+        return "woken by another process (its eventfd)"
     if activity.main:
         return "main activity (the launcher's main thread)"
     request = activity.scheduling
@@ -113,6 +117,9 @@ def plan_hosting(app: Application, threads: Iterable[str] = (), all_threads: boo
                         f"{did_you_mean(unknown[0], app.activities)}")
     plan: dict[str, str] = {}
     for name, activity in app.activities.items():
+        if activity.process != app.process:  # another process of the application runs it
+            plan[name] = f"process {activity.process or 'launcher'}"
+            continue
         reason = dedicated_reason(activity, all_threads or name in forced)
         plan[name] = EXECUTOR if reason is None else f"thread: {reason}"
     return plan
@@ -179,7 +186,7 @@ class ExecutorDriver:
     def stop(self) -> None:
         """The activity is marked stopping: a timer callback now returns at once, and the group's
         next callback runs ``finish`` (``on_stop``)."""
-        if self.timer is not None:
+        if self.timer is not None and not self.closed:
             # Park the timer rather than cancel it: cancelling races with an executor that already
             # took it as ready (rclpy then fails in call_timer). close() destroys it after the spin.
             with self._lock:

@@ -27,14 +27,18 @@ from typing import Sequence
 
 from coco_core import Application, CocoError
 from coco_core.builder import build_application, configure_logging
+from coco_core.errors import ProcessError
 from coco_core.launcher import (
     describe,
+    describe_processes,
     launcher_services,
     list_components,
     make_parser,
     parse_assignments,
     stopped_by_a_failure,
 )
+from coco_core.processes.level import process_level
+from coco_core.processes.supervisor import ProcessSupervisor
 from coco_core.xml import load_application
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
@@ -124,8 +128,12 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
         print(f"{_NAME}: {error}", file=sys.stderr)
         return 1
     if options.check:
-        print(describe(app))
-        print("hosting in the ROS launcher:")
+        try:
+            print(describe_processes(spec, app) if spec.processes else describe(app))
+        except CocoError as error:
+            print(f"{_NAME}: {error}", file=sys.stderr)
+            return 1
+        print("hosting in the ROS launcher (the launcher's process):")
         print(describe_hosting(app, plan))
         return 0
     configure_logging(spec.log, logging.getLevelName(options.log_level))
@@ -142,46 +150,62 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
     node = None
     try:
         node = Node(node_name(app.name), automatically_declare_parameters_from_overrides=True)
-        host = ExecutorHost(node, app, _threads(options.threads), options.all_threads)
-        executor = host.create_executor(options.executor_threads)
-        executor.add_node(node)
-        log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
-        return _run_hosted(app, host, executor, options)
+        child_config = {"node": node.get_name(), "ros_args": list(ros_args), "threads": _threads(options.threads),
+                        "all_threads": options.all_threads}
+        with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
+                           child_config=child_config) as processes:
+            host = ExecutorHost(node, app, _threads(options.threads), options.all_threads)
+            executor = host.create_executor(options.executor_threads)
+            executor.add_node(node)
+            log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
+            return _run_hosted(app, host, executor, options, processes)
+    except ProcessError as error:
+        print(f"{_NAME}: {error}", file=sys.stderr)
+        return 1
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
 
 
-def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace) -> int:
+def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace,
+                processes: ProcessSupervisor | None = None) -> int:
     """Start ``app`` with ``host``, spin ``executor`` until a stop is asked, stop cleanly."""
-    spinner = ExecutorThread(executor, on_error=app.request_stop)  # type: ignore[arg-type]
-    timer = None
-    clean = False
-    with launcher_services(app, options):
-        try:
-            app.start()
-            spinner.start()
-            if options.duration is not None:
-                timer = threading.Timer(options.duration, app.request_stop,
-                                        args=(f"duration of {options.duration:g} s reached",))
-                timer.daemon = True
-                timer.start()
-            main = app.main_activity
-            if main is not None:
-                main.run_here()
-            app.wait()
-        finally:
-            if timer is not None:
-                timer.cancel()
-            clean = app.stop()  # the executor still spins: hosted activities finish in their groups
-            spinner.stop()  # then the node is destroyed and rclpy shut down (see run)
+    with launcher_services(app, options, processes):
+        clean = run_hosted(app, host, executor, options.duration)
     if not clean:
         # A hung on_update keeps an executor worker (or a daemon thread) busy; Python would wait for
         # the worker at exit, so the entry point leaves at once (see main).
         return HUNG
     host.close()
-    return 1 if stopped_by_a_failure(app) else 0
+    failed = stopped_by_a_failure(app) or (processes is not None and processes.failed)
+    return 1 if failed else 0
+
+
+def run_hosted(app: Application, host: ExecutorHost, executor: object, duration: float | None = None) -> bool:
+    """Start ``app``, spin ``executor`` in a thread of its own, run the main activity (if any) here,
+    wait for a stop (or ``duration`` seconds), then stop cleanly while the executor still spins, so
+    that hosted activities finish in their groups; whether the stop was clean. The launcher and its
+    child processes (``coco_ros.child``) run their part of the application this way."""
+    spinner = ExecutorThread(executor, on_error=app.request_stop)  # type: ignore[arg-type]
+    timer = None
+    try:
+        app.start()
+        spinner.start()
+        if duration is not None:
+            timer = threading.Timer(duration, app.request_stop, args=(f"duration of {duration:g} s reached",))
+            timer.daemon = True
+            timer.start()
+        main = app.main_activity
+        if main is not None:
+            main.run_here()
+        app.wait()
+    finally:
+        if timer is not None:
+            timer.cancel()
+        clean = app.stop()  # the executor still spins: hosted activities finish in their groups
+        spinner.stop()  # then the node is destroyed and rclpy shut down
+    return clean
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -108,8 +108,7 @@ class ChildProcess:
                 return 0
         listener = threading.Thread(target=self._serve, name="coco:control", daemon=True)
         listener.start()
-        app.run()
-        clean = app.stop()
+        clean = self.run_app(app, config)
         failed = any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
         self.link.send("stopped", clean=clean, failed=failed, snapshot=snapshot(app, process))
         return 0 if clean else 1
@@ -130,6 +129,12 @@ class ChildProcess:
                 self._pending.pop(ident, None)
             future.set_exception(ProcessError("the launcher is gone"))
         return future
+
+    def run_app(self, app: Application, config: dict[str, Any]) -> bool:
+        """Run this process's part until a stop; whether it stopped cleanly. A launcher with more to
+        host (the ROS launcher's node and executor) runs its children with a subclass."""
+        app.run()
+        return app.stop()
 
     def _stop_requested_here(self, reason: str) -> None:
         """A stop that began in this process (a component's error policy) stops the whole application."""
@@ -169,11 +174,12 @@ class ChildProcess:
                 log.error("%s", error)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, kind: type[ChildProcess] = ChildProcess) -> int:
+    """The child's entry point: ``argv`` is ``FD PARENT_PID``; ``kind`` runs it."""
     fd, parent = (int(word) for word in (argv or sys.argv[1:])[:2])
     die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher handles Ctrl-C for the whole group
-    child = ChildProcess(ControlLink(fd), parent)
+    child = kind(ControlLink(fd), parent)
 
     def terminate(_signum: int, _frame: object) -> None:
         child.orphaned = child.orphaned or os.getppid() != parent

@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import logging
 from collections.abc import Iterator
+from typing import Any
 
 from ..application import Application
 from ..model import AppSpec
@@ -13,19 +14,21 @@ from .supervisor import ProcessSupervisor
 
 
 @contextlib.contextmanager
-def process_level(spec: AppSpec, app: Application, log_level: int = logging.INFO) -> Iterator[ProcessSupervisor | None]:
+def process_level(spec: AppSpec, app: Application, log_level: int = logging.INFO,
+                  **options: Any) -> Iterator[ProcessSupervisor | None]:
     """Start the children of ``spec`` around a run of ``app`` (the launcher's part); None when the
     application has no ``<process>``. Raises :class:`ProcessError` when a child cannot be built. At
     the end, children still running are given the rest of the stop time, then killed, and every
-    resource of the launch is released."""
+    resource of the launch is released. ``options`` go to :class:`ProcessSupervisor`."""
     if not spec.processes:
         yield None
         return
-    supervisor = ProcessSupervisor(spec, app, log_level)
+    supervisor = ProcessSupervisor(spec, app, log_level, **options)
     supervisor.launch()
     try:
         yield supervisor
     finally:
-        app.request_stop(app.stop_reason or "launcher ends")
+        if not app.stop_requested:  # the launcher ends early (an error): the children too
+            app.request_stop("launcher ends")
         supervisor.join(1.0)
         supervisor.close()

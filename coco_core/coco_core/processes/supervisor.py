@@ -118,7 +118,12 @@ class ProcessDriver:
 class ProcessSupervisor:
     """Starts, watches and stops the child processes of ``app`` (the launcher's part of ``spec``)."""
 
-    def __init__(self, spec: AppSpec, app: Application, log_level: int = logging.INFO) -> None:
+    def __init__(self, spec: AppSpec, app: Application, log_level: int = logging.INFO,
+                 child_module: str = "coco_core.processes.child", child_config: dict[str, Any] | None = None) -> None:
+        self.child_module = child_module
+        """The module a child runs (``python -m``): the ROS launcher's children host an rclpy node."""
+        self.child_config = child_config or {}
+        """Extra configuration every child receives (the ROS launcher's node name and ROS arguments)."""
         self.spec = spec
         self.app = app
         self.placement = Placement.of(spec)
@@ -168,12 +173,12 @@ class ProcessSupervisor:
         wakes = {a: self._wakes[a] for a in activities if a in self._wakes}
         try:
             popen = subprocess.Popen(
-                [sys.executable, "-m", "coco_core.processes.child", str(theirs), str(os.getpid())],
+                [sys.executable, "-m", self.child_module, str(theirs), str(os.getpid())],
                 pass_fds=(theirs, *wakes.values()), stdin=subprocess.DEVNULL)
         finally:
             os.close(theirs)
         link.send("config", spec=self.spec, process=name, launch=self.launch_id, wakes=wakes,
-                  log_level=self.log_level)
+                  log_level=self.log_level, **self.child_config)
         return Child(name, link, popen, activities)
 
     def _wait_built(self, child: Child) -> None:

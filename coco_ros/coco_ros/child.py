@@ -1,0 +1,47 @@
+"""A child process of the ROS launcher: ``python -m coco_ros.child FD PARENT_PID``.
+
+The same child as ``coco_core.processes.child`` (it builds and runs its ``<process>``'s part of the
+application), with an rclpy node of its own, named after the launcher's node and the process
+(``<launcher node>_<process>``), whose executor hosts the process's activities as the launcher's
+executor hosts its own: ROSInterface, TFBridge and BagReplay work in a child as in the launcher.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+from coco_core import Application
+from coco_core.processes.child import ChildProcess, main
+
+from .hosting import ExecutorHost
+from .launcher import node_name, run_hosted
+
+
+class RosChildProcess(ChildProcess):
+    """A child that hosts its part of the application in an rclpy node."""
+
+    def run_app(self, app: Application, config: dict[str, Any]) -> bool:
+        import rclpy
+        from rclpy.node import Node
+        from rclpy.signals import SignalHandlerOptions
+
+        rclpy.init(args=["launcher", *config["ros_args"]], signal_handler_options=SignalHandlerOptions.NO)
+        node = None
+        try:
+            node = Node(f"{config['node']}_{node_name(app.process)}", automatically_declare_parameters_from_overrides=True)
+            host = ExecutorHost(node, app, config["threads"], config["all_threads"])
+            executor = host.create_executor()
+            executor.add_node(node)
+            clean = run_hosted(app, host, executor)
+            if clean:
+                host.close()
+            return clean
+        finally:
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main(kind=RosChildProcess))
