@@ -119,3 +119,54 @@ def test_bad_file_gives_file_line_and_exit_1(ros_launcher: Path, tmp_path: Path)
     assert "did you mean 'MovingAverage'" in result.stderr
     assert not output.exists(), "nothing may start when the file is wrong"
     assert "hosts application" not in result.stderr
+
+
+CHILD_APP = """<package name="procs">
+  <components>
+    <component><name>generator</name><task>SignalGenerator</task></component>
+    <component><name>bridge</name><task>ROSInterface</task><library>coco_ros</library>
+      <attributes><attribute name="publish" value="value=/coco_test/child_signal:std_msgs/msg/Float64;depth=50"/></attributes>
+    </component>
+  </components>
+  <connections>
+    <connection data="BUFFER" policy="LOCKED" buffersize="50"><src task="generator" port="sample"/><dest task="bridge" port="value"/></connection>
+  </connections>
+  <activities>
+    <process name="publisher">
+      <activity name="ticks"><schedule type="periodic" period="10"/>
+        <components><component name="generator"/><component name="bridge"/></components></activity>
+    </process>
+  </activities>
+</package>
+"""
+
+LISTENER = """
+import sys, time
+import rclpy
+from std_msgs.msg import Float64
+rclpy.init()
+node = rclpy.create_node("coco_test_listener")
+received = []
+node.create_subscription(Float64, "/coco_test/child_signal", lambda m: received.append(m.data), 50)
+deadline = time.monotonic() + float(sys.argv[1])
+while time.monotonic() < deadline and len(received) < 50:
+    rclpy.spin_once(node, timeout_sec=0.1)
+print("nodes:", " ".join(sorted(node.get_node_names())))
+print("received:", len(received))
+node.destroy_node()
+rclpy.shutdown()
+"""
+
+
+def test_a_child_process_hosts_ros_components_in_a_node_of_its_own(ros_launcher: Path, tmp_path: Path) -> None:
+    app = tmp_path / "procs.xml"
+    app.write_text(CHILD_APP)
+    process = start_launcher(ros_launcher, str(app), "--duration", "30")
+    try:
+        listener = subprocess.run([sys.executable, "-c", LISTENER, "20"], capture_output=True, text=True, timeout=60)
+    finally:
+        process.send_signal(signal.SIGINT)
+        out, _ = process.communicate(timeout=30)
+    assert process.returncode == 0, out
+    assert "received: 50" in listener.stdout, listener.stdout + listener.stderr
+    assert "procs_publisher" in listener.stdout.split("received:")[0], listener.stdout
