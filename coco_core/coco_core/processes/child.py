@@ -28,6 +28,7 @@ from ..builder import build_application
 from ..drivers import EventfdDriver
 from ..errors import CocoError, ProcessError
 from ..report import snapshot
+from .channels import attach
 from .control import ControlLink
 from .remote import serve_call, settle
 
@@ -91,8 +92,14 @@ class ChildProcess:
         except CocoError as error:
             self.link.send("error", text=str(error))
             return 1
-        for name, fd in config["wakes"].items():
-            app.activities[name].drive_with(EventfdDriver(fd))
+        try:
+            for name, fd in config["wakes"].items():
+                if name in app.activities:
+                    app.activities[name].drive_with(EventfdDriver(fd))
+            attach(app, config["plans"], config["wakes"])
+        except CocoError as error:
+            self.link.send("error", text=str(error))
+            return 1
         app.add_stop_listener(self._stop_requested_here)
         app.router = self
         self.link.send("built")

@@ -25,16 +25,21 @@ import time
 from dataclasses import dataclass, field
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from ..activity import Activity
 from ..application import Application
+from ..drivers import EventfdDriver
 from ..errors import ProcessError
 from ..model import AppSpec
 from ..report import ProfileSnapshot, render, snapshot
 from .control import ControlLink
+from .channels import ChannelPlan, attach, plan_channels, wake_targets
 from .placement import LAUNCHER, Placement
 from .remote import serve_call, settle
+
+if TYPE_CHECKING:
+    from ..shm import Arena
 
 log = logging.getLogger("coco")
 
@@ -133,7 +138,10 @@ class ProcessSupervisor:
         self._fds: list[int] = []
         """Descriptors the launcher made for the children (eventfds), closed at the end."""
         self._wakes: dict[str, int] = {}
-        """activity -> eventfd, for every triggered activity of a child."""
+        """activity -> eventfd, for every activity that a write in another process wakes."""
+        self.arena: Arena | None = None
+        """The launch's shared-memory segments (when a connection crosses processes)."""
+        self.plans: list[ChannelPlan] = []
         self._stopping = False
         self._lock = threading.Lock()
         self.failure = ""
@@ -144,14 +152,19 @@ class ProcessSupervisor:
     def launch(self) -> None:
         """Start every child and wait until each has built its part; raises :class:`ProcessError`
         (after stopping the others) when one could not."""
-        from ..activity import TriggeredActivity
+        try:
+            if self.placement.crossing(self.spec):
+                from ..shm import Arena
 
-        for activity in self.app.activities.values():
-            if activity.process != LAUNCHER and isinstance(activity, TriggeredActivity):
+                self.arena = Arena(self.launch_id)
+                self.plans = plan_channels(self.arena, self.spec, self.placement)
+            for name in wake_targets(self.plans):
                 fd = os.eventfd(0, os.EFD_CLOEXEC)
                 self._fds.append(fd)
-                self._wakes[activity.name] = fd
-        try:
+                self._wakes[name] = fd
+                if self.placement.of_activity[name] == LAUNCHER:
+                    self.app.activities[name].drive_with(EventfdDriver(fd))
+            attach(self.app, self.plans, self._wakes)
             for name in self.placement.processes:
                 self.children[name] = self._spawn(name)
             for child in self.children.values():
@@ -170,15 +183,14 @@ class ProcessSupervisor:
     def _spawn(self, name: str) -> Child:
         link, theirs = ControlLink.pair()
         activities = [a for a, process in self.placement.of_activity.items() if process == name]
-        wakes = {a: self._wakes[a] for a in activities if a in self._wakes}
-        try:
+        try:  # every child gets every wake-up eventfd: it may write to any process's reader
             popen = subprocess.Popen(
                 [sys.executable, "-m", self.child_module, str(theirs), str(os.getpid())],
-                pass_fds=(theirs, *wakes.values()), stdin=subprocess.DEVNULL)
+                pass_fds=(theirs, *self._wakes.values()), stdin=subprocess.DEVNULL)
         finally:
             os.close(theirs)
-        link.send("config", spec=self.spec, process=name, launch=self.launch_id, wakes=wakes,
-                  log_level=self.log_level, **self.child_config)
+        link.send("config", spec=self.spec, process=name, launch=self.launch_id, wakes=self._wakes,
+                  plans=self.plans, log_level=self.log_level, **self.child_config)
         return Child(name, link, popen, activities)
 
     def _wait_built(self, child: Child) -> None:
@@ -348,3 +360,6 @@ class ProcessSupervisor:
         for fd in self._fds:
             os.close(fd)
         self._fds.clear()
+        if self.arena is not None:
+            self.arena.close()
+            self.arena = None
