@@ -1,0 +1,109 @@
+"""Drivers of activities (coco_core.drivers) and the time grid they share (coco_core.period)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort, TriggeredActivity
+from coco_core.drivers import EventfdDriver, ThreadDriver
+from coco_core.errors import ActivityError
+from coco_core.period import PeriodGrid
+from coco_core.profiling import ActivityStats
+
+
+class Counter(Component):
+    value = InputPort(int, event=True)
+
+    def init(self) -> None:
+        self.cycles = 0
+        self.values: list[int] = []
+
+    def on_update(self) -> None:
+        self.cycles += 1
+        self.values += self.value.read_all()
+
+
+class Source(Component):
+    out = OutputPort(int)
+
+
+def test_grid_skips_missed_deadlines_and_counts_one_overrun() -> None:
+    stats = ActivityStats()
+    grid = PeriodGrid(0.01, stats)
+    grid.begin(100.0)
+    assert grid.after_cycle(100.002) == pytest.approx(100.01)
+    assert stats.overruns == 0
+    assert grid.after_cycle(100.035) == pytest.approx(100.04), "deadlines 100.02 and 100.03 are skipped"
+    assert stats.overruns == 1
+
+
+def test_grid_of_a_timer_records_its_lateness_and_skips_whole_periods() -> None:
+    stats = ActivityStats()
+    grid = PeriodGrid(0.01, stats)
+    grid.begin(100.0)
+    grid.fired(100.001)
+    assert grid.deadline == pytest.approx(100.01) and stats.overruns == 0
+    grid.fired(100.0325)  # more than two periods late: two skipped, 2.5 ms late for 100.03
+    assert stats.overruns == 1 and grid.deadline == pytest.approx(100.04)
+    summary = stats.error_summary()
+    assert summary is not None and summary.max == pytest.approx(0.0025)
+
+
+def test_grid_period_change_continues_from_the_last_deadline() -> None:
+    grid = PeriodGrid(0.01, ActivityStats())
+    grid.begin(100.0)
+    grid.after_cycle(100.001)  # next deadline 100.01
+    assert grid.change_period(0.02, 100.002) == pytest.approx(100.02)
+    assert grid.change_period(0.001, 100.05) == pytest.approx(100.05), "a past deadline is now"
+    with pytest.raises(ValueError, match="positive"):
+        grid.change_period(0, 100.0)
+
+
+def test_a_wake_pending_before_start_goes_to_the_new_driver() -> None:
+    app = Application("drivers")
+    counter = app.add(Counter("counter"), TriggeredActivity("events"))
+    app.add(Source("source"))
+    app.connect("source.out", "counter.value", ConnectionPolicy(BufferPolicy.BUFFER, size=4))
+    app.component("source").out.write(1)
+    activity = app.activity("events")
+    assert activity.wake_pending
+    fd = os.eventfd(0)
+    try:
+        activity.drive_with(EventfdDriver(fd))
+        assert activity.wake_pending, "the pending wake-up came along"
+        app.start()
+        deadline = time.monotonic() + 2
+        while counter.values != [1] and time.monotonic() < deadline:
+            time.sleep(0.005)
+        assert counter.values == [1]
+        with pytest.raises(ActivityError, match="already started"):
+            activity.drive_with(ThreadDriver())
+    finally:
+        assert app.stop()
+        os.close(fd)
+
+
+def test_an_eventfd_driver_is_woken_by_another_process() -> None:
+    app = Application("drivers")
+    counter = app.add(Counter("counter"), TriggeredActivity("events"))
+    fd = os.eventfd(0)
+    app.activity("events").drive_with(EventfdDriver(fd))
+    app.start()
+    try:
+        time.sleep(0.05)
+        cycles = counter.cycles
+        subprocess.run([sys.executable, "-c", f"import os; os.eventfd_write({fd}, 1)"], pass_fds=(fd,), check=True)
+        deadline = time.monotonic() + 2
+        while counter.cycles == cycles and time.monotonic() < deadline:
+            time.sleep(0.005)
+        time.sleep(0.05)
+        assert counter.cycles == cycles + 1, "one write from another process, one cycle"
+        assert not app.activity("events").wake_pending
+    finally:
+        assert app.stop()
+        os.close(fd)
