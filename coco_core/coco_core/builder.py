@@ -143,8 +143,7 @@ class _Builder:
         app.process = process
         app.elsewhere = {name: owner for name, owner in placement.of_component.items() if owner != process}
         self.errors.extend(placement.problems(spec))
-        if process == LAUNCHER:  # the transformation graph stays whole in the launcher's process
-            self.install_transforms(app)
+        self.install_transforms(app)  # every process's graph starts from the declared structure
         components = [c for c in map(self.instantiate, mine) if c is not None]
         self.check()
         by_name = {c.name: s for c, s in zip(components, mine)}

@@ -74,6 +74,13 @@ class Connection:
         """Values the policy discarded (overwritten, refused when full, or pushed out as oldest)."""
         return self.written - self.read - self.pending
 
+    @property
+    def label(self) -> str:
+        """``writer.port -> reader.port``, for the profile."""
+        source = self.source.qualified_name if self.source else "?"
+        sink = self.sink.qualified_name if self.sink else "?"
+        return f"{source} -> {sink}"
+
     def counters(self) -> dict[str, int]:
         """Snapshot of the flow counters, for the profiler and diagnostics."""
         return {"written": self.written, "read": self.read, "dropped": self.dropped, "pending": self.pending}

@@ -85,9 +85,7 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
     for connection in app.connections:
         counters = connection.counters()
         shot.connections.append([
-            f"{connection.source.qualified_name if connection.source else '?'} -> "
-            f"{connection.sink.qualified_name if connection.sink else '?'}",
-            str(connection.policy), str(counters["written"]), str(counters["read"]),
+            connection.label, str(connection.policy), str(counters["written"]), str(counters["read"]),
             str(counters["dropped"]), str(counters["pending"])])
     return shot
 

@@ -30,6 +30,10 @@ APP = """<package name="procs">
     <component><name>sink</name><task>process_components:Sink</task>
       <attributes><attribute name="path" value="{tmp}/sink.txt"/></attributes></component>
   </components>
+  <connections>
+    <connection data="BUFFER" policy="LOCKED" buffersize="1000">
+      <src task="ticker" port="out"/><dest task="sink" port="value"/></connection>
+  </connections>
   <activities>
     <process name="worker">
       <activity name="ticks"><schedule type="periodic" period="{period}"/>
@@ -83,15 +87,25 @@ def wait_dead(pid: int, timeout: float) -> bool:
     return True
 
 
+def segments(launcher: int) -> list[str]:
+    """The shared-memory segments of a launcher (their names start with its pid)."""
+    return sorted(name for name in os.listdir("/dev/shm") if name.startswith(f"coco.{launcher}-"))
+
+
 @pytest.fixture
 def reap():
-    """Kill whatever process group a test leaves running."""
+    """Kill whatever process group a test leaves running; then no segment of it may be left."""
     started: list[subprocess.Popen[str]] = []
     yield started.append
     for popen in started:
         if popen.poll() is None:
             os.killpg(popen.pid, signal.SIGKILL)
             popen.wait()
+    deadline = time.monotonic() + 2.0  # orphaned children sweep after the launcher's death
+    while any(segments(popen.pid) for popen in started) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    for popen in started:
+        assert segments(popen.pid) == [], f"segments left in /dev/shm by launcher {popen.pid}"
 
 
 def test_check_prints_the_tree_with_its_processes(tmp_path: Path) -> None:
@@ -107,8 +121,12 @@ def test_child_runs_its_part_and_stops_with_the_launcher(tmp_path: Path, reap) -
     reap(launcher)
     child = int(wait_for_file(tmp_path / "ticker.pid"))
     assert child != launcher.pid
+    assert segments(launcher.pid), "the connection between the processes is a shared-memory segment"
     out, _ = launcher.communicate(timeout=60)
     assert launcher.returncode == 0, out
+    crossing = next(line for line in out.splitlines() if "ticker.out -> sink.value" in line)
+    written, read, dropped, pending = (int(word) for word in crossing.split()[-4:])
+    assert written >= 100 and dropped == 0 and read + pending == written, crossing
     assert "process   pid" in out and "worker" in out, "one profile lists every process"
     ticks = next(line for line in out.splitlines() if line.startswith("worker") and " ticks " in line)
     assert int(ticks.split()[5]) >= 50, ticks  # cycles of the periodic 10 ms activity in the child
@@ -162,7 +180,10 @@ def test_a_signal_to_the_launcher_stops_every_process_within_a_second(tmp_path: 
     assert launcher.returncode == 0, out
     assert "stopped" in out and "(clean)" in out, out
     assert wait_dead(child, 1.0)
-    assert (tmp_path / "sink.txt").read_text().endswith("stopped\n")
+    lines = (tmp_path / "sink.txt").read_text().splitlines()
+    assert lines[-1] == "stopped"
+    values = [int(line) for line in lines[1:-1]]
+    assert len(values) > 20 and values == list(range(len(values))), "every value crossed, in order"
 
 
 def test_children_die_with_a_killed_launcher(tmp_path: Path, reap) -> None:

@@ -20,7 +20,8 @@ from .. import registry
 from ..errors import ConfigError
 from ..model import AppSpec, ComponentSpec
 from ..policy import BufferPolicy, ConnectionPolicy
-from ..ports import InputPort, PooledOutputPort
+from ..connections import Connection
+from ..ports import InputPort, OutputPort, PooledOutputPort
 from .placement import Placement
 
 if TYPE_CHECKING:
@@ -102,27 +103,39 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
     activity to its eventfd (inherited from the launcher)."""
     if not plans:
         return
-    from ..shm import ShmFramePool, ShmPoolReader, ShmReader, ShmWriter
+    from ..pool import PoolConnection
+    from ..shm import ShmFrameNotifier, ShmFramePool, ShmPoolReader, ShmReader, ShmWriter
 
     process = app.process
     for plan in plans:
         if plan.src_process == process:
             component, _, port_name = plan.src.rpartition(".")
             out = app.component(component).port(port_name)
+            if not isinstance(out, OutputPort):
+                raise ConfigError(f"{plan.src} is an input port; a connection starts at an output")
+            writer: Connection
             if plan.frames:
                 if not isinstance(out, PooledOutputPort):
                     raise ConfigError(f"{plan.src} is not a pooled output: a POOL connection needs one")
-                out.pool = ShmFramePool(plan.channel)
-            writer = ShmWriter(plan.channel)
-            out.add_connection(writer)  # type: ignore[attr-defined]
+                if not isinstance(out.pool, ShmFramePool):  # one shared pool for every reader process
+                    out.pool = ShmFramePool(plan.channel)  # type: ignore[assignment]
+                    for local in out.connections:  # readers in this process read the shared pool too
+                        if isinstance(local, PoolConnection):
+                            local.pool = out.pool  # type: ignore[assignment]
+                writer = ShmFrameNotifier(plan.channel)
+            else:
+                writer = ShmWriter(plan.channel)
+            out.add_connection(writer)
             if plan.wakes:
                 fd = wakes[plan.wakes]
                 writer.trigger = lambda fd=fd: os.eventfd_write(fd, 1)
         if plan.dest_process == process:
             component, _, port_name = plan.dest.rpartition(".")
             into = app.component(component).port(port_name)
-            reader = ShmPoolReader(plan.channel) if plan.frames else ShmReader(plan.channel)
-            into.add_connection(reader, plan.event)  # type: ignore[call-arg]
+            if not isinstance(into, InputPort):
+                raise ConfigError(f"{plan.dest} is an output port; a connection ends at an input")
+            reader: Connection = ShmPoolReader(plan.channel) if plan.frames else ShmReader(plan.channel)
+            into.add_connection(reader, plan.event)
             app.connections.append(reader)
 
 

@@ -70,7 +70,6 @@ class ChildProcess:
         self.parent = parent
         self.app: Application | None = None
         self.launch = ""
-        self.orphaned = False
         self._lock = threading.Lock()
         self._next = 0
         self._pending: dict[int, Callable[[dict[str, Any]], None]] = {}
@@ -106,8 +105,7 @@ class ChildProcess:
         while True:  # every process builds, then all start: wait for the word
             try:
                 message = self.link.receive()
-            except EOFError:
-                self.orphaned = True
+            except EOFError:  # the launcher is gone
                 return 1
             if message is not None and message["kind"] == "start":
                 break
@@ -155,7 +153,6 @@ class ChildProcess:
             try:
                 message = self.link.receive()
             except EOFError:  # the launcher is gone
-                self.orphaned = True
                 app.request_stop("launcher: gone")
                 return
             if message is not None:
@@ -189,7 +186,6 @@ def main(argv: list[str] | None = None, kind: type[ChildProcess] = ChildProcess)
     child = kind(ControlLink(fd), parent)
 
     def terminate(_signum: int, _frame: object) -> None:
-        child.orphaned = child.orphaned or os.getppid() != parent
         if child.app is None:
             sys.exit(1)
         child.app.request_stop("launcher: SIGTERM")
@@ -198,10 +194,21 @@ def main(argv: list[str] | None = None, kind: type[ChildProcess] = ChildProcess)
     try:
         return child.run()
     finally:
-        if child.orphaned and child.launch:
+        if child.launch and launcher_gone(parent):  # nobody else will unlink the launch's segments
             from ..shm import sweep
 
             sweep(child.launch)
+
+
+def launcher_gone(parent: int) -> bool:
+    """Whether the launcher died: no such process, or a zombie (killed, not yet reaped). The
+    parent-death signal does not say it reliably (the child may still see the dead launcher as its
+    parent), so the child looks at the process itself."""
+    try:
+        with open(f"/proc/{parent}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] in ("Z", "X")
+    except OSError:
+        return True
 
 
 if __name__ == "__main__":

@@ -1,0 +1,319 @@
+"""Pooled frames between processes: a pooled output's slots in shared memory, read without a copy.
+
+The same protocol as :class:`coco_core.pool.FramePool` (FREE -> WRITING -> READY -> READING ->
+release), kept in a *control* segment that every process of the channel maps: per slot its state,
+reader count, sequence number, the shape and dtype of its frame and its stamp. A slot's pixels live in
+a segment of their own, made by the writer when the frame size first needs it (and made anew, under a
+new generation number, when the size changes: readers that still hold the old one keep their
+mapping). A reader gets a numpy array *over* the slot's segment: no copy, whatever the frame size.
+
+State changes are short critical sections under a ``flock`` on the control segment (between
+processes) and a thread lock (between threads of one process, which share the flock).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import pickle
+import threading
+from typing import Any
+
+import numpy as np
+
+from ..connections import EMPTY, Connection
+from ..errors import CocoError
+from ..pool import Slot, SlotState
+from .channel import ChannelSpec
+from .segment import Segment, unlink
+
+HEADER = 64
+PUBLISHED, STALLS, REUSED, NEWEST, SLOTS = range(5)
+RECORD = 512
+"""Bytes of one slot's record: 16 int64 fields, the dtype string, the pickled stamp."""
+STATE, READERS, SEQ, GENERATION, NBYTES, NDIM, SHAPE = 0, 1, 2, 3, 4, 5, 6
+MAX_NDIM = 6
+DTYPE_AT, DTYPE_SIZE = 128, 32
+STAMP_AT = DTYPE_AT + DTYPE_SIZE
+STAMP_SIZE = RECORD - STAMP_AT
+STATES = [SlotState.FREE, SlotState.WRITING, SlotState.READY, SlotState.READING]
+CODE = {state: code for code, state in enumerate(STATES)}
+
+
+def control_size(slots: int) -> int:
+    return HEADER + slots * RECORD
+
+
+class _Locked:
+    """The pool's critical section: a thread lock, then the flock of the control segment."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self.lock = threading.Lock()
+
+    def __enter__(self) -> None:
+        self.lock.acquire()
+        fcntl.flock(self.fd, fcntl.LOCK_EX)
+
+    def __exit__(self, *exc: object) -> None:
+        fcntl.flock(self.fd, fcntl.LOCK_UN)
+        self.lock.release()
+
+
+class ShmSlot(Slot):
+    """A slot of a shared-memory pool, as one process holds it (its array maps the slot's segment)."""
+
+    __slots__ = ()
+
+
+class ShmFramePool:
+    """A frame pool whose slots live in shared memory: the writer's process puts it on its pooled
+    output port (``port.pool``); every reader process attaches one to read from it."""
+
+    def __init__(self, spec: ChannelSpec) -> None:
+        self.spec = spec
+        self.control = Segment(spec.segment)
+        self.header = self.control.view[:HEADER].cast("q")
+        self.count = int(self.header[SLOTS])
+        self._locked = _Locked(self.control.fd)
+        self._data: dict[tuple[int, int], Segment] = {}
+        """(slot, generation) -> its mapped pixel segment, in this process."""
+
+    # --- what FramePool's users read ------------------------------------------------------------
+    @property
+    def published(self) -> int:
+        return int(self.header[PUBLISHED])
+
+    @property
+    def stalls(self) -> int:
+        return int(self.header[STALLS])
+
+    @property
+    def reused(self) -> int:
+        return int(self.header[REUSED])
+
+    @property
+    def newest(self) -> Slot | None:
+        """The newest published slot's number and sequence (a stand-in Slot, for ``pending``)."""
+        index = int(self.header[NEWEST])
+        if index < 0:
+            return None
+        slot = ShmSlot(self, index)  # type: ignore[arg-type]
+        slot.seq = int(self._record(index)[SEQ])
+        return slot
+
+    @property
+    def slots(self) -> list[int]:
+        return list(range(self.count))
+
+    def states(self) -> list[SlotState]:
+        with self._locked:
+            return [STATES[self._record(index)[STATE]] for index in range(self.count)]
+
+    # --- the protocol ---------------------------------------------------------------------------
+    def _record(self, index: int) -> memoryview:
+        offset = HEADER + index * RECORD
+        return self.control.view[offset:offset + DTYPE_AT].cast("q")
+
+    def _bytes(self, index: int, at: int, size: int) -> memoryview:
+        offset = HEADER + index * RECORD + at
+        return self.control.view[offset:offset + size]
+
+    def acquire(self, shape: tuple[int, ...], dtype: Any = np.uint8) -> Slot | None:
+        """A slot to write into (WRITING), its array a view of shared memory; None (a stall) when
+        every slot is in use."""
+        shape, dtype = tuple(int(n) for n in shape), np.dtype(dtype)
+        if len(shape) > MAX_NDIM:
+            raise CocoError(f"connection {self.spec.label}: frames have at most {MAX_NDIM} dimensions, got {shape}")
+        with self._locked:
+            index = self._free_slot()
+            if index is None:
+                self.header[STALLS] += 1
+                return None
+            record = self._record(index)
+            record[STATE] = CODE[SlotState.WRITING]
+            nbytes = int(np.prod(shape)) * dtype.itemsize
+            same = (record[NDIM] == len(shape) and tuple(record[SHAPE:SHAPE + len(shape)]) == shape
+                    and bytes(self._bytes(index, DTYPE_AT, DTYPE_SIZE)).rstrip(b"\0") == dtype.str.encode())
+            if not same or record[NBYTES] < nbytes or record[GENERATION] == 0:
+                self._reallocate(index, record, shape, dtype, nbytes)
+            generation = int(record[GENERATION])
+        slot = ShmSlot(self, index)  # type: ignore[arg-type]
+        slot.state = SlotState.WRITING
+        slot.array = self._array(index, generation, shape, dtype)
+        return slot
+
+    def _free_slot(self) -> int | None:
+        for index in range(self.count):
+            if self._record(index)[STATE] == CODE[SlotState.FREE]:
+                return index
+        newest = int(self.header[NEWEST])  # only the newest frame can be READY: replace it if unread
+        if newest >= 0 and self._record(newest)[STATE] == CODE[SlotState.READY]:
+            self.header[REUSED] += 1
+            self.header[NEWEST] = -1
+            return newest
+        return None
+
+    def _reallocate(self, index: int, record: memoryview, shape: tuple[int, ...], dtype: np.dtype,
+                    nbytes: int) -> None:
+        """A new pixel segment for slot ``index`` (a new generation); the old one's name goes."""
+        old = int(record[GENERATION])
+        if old:
+            unlink(self._data_name(index, old))
+        generation = old + 1
+        Segment(self._data_name(index, generation), max(nbytes, 1)).close()
+        record[GENERATION], record[NBYTES], record[NDIM] = generation, nbytes, len(shape)
+        for axis in range(MAX_NDIM):
+            record[SHAPE + axis] = shape[axis] if axis < len(shape) else 0
+        code = dtype.str.encode()
+        target = self._bytes(index, DTYPE_AT, DTYPE_SIZE)
+        target[:] = code + b"\0" * (DTYPE_SIZE - len(code))
+
+    def _data_name(self, index: int, generation: int) -> str:
+        return f"{self.spec.segment}.s{index}.g{generation}"
+
+    def _array(self, index: int, generation: int, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+        key = (index, generation)
+        segment = self._data.get(key)
+        if segment is None:
+            for stale in [k for k in self._data if k[0] == index]:
+                self._data.pop(stale).close()
+            segment = self._data[key] = Segment(self._data_name(index, generation))
+        return np.ndarray(shape, dtype, buffer=segment.map)
+
+    def publish(self, slot: Slot) -> None:
+        """Make a written slot the newest frame (WRITING -> READY), with its stamp."""
+        stamp = pickle.dumps(slot.stamp, protocol=5)
+        if len(stamp) > STAMP_SIZE - 8:
+            raise CocoError(f"connection {self.spec.label}: a frame's stamp of {len(stamp)} bytes is larger than "
+                            f"{STAMP_SIZE - 8}")
+        with self._locked:
+            record = self._record(slot.index)
+            if slot.pool is not self or record[STATE] != CODE[SlotState.WRITING]:  # type: ignore[comparison-overlap]
+                raise ValueError(f"publish() needs a slot acquired from this pool, got {slot!r}")
+            self.header[PUBLISHED] += 1
+            slot.seq = record[SEQ] = int(self.header[PUBLISHED])
+            record[STATE] = CODE[SlotState.READY]
+            target = self._bytes(slot.index, STAMP_AT, STAMP_SIZE)
+            target[:8] = len(stamp).to_bytes(8, "little")
+            target[8:8 + len(stamp)] = stamp
+            previous = int(self.header[NEWEST])
+            self.header[NEWEST] = slot.index
+            if previous >= 0 and previous != slot.index and self._record(previous)[STATE] == CODE[SlotState.READY]:
+                self._record(previous)[STATE] = CODE[SlotState.FREE]
+        slot.state = SlotState.READY
+
+    def take(self, after_seq: int) -> Slot | None:
+        """The newest frame if newer than ``after_seq``, READING for one more reader, its array a view
+        of the shared pixels."""
+        with self._locked:
+            index = int(self.header[NEWEST])
+            if index < 0:
+                return None
+            record = self._record(index)
+            if record[SEQ] <= after_seq:
+                return None
+            record[READERS] += 1
+            record[STATE] = CODE[SlotState.READING]
+            seq, generation, ndim = int(record[SEQ]), int(record[GENERATION]), int(record[NDIM])
+            shape = tuple(int(n) for n in record[SHAPE:SHAPE + ndim])
+            dtype = np.dtype(bytes(self._bytes(index, DTYPE_AT, DTYPE_SIZE)).rstrip(b"\0").decode())
+            stamp_bytes = self._bytes(index, STAMP_AT, STAMP_SIZE)
+            size = int.from_bytes(stamp_bytes[:8], "little")
+            stamp = bytes(stamp_bytes[8:8 + size])
+        slot = ShmSlot(self, index)  # type: ignore[arg-type]
+        slot.state, slot.seq, slot.readers = SlotState.READING, seq, 1
+        slot.stamp = pickle.loads(stamp) if size else None
+        slot.array = self._array(index, generation, shape, dtype)
+        return slot
+
+    def release(self, slot: Slot) -> None:
+        """One reader is done with ``slot``; the last one returns it to READY (newest) or FREE."""
+        with self._locked:
+            record = self._record(slot.index)
+            if record[READERS] <= 0:
+                raise ValueError(f"release() of a slot that is not being read: {slot!r}")
+            record[READERS] -= 1
+            if record[READERS] == 0:
+                newest = int(self.header[NEWEST]) == slot.index
+                record[STATE] = CODE[SlotState.READY if newest else SlotState.FREE]
+        slot.state = SlotState.FREE
+
+    def unlink_slots(self) -> None:
+        """Remove the pixel segments' names (the launcher's arena removes the control segment)."""
+        for index in range(self.count):
+            generation = int(self._record(index)[GENERATION])
+            if generation:
+                unlink(self._data_name(index, generation))
+
+    def close(self) -> None:
+        for segment in self._data.values():
+            segment.close()
+        self._data.clear()
+        self.header.release()
+        self.control.close()
+
+
+class ShmPoolReader(Connection):
+    """The reader's end of a pooled channel: the newest frame, once, as a slot over shared memory."""
+
+    __slots__ = ("pool", "_seen", "_read")
+
+    def __init__(self, spec: ChannelSpec) -> None:  # noqa: D107 - counters are properties
+        self.policy = spec.policy
+        self.source = None
+        self.sink = None
+        self.trigger = None
+        self.pool = ShmFramePool(spec)
+        self._seen = 0
+        self._read = 0
+
+    @property  # type: ignore[override]
+    def written(self) -> int:
+        return self.pool.published
+
+    @property
+    def label(self) -> str:
+        source, _, sink = self.pool.spec.label.partition("->")
+        return f"{source} -> {sink}"
+
+    @property  # type: ignore[override]
+    def read(self) -> int:
+        return self._read
+
+    def push(self, value: Any) -> None:
+        raise CocoError(f"connection {self.pool.spec.label}: the reader's end cannot be written")
+
+    def pop(self) -> Any:
+        slot = self.pool.take(self._seen)
+        if slot is None:
+            return EMPTY
+        self._seen = slot.seq
+        self._read += 1
+        return slot
+
+    @property
+    def pending(self) -> int:
+        newest = self.pool.newest
+        return 1 if newest is not None and newest.seq > self._seen else 0
+
+
+class ShmFrameNotifier(Connection):
+    """The writer's end of a pooled channel: the frame is already in the shared pool (published by
+    the port), so a write only counts and wakes the reader's process."""
+
+    __slots__ = ()
+
+    def __init__(self, spec: ChannelSpec) -> None:
+        super().__init__(spec.policy)
+
+    def push(self, value: Any) -> None:
+        self.written += 1
+        if self.trigger is not None:
+            self.trigger()
+
+    def pop(self) -> Any:
+        raise CocoError("the writer's end of a pooled channel cannot be read")
+
+    @property
+    def pending(self) -> int:
+        return 0

@@ -1,0 +1,90 @@
+"""POSIX shared-memory segments of one launch, and the sweep that removes what a dead launch left.
+
+Segments are opened with ``shm_open`` and mapped with ``mmap`` directly rather than through
+``multiprocessing.shared_memory``: Python 3.11's ``SharedMemory`` registers every *attached* segment
+with the resource tracker of the attaching process, which then unlinks it (and warns) when that
+process exits, although other processes still use it. Here only the launcher (or, when the launcher
+was killed, its orphaned children) unlinks, and every segment of a launch shares the name prefix
+``coco.<launch id>.``, so that :func:`sweep` finds them all in ``/dev/shm``.
+"""
+
+from __future__ import annotations
+
+import mmap
+import os
+from pathlib import Path
+
+import _posixshmem
+
+SHM_DIR = Path("/dev/shm")
+PREFIX = "coco."
+
+
+def segment_name(launch: str, index: int | str) -> str:
+    """The name of a launch's segment (without the leading slash shm_open takes)."""
+    return f"{PREFIX}{launch}.{index}"
+
+
+class Segment:
+    """One mapped shared-memory segment."""
+
+    def __init__(self, name: str, size: int | None = None) -> None:
+        """Create ``name`` with ``size`` bytes (zeroed), or attach to it when ``size`` is None."""
+        self.name = name
+        if size is not None:
+            fd = _posixshmem.shm_open("/" + name, os.O_CREAT | os.O_EXCL | os.O_RDWR, mode=0o600)
+            try:
+                os.ftruncate(fd, size)
+            except OSError:
+                os.close(fd)
+                _posixshmem.shm_unlink("/" + name)
+                raise
+        else:
+            fd = _posixshmem.shm_open("/" + name, os.O_RDWR, mode=0o600)
+        try:
+            self.size = os.fstat(fd).st_size
+            self.map = mmap.mmap(fd, self.size)
+            self.fd = os.dup(fd)
+            """Kept open for file locks (``fcntl.flock``) on the segment."""
+        finally:
+            os.close(fd)
+        self.view = memoryview(self.map)
+
+    def close(self) -> None:
+        """Unmap (views into it must be gone: numpy arrays over it keep it mapped until collected)."""
+        try:
+            self.view.release()
+            self.map.close()
+        except BufferError:  # a numpy view still uses it: the mapping goes with the last view
+            pass
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+
+    def unlink(self) -> None:
+        unlink(self.name)
+
+
+def unlink(name: str) -> None:
+    """Remove a segment's name (mappings stay valid until unmapped); a missing one is fine."""
+    try:
+        _posixshmem.shm_unlink("/" + name)
+    except FileNotFoundError:
+        pass
+
+
+def leftovers(launch: str) -> list[str]:
+    """The segments of ``launch`` still in /dev/shm."""
+    prefix = segment_name(launch, "")
+    try:
+        return sorted(entry.name for entry in SHM_DIR.iterdir() if entry.name.startswith(prefix))
+    except OSError:
+        return []
+
+
+def sweep(launch: str) -> list[str]:
+    """Unlink every segment of ``launch`` (what a launcher killed with SIGKILL left); their names."""
+    names = leftovers(launch)
+    for name in names:
+        unlink(name)
+    return names

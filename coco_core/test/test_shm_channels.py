@@ -1,0 +1,200 @@
+"""Shared-memory channels (coco_core.shm): the in-process policies' semantics and counters, between
+real processes; pooled frames read in place by other processes; no segment left behind."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from coco_core import InputPort, NEW_DATA, NO_DATA, OLD_DATA, Stamp, Stamped
+from coco_core.policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from coco_core.pool import SlotState
+from coco_core.shm import (Arena, ChannelError, ChannelStats, ShmFramePool, ShmPoolReader, ShmReader, ShmWriter,
+                           leftovers, sweep)
+
+
+@pytest.fixture
+def arena():
+    launch = f"test{os.getpid()}x{os.urandom(3).hex()}"
+    made = Arena(launch)
+    yield made
+    made.close()
+    assert leftovers(launch) == [], "the arena unlinks every segment"
+
+
+def ends(arena: Arena, data: BufferPolicy, size: int = 1) -> tuple[ShmWriter, ShmReader]:
+    spec = arena.channel(ConnectionPolicy(data, SyncPolicy.LOCKED, size), "a.out->b.in")
+    return ShmWriter(spec), ShmReader(spec)
+
+
+def drain(reader: ShmReader) -> list[object]:
+    port = InputPort(object).bind(None)  # type: ignore[arg-type]
+    port.add_connection(reader)
+    return port.read_all()
+
+
+def test_data_gives_the_newest_value_once(arena: Arena) -> None:
+    writer, reader = ends(arena, BufferPolicy.DATA)
+    port = InputPort(object).bind(None)  # type: ignore[arg-type]
+    port.add_connection(reader)
+    assert port.read() == (NO_DATA, None)
+    for value in range(5):
+        writer.push(value)
+    assert port.read() == (NEW_DATA, 4)
+    assert port.read() == (OLD_DATA, 4)
+    assert reader.counters() == {"written": 5, "read": 1, "dropped": 4, "pending": 0}
+
+
+def test_buffer_refuses_new_values_when_full(arena: Arena) -> None:
+    writer, reader = ends(arena, BufferPolicy.BUFFER, 3)
+    for value in range(5):
+        writer.push(value)
+    assert writer.counters() == {"written": 5, "read": 0, "dropped": 2, "pending": 3}
+    assert drain(reader) == [0, 1, 2]
+    writer.push(5)
+    assert drain(reader) == [5]
+    assert reader.counters() == {"written": 6, "read": 4, "dropped": 2, "pending": 0}
+
+
+def test_circular_drops_the_oldest(arena: Arena) -> None:
+    writer, reader = ends(arena, BufferPolicy.CIRCULAR, 3)
+    for value in range(7):
+        writer.push(value)
+    assert writer.counters()["pending"] == 3
+    assert drain(reader) == [4, 5, 6]
+    assert reader.counters() == {"written": 7, "read": 3, "dropped": 4, "pending": 0}
+
+
+def test_values_keep_their_type_and_arrays_their_contents(arena: Arena) -> None:
+    writer, reader = ends(arena, BufferPolicy.BUFFER, 4)
+    sample = Stamped(np.arange(19, dtype=np.float64), Stamp(1.5, 7, "bag"))
+    writer.push(sample)
+    writer.push(None)
+    got = drain(reader)
+    assert got[1] is None
+    assert isinstance(got[0], Stamped) and got[0].stamp == sample.stamp
+    np.testing.assert_array_equal(got[0].value, sample.value)
+
+
+def test_a_value_larger_than_a_slot_is_an_error_naming_the_connection(arena: Arena) -> None:
+    spec = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 2), "cam.frame->view.image",
+                         capacity=1024)
+    writer = ShmWriter(spec)
+    with pytest.raises(ChannelError, match=r"cam.frame->view.image: a value of \d+ bytes does not fit .* 1024"):
+        writer.push(np.zeros(4096, np.uint8))
+    with pytest.raises(ChannelError, match="cannot be sent to another process"):
+        writer.push(lambda: None)
+    assert writer.counters()["written"] == 0
+
+
+WRITER = """
+import sys
+from coco_core.shm import ShmWriter
+spec = __import__("pickle").loads(bytes.fromhex(sys.argv[1]))
+writer = ShmWriter(spec)
+for value in range(int(sys.argv[2])):
+    writer.push(("sample", value))
+"""
+
+
+@pytest.mark.parametrize("data, size, expect", [
+    (BufferPolicy.BUFFER, 5000, list(range(5000))),
+    (BufferPolicy.CIRCULAR, 10, list(range(4990, 5000))),
+])
+def test_values_cross_between_processes_with_their_counters(arena: Arena, data: BufferPolicy, size: int,
+                                                            expect: list[int]) -> None:
+    spec = arena.channel(ConnectionPolicy(data, SyncPolicy.LOCKED, size), "w.out->r.in")
+    subprocess.run([sys.executable, "-c", WRITER, pickle.dumps(spec).hex(), "5000"], check=True, timeout=60)
+    reader = ShmReader(spec)
+    values = [value for _, value in drain(reader)]
+    assert values == expect
+    assert ChannelStats(spec).counters() == {"written": 5000, "read": len(expect),
+                                             "dropped": 5000 - len(expect), "pending": 0}
+
+
+FRAME_READER = """
+import sys, pickle, time
+from coco_core.shm import ShmPoolReader
+spec = pickle.loads(bytes.fromhex(sys.argv[1]))
+reader = ShmPoolReader(spec)
+slot = None
+deadline = time.monotonic() + 20
+while slot is None or slot is __import__("coco_core").connections.EMPTY:
+    slot = reader.pop()
+    if time.monotonic() > deadline:
+        sys.exit("no frame")
+print(slot.array.shape, slot.array.dtype, int(slot.array.sum()), slot.stamp, slot.array.base is not None, flush=True)
+sys.stdin.readline()   # hold the slot until told
+slot.release()
+print("released", flush=True)
+"""
+
+
+def test_frames_are_read_in_place_by_two_processes_with_the_slot_protocol(arena: Arena) -> None:
+    spec = arena.channel(ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 4), "cam.frames->view.frames",
+                         frames=True)
+    pool = ShmFramePool(spec)
+    slot = pool.acquire((480, 640, 3), np.uint8)
+    assert slot is not None and pool.states()[slot.index] is SlotState.WRITING
+    slot.array[:] = 3
+    slot.stamp = Stamp(2.0, 11, "camera")
+    pool.publish(slot)
+    readers = [subprocess.Popen([sys.executable, "-c", FRAME_READER, pickle.dumps(spec).hex()],
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) for _ in range(2)]
+    try:
+        for reader in readers:
+            line = reader.stdout.readline()  # type: ignore[union-attr]
+            assert line.strip() == f"(480, 640, 3) uint8 {480 * 640 * 3 * 3} {Stamp(2.0, 11, 'camera')} True", line
+        assert pool.states()[slot.index] is SlotState.READING
+        # The writer goes on while the frame is read: the read slot is not reused.
+        for _ in range(5):
+            fresh = pool.acquire((480, 640, 3), np.uint8)
+            assert fresh is not None and fresh.index != slot.index
+            pool.publish(fresh)
+        for reader in readers:
+            reader.stdin.write("\n")  # type: ignore[union-attr]
+            reader.stdin.flush()  # type: ignore[union-attr]
+            assert reader.stdout.readline().strip() == "released"  # type: ignore[union-attr]
+            assert reader.wait(timeout=10) == 0
+        assert pool.states()[slot.index] is SlotState.FREE, "released by both and no longer the newest"
+    finally:
+        for reader in readers:
+            if reader.poll() is None:
+                reader.kill()
+    local = ShmPoolReader(spec)
+    newest = local.pop()
+    assert newest.seq == 6 and newest.array.shape == (480, 640, 3)
+    newest.release()
+    bigger = pool.acquire((1080, 1920, 3), np.uint8)  # a size change: a new segment for that slot
+    assert bigger is not None and bigger.array.shape == (1080, 1920, 3)
+    bigger.array[0, 0] = 9
+    pool.publish(bigger)
+    frame = local.pop()
+    assert frame.array.shape == (1080, 1920, 3) and frame.array[0, 0, 0] == 9
+    frame.release()
+    pool.unlink_slots()
+
+
+def test_sweep_removes_what_a_killed_owner_left(tmp_path: Path) -> None:
+    launch = f"killed{os.getpid()}"
+    script = textwrap.dedent(f"""
+        import os, signal
+        from coco_core.policy import BufferPolicy, ConnectionPolicy
+        from coco_core.shm import Arena, ShmFramePool
+        arena = Arena({launch!r})
+        arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, size=8), "a.b->c.d")
+        pool = ShmFramePool(arena.channel(ConnectionPolicy(BufferPolicy.POOL, size=4), "e.f->g.h", frames=True))
+        pool.publish(pool.acquire((4, 4), "uint8"))
+        os.kill(os.getpid(), signal.SIGKILL)
+    """)
+    subprocess.run([sys.executable, "-c", script], timeout=60)
+    assert len(leftovers(launch)) == 3, leftovers(launch)
+    assert len(sweep(launch)) == 3
+    assert leftovers(launch) == []
