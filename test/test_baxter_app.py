@@ -40,8 +40,10 @@ def read_csv(path: Path) -> list[dict[str, str]]:
 
 def latency(report: str, component: str) -> tuple[float, float]:
     """(mean, max) ms of a component's stamp-to-output latency in a profile report."""
-    components = report[report.index("\ncomponent "):]  # the component table (an activity may share the name)
-    line = re.search(rf"^{component}\s.*$", components, re.M).group(0)
+    # The component table (an activity may share the name); with several processes each row starts
+    # with the process's name.
+    components = report[re.search(r"^(process\s+)?component\s", report, re.M).start():]
+    line = re.search(rf"^(\S+\s+)?{component}\s.*$", components, re.M).group(0)
     found = re.search(r"([0-9.]+) / ([0-9.]+)\s*$", line)
     assert found, f"no latency for {component}: {line}"
     return float(found.group(1)), float(found.group(2))
@@ -113,8 +115,10 @@ def test_teleop_app_in_the_ros_launcher(session, tmp_path: Path, monkeypatch: py
     assert result.returncode == 0, result.stderr
     assert "node /baxter_teleop_replay hosts application baxter_teleop_replay" in result.stderr, result.stderr
     assert "activity frames: triggered -> executor" in result.stderr, result.stderr
-    # The display keeps its EGL context on one thread: GLManager is thread-bound.
-    assert "activity display: periodic 50 ms -> thread" in result.stderr, result.stderr
+    # The view runs in a process of its own (display_process:=true), with a node of its own; there
+    # too the display keeps its EGL context on one thread: GLManager is thread-bound.
+    assert "activity display: periodic 50 ms -> process view" in result.stderr, result.stderr
+    assert "view" in result.stdout and "display    periodic 50 ms" in result.stdout, result.stdout
     latency(result.stdout, "summary")
     summary = json.loads((output / "summary.json").read_text())
     assert summary["samples"] == len(read_csv(output / "distance.csv")) > 200, summary

@@ -83,15 +83,22 @@ def test_values_keep_their_type_and_arrays_their_contents(arena: Arena) -> None:
     np.testing.assert_array_equal(got[0].value, sample.value)
 
 
-def test_a_value_larger_than_a_slot_is_an_error_naming_the_connection(arena: Arena) -> None:
-    spec = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 2), "cam.frame->view.image",
+def test_values_larger_than_a_slot_cross_through_the_overflow_segment(arena: Arena) -> None:
+    spec = arena.channel(ConnectionPolicy(BufferPolicy.CIRCULAR, SyncPolicy.LOCKED, 2), "cam.frame->view.image",
                          capacity=1024)
-    writer = ShmWriter(spec)
-    with pytest.raises(ChannelError, match=r"cam.frame->view.image: a value of \d+ bytes does not fit .* 1024"):
-        writer.push(np.zeros(4096, np.uint8))
+    writer, reader = ShmWriter(spec), ShmReader(spec)
+    images = [np.full((240, 320, 3), k, np.uint8) for k in range(5)]
+    for image in images[:3]:
+        writer.push(image)
+    got = drain(reader)
+    assert [int(image[0, 0, 0]) for image in got] == [1, 2], "the oldest was dropped, the others are whole"
+    writer.push(np.zeros(10, np.uint8))  # a small one in the same slot again
+    writer.push(np.full((480, 640, 3), 9, np.uint8))  # larger still: the overflow grows
+    small, large = drain(reader)
+    assert small.shape == (10,) and large.shape == (480, 640, 3) and int(large.sum()) == 9 * 480 * 640 * 3
     with pytest.raises(ChannelError, match="cannot be sent to another process"):
         writer.push(lambda: None)
-    assert writer.counters()["written"] == 0
+    assert writer.counters()["written"] == 5
 
 
 WRITER = """

@@ -21,6 +21,7 @@ positions changed, as new buffers when the topology did.
 
 from __future__ import annotations
 
+import logging
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
@@ -29,11 +30,14 @@ from coco_core.attributes import Attribute
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
 from coco_core.transforms import se3
+from coco_core.transforms.graph import TransformError
 
 from .draw_state import DrawState
 from .mesh import PRIMITIVES, GpuMesh, MeshPart, color_problem, load_parts, merge_parts, parts_of, primitive
 from .phong import PhongPeer
 from .poses import reference_of
+
+log = logging.getLogger("coco")
 
 if TYPE_CHECKING:
     import moderngl
@@ -95,6 +99,8 @@ class GLEntity(PhongPeer):
         self._received: tuple[str | None, np.ndarray] | None = None
         self._meshes: list[GpuMesh] = []
         self._drawn: list[MeshPart] = []
+        self._unplaced = False
+        """Whether the graph could not place the entity at the last frame (warned once until it can)."""
 
     def gl_init(self, ctx: moderngl.Context) -> None:
         super().gl_init(ctx)
@@ -128,7 +134,15 @@ class GLEntity(PhongPeer):
             self._upload(ctx, state.parts)
         model = state.pose @ np.diag([*state.scale, 1.0])
         if state.reference is not None and state.reference != view.frame:
-            model = self.transform_graph.lookup(view.frame, state.reference) @ model
+            try:
+                model = self.transform_graph.lookup(view.frame, state.reference) @ model
+            except TransformError as error:  # its frame comes with its first pose: not drawn until then
+                if not self._unplaced:
+                    log.warning("%s: not drawn until the transformation graph can place %s in %s (%s)",
+                                self.name, state.reference, view.frame, error)
+                    self._unplaced = True
+                return
+            self._unplaced = False
         model_view = view.view @ model
         self.begin(ctx, view)
         for mesh in self._meshes:

@@ -19,8 +19,8 @@ The policies keep their in-process meaning:
 - DATA: two slots, the reader always takes the newest item once (NEW, then nothing until the next).
 
 ``dropped`` is derived, as in-process: offered - read - pending. Values cross as pickles (protocol 5);
-a value larger than a slot is an error that names the connection and both sizes. Frames do not go
-this way: a pooled output's slots live in shared memory (:mod:`coco_core.shm.frames`).
+one larger than a slot goes to that slot's overflow segment. Frames do not go this way: a pooled
+output's slots live in shared memory and are read in place (:mod:`coco_core.shm.frames`).
 
 The stores are ordered payload, then stamp, then counter, and the loads the other way round; on
 x86-64 (total store order) that is all the ordering needed. CPython does not expose memory fences,
@@ -37,20 +37,21 @@ from typing import Any
 from ..connections import EMPTY, Connection
 from ..errors import CocoError
 from ..policy import BufferPolicy, ConnectionPolicy
-from .segment import Segment
+from .segment import Segment, unlink
 
 HEADER = 64
 OFFERED, STORED, READ, CURSOR, SLOTS, CAPACITY = range(6)
-SLOT_HEADER = 16
+SLOT_HEADER = 32
+"""Per slot: stamp, length, overflow generation (0: the value is in the slot), unused."""
 RETRIES = 10_000
 """Reads of a slot that keeps changing before the reader gives up for this call (a writer that died
 half-way through a slot would otherwise keep it spinning)."""
-DEFAULT_CAPACITY = 64 * 1024
-"""Bytes of one slot: generous, since shared memory is only backed where it is written."""
+DEFAULT_CAPACITY = 16 * 1024
+"""Bytes of one slot (larger values go to the slot's overflow segment)."""
 
 
 class ChannelError(CocoError):
-    """A value that cannot cross the channel (too large, not picklable)."""
+    """A value that cannot cross the channel (it cannot be pickled)."""
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,11 @@ class ChannelSpec:
     slots: int
     capacity: int
     frames: bool = False
+
+
+def overflow_name(spec: ChannelSpec, index: int, generation: int) -> str:
+    """The segment of slot ``index``'s large values, generation ``generation``."""
+    return f"{spec.segment}.o{index}.g{generation}"
 
 
 def layout(policy: ConnectionPolicy, capacity: int | None) -> tuple[int, int]:
@@ -140,9 +146,30 @@ class ShmConnection(Connection):
 
 
 class ShmWriter(ShmConnection):
-    """The writer's end of a value channel (in the writer's process, on its output port)."""
+    """The writer's end of a value channel (in the writer's process, on its output port).
 
-    __slots__ = ()
+    A value larger than a slot goes into the slot's *overflow* segment, made (or made larger, as a
+    new generation) when a value first needs it: a camera image on a plain output port crosses too,
+    at the price of one copy each way; frames without copies are what pooled outputs are for."""
+
+    __slots__ = ("_overflows",)
+
+    def __init__(self, spec: ChannelSpec) -> None:
+        super().__init__(spec)
+        self._overflows: dict[int, tuple[int, Segment]] = {}
+        """slot -> (generation, segment) of its overflow segment."""
+
+    def _overflow(self, index: int, size: int) -> int:
+        """The generation of slot ``index``'s overflow segment, made large enough for ``size`` bytes."""
+        generation, segment = self._overflows.get(index, (0, None))
+        if segment is None or segment.size < size:
+            if segment is not None:
+                segment.close()
+                unlink(overflow_name(self.ring.spec, index, generation))
+            generation += 1
+            segment = Segment(overflow_name(self.ring.spec, index, generation), 1 << (size - 1).bit_length())
+            self._overflows[index] = (generation, segment)
+        return generation
 
     def push(self, value: Any) -> None:
         ring = self.ring
@@ -153,18 +180,21 @@ class ShmWriter(ShmConnection):
             raise ChannelError(f"connection {ring.spec.label}: {type(value).__name__} value cannot be sent to "
                                f"another process: {error}") from None
         size = len(data)
-        if size > ring.capacity:
-            raise ChannelError(f"connection {ring.spec.label}: a value of {size} bytes does not fit its slots of "
-                               f"{ring.capacity} bytes (frames go through a pooled output, data=POOL)")
         counters[OFFERED] += 1
         stored = counters[STORED]
         if self.mode is BufferPolicy.BUFFER and stored - counters[CURSOR] >= ring.slots:
             return  # full: the new value is refused, as an in-process BUFFER refuses it
-        offset = HEADER + (stored % ring.slots) * ring.stride
+        index = stored % ring.slots
+        offset = HEADER + index * ring.stride
         stamp = ring.view[offset:offset + SLOT_HEADER].cast("q")
         stamp[0] = 0  # being written: a reader of this slot retries
         stamp[1] = size
-        ring.view[offset + SLOT_HEADER:offset + SLOT_HEADER + size] = data
+        if size <= ring.capacity:
+            stamp[2] = 0
+            ring.view[offset + SLOT_HEADER:offset + SLOT_HEADER + size] = data
+        else:  # a large value (a camera image on a plain port): the slot's overflow segment holds it
+            stamp[2] = self._overflow(index, size)
+            self._overflows[index][1].view[:size] = data
         stamp[0] = stored + 1
         stamp.release()
         counters[STORED] = stored + 1
@@ -179,7 +209,24 @@ class ShmWriter(ShmConnection):
 class ShmReader(ShmConnection):
     """The reader's end of a value channel (in the reader's process, on its input port)."""
 
-    __slots__ = ()
+    __slots__ = ("_overflows",)
+
+    def __init__(self, spec: ChannelSpec) -> None:
+        super().__init__(spec)
+        self._overflows: dict[int, tuple[int, Segment]] = {}
+
+    def _large(self, index: int, generation: int, size: int) -> bytes | None:
+        """The bytes of a large value in slot ``index``'s overflow segment; None when the writer
+        replaced that segment meanwhile (the value was overwritten)."""
+        known = self._overflows.get(index)
+        if known is None or known[0] != generation:
+            if known is not None:
+                known[1].close()
+            try:
+                known = self._overflows[index] = (generation, Segment(overflow_name(self.ring.spec, index, generation)))
+            except FileNotFoundError:
+                return None
+        return bytes(known[1].view[:size])
 
     def push(self, value: Any) -> None:
         raise CocoError(f"connection {self.ring.spec.label}: the reader's end cannot be written")
@@ -205,8 +252,15 @@ class ShmReader(ShmConnection):
             if before != index + 1:  # being written, or already overwritten: look again
                 stamp.release()
                 continue
-            size = stamp[1]
-            data = bytes(ring.view[offset + SLOT_HEADER:offset + SLOT_HEADER + size])
+            size, generation = stamp[1], stamp[2]
+            if generation:
+                large = self._large(index % slots, generation, size)
+                if large is None:
+                    stamp.release()
+                    continue
+                data = large
+            else:
+                data = bytes(ring.view[offset + SLOT_HEADER:offset + SLOT_HEADER + size])
             after = stamp[0]
             stamp.release()
             if after != before:  # overwritten during the copy
