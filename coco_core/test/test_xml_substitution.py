@@ -142,7 +142,7 @@ def test_unset_env_and_unknown_substitutions_are_errors(monkeypatch):
     monkeypatch.delenv("COCO_TEST_UNSET", raising=False)
     text = with_attributes(
         """<attribute name="a" value="$(env COCO_TEST_UNSET)"/>
-<attribute name="b" value="$(eval 1+1)"/>
+<attribute name="b" value="$(find pkg)"/>
 <attribute name="c" value="$(arg x"/>
 <attribute name="d" value="$(dirname extra)"/>"""
     )
@@ -150,8 +150,8 @@ def test_unset_env_and_unknown_substitutions_are_errors(monkeypatch):
         (6, '<attribute> attribute value="$(env COCO_TEST_UNSET)": $(env COCO_TEST_UNSET): environment '
             "variable COCO_TEST_UNSET is not set (give a default: $(env COCO_TEST_UNSET default), or "
             "use $(optenv COCO_TEST_UNSET))"),
-        (7, '<attribute> attribute value="$(eval 1+1)": unknown substitution $(eval 1+1); expected one '
-            "of: anon, arg, dirname, env, find-pkg-share, optenv"),
+        (7, '<attribute> attribute value="$(find pkg)": unknown substitution $(find pkg); expected one '
+            "of: anon, arg, dirname, env, eval, find-pkg-share, optenv"),
         (8, "<attribute> attribute value=\"$(arg x\": unterminated $( in '$(arg x': a ')' is missing"),
         (9, "<attribute> attribute value=\"$(dirname extra)\": $(dirname) takes no argument, got 'extra'"),
     ]

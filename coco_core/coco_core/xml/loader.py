@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ..errors import ConfigError, ConfigErrors
+from ..files import APPLICATION_FILE_LIMIT, FileReadError, read_regular_file
 from ..model import AppSpec, LogSpec
 from .activities import read_activity
 from .arguments import Arguments
@@ -43,6 +44,9 @@ PACKAGE_CHILDREN = (
 )
 LOG_CHILDREN = ("file", "levels", "outfile", "types")
 LOG_TYPES = ("debug", "err", "log")
+MAX_INCLUDE_DEPTH = 64
+"""How many files an include chain may hold (the application file included): a limit far beyond
+real applications, which keeps a generated chain from exhausting the reader's recursion."""
 
 
 def load_application(
@@ -56,9 +60,9 @@ def load_application(
     """
     file = os.path.abspath(os.fspath(path))
     try:
-        data = Path(file).read_bytes()
-    except OSError as error:
-        raise ConfigError(f"cannot read application file {file}: {error.strerror}") from None
+        data = read_regular_file(file, APPLICATION_FILE_LIMIT, "application file")
+    except FileReadError as error:
+        raise ConfigError(str(error)) from None
     return _Loader(args or {}).load(data, file, os.path.dirname(file))
 
 
@@ -271,10 +275,18 @@ class _Loader:
             cycle = [name for _, name in self.include_chain[identities.index(identity) :]]
             reader.error(f"include cycle: {' -> '.join([*cycle, file])}", include)
             return
+        if len(self.include_chain) >= MAX_INCLUDE_DEPTH:
+            reader.error(
+                f"includes nest more than {MAX_INCLUDE_DEPTH} files deep (from {self.include_chain[0][1]}); "
+                f"{file} is not read",
+                include,
+            )
+            self.complete = False
+            return
         try:
-            data = Path(file).read_bytes()
-        except OSError as error:
-            reader.error(f"cannot read included file {file}: {error.strerror}", include)
+            data = read_regular_file(file, APPLICATION_FILE_LIMIT, "included file")
+        except FileReadError as error:
+            reader.error(str(error), include)
             self.complete = False
             return
         root = self._parse(data, file)
