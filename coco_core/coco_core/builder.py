@@ -24,9 +24,12 @@ log = logging.getLogger("coco")
 
 
 class _Builder:
-    def __init__(self, spec: AppSpec) -> None:
+    def __init__(self, spec: AppSpec, allow_unknown: bool = False) -> None:
         self.spec = spec
         self.errors: list[ConfigError] = []
+        self.allow_unknown = allow_unknown
+        self.missing: set[str] = set()
+        """Components left out because their task is unknown (with ``allow_unknown``), peers included."""
 
     def fail(self, error: Exception | str, spec: object) -> None:
         self.errors.append(ConfigError(str(error), getattr(spec, "location", None)))
@@ -38,6 +41,19 @@ class _Builder:
     def instantiate(self, spec: ComponentSpec) -> Component | None:
         try:
             cls = registry.load(spec.task, spec.library)
+        except registry.UnknownComponentError as error:
+            if not self.allow_unknown:
+                self.fail(error, spec)
+                return None
+            left_out = [spec]
+            while left_out:
+                self.missing.add(left_out[-1].name)
+                left_out.extend(left_out.pop().peers)
+            library = f" (library {spec.library!r})" if spec.library else ""
+            self.spec.warnings.append(str(ConfigError(
+                f"unknown component {spec.task!r}{library}: {spec.name!r} is left out, and its "
+                "attributes, peers, ports and connections are not checked", spec.location)))
+            return None
         except CocoError as error:
             self.fail(error, spec)
             return None
@@ -148,10 +164,13 @@ class _Builder:
             try:
                 activity = app.add_activity(self.activity(activity_spec))
                 for name in activity_spec.components:
-                    activity.add(app.component(name))
+                    if name not in self.missing:
+                        activity.add(app.component(name))
             except (CocoError, ValueError, KeyError) as error:
                 self.fail(error, activity_spec)
         for connection_spec in spec.connections:
+            if {connection_spec.src.component, connection_spec.dest.component} & self.missing:
+                continue
             try:
                 app.connect(str(connection_spec.src), str(connection_spec.dest),
                             ConnectionPolicy(connection_spec.data, connection_spec.policy,
@@ -167,9 +186,15 @@ class _Builder:
         return app
 
 
-def build_application(spec: AppSpec) -> Application:
-    """Instantiate, configure and wire ``spec``; raise :class:`ConfigErrors` listing every problem."""
-    return _Builder(spec).build()
+def build_application(spec: AppSpec, allow_unknown: bool = False) -> Application:
+    """Instantiate, configure and wire ``spec``; raise :class:`ConfigErrors` listing every problem.
+
+    ``allow_unknown`` leaves out the components whose task no installed package provides, with a
+    warning in ``spec.warnings`` each, so that the structure of an application can be checked
+    without its components (the original CoCo's files name C++ components); such an application
+    is for ``--check`` only, not for running.
+    """
+    return _Builder(spec, allow_unknown).build()
 
 
 def configure_logging(spec: LogSpec | None, default_level: int = logging.INFO) -> None:

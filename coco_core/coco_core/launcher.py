@@ -22,6 +22,7 @@ from . import registry
 from .application import Application
 from .builder import build_application, configure_logging
 from .errors import CocoError
+from .model import AppSpec
 from .ports import InputPort
 from .report import profile_report
 from .xml import load_application
@@ -49,6 +50,9 @@ def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
                         help="print the profile (per component and activity timing) every S seconds and at exit")
     parser.add_argument("--check", action="store_true",
                         help="load and build the application, print its scheduling tree, do not run it")
+    parser.add_argument("--allow-unknown", action="store_true",
+                        help="with --check: report components that no installed package provides as "
+                             "warnings, and check the rest of the structure")
     parser.add_argument("--list", action="store_true", help="list the installed components and exit")
     parser.add_argument("--transforms-server", type=int, metavar="PORT",
                         help="serve the transformation graph (REST, WebSocket, web page) on 127.0.0.1:PORT "
@@ -148,6 +152,19 @@ def stopped_by_a_failure(app: Application) -> bool:
     return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
 
 
+def load_and_build(options: argparse.Namespace) -> tuple[AppSpec, Application]:
+    """The application of ``options`` loaded and built; its warnings (what the file sets but this
+    version ignores, components ``--allow-unknown`` left out) are logged."""
+    if options.allow_unknown and not options.check:
+        raise CocoError("--allow-unknown goes with --check only: an application without some of its "
+                        "components cannot run")
+    spec = load_application(options.app, parse_assignments(options.args))
+    app = build_application(spec, allow_unknown=options.allow_unknown)
+    for warning in spec.warnings:
+        log.warning("%s", warning)
+    return spec, app
+
+
 def run(options: argparse.Namespace) -> int:
     """Load, build and run according to parsed ``options``; returns the exit code."""
     logging.basicConfig(level=options.log_level, format="[%(levelname)s] %(name)s: %(message)s")
@@ -158,8 +175,7 @@ def run(options: argparse.Namespace) -> int:
         print("coco-launch: an application file is needed (or --list)", file=sys.stderr)
         return 2
     try:
-        spec = load_application(options.app, parse_assignments(options.args))
-        app = build_application(spec)
+        spec, app = load_and_build(options)
     except CocoError as error:
         print(f"coco-launch: {error}", file=sys.stderr)
         return 1

@@ -208,6 +208,9 @@ class AppSpec:
     log: LogSpec | None = None
     transforms: TransformsSpec | None = None
     """The declared transformation graph structure; None when no file has ``<transforms>``."""
+    warnings: list[str] = field(default_factory=list)
+    """``file:line: message`` for what was accepted but ignored (settings the original CoCo
+    ignores, components left unchecked); the launchers print them."""
 
     def all_components(self) -> list[ComponentSpec]:
         """Every component, peers included, depth first."""

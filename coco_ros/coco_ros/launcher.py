@@ -26,16 +26,15 @@ import threading
 from typing import Sequence
 
 from coco_core import Application, CocoError
-from coco_core.builder import build_application, configure_logging
+from coco_core.builder import configure_logging
 from coco_core.launcher import (
     describe,
     launcher_services,
     list_components,
+    load_and_build,
     make_parser,
-    parse_assignments,
     stopped_by_a_failure,
 )
-from coco_core.xml import load_application
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
 
@@ -117,8 +116,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
         print(f"{_NAME}: an application file is needed (or --list)", file=sys.stderr)
         return 2
     try:
-        spec = load_application(options.app, parse_assignments(options.args))
-        app = build_application(spec)
+        spec, app = load_and_build(options)
         plan = plan_hosting(app, _threads(options.threads), options.all_threads)
     except CocoError as error:
         print(f"{_NAME}: {error}", file=sys.stderr)

@@ -82,8 +82,9 @@ class _Loader:
 
     def __init__(self, given_args: Mapping[str, str]) -> None:
         self.errors: list[ConfigError] = []
+        self.warnings: list[str] = []
         self.arguments = Arguments(given_args)
-        self.substitutions = Substitutions(self.arguments.values)
+        self.substitutions = Substitutions(self.arguments.visible)
         self.draft = Draft()
         self.include_chain: list[tuple[str, str]] = []
         """(identity, name) of each file being read, outermost first, to detect include cycles."""
@@ -96,7 +97,7 @@ class _Loader:
         name, on_error = Path(file).stem, "continue"
         root = self._parse(data, file)
         if root is not None:
-            reader = FileReader(directory, self.substitutions, self.errors)
+            reader = FileReader(directory, self.substitutions, self.errors, self.warnings)
             self.include_chain.append((_identity(file), file))
             values = self._package(reader, root, "", top=True)
             name = values.get("name", "").strip() or name
@@ -117,6 +118,7 @@ class _Loader:
             on_error=on_error,
             log=self.draft.log,
             transforms=self.draft.transforms.spec if self.draft.transforms is not None else None,
+            warnings=self.warnings,
         )
 
     def _reading_order(self, error: ConfigError) -> tuple[int, int]:
@@ -293,7 +295,7 @@ class _Loader:
         if root is None:
             return
         self.include_chain.append((identity, file))
-        included = FileReader(os.path.dirname(file), self.substitutions, self.errors)
+        included = FileReader(os.path.dirname(file), self.substitutions, self.errors, self.warnings)
         self._package(included, root, on_error)
         self.include_chain.pop()
 
@@ -304,8 +306,8 @@ def _identity(file: str) -> str:
 
 
 def _is_schema_attribute(name: str) -> bool:
-    """Prefix declarations and ``xsi:`` hints (``xsi:noNamespaceSchemaLocation="coco.xsd"``) are
-    for XML tools, so ``<package>`` accepts them without meaning anything by them. A default
-    namespace (``xmlns="..."``) is not accepted: it would put the elements in a namespace that
-    the schema does not have."""
-    return name.startswith(("xmlns:", "xsi:"))
+    """Namespace declarations and ``xsi:`` hints (``xsi:noNamespaceSchemaLocation="coco.xsd"``) are
+    for XML tools, so ``<package>`` accepts them without meaning anything by them. That includes a
+    default namespace (``xmlns="http://www.example.org/coco/"``), which files of the original CoCo
+    carry and its launcher ignores: elements are matched by their plain names."""
+    return name == "xmlns" or name.startswith(("xmlns:", "xsi:"))

@@ -31,15 +31,25 @@ class FileReader:
     """
 
     def __init__(
-        self, directory: str, substitutions: Substitutions, errors: list[ConfigError]
+        self,
+        directory: str,
+        substitutions: Substitutions,
+        errors: list[ConfigError],
+        warnings: list[str],
     ) -> None:
         self.directory = directory
         self.substitutions = substitutions
         self.errors = errors
+        self.warnings = warnings
 
     def error(self, message: str, element: Element) -> None:
         """Record an error at ``element``'s line."""
         self.errors.append(ConfigError(message, element.location))
+
+    def warn(self, message: str, element: Element) -> None:
+        """Record a warning at ``element``'s line: something the original CoCo launcher accepts
+        and ignores, which this loader ignores too, but says so."""
+        self.warnings.append(f"{element.location}: {message}")
 
     def kept(self, element: Element) -> bool:
         """Whether ``element`` survives its ``if``/``unless`` conditions.
