@@ -172,10 +172,12 @@ class _Builder:
             if {connection_spec.src.component, connection_spec.dest.component} & self.missing:
                 continue
             try:
-                app.connect(str(connection_spec.src), str(connection_spec.dest),
-                            ConnectionPolicy(connection_spec.data, connection_spec.policy,
-                                             max(1, connection_spec.buffersize)),
-                            event=connection_spec.event)
+                connection = app.connect(str(connection_spec.src), str(connection_spec.dest),
+                                         ConnectionPolicy(connection_spec.data, connection_spec.policy,
+                                                          max(1, connection_spec.buffersize)),
+                                         event=connection_spec.event)
+                if connection_spec.shared and connection.source is not None:
+                    connection.source.share(connection)
             except (CocoError, ValueError, KeyError) as error:
                 self.fail(error, connection_spec)
         self.check()

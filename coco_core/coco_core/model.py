@@ -64,6 +64,9 @@ class ConnectionSpec:
     event: bool | None = None
     """Whether a write wakes the destination's triggered activity; None: the input port decides."""
     location: Location | None = None
+    shared: bool = False
+    """The source hands each value to one of its shared connections instead of all of them (a
+    ``<farm>``'s source feeding its workers)."""
 
 
 @dataclass

@@ -256,7 +256,10 @@ def test_activity_structure():
         (3, "<activity> needs a <schedule> (<schedulepolicy> in the per-activity layout)"),
         (4, "<activity> has more than one schedule (the first is at line 4)"),
         (4, "<activity> needs <components>: the components it runs"),
-        (5, "<farm> is not supported; build it from <pipeline> and <activity> elements"),
+        (5, '<farm> needs a <schedule workers="N"/>: how many copies of the pipeline run'),
+        (5, "<farm> needs a <source>: the component that feeds the workers"),
+        (5, "<farm> needs a <pipeline>: what each worker runs"),
+        (5, "<farm> needs a <gather>: the component that collects the workers' results"),
     ]
 
 

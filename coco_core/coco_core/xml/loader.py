@@ -20,6 +20,7 @@ from .arguments import Arguments
 from .components import ON_ERROR, read_component
 from .connections import read_connection
 from .draft import Draft
+from .farm import read_farm
 from .pipeline import read_pipeline
 from .reader import CONDITIONS, FileReader
 from .references import check_draft
@@ -187,16 +188,14 @@ class _Loader:
 
     def _activities(self, reader: FileReader, element: Element, on_error: str) -> None:
         for child in reader.container(element, ("activity", "farm", "pipeline")):
-            if child.tag == "farm":
-                reader.error(
-                    "<farm> is not supported; build it from <pipeline> and <activity> elements",
-                    child,
-                )
-            elif reader.kept(child):
-                if child.tag == "activity":
-                    read_activity(reader, child, self.draft, on_error)
-                else:
-                    read_pipeline(reader, child, self.draft)
+            if not reader.kept(child):
+                continue
+            if child.tag == "activity":
+                read_activity(reader, child, self.draft, on_error)
+            elif child.tag == "farm":
+                read_farm(reader, child, self.draft)
+            else:
+                read_pipeline(reader, child, self.draft)
 
     def _log(self, reader: FileReader, element: Element) -> None:
         children = reader.container(element, LOG_CHILDREN)
