@@ -42,9 +42,9 @@ class Registration:
 
 @functools.cache
 def _installed() -> dict[str, Registration]:
-    """The components installed packages register, scanned once per process: scanning the entry
-    points reads every installed distribution's metadata, which took about 14 ms, once for each
-    component of an application (55 s for a ``--check`` of 4,000 components)."""
+    """The components installed packages register, scanned once per process: a scan reads the
+    metadata of every installed distribution, and scanning once per component made a ``--check``
+    of 4,000 components take 150 s here (1.3 s with one scan)."""
     return {entry.name: Registration(entry.name, entry.value, entry.value.split(".", 1)[0].split(":")[0])
             for entry in entry_points(group=GROUP)}
 
