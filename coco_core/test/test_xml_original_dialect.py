@@ -5,6 +5,7 @@ check without the (C++) components."""
 from __future__ import annotations
 
 import threading
+from pathlib import Path
 
 import pytest
 
@@ -316,3 +317,18 @@ def test_unknown_components_are_warnings_when_allowed():
     wrong = wrong.replace('<src task="cpp" port="out"/>', '<src task="avg" port="filtered"/>')
     with pytest.raises(ConfigErrors, match="nope"):
         build_application(parse_application_string(wrong), allow_unknown=True)
+
+
+# ----- schema -----------------------------------------------------------------------------------
+
+
+WORKSPACE = Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.parametrize("name", ["config_farm.xml", "config_latency.xml", "config_arg_include.xml"])
+def test_original_samples_validate_against_the_schema(name):
+    xmlschema = pytest.importorskip("xmlschema")
+    schema = xmlschema.XMLSchema(str(WORKSPACE / "docs" / "coco.xsd"))
+    assert [error.reason for error in schema.iter_errors(str(WORKSPACE / "test" / "data" / "coco_original" / name))] == []
+    assert schema.is_valid(FARM.replace("{activity}", "parallel"))
+    assert not schema.is_valid(FARM.replace("{activity}", "parallel").replace('workers="3"', 'workers="0"'))
