@@ -332,3 +332,17 @@ def test_original_samples_validate_against_the_schema(name):
     assert [error.reason for error in schema.iter_errors(str(WORKSPACE / "test" / "data" / "coco_original" / name))] == []
     assert schema.is_valid(FARM.replace("{activity}", "parallel"))
     assert not schema.is_valid(FARM.replace("{activity}", "parallel").replace('workers="3"', 'workers="0"'))
+
+
+def test_every_complete_example_of_the_format_reference_passes_check():
+    """The dialect as docs/xml_format.md shows it: each example that is a whole application file
+    loads and builds, its C++ components (EzTask1 ...) left out with a warning."""
+    import re
+
+    text = (WORKSPACE / "docs" / "xml_format.md").read_text()
+    examples = [block for block in re.findall(r"```xml\n(.*?)```", text, re.S) if block.lstrip().startswith("<package")]
+    assert len(examples) >= 2
+    for index, example in enumerate(examples):
+        spec = parse_application_string(example, f"example{index}.xml")
+        build_application(spec, allow_unknown=True)
+        assert all("left out" in warning for warning in spec.warnings)
