@@ -1,6 +1,6 @@
 """``coco-launch``: run a CoCo application file without ROS.
 
-    coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check] [--list]
+    coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown]] [--list]
 
 Ctrl-C (or SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran in
 its own thread; a second Ctrl-C forces the exit. The ROS 2 launcher (``coco_ros``) shares this
