@@ -346,3 +346,14 @@ def test_every_complete_example_of_the_format_reference_passes_check():
         spec = parse_application_string(example, f"example{index}.xml")
         build_application(spec, allow_unknown=True)
         assert all("left out" in warning for warning in spec.warnings)
+
+
+def test_a_condition_may_be_an_expression_as_in_the_original_launcher():
+    text = """<package><arg name="camera" default="kinect"/><components>
+      <component if="arg('camera') == 'kinect'"><task>A</task></component>
+      <component unless="camera.startswith('kin')"><task>B</task></component>
+      <component if="len(camera) - 6"><task>C</task></component>
+    </components></package>"""
+    assert [c.name for c in parse_application_string(text).components] == ["A"]
+    ((line, message),) = errors_of('<package>\n<components><component if="maybe so"><task>A</task></component></components></package>')
+    assert (line, message) == (2, '<component> attribute if="maybe so": expected true/false, 1/0, yes/no or on/off (or empty for false)')

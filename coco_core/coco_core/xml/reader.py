@@ -55,7 +55,9 @@ class FileReader:
         """Whether ``element`` survives its ``if``/``unless`` conditions.
 
         Conditions are evaluated before anything else of the element is read, so a dropped element
-        is ignored entirely (its other values are neither expanded nor checked).
+        is ignored entirely (its other values are neither expanded nor checked). A value that is not
+        a boolean word is evaluated as an expression, as the original CoCo launcher does
+        (``if="arg('camera') == 'kinect'"``, see :mod:`.expression`).
         """
         for name, keep_when in (("if", True), ("unless", False)):
             if name not in element.attributes:
@@ -64,10 +66,14 @@ class FileReader:
             if value is None:
                 return False
             try:
-                if parse_condition(value) != keep_when:
-                    return False
+                holds = parse_condition(value)
             except ValueError as expected:
-                self._invalid(element, name, element.attributes[name], str(expected))
+                try:
+                    holds = parse_condition(self.substitutions.evaluate(value))
+                except ValueError:
+                    self._invalid(element, name, element.attributes[name], str(expected))
+                    return False
+            if holds != keep_when:
                 return False
         return True
 

@@ -87,6 +87,11 @@ class Substitutions:
             raise SubstitutionError(f"the expanded value would have more than {MAX_EXPANSION} characters")
         return "".join(pieces)
 
+    def evaluate(self, expression: str) -> str:
+        """The value of an expression over the args (see :mod:`.expression`); raises
+        :class:`~.expression.ExpressionError` (a ``ValueError``) when it cannot be evaluated."""
+        return evaluate(expression, self._args)
+
     def _call(self, inner: str, directory: str) -> str:
         words = inner.split(maxsplit=2)
         if words and words[0] == "eval":
