@@ -25,9 +25,12 @@ log = logging.getLogger("coco")
 
 
 class _Builder:
-    def __init__(self, spec: AppSpec) -> None:
+    def __init__(self, spec: AppSpec, allow_unknown: bool = False) -> None:
         self.spec = spec
         self.errors: list[ConfigError] = []
+        self.allow_unknown = allow_unknown
+        self.missing: set[str] = set()
+        """Components left out because their task is unknown (with ``allow_unknown``), peers included."""
 
     def fail(self, error: Exception | str, spec: object) -> None:
         self.errors.append(ConfigError(str(error), getattr(spec, "location", None)))
@@ -39,6 +42,19 @@ class _Builder:
     def instantiate(self, spec: ComponentSpec) -> Component | None:
         try:
             cls = registry.load(spec.task, spec.library)
+        except registry.UnknownComponentError as error:
+            if not self.allow_unknown:
+                self.fail(error, spec)
+                return None
+            left_out = [spec]
+            while left_out:
+                self.missing.add(left_out[-1].name)
+                left_out.extend(left_out.pop().peers)
+            library = f" (library {spec.library!r})" if spec.library else ""
+            self.spec.warnings.append(str(ConfigError(
+                f"unknown component {spec.task!r}{library}: {spec.name!r} is left out, and its "
+                "attributes, peers, ports and connections are not checked", spec.location)))
+            return None
         except CocoError as error:
             self.fail(error, spec)
             return None
@@ -163,17 +179,22 @@ class _Builder:
                 if owner != process:
                     continue  # the launcher's stand-in of a child's activity runs no component here
                 for name in activity_spec.components:
-                    activity.add(app.component(name))
+                    if name not in self.missing:
+                        activity.add(app.component(name))
             except (CocoError, ValueError, KeyError) as error:
                 self.fail(error, activity_spec)
         for connection_spec in spec.connections:
             if placement.crosses(connection_spec) or placement.process_of(connection_spec.src.component) != process:
                 continue  # another process's, or a shared-memory channel made by the process level
+            if {connection_spec.src.component, connection_spec.dest.component} & self.missing:
+                continue
             try:
-                app.connect(str(connection_spec.src), str(connection_spec.dest),
-                            ConnectionPolicy(connection_spec.data, connection_spec.policy,
-                                             max(1, connection_spec.buffersize)),
-                            event=connection_spec.event)
+                connection = app.connect(str(connection_spec.src), str(connection_spec.dest),
+                                         ConnectionPolicy(connection_spec.data, connection_spec.policy,
+                                                          max(1, connection_spec.buffersize)),
+                                         event=connection_spec.event)
+                if connection_spec.shared and connection.source is not None:
+                    connection.source.share(connection)
             except (CocoError, ValueError, KeyError) as error:
                 self.fail(error, connection_spec)
         self.check()
@@ -184,14 +205,20 @@ class _Builder:
         return app
 
 
-def build_application(spec: AppSpec, process: str = LAUNCHER) -> Application:
+def build_application(spec: AppSpec, process: str = LAUNCHER, allow_unknown: bool = False) -> Application:
     """Instantiate, configure and wire ``spec``; raise :class:`ConfigErrors` listing every problem.
 
     With ``<process>`` elements, only the part of ``process`` (the launcher's: ``""``) is built: its
     components, its activities and the connections inside it. The launcher's application also holds a
     stand-in (no components) of every child's activity, for a driver to reach it by name; the
-    connections between processes are left to :mod:`coco_core.processes`."""
-    return _Builder(spec).build(process)
+    connections between processes are left to :mod:`coco_core.processes`.
+
+    ``allow_unknown`` leaves out the components whose task no installed package provides, with a
+    warning in ``spec.warnings`` each, so that the structure of an application can be checked
+    without its components (the original CoCo's files name C++ components); such an application
+    is for ``--check`` only, not for running.
+    """
+    return _Builder(spec, allow_unknown).build(process)
 
 
 def configure_logging(spec: LogSpec | None, default_level: int = logging.INFO) -> None:

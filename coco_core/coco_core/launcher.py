@@ -1,6 +1,6 @@
 """``coco-launch``: run a CoCo application file without ROS.
 
-    coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check] [--list]
+    coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown]] [--list]
 
 Ctrl-C (or SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran in
 its own thread; a second Ctrl-C forces the exit. The ROS 2 launcher (``coco_ros``) shares this
@@ -22,11 +22,10 @@ from . import registry
 from .application import Application
 from .builder import build_application, configure_logging
 from .connections import Connection
-from .errors import CocoError, ConfigError, ConfigErrors
+from .errors import CocoError, ConfigError, ConfigErrors, ProcessError
 from .model import AppSpec
 from .policy import ConnectionPolicy
 from .ports import InputPort
-from .errors import ProcessError
 from .processes.level import process_level
 from .processes.placement import LAUNCHER, Placement
 from .processes.supervisor import ProcessSupervisor
@@ -56,6 +55,9 @@ def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
                         help="print the profile (per component and activity timing) every S seconds and at exit")
     parser.add_argument("--check", action="store_true",
                         help="load and build the application, print its scheduling tree, do not run it")
+    parser.add_argument("--allow-unknown", action="store_true",
+                        help="with --check: report components that no installed package provides as "
+                             "warnings, and check the rest of the structure")
     parser.add_argument("--list", action="store_true", help="list the installed components and exit")
     parser.add_argument("--transforms-server", type=int, metavar="PORT",
                         help="serve the transformation graph (REST, WebSocket, web page) on 127.0.0.1:PORT "
@@ -111,7 +113,7 @@ def describe(app: Application) -> str:
     return "\n".join(lines)
 
 
-def describe_processes(spec: AppSpec, launcher_part: Application) -> str:
+def describe_processes(spec: AppSpec, launcher_part: Application, allow_unknown: bool = False) -> str:
     """The scheduling tree with its process level, for ``--check``: every child's part is built here
     too (``init`` only, nothing runs), so a wrong component in any process is reported now."""
     placement = Placement.of(spec)
@@ -119,7 +121,7 @@ def describe_processes(spec: AppSpec, launcher_part: Application) -> str:
     errors: list[ConfigError] = []
     for name in placement.processes:
         try:
-            parts[name] = build_application(spec, name)
+            parts[name] = build_application(spec, name, allow_unknown)
         except ConfigErrors as error:
             errors += error.errors
     if errors:
@@ -201,6 +203,19 @@ def stopped_by_a_failure(app: Application) -> bool:
     return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
 
 
+def load_and_build(options: argparse.Namespace) -> tuple[AppSpec, Application]:
+    """The application of ``options`` loaded and built; its warnings (what the file sets but this
+    version ignores, components ``--allow-unknown`` left out) are logged."""
+    if options.allow_unknown and not options.check:
+        raise CocoError("--allow-unknown goes with --check only: an application without some of its "
+                        "components cannot run")
+    spec = load_application(options.app, parse_assignments(options.args))
+    app = build_application(spec, allow_unknown=options.allow_unknown)
+    for warning in spec.warnings:
+        log.warning("%s", warning)
+    return spec, app
+
+
 def run(options: argparse.Namespace) -> int:
     """Load, build and run according to parsed ``options``; returns the exit code."""
     logging.basicConfig(level=options.log_level, format="[%(levelname)s] %(name)s: %(message)s")
@@ -211,14 +226,13 @@ def run(options: argparse.Namespace) -> int:
         print("coco-launch: an application file is needed (or --list)", file=sys.stderr)
         return 2
     try:
-        spec = load_application(options.app, parse_assignments(options.args))
-        app = build_application(spec)
+        spec, app = load_and_build(options)
     except CocoError as error:
         print(f"coco-launch: {error}", file=sys.stderr)
         return 1
     if options.check:
         try:
-            print(describe_processes(spec, app) if spec.processes else describe(app))
+            print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
         except CocoError as error:
             print(f"coco-launch: {error}", file=sys.stderr)
             return 1

@@ -64,6 +64,9 @@ class ConnectionSpec:
     event: bool | None = None
     """Whether a write wakes the destination's triggered activity; None: the input port decides."""
     location: Location | None = None
+    shared: bool = False
+    """The source hands each value to one of its shared connections instead of all of them (a
+    ``<farm>``'s source feeding its workers)."""
 
 
 @dataclass
@@ -224,6 +227,9 @@ class AppSpec:
     log: LogSpec | None = None
     transforms: TransformsSpec | None = None
     """The declared transformation graph structure; None when no file has ``<transforms>``."""
+    warnings: list[str] = field(default_factory=list)
+    """``file:line: message`` for what was accepted but ignored (settings the original CoCo
+    ignores, components left unchecked); the launchers print them."""
 
     def all_components(self) -> list[ComponentSpec]:
         """Every component, peers included, depth first."""

@@ -57,16 +57,58 @@ class Port:
 
 
 class OutputPort(Port):
-    """Sends values to every connected input; a write with no connection is a no-op."""
+    """Sends values to every connected input; a write with no connection is a no-op.
+
+    Connections made *shared* (:meth:`share`) take turns instead: each value goes to one of them.
+    That is how a farm's source feeds its workers, each of which then processes different values.
+    """
+
+    def __init__(self, type_: Any = object, doc: str = "") -> None:
+        super().__init__(type_, doc)
+        self._every: list[Connection] = []
+        """The connections that receive every value."""
+        self._shared: list[Connection] = []
+        self._turn = 0
+
+    def bind(self, owner: Component, name: str | None = None) -> OutputPort:
+        port = super().bind(owner, name)
+        assert isinstance(port, OutputPort)
+        port._every, port._shared, port._turn = [], [], 0
+        return port
 
     def write(self, value: Any) -> None:
-        """Offer ``value`` to every connection; never blocks."""
-        for connection in self.connections:
+        """Offer ``value`` to every connection, and to one of the shared ones; never blocks."""
+        for connection in self._every:
             connection.push(value)
+        if self._shared:
+            self._hand_over(value)
 
     def add_connection(self, connection: Connection) -> None:
         connection.source = self
         self.connections.append(connection)
+        self._every.append(connection)
+
+    def share(self, connection: Connection) -> None:
+        """Let ``connection`` (one of this port's) take turns with the other shared connections."""
+        if connection not in self._every:
+            raise ValueError(f"{connection!r} is not a connection of {self.qualified_name}")
+        self._every.remove(connection)
+        self._shared.append(connection)
+
+    def _hand_over(self, value: Any) -> None:
+        """Give ``value`` to the next shared connection with nothing pending (a worker that is free,
+        as the original CoCo's farm prefers), or else to the next in turn, whose policy then
+        decides (a full buffer refuses it, which its counters show as a drop)."""
+        shared = self._shared
+        count = len(shared)
+        chosen = shared[self._turn % count]
+        for offset in range(count):
+            candidate = shared[(self._turn + offset) % count]
+            if not candidate.pending:
+                chosen = candidate
+                break
+        self._turn = (shared.index(chosen) + 1) % count
+        chosen.push(value)
 
 
 class PooledOutputPort(OutputPort):
@@ -96,6 +138,11 @@ class PooledOutputPort(OutputPort):
         self.pool.publish(slot)
         for connection in self.connections:
             connection.push(slot)
+
+    def share(self, connection: Connection) -> None:
+        """Refused: a pooled frame is published to every reader of the pool."""
+        raise ValueError(f"{self.qualified_name} is a pooled output: its frames go to every reader and "
+                         "cannot be shared out one per connection (a farm's source writes a plain output)")
 
     def connection(self) -> PoolConnection:
         """A new reader-side connection on this port's pool."""

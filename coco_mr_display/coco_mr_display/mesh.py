@@ -13,6 +13,7 @@ and runs off the render loop (``on_config`` or a loader thread); :class:`GpuMesh
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
@@ -20,6 +21,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from coco_core.errors import CocoError
+from coco_core.files import MESH_LIMIT, FileReadError, read_regular_file
 from coco_core.transforms.resources import resolve
 
 if TYPE_CHECKING:
@@ -86,7 +88,14 @@ def load_geometry(source: str | Path, relative_to: str | Path | None = None) -> 
 
     path = resolve(source, relative_to)  # a clear ResourceNotFoundError for a missing file
     try:
-        return trimesh.load(str(path))
+        data = read_regular_file(path, MESH_LIMIT, "mesh")
+    except FileReadError as error:
+        raise MeshLoadError(str(error)) from None
+    try:
+        # From the bytes read (a regular file, bounded); the resolver finds the files the mesh names
+        # (an OBJ's materials, a COLLADA's textures) next to it.
+        return trimesh.load(io.BytesIO(data), file_type=path.suffix.lstrip(".").lower(),
+                            resolver=trimesh.resolvers.FilePathResolver(str(path)))
     except Exception as error:  # trimesh raises ValueError, KeyError, XML errors ... per format
         formats = ", ".join(sorted(trimesh.available_formats()))
         raise MeshLoadError(f"cannot load mesh {path}: {type(error).__name__}: {error} "

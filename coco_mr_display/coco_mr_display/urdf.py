@@ -26,6 +26,7 @@ triangles 27 fps unculled, 41 fps culled; ``simplify=0.25`` 103k triangles, 129 
 
 from __future__ import annotations
 
+import io
 import logging
 import threading
 from concurrent.futures import Future
@@ -38,6 +39,7 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.component import UnknownNameError
 from coco_core.errors import CocoError, did_you_mean
+from coco_core.files import URDF_LIMIT, FileReadError, read_regular_file
 from coco_core.transforms.graph import KinematicModel
 from coco_core.transforms.resources import resolve
 
@@ -98,7 +100,11 @@ def read_visuals(path: Path) -> tuple[list[str], list[Visual]]:
     import yourdfpy
 
     try:
-        robot = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
+        data = read_regular_file(path, URDF_LIMIT, "URDF")
+    except FileReadError as error:
+        raise CocoError(str(error)) from None
+    try:
+        robot = yourdfpy.URDF.load(io.BytesIO(data), load_meshes=False, build_scene_graph=False,
                                    build_collision_scene_graph=False, load_collision_meshes=False).robot
     except Exception as error:  # yourdfpy raises lxml and ValueError/AttributeError on bad files
         raise CocoError(f"cannot read URDF {path}: {type(error).__name__}: {error}") from None

@@ -1,6 +1,6 @@
 """``launcher`` of ``coco_ros``: run a CoCo application file inside one rclpy node.
 
-    ros2 run coco_ros launcher app.xml [name:=value ...] [--duration S] [--profile S] [--check] [--list]
+    ros2 run coco_ros launcher app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown]] [--list]
                                [--threads NAME[,NAME]] [--all-threads] [--executor-threads N]
                                [--ros-args -r __node:=NAME -p param:=value ...]
 
@@ -26,20 +26,19 @@ import threading
 from typing import Sequence
 
 from coco_core import Application, CocoError
-from coco_core.builder import build_application, configure_logging
+from coco_core.builder import configure_logging
 from coco_core.errors import ProcessError
 from coco_core.launcher import (
     describe,
     describe_processes,
     launcher_services,
     list_components,
+    load_and_build,
     make_parser,
-    parse_assignments,
     stopped_by_a_failure,
 )
 from coco_core.processes.level import process_level
 from coco_core.processes.supervisor import ProcessSupervisor
-from coco_core.xml import load_application
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
 
@@ -121,15 +120,14 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
         print(f"{_NAME}: an application file is needed (or --list)", file=sys.stderr)
         return 2
     try:
-        spec = load_application(options.app, parse_assignments(options.args))
-        app = build_application(spec)
+        spec, app = load_and_build(options)
         plan = plan_hosting(app, _threads(options.threads), options.all_threads)
     except CocoError as error:
         print(f"{_NAME}: {error}", file=sys.stderr)
         return 1
     if options.check:
         try:
-            print(describe_processes(spec, app) if spec.processes else describe(app))
+            print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
         except CocoError as error:
             print(f"{_NAME}: {error}", file=sys.stderr)
             return 1

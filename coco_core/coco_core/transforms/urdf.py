@@ -34,6 +34,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import CocoError
+from ..files import URDF_LIMIT, FileReadError, read_regular_file
 from . import se3
 from .edges import EdgeKind
 from .graph import KinematicModel, ModelEdge, TransformError, TransformGraph
@@ -506,11 +507,11 @@ class UrdfModel(KinematicModel):
         else:
             path = resolve(source)
             label = str(path)
-            if path.is_dir():
-                raise UrdfError(f"URDF {path} is a directory, not a file")
             try:
-                text = path.read_text(encoding="utf-8")
-            except (OSError, UnicodeDecodeError) as error:
+                text = read_regular_file(path, URDF_LIMIT, "URDF").decode("utf-8")
+            except FileReadError as error:
+                raise UrdfError(str(error)) from None
+            except UnicodeDecodeError as error:
                 raise UrdfError(f"cannot read URDF {path}: {error}") from None
         description = parse_urdf(text, label)
         model = _build_pinocchio(text, label)

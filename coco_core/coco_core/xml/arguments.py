@@ -1,8 +1,12 @@
 """``<arg>`` declarations and the values given for them from outside (``name:=value``).
 
-Modelled on ROS 2 launch XML: ``value=`` fixes an arg, ``default=`` lets the command line override
-it, and an arg with neither must be given. An arg is visible from its declaration on, in document
-order (an included file's args are visible in it and after its ``<include>``). A repeated
+Modelled on ROS 2 launch XML and the original CoCo launcher: ``value=`` or ``default=`` give an
+arg its value, a value given from outside (the command line's ``name:=value``) wins over both, as
+in the original launcher, and an arg with neither must be given. An arg is visible from its declaration on, in document
+order (an included file's args are visible in it and after its ``<include>``). A value given from
+outside is also visible where no declaration precedes it, as in the original launcher, whose
+files use ``$(arg port)`` without declaring ``port``; only a given value that nothing declares
+or uses is an error (usually a typo on the command line). A repeated
 declaration may only restate a ``default=``, which does not change the value already set: that lets
 an included file declare the args it uses, so that it also loads on its own.
 """
@@ -10,7 +14,7 @@ an included file declare the args it uses, so that it also loads on its own.
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 
 from ..errors import ConfigError, Location, did_you_mean
 from .reader import CONDITIONS, FileReader
@@ -27,6 +31,10 @@ class Arguments:
         self.given = dict(given)
         self.values: dict[str, str] = {}
         self._declared: dict[str, Location] = {}
+        self.used_undeclared: set[str] = set()
+        """Given args read by a substitution where no declaration preceded it."""
+        self.visible: Mapping[str, str] = _Visible(self)
+        """What ``$(arg ...)`` sees: the declared values, and the given ones not declared (yet)."""
 
     def declare(self, reader: FileReader, element: Element) -> None:
         """Read one ``<arg>`` whose conditions held.
@@ -51,7 +59,7 @@ class Arguments:
         fixed = "value" in element.attributes
         if fixed and "default" in element.attributes:
             reader.error(
-                f"<arg> {name!r} has both value= (fixed) and default= (may be overridden); give one",
+                f"<arg> {name!r} has both value= and default=; they are the same setting: give one",
                 element,
             )
         earlier = self._declared.get(name)
@@ -65,16 +73,10 @@ class Arguments:
             return
         self._declared[name] = element.location
         value: str | None
-        if fixed:
-            if name in self.given:
-                reader.error(
-                    f"arg {name!r} has a fixed value= and cannot be set from outside; "
-                    "declare it with default= to allow that",
-                    element,
-                )
-            value = reader.attribute(element, "value")
-        elif name in self.given:
+        if name in self.given:
             value = self.given[name]
+        elif fixed:
+            value = reader.attribute(element, "value")
         elif "default" in element.attributes:
             value = reader.attribute(element, "default")
         else:
@@ -92,5 +94,27 @@ class Arguments:
                 f"{did_you_mean(name, list(self._declared))}"
             )
             for name, value in self.given.items()
-            if name not in self._declared
+            if name not in self._declared and name not in self.used_undeclared
         ]
+
+
+class _Visible(Mapping[str, str]):
+    """The args a substitution may read; reading a given but undeclared one is noted, so that it
+    does not count as a typo."""
+
+    def __init__(self, arguments: Arguments) -> None:
+        self._arguments = arguments
+
+    def __getitem__(self, name: str) -> str:
+        arguments = self._arguments
+        if name in arguments.values:
+            return arguments.values[name]
+        value = arguments.given[name]  # KeyError when neither declared nor given
+        arguments.used_undeclared.add(name)
+        return value
+
+    def __iter__(self) -> Iterator[str]:
+        return iter({**self._arguments.given, **self._arguments.values})
+
+    def __len__(self) -> int:
+        return len({**self._arguments.given, **self._arguments.values})

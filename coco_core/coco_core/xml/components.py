@@ -18,15 +18,19 @@ COMPONENT_ATTRIBUTES = ("on_error", *CONDITIONS)
 COMPONENT_CHILDREN = ("attributes", "components", "library", "name", "task")
 ATTRIBUTE_ATTRIBUTES = ("name", "type", "value", *CONDITIONS)
 ATTRIBUTE_TYPES = ("file",)
+MAX_PEER_DEPTH = 32
+"""How deep peers may nest (a peer of a peer of ...): far beyond any real scheduling tree, and
+well within what the recursive readers and builders can take."""
 
 
 def read_component(
-    reader: FileReader, element: Element, draft: Draft, on_error_default: str
+    reader: FileReader, element: Element, draft: Draft, on_error_default: str, depth: int = 0
 ) -> ComponentSpec | None:
     """A ``<component>`` definition whose conditions held; None when it has no usable name.
 
     ``on_error_default`` is the ``on_error`` of the enclosing file's ``<package>`` ("" for the
-    application's policy), for components that do not set their own.
+    application's policy), for components that do not set their own. ``depth`` counts the owners
+    above this component (0 for a top-level component).
     """
     values = reader.attributes(element, COMPONENT_ATTRIBUTES)
     on_error = reader.choice(element, values, "on_error", ON_ERROR, on_error_default)
@@ -50,10 +54,15 @@ def read_component(
         _read_attributes(reader, attributes_element, draft) if attributes_element is not None else []
     )
     peers: list[ComponentSpec] = []
-    if peers_element is not None:
+    if peers_element is not None and depth >= MAX_PEER_DEPTH:
+        reader.error(
+            f"peers nest more than {MAX_PEER_DEPTH} deep here; the peers of this component are not read",
+            peers_element,
+        )
+    elif peers_element is not None:
         for child in reader.container(peers_element, ("component",)):
             if reader.kept(child):
-                peer = read_component(reader, child, draft, on_error_default)
+                peer = read_component(reader, child, draft, on_error_default, depth + 1)
                 if peer is not None:
                     peers.append(peer)
     if not name:

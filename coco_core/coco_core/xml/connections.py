@@ -65,6 +65,13 @@ def _buffer_size(
                 element,
             )
         return 1
+    if size == 0 and data not in SIZED:
+        reader.warn(
+            f'<connection> attribute buffersize="{text}" on a {data.value} connection is ignored: it '
+            "holds the newest value only (the original CoCo ignores the size too)",
+            element,
+        )
+        return 1
     if size < 1:
         reader.error(
             f'<connection> attribute buffersize="{text}": expected at least 1, or -1 for the default',

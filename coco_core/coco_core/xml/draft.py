@@ -15,6 +15,7 @@ from ..errors import Location
 from ..model import ActivitySpec, AttributeSpec, ComponentSpec, ConnectionSpec, LogSpec, PortRef, ProcessSpec
 
 if TYPE_CHECKING:
+    from .farm import FarmDraft
     from .transforms import TransformsDraft
 
 
@@ -51,5 +52,8 @@ class Draft:
     """The input port of each pipeline's first stage: connections into it wake the pipeline."""
     transforms: TransformsDraft | None = None
     """The ``<transforms>`` sections read so far, merged; None while there is none."""
+    farms: list[FarmDraft] = field(default_factory=list)
+    """Farms read so far, expanded once every component is defined (see :mod:`.farm`)."""
     activity_count: int = 0
     pipeline_count: int = 0
+    farm_count: int = 0

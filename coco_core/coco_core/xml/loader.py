@@ -13,12 +13,14 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ..errors import ConfigError, ConfigErrors
+from ..files import APPLICATION_FILE_LIMIT, FileReadError, read_regular_file
 from ..model import AppSpec, LogSpec
 from .activities import read_activity
 from .arguments import Arguments
 from .components import ON_ERROR, read_component
 from .connections import read_connection
 from .draft import Draft
+from .farm import read_farm
 from .pipeline import read_pipeline
 from .process import read_process
 from .reader import CONDITIONS, FileReader
@@ -44,6 +46,9 @@ PACKAGE_CHILDREN = (
 )
 LOG_CHILDREN = ("file", "levels", "outfile", "types")
 LOG_TYPES = ("debug", "err", "log")
+MAX_INCLUDE_DEPTH = 64
+"""How many files an include chain may hold (the application file included): a limit far beyond
+real applications, which keeps a generated chain from exhausting the reader's recursion."""
 
 
 def load_application(
@@ -57,9 +62,9 @@ def load_application(
     """
     file = os.path.abspath(os.fspath(path))
     try:
-        data = Path(file).read_bytes()
-    except OSError as error:
-        raise ConfigError(f"cannot read application file {file}: {error.strerror}") from None
+        data = read_regular_file(file, APPLICATION_FILE_LIMIT, "application file")
+    except FileReadError as error:
+        raise ConfigError(str(error)) from None
     return _Loader(args or {}).load(data, file, os.path.dirname(file))
 
 
@@ -79,8 +84,9 @@ class _Loader:
 
     def __init__(self, given_args: Mapping[str, str]) -> None:
         self.errors: list[ConfigError] = []
+        self.warnings: list[str] = []
         self.arguments = Arguments(given_args)
-        self.substitutions = Substitutions(self.arguments.values)
+        self.substitutions = Substitutions(self.arguments.visible)
         self.draft = Draft()
         self.include_chain: list[tuple[str, str]] = []
         """(identity, name) of each file being read, outermost first, to detect include cycles."""
@@ -93,7 +99,7 @@ class _Loader:
         name, on_error = Path(file).stem, "continue"
         root = self._parse(data, file)
         if root is not None:
-            reader = FileReader(directory, self.substitutions, self.errors)
+            reader = FileReader(directory, self.substitutions, self.errors, self.warnings)
             self.include_chain.append((_identity(file), file))
             values = self._package(reader, root, "", top=True)
             name = values.get("name", "").strip() or name
@@ -115,6 +121,7 @@ class _Loader:
             on_error=on_error,
             log=self.draft.log,
             transforms=self.draft.transforms.spec if self.draft.transforms is not None else None,
+            warnings=self.warnings,
         )
 
     def _reading_order(self, error: ConfigError) -> tuple[int, int]:
@@ -185,20 +192,18 @@ class _Loader:
         def read_child(child: Element) -> None:
             if child.tag == "activity":
                 read_activity(reader, child, self.draft, on_error)
+            elif child.tag == "farm":
+                read_farm(reader, child, self.draft)
             else:
                 read_pipeline(reader, child, self.draft)
 
         for child in reader.container(element, ("activity", "farm", "pipeline", "process")):
-            if child.tag == "farm":
-                reader.error(
-                    "<farm> is not supported; build it from <pipeline> and <activity> elements",
-                    child,
-                )
-            elif reader.kept(child):
-                if child.tag == "process":
-                    read_process(reader, child, self.draft, read_child)
-                else:
-                    read_child(child)
+            if not reader.kept(child):
+                continue
+            if child.tag == "process":
+                read_process(reader, child, self.draft, read_child)
+            else:
+                read_child(child)
 
     def _log(self, reader: FileReader, element: Element) -> None:
         children = reader.container(element, LOG_CHILDREN)
@@ -279,17 +284,25 @@ class _Loader:
             cycle = [name for _, name in self.include_chain[identities.index(identity) :]]
             reader.error(f"include cycle: {' -> '.join([*cycle, file])}", include)
             return
+        if len(self.include_chain) >= MAX_INCLUDE_DEPTH:
+            reader.error(
+                f"includes nest more than {MAX_INCLUDE_DEPTH} files deep (from {self.include_chain[0][1]}); "
+                f"{file} is not read",
+                include,
+            )
+            self.complete = False
+            return
         try:
-            data = Path(file).read_bytes()
-        except OSError as error:
-            reader.error(f"cannot read included file {file}: {error.strerror}", include)
+            data = read_regular_file(file, APPLICATION_FILE_LIMIT, "included file")
+        except FileReadError as error:
+            reader.error(str(error), include)
             self.complete = False
             return
         root = self._parse(data, file)
         if root is None:
             return
         self.include_chain.append((identity, file))
-        included = FileReader(os.path.dirname(file), self.substitutions, self.errors)
+        included = FileReader(os.path.dirname(file), self.substitutions, self.errors, self.warnings)
         self._package(included, root, on_error)
         self.include_chain.pop()
 
@@ -300,8 +313,8 @@ def _identity(file: str) -> str:
 
 
 def _is_schema_attribute(name: str) -> bool:
-    """Prefix declarations and ``xsi:`` hints (``xsi:noNamespaceSchemaLocation="coco.xsd"``) are
-    for XML tools, so ``<package>`` accepts them without meaning anything by them. A default
-    namespace (``xmlns="..."``) is not accepted: it would put the elements in a namespace that
-    the schema does not have."""
-    return name.startswith(("xmlns:", "xsi:"))
+    """Namespace declarations and ``xsi:`` hints (``xsi:noNamespaceSchemaLocation="coco.xsd"``) are
+    for XML tools, so ``<package>`` accepts them without meaning anything by them. That includes a
+    default namespace (``xmlns="http://www.example.org/coco/"``), which files of the original CoCo
+    carry and its launcher ignores: elements are matched by their plain names."""
+    return name == "xmlns" or name.startswith(("xmlns:", "xsi:"))

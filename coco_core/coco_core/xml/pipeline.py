@@ -9,6 +9,7 @@ pipeline, with unsynchronised connections since writer and reader share that thr
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 from ..errors import Location
@@ -26,7 +27,7 @@ DEFAULT_BUFFER_SIZE = 10
 
 
 @dataclass
-class _Stage:
+class Stage:
     component: str
     input: str
     output: str
@@ -37,13 +38,38 @@ class _Stage:
         return self.element.location
 
 
+@dataclass
+class Pipeline:
+    """A pipeline as read: its stages, the schedule each stage's activity gets, the buffer size of
+    the connections between stages."""
+
+    name: str
+    schedule: ScheduleSpec
+    buffer_size: int
+    stages: list[Stage]
+    element: Element
+
+    @property
+    def sequential(self) -> bool:
+        return self.schedule.activity == "sequential"
+
+
 def read_pipeline(reader: FileReader, element: Element, draft: Draft) -> None:
     """Add the activities and connections of a ``<pipeline>`` whose conditions held to ``draft``."""
     values = reader.attributes(element, PIPELINE_ATTRIBUTES)
     draft.pipeline_count += 1
-    name = values.get("name", "").strip() or f"pipeline{draft.pipeline_count}"
-    children = reader.children(element, ("components", "schedule"))
+    pipeline = read_stages(reader, element, values.get("name", "").strip() or f"pipeline{draft.pipeline_count}")
+    check_stages(reader, pipeline.stages)
+    draft.connections.extend(stage_connections(pipeline, lambda name: name))
+    draft.activities.extend(stage_activities(pipeline, pipeline.name, lambda name: name, draft))
+    if pipeline.stages and pipeline.stages[0].input:
+        first = pipeline.stages[0]
+        draft.pipeline_inputs.append(PortRef(first.component, first.input, first.location))
 
+
+def read_stages(reader: FileReader, element: Element, name: str) -> Pipeline:
+    """The schedule and stages of a ``<pipeline>`` (on its own or in a ``<farm>``)."""
+    children = reader.children(element, ("components", "schedule"))
     schedule_element = reader.once(element, children, "schedule")
     schedule = ScheduleSpec(location=element.location)
     buffer_size = DEFAULT_BUFFER_SIZE
@@ -55,8 +81,7 @@ def read_pipeline(reader: FileReader, element: Element, draft: Draft) -> None:
             reader.parsed(schedule_element, schedule_values, "buffersize", _buffer_size)
             or DEFAULT_BUFFER_SIZE
         )
-
-    stages: list[_Stage] = []
+    stages: list[Stage] = []
     components_element = reader.once(element, children, "components")
     if components_element is None:
         reader.error("<pipeline> needs <components>: its stages, in order", element)
@@ -66,32 +91,11 @@ def read_pipeline(reader: FileReader, element: Element, draft: Draft) -> None:
                 stage = _read_stage(reader, child)
                 if stage is not None:
                     stages.append(stage)
-
-    sequential = schedule.activity == "sequential"
-    sync = SyncPolicy.UNSYNC if sequential else SyncPolicy.LOCKED
-    _join_stages(reader, draft, stages, sync, buffer_size)
-    if sequential:
-        activities = [(name, stages, element.location)]
-    else:
-        activities = [(f"{name}.{stage.component}", [stage], stage.location) for stage in stages]
-    for activity_name, members, location in activities:
-        copy = replace(
-            schedule,
-            affinity=list(schedule.affinity),
-            exclusive_affinity=list(schedule.exclusive_affinity),
-        )
-        draft.activities.append(
-            ActivitySpec(activity_name, copy, [stage.component for stage in members], location)
-        )
-        draft.scheduled.extend(
-            Scheduled(stage.component, activity_name, stage.location) for stage in members
-        )
+    return Pipeline(name, schedule, buffer_size, stages, element)
 
 
-def _join_stages(
-    reader: FileReader, draft: Draft, stages: list[_Stage], sync: SyncPolicy, buffer_size: int
-) -> None:
-    """Connect each stage's output to the next one's input, and note the pipeline's input."""
+def check_stages(reader: FileReader, stages: list[Stage]) -> None:
+    """Each stage but the last needs ``out=``, each but the first ``in=``."""
     for before, after in zip(stages, stages[1:]):
         if not before.output:
             reader.error(
@@ -103,30 +107,58 @@ def _join_stages(
                 f"pipeline stage {after.component!r} needs in=: it reads from {before.component!r}",
                 after.element,
             )
-        if before.output and after.input:
-            draft.connections.append(
-                ConnectionSpec(
-                    src=PortRef(before.component, before.output, before.location),
-                    dest=PortRef(after.component, after.input, after.location),
-                    data=BufferPolicy.BUFFER,
-                    policy=sync,
-                    buffersize=buffer_size,
-                    event=True,
-                    location=before.location,
-                )
-            )
-    if stages and stages[0].input:
-        first = stages[0]
-        draft.pipeline_inputs.append(PortRef(first.component, first.input, first.location))
 
 
-def _read_stage(reader: FileReader, element: Element) -> _Stage | None:
+def stage_connections(pipeline: Pipeline, rename: Callable[[str], str]) -> list[ConnectionSpec]:
+    """Each stage's output to the next one's input (components named through ``rename``)."""
+    sync = SyncPolicy.UNSYNC if pipeline.sequential else SyncPolicy.LOCKED
+    return [
+        ConnectionSpec(
+            src=PortRef(rename(before.component), before.output, before.location),
+            dest=PortRef(rename(after.component), after.input, after.location),
+            data=BufferPolicy.BUFFER,
+            policy=sync,
+            buffersize=pipeline.buffer_size,
+            event=True,
+            location=before.location,
+        )
+        for before, after in zip(pipeline.stages, pipeline.stages[1:])
+        if before.output and after.input
+    ]
+
+
+def stage_activities(
+    pipeline: Pipeline, name: str, rename: Callable[[str], str], draft: Draft
+) -> list[ActivitySpec]:
+    """The activities that run the stages: one per stage named ``name.component`` (parallel), or
+    one named ``name`` (sequential); the components are noted as scheduled in ``draft``."""
+    stages = pipeline.stages
+    if pipeline.sequential:
+        groups = [(name, stages, pipeline.element.location)]
+    else:
+        groups = [(f"{name}.{rename(stage.component)}", [stage], stage.location) for stage in stages]
+    activities = []
+    for activity_name, members, location in groups:
+        schedule = replace(
+            pipeline.schedule,
+            affinity=list(pipeline.schedule.affinity),
+            exclusive_affinity=list(pipeline.schedule.exclusive_affinity),
+        )
+        components = [rename(stage.component) for stage in members]
+        activities.append(ActivitySpec(activity_name, schedule, components, location))
+        draft.scheduled.extend(
+            Scheduled(component, activity_name, stage.location) for component, stage in zip(components, members)
+        )
+    return activities
+
+
+def _read_stage(reader: FileReader, element: Element) -> Stage | None:
     values = reader.attributes(element, STAGE_ATTRIBUTES, required=("name",))
     reader.empty(element)
     component = values.get("name", "").strip()
     if not component:
         return None
-    return _Stage(component, values.get("in", "").strip(), values.get("out", "").strip(), element)
+    return Stage(component, values.get("in", "").strip(), values.get("out", "").strip(), element)
 
 
 def _buffer_size(text: str) -> int:

@@ -25,14 +25,14 @@ from .schedule import parse_nice
 from .values import parse_cores
 
 PROCESS_ATTRIBUTES = ("affinity", "name", "nice", *CONDITIONS)
-PROCESS_CHILDREN = ("activity", "pipeline")
+PROCESS_CHILDREN = ("activity", "farm", "pipeline")
 
 
 def read_process(
     reader: FileReader, element: Element, draft: Draft, read_child: Callable[[Element], None]
 ) -> None:
     """Add a ``<process>`` whose conditions held, and the activities inside it, to ``draft``;
-    ``read_child`` reads one ``<activity>`` or ``<pipeline>`` as outside a process."""
+    ``read_child`` reads one ``<activity>``, ``<pipeline>`` or ``<farm>`` as outside a process."""
     values = reader.attributes(element, PROCESS_ATTRIBUTES, required=("name",))
     name = values.get("name", "").strip()
     spec = ProcessSpec(
@@ -48,6 +48,6 @@ def read_process(
     for activity in draft.activities[first:]:
         activity.process = name
     if first == len(draft.activities):
-        reader.error(f"<process> {name!r} has no activity: give it <activity> or <pipeline> elements",
+        reader.error(f"<process> {name!r} has no activity: give it <activity>, <pipeline> or <farm> elements",
                      element)
     draft.processes.append(spec)

@@ -31,21 +31,33 @@ class FileReader:
     """
 
     def __init__(
-        self, directory: str, substitutions: Substitutions, errors: list[ConfigError]
+        self,
+        directory: str,
+        substitutions: Substitutions,
+        errors: list[ConfigError],
+        warnings: list[str],
     ) -> None:
         self.directory = directory
         self.substitutions = substitutions
         self.errors = errors
+        self.warnings = warnings
 
     def error(self, message: str, element: Element) -> None:
         """Record an error at ``element``'s line."""
         self.errors.append(ConfigError(message, element.location))
 
+    def warn(self, message: str, element: Element) -> None:
+        """Record a warning at ``element``'s line: something the original CoCo launcher accepts
+        and ignores, which this loader ignores too, but says so."""
+        self.warnings.append(f"{element.location}: {message}")
+
     def kept(self, element: Element) -> bool:
         """Whether ``element`` survives its ``if``/``unless`` conditions.
 
         Conditions are evaluated before anything else of the element is read, so a dropped element
-        is ignored entirely (its other values are neither expanded nor checked).
+        is ignored entirely (its other values are neither expanded nor checked). A value that is not
+        a boolean word is evaluated as an expression, as the original CoCo launcher does
+        (``if="arg('camera') == 'kinect'"``, see :mod:`.expression`).
         """
         for name, keep_when in (("if", True), ("unless", False)):
             if name not in element.attributes:
@@ -54,10 +66,14 @@ class FileReader:
             if value is None:
                 return False
             try:
-                if parse_condition(value) != keep_when:
-                    return False
+                holds = parse_condition(value)
             except ValueError as expected:
-                self._invalid(element, name, element.attributes[name], str(expected))
+                try:
+                    holds = parse_condition(self.substitutions.evaluate(value))
+                except ValueError:
+                    self._invalid(element, name, element.attributes[name], str(expected))
+                    return False
+            if holds != keep_when:
                 return False
         return True
 

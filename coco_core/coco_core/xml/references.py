@@ -12,6 +12,7 @@ from __future__ import annotations
 from ..errors import ConfigError, Location, did_you_mean
 from ..model import ActivitySpec, ComponentSpec, ProcessSpec
 from .draft import Draft
+from .farm import expand_farms
 from .resources import find_resource, not_found_message
 from .transforms import check_transforms
 
@@ -19,6 +20,7 @@ from .transforms import check_transforms
 def check_draft(draft: Draft) -> list[ConfigError]:
     """Every error of the whole-application checks; completes ``draft`` as a side effect."""
     errors: list[ConfigError] = []
+    expand_farms(draft)
     instances, owners = _instances(draft.components, errors)
     unknown_reported: set[tuple[str, Location | None]] = set()
 

@@ -77,9 +77,10 @@ def _activation(
                 element,
             )
     elif attribute is not None:
-        reader.error(
-            f'<{element.tag}> attribute {attribute}="{values[attribute]}": a triggered activity '
-            'has no period (remove it, or make the activity type="periodic")',
+        reader.warn(
+            f'<{element.tag}> attribute {attribute}="{values[attribute]}" is ignored: a triggered '
+            'activity has no period (the original CoCo ignores it too; remove it, or make the '
+            'activity type="periodic")',
             element,
         )
         period = None

@@ -2,7 +2,8 @@
 
 Modelled on ROS 2 launch XML so that one habit serves both: ``$(arg name)``, ``$(env NAME)``,
 ``$(env NAME default)``, ``$(optenv NAME default)``, ``$(anon name)``, ``$(dirname)`` and
-``$(find-pkg-share package)``. Substitutions nest (``$(optenv RATE $(arg rate))``): the inner ones
+``$(find-pkg-share package)``, and the original CoCo launcher's ``$(eval EXPRESSION)`` (see
+:mod:`.expression`). Substitutions nest (``$(optenv RATE $(arg rate))``): the inner ones
 are expanded first. ``ament_index_python`` is imported only when ``find-pkg-share`` is used, so
 that ``coco_core`` works without ROS.
 """
@@ -14,8 +15,14 @@ import os
 from collections.abc import Callable, Mapping
 
 from ..errors import did_you_mean
+from .expression import ExpressionError, evaluate
 
-FUNCTIONS = ("anon", "arg", "dirname", "env", "find-pkg-share", "optenv")
+FUNCTIONS = ("anon", "arg", "dirname", "env", "eval", "find-pkg-share", "optenv")
+MAX_NESTING = 20
+"""How deep ``$(...)`` may nest inside one another; real files nest two or three deep."""
+MAX_EXPANSION = 1_000_000
+"""The longest value a substitution may produce, in characters: args that repeat each other
+(``a`` = ``$(arg b)$(arg b)`` ...) would otherwise double with each declaration."""
 
 _anonymous_serial = itertools.count(1)
 """Shared by every load in this process, so that two loads never produce the same anonymous name."""
@@ -45,20 +52,53 @@ class Substitutions:
         }
 
     def expand(self, text: str, directory: str) -> str:
-        """``text`` with every ``$(...)`` replaced; ``directory`` is what ``$(dirname)`` gives."""
+        """``text`` with every ``$(...)`` replaced; ``directory`` is what ``$(dirname)`` gives.
+
+        The parentheses are matched once, in one pass, so that the cost grows with the length of
+        ``text`` however the substitutions nest; nesting beyond :data:`MAX_NESTING` and results
+        longer than :data:`MAX_EXPANSION` are errors.
+        """
+        if "$(" not in text:
+            return text
+        return self._expand(text, 0, len(text), _matching_parentheses(text), directory, 0)
+
+    def _expand(
+        self, text: str, begin: int, end: int, closing: dict[int, int], directory: str, depth: int
+    ) -> str:
+        """The expansion of ``text[begin:end]``, whose parentheses ``closing`` matches."""
+        if depth >= MAX_NESTING:
+            raise SubstitutionError(f"substitutions nest more than {MAX_NESTING} deep")
         pieces: list[str] = []
-        position = 0
-        while (start := text.find("$(", position)) >= 0:
-            pieces.append(text[position:start])
-            end = _closing_parenthesis(text, start + 1)
-            inner = self.expand(text[start + 2 : end], directory)
-            pieces.append(self._call(inner, directory))
-            position = end + 1
-        pieces.append(text[position:])
+        size = 0
+        position = begin
+        while (start := text.find("$(", position, end)) >= 0:
+            close = closing[start + 1]
+            inner = self._expand(text, start + 2, close, closing, directory, depth + 1)
+            for piece in (text[position:start], self._call(inner, directory)):
+                size += len(piece)
+                if size > MAX_EXPANSION:
+                    raise SubstitutionError(
+                        f"the expanded value would have more than {MAX_EXPANSION} characters"
+                    )
+                pieces.append(piece)
+            position = close + 1
+        pieces.append(text[position:end])
+        if size + end - position > MAX_EXPANSION:
+            raise SubstitutionError(f"the expanded value would have more than {MAX_EXPANSION} characters")
         return "".join(pieces)
+
+    def evaluate(self, expression: str) -> str:
+        """The value of an expression over the args (see :mod:`.expression`); raises
+        :class:`~.expression.ExpressionError` (a ``ValueError``) when it cannot be evaluated."""
+        return evaluate(expression, self._args)
 
     def _call(self, inner: str, directory: str) -> str:
         words = inner.split(maxsplit=2)
+        if words and words[0] == "eval":
+            try:
+                return evaluate(inner.strip()[len("eval"):], self._args)
+            except ExpressionError as error:
+                raise SubstitutionError(f"$({_shorten(inner)}): {error}") from None
         if not words:
             raise SubstitutionError(f"empty $(); expected one of: {', '.join(FUNCTIONS)}")
         function = self._functions.get(words[0])
@@ -130,13 +170,24 @@ def _one_word(function: str, words: list[str]) -> str:
     return words[0]
 
 
-def _closing_parenthesis(text: str, opening: int) -> int:
-    depth = 0
-    for index in range(opening, len(text)):
-        if text[index] == "(":
-            depth += 1
-        elif text[index] == ")":
-            depth -= 1
-            if depth == 0:
-                return index
-    raise SubstitutionError(f"unterminated $( in {text!r}: a ')' is missing")
+def _matching_parentheses(text: str) -> dict[int, int]:
+    """The index of the ``)`` that closes each ``(`` of ``text`` (one pass, with a stack).
+
+    A ``)`` with nothing open is plain text; a ``(`` left open is an error only when it is the
+    ``(`` of a ``$(``.
+    """
+    closing: dict[int, int] = {}
+    open_at: list[int] = []
+    for index, character in enumerate(text):
+        if character == "(":
+            open_at.append(index)
+        elif character == ")" and open_at:
+            closing[open_at.pop()] = index
+    for index in open_at:
+        if text.startswith("$(", index - 1):
+            raise SubstitutionError(f"unterminated $( in {_shorten(text)!r}: a ')' is missing")
+    return closing
+
+
+def _shorten(text: str, limit: int = 80) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from ..errors import ConfigError, Location
+from ..files import URDF_LIMIT, FileReadError, check_regular_file
 from ..model import EdgeSpec, FrameSpec, TransformsSpec, UrdfSpec
 from ..transforms import se3
 from ..transforms.edges import JointType
@@ -113,6 +114,11 @@ def check_transforms(draft: TransformsDraft, paths: list[str]) -> list[ConfigErr
             if found is None:
                 message = f"<urdf> file {not_found_message(urdf.file, tried)}"
                 errors.append(ConfigError(message, urdf.location))
+                continue
+            try:
+                check_regular_file(found, URDF_LIMIT, "<urdf> file")
+            except FileReadError as error:
+                errors.append(ConfigError(str(error), urdf.location))
                 continue
             urdf.file = found
         first_urdf = loaded.setdefault((urdf.file, urdf.name, urdf.prefix, urdf.joint_prefix), urdf)

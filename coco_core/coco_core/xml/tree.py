@@ -30,6 +30,7 @@ def parse_xml(data: bytes | str, file: str) -> Element:
     """Build the tree of ``data``; a syntax error becomes a :class:`ConfigError` at its line.
 
     Bytes are decoded by expat according to the XML declaration; text is taken as already decoded.
+    A declared encoding that cannot be decoded is an error at the declaration's line.
     """
     parser = expat.ParserCreate()
     parser.buffer_text = True
@@ -59,5 +60,13 @@ def parse_xml(data: bytes | str, file: str) -> Element:
         message = expat.errors.messages[error.code]
         raise ConfigError(
             f"XML syntax error: {message} (column {error.offset + 1})", Location(file, error.lineno)
+        ) from None
+    except (LookupError, ValueError) as error:
+        # pyexpat decodes a declared encoding that expat lacks through Python's codecs, and only a
+        # single-byte one: an unknown name raises LookupError, a multi-byte one ValueError.
+        raise ConfigError(
+            f"the encoding of the XML declaration cannot be read ({error}); expected UTF-8, UTF-16, "
+            "US-ASCII, ISO-8859-1 or another single-byte encoding",
+            Location(file, parser.CurrentLineNumber or 1),
         ) from None
     return roots[0]

@@ -1,0 +1,84 @@
+"""Reading a file named by a user: a regular file of bounded size, or a clear error.
+
+An application file, an include, a URDF or a mesh is named by whoever writes the application, so
+the name may point anywhere: ``/dev/zero`` and ``/dev/urandom`` never end, a FIFO blocks its reader
+for ever, and a huge file exhausts memory before any parser complains. Every such read goes through
+:func:`read_regular_file`, which opens without blocking, refuses what is not a regular file, and
+stops reading past the limit (the size is checked again while reading, since a file may grow).
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+
+from .errors import CocoError
+
+MiB = 1024 * 1024
+APPLICATION_FILE_LIMIT = 16 * MiB
+"""Largest application file (or include) read: hand-written XML is a few kB."""
+URDF_LIMIT = 64 * MiB
+"""Largest URDF read: robot descriptions with inline geometry reach a few MB."""
+MESH_LIMIT = 512 * MiB
+"""Largest mesh file read: the Baxter meshes total about 30 MB."""
+
+
+class FileReadError(CocoError, OSError):
+    """A file that is not a regular file, is larger than its limit, or cannot be read."""
+
+
+def read_regular_file(path: str | os.PathLike[str], limit: int, what: str = "file") -> bytes:
+    """The bytes of the regular file at ``path``, at most ``limit`` of them.
+
+    ``what`` names the file in errors ("application file", "URDF", ...). ``O_NONBLOCK`` keeps
+    ``open`` from waiting for a FIFO's writer; the type is then checked on the open descriptor, so
+    that what is read is what was checked.
+    """
+    name = os.fspath(path)
+    try:
+        descriptor = os.open(name, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError as error:
+        raise FileReadError(f"cannot read {what} {name}: {error.strerror}") from None
+    try:
+        _check(os.fstat(descriptor), name, limit, what)
+        os.set_blocking(descriptor, True)
+        chunks: list[bytes] = []
+        size = 0
+        while chunk := os.read(descriptor, min(MiB, limit + 1 - size)):
+            chunks.append(chunk)
+            size += len(chunk)
+            if size > limit:
+                raise FileReadError(f"{what} {name} grew past the limit of {limit} bytes while it was read")
+        return b"".join(chunks)
+    except OSError as error:
+        if isinstance(error, FileReadError):
+            raise
+        raise FileReadError(f"cannot read {what} {name}: {error.strerror}") from None
+    finally:
+        os.close(descriptor)
+
+
+def check_regular_file(path: str | os.PathLike[str], limit: int, what: str = "file") -> None:
+    """Raise :class:`FileReadError` unless ``path`` is a regular file of at most ``limit`` bytes:
+    for a loader that checks a name long before the file is read (``<urdf>`` in an application)."""
+    name = os.fspath(path)
+    try:
+        status = os.stat(name)
+    except OSError as error:
+        raise FileReadError(f"cannot read {what} {name}: {error.strerror}") from None
+    _check(status, name, limit, what)
+
+
+def _check(status: os.stat_result, name: str, limit: int, what: str) -> None:
+    if not stat.S_ISREG(status.st_mode):
+        raise FileReadError(f"{what} {name} is {_kind(status.st_mode)}, not a regular file")
+    if status.st_size > limit:
+        raise FileReadError(f"{what} {name} has {status.st_size} bytes, more than the limit of {limit}")
+
+
+def _kind(mode: int) -> str:
+    for test, kind in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return "a special file"
