@@ -70,6 +70,8 @@ class Application:
         self._components: dict[str, Component] = {}
         self.activities: dict[str, Activity] = {}
         self.connections: list[Connection] = []
+        self.outgoing: list[Connection] = []
+        """The writers' ends of connections into other processes (their readers' processes profile them)."""
         self._stop_requested = threading.Event()
         self._stop_listeners: list[Callable[[str], None]] = []
         self._stop_requested_at = 0.0
@@ -284,11 +286,13 @@ class Application:
     def in_flight(self, besides: Activity | None = None) -> bool:
         """Whether data is still moving through the application: an activity (other than ``besides``,
         typically the caller's own) is in a cycle or has a wake-up waiting, or a queued (BUFFER,
-        CIRCULAR) connection holds data. Latest-value connections (DATA, POOL) do not count: a value
-        left unread there is not in flight. A producer that is done asks this before stopping the
-        application, so that what it produced last is processed, not dropped."""
+        CIRCULAR) connection holds data, into another process too. Latest-value connections (DATA,
+        POOL) do not count: a value left unread there is not in flight. A producer that is done asks
+        this before stopping the application, so that what it produced last is processed, not
+        dropped. (An activity of another process is seen while a wake-up waits for it, not while it
+        runs its cycle.)"""
         busy = any(a is not besides and (a.current is not None or a.wake_pending) for a in self.activities.values())
-        return busy or any(c.pending for c in self.connections
+        return busy or any(c.pending for c in [*self.connections, *self.outgoing]
                            if c.policy.data in (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR))
 
     @property

@@ -126,6 +126,7 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
             else:
                 writer = ShmWriter(plan.channel)
             out.add_connection(writer)
+            app.outgoing.append(writer)
             if plan.wakes:
                 fd = wakes[plan.wakes]
                 writer.trigger = lambda fd=fd: os.eventfd_write(fd, 1)
