@@ -83,6 +83,20 @@ def test_values_keep_their_type_and_arrays_their_contents(arena: Arena) -> None:
     np.testing.assert_array_equal(got[0].value, sample.value)
 
 
+def test_arrays_arrive_whole_and_writable_whatever_their_layout(arena: Arena) -> None:
+    writer, reader = ends(arena, BufferPolicy.BUFFER, 4)
+    grid = np.arange(24, dtype=np.float32).reshape(4, 6)
+    sent = [grid, grid[:, ::2], np.asfortranarray(grid), {"names": ["a", "b"], "positions": grid[0]}]
+    for value in sent:
+        writer.push(value)
+    got = drain(reader)
+    for before, after in zip(sent[:3], got[:3]):
+        np.testing.assert_array_equal(before, after)
+        after[0, 0] = -1  # the reader owns its copy
+    np.testing.assert_array_equal(got[3]["positions"], grid[0])
+    assert got[3]["names"] == ["a", "b"] and grid[0, 0] == 0
+
+
 def test_values_larger_than_a_slot_cross_through_the_overflow_segment(arena: Arena) -> None:
     spec = arena.channel(ConnectionPolicy(BufferPolicy.CIRCULAR, SyncPolicy.LOCKED, 2), "cam.frame->view.image",
                          capacity=1024)

@@ -18,8 +18,9 @@ The policies keep their in-process meaning:
   copy (a sequence lock) and the read is retried;
 - DATA: two slots, the reader always takes the newest item once (NEW, then nothing until the next).
 
-``dropped`` is derived, as in-process: offered - read - pending. Values cross as pickles (protocol 5);
-one larger than a slot goes to that slot's overflow segment. Frames do not go this way: a pooled
+``dropped`` is derived, as in-process: offered - read - pending. Values cross as pickles (protocol 5)
+whose arrays are written out of band, straight from their memory into the slot (numpy arrays are not
+first pickled into bytes); one larger than a slot goes to that slot's overflow segment. Frames do not go this way: a pooled
 output's slots live in shared memory and are read in place (:mod:`coco_core.shm.frames`).
 
 The stores are ordered payload, then stamp, then counter, and the loads the other way round; on
@@ -31,6 +32,7 @@ common case.
 from __future__ import annotations
 
 import pickle
+import struct
 from dataclasses import dataclass
 from typing import Any
 
@@ -174,12 +176,15 @@ class ShmWriter(ShmConnection):
     def push(self, value: Any) -> None:
         ring = self.ring
         counters = ring.counters
+        buffers: list[pickle.PickleBuffer] = []
         try:
-            data = pickle.dumps(value, protocol=5)
+            data = pickle.dumps(value, protocol=5, buffer_callback=buffers.append)
+            raws = [buffer.raw() for buffer in buffers]
         except Exception as error:
             raise ChannelError(f"connection {ring.spec.label}: {type(value).__name__} value cannot be sent to "
                                f"another process: {error}") from None
-        size = len(data)
+        table = struct.pack(f"<I{len(raws) + 1}Q", len(raws), len(data), *(raw.nbytes for raw in raws))
+        size = len(table) + len(data) + sum(raw.nbytes for raw in raws)
         counters[OFFERED] += 1
         stored = counters[STORED]
         if self.mode is BufferPolicy.BUFFER and stored - counters[CURSOR] >= ring.slots:
@@ -191,10 +196,14 @@ class ShmWriter(ShmConnection):
         stamp[1] = size
         if size <= ring.capacity:
             stamp[2] = 0
-            ring.view[offset + SLOT_HEADER:offset + SLOT_HEADER + size] = data
+            target, at = ring.view, offset + SLOT_HEADER
         else:  # a large value (a camera image on a plain port): the slot's overflow segment holds it
             stamp[2] = self._overflow(index, size)
-            self._overflows[index][1].view[:size] = data
+            target, at = self._overflows[index][1].view, 0
+        for part in (table, data, *raws):  # arrays go from their own memory into the slot: one copy
+            end = at + len(part) if isinstance(part, bytes) else at + part.nbytes
+            target[at:end] = part
+            at = end
         stamp[0] = stored + 1
         stamp.release()
         counters[STORED] = stored + 1
@@ -215,7 +224,7 @@ class ShmReader(ShmConnection):
         super().__init__(spec)
         self._overflows: dict[int, tuple[int, Segment]] = {}
 
-    def _large(self, index: int, generation: int, size: int) -> bytes | None:
+    def _large(self, index: int, generation: int, size: int) -> bytearray | None:
         """The bytes of a large value in slot ``index``'s overflow segment; None when the writer
         replaced that segment meanwhile (the value was overwritten)."""
         known = self._overflows.get(index)
@@ -226,7 +235,7 @@ class ShmReader(ShmConnection):
                 known = self._overflows[index] = (generation, Segment(overflow_name(self.ring.spec, index, generation)))
             except FileNotFoundError:
                 return None
-        return bytes(known[1].view[:size])
+        return bytearray(known[1].view[:size])
 
     def push(self, value: Any) -> None:
         raise CocoError(f"connection {self.ring.spec.label}: the reader's end cannot be written")
@@ -260,15 +269,29 @@ class ShmReader(ShmConnection):
                     continue
                 data = large
             else:
-                data = bytes(ring.view[offset + SLOT_HEADER:offset + SLOT_HEADER + size])
+                data = bytearray(ring.view[offset + SLOT_HEADER:offset + SLOT_HEADER + size])
             after = stamp[0]
             stamp.release()
             if after != before:  # overwritten during the copy
                 continue
             counters[CURSOR] = index + 1
             counters[READ] += 1
-            return pickle.loads(data)
+            return _decode(data)
         return EMPTY  # the writer stopped in the middle of a slot (it died): nothing to read
+
+
+def _decode(data: bytearray) -> Any:
+    """A value from its slot's bytes: the pickle, then the arrays' memory, which the value's arrays
+    keep using (they are writable, as the writer's were)."""
+    count = struct.unpack_from("<I", data)[0]
+    lengths = struct.unpack_from(f"<{count + 1}Q", data, 4)
+    view = memoryview(data)
+    at = 4 + 8 * (count + 1)
+    parts = []
+    for length in lengths:
+        parts.append(view[at:at + length])
+        at += length
+    return pickle.loads(parts[0], buffers=parts[1:])
 
 
 class ChannelStats(ShmConnection):
