@@ -30,6 +30,7 @@ from typing import IO, Any
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
 from coco_core.stamps import Stamped, unstamped
 from coco_core.transforms.samples import FramePose
@@ -83,9 +84,9 @@ class TeleopSummary(Component):
         for sample in self.bag_time.read_all():
             self._times[sample.stamp.seq] = sample.value
         for port, attr in ((self.bowl, "_bowl"), (self.target, "_target")):
-            values = port.read_all()
-            if values:
-                setattr(self, attr, unstamped(values[-1])[0])
+            status, value = port.read_newest()  # only the last pose matters; older ones count as dropped
+            if status is NEW_DATA:
+                setattr(self, attr, unstamped(value)[0])
         if not self._pending:
             return
         now = time.perf_counter()
