@@ -4,7 +4,7 @@ Sensor-to-display latency (the paper's 89 ms for teleoperation) runs from the mo
 acquired or emitted upstream (its :class:`~coco_core.stamps.Stamp`) to the frame that first shows
 it. Every display peer that takes an input keeps a :class:`ShownInputs`, ``shown``: a stamped value
 read from a port (``add``), or a pose the peer looked up in the transformation graph (``add_graph``:
-the origin the graph's writer left on each edge or robot on the path, e.g. the joint state a
+the ``cause`` the graph's writer left on each edge or robot on the path, e.g. the joint state a
 ``TransformationInterface`` applied). GLManager ``take``\\ s them from all its peers once the frame is
 drawn and stamps the frame with the oldest: the frame's own stamp, carried in the data it writes
 (``Stamped`` image, ``latency`` port), never in thread-local state, so the stamps survive the
@@ -39,7 +39,7 @@ class ShownInputs:
     def add_graph(self, dependencies: Iterable[object]) -> None:
         """A pose looked up through these graph dependencies is drawn: each one's origin counts once."""
         for dependency in dependencies:
-            origin = getattr(dependency, "origin", None)
+            origin = getattr(dependency, "cause", None)
             if origin is not None and self._seen.get(id(dependency)) is not origin:
                 self._seen[id(dependency)] = origin
                 self.add(origin)

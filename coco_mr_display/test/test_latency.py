@@ -58,7 +58,7 @@ def test_each_frame_is_stamped_with_the_oldest_input_it_shows_first():
     try:
         # Frame 1: the bowl's edge written with a known origin, and an older stamped colour.
         bowl_origin = Stamp.now(7, "/bowl/pose")
-        graph.set_transform("base", "bowl", np.eye(4), 1.0, origin=bowl_origin)
+        graph.set_transform("base", "bowl", np.eye(4), 1.0, cause=bowl_origin)
         colour_origin = Stamp(bowl_origin.time - 0.010, 3, "distance")
         inputs.color.write(Stamped((0.0, 1.0, 0.0), colour_origin))
         manager.step()
@@ -80,7 +80,7 @@ def test_each_frame_is_stamped_with_the_oldest_input_it_shows_first():
         inputs.pose.write(Stamped(FramePose("base", "marker", np.eye(4), 2.0), pose_origin))
         moved = np.eye(4)
         moved[0, 3] = 0.1
-        graph.set_transform("base", "bowl", moved, 2.0, origin=Stamp.now(8, "/bowl/pose"))
+        graph.set_transform("base", "bowl", moved, 2.0, cause=Stamp.now(8, "/bowl/pose"))
         manager.step()
         [frame] = collected.frames.read_all()
         assert frame.stamp == Stamp(pose_origin.time, 3, "/marker")

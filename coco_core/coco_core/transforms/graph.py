@@ -298,10 +298,10 @@ class TransformGraph:
 
     # --- writes ---------------------------------------------------------------------------------
     def set_transform(self, parent: str, child: str, transform: np.ndarray, stamp: float | None = None,
-                      origin: Stamp | None = None) -> None:
+                      cause: Stamp | None = None) -> None:
         """Write ``T_parent_child``: a sample of a dynamic edge (created on first write unless the
-        structure is strict) or, when not strict, a new value of a static edge. ``origin``: the stamp
-        of the input it came from, kept on the edge (:attr:`Dependency.origin`) for latency."""
+        structure is strict) or, when not strict, a new value of a static edge. ``cause``: the stamp
+        of the input it came from, kept on the edge (:attr:`Dependency.cause`) for latency."""
         matrix = se3.frozen(se3.as_transform(transform))  # a bad matrix changes nothing
         with self._lock.write():
             edge = self._edges.get((parent, child))
@@ -336,7 +336,7 @@ class TransformGraph:
                 raise TransformError(f"edge {edge.name} is an {edge.kind.value} edge driven by joint "
                                      f"{getattr(edge, 'joint', '?')}: set its joint value instead")
             if changed or created:
-                edge.origin = origin
+                edge.cause = cause
                 self.version += 1
         if changed or created:
             self._notify([edge], structure_changed=created)
@@ -361,9 +361,9 @@ class TransformGraph:
         if unknown:
             raise TransformError(f"unknown joint {joint!r}; {did_you_mean(joint, self.joint_names)}")
 
-    def set_joints(self, values: Mapping[str, float], origin: Stamp | None = None) -> list[str]:
+    def set_joints(self, values: Mapping[str, float], cause: Stamp | None = None) -> list[str]:
         """Set many joint values at once (a JointState): each kinematic model updates in bulk.
-        ``origin``: the stamp of the input they came from, kept on what changed (for latency).
+        ``cause``: the stamp of the input they came from, kept on what changed (for latency).
 
         Returns the names nothing in the graph drives; each is also logged once, as
         robot_state_publisher does, and otherwise ignored.
@@ -390,7 +390,7 @@ class TransformGraph:
                         changed.append(edge)
             if changed:
                 for dependency in changed:
-                    dependency.origin = origin
+                    dependency.cause = cause
                 self.version += 1
         new = [name for name in remaining if name not in self._reported_unknown_joints]
         if new:
