@@ -59,26 +59,21 @@ ensure_requirements() {
 ensure_wheel_build_paths() {
     # vendor/tf2_msgs is generated with the rosidl wheels' CMake code, whose exported Python
     # targets name the wheel builder's interpreter (/opt/python/cpXY-cpXY/include/pythonX.Y and
-    # its numpy include dir) instead of ours. Read the paths they expect from geometry_msgs'
-    # export file (so another Python version's wheels are handled too) and point them at this
-    # interpreter's headers and this venv's numpy headers.
-    local export_file expected python_include numpy_include target sudo=""
-    [ "$(id -u)" -eq 0 ] || sudo="sudo"
-    export_file="$VENV/share/geometry_msgs/cmake/export_geometry_msgs__rosidl_generator_pyExport.cmake"
-    [ -f "$export_file" ] || return 0
+    # its numpy include dir) instead of ours. Rewrite those paths inside this venv's own export
+    # files to this interpreter's headers and this venv's numpy headers: nothing outside the
+    # workspace is written and no root is needed. pip restores the originals when it reinstalls a
+    # wheel, so this runs after every requirements step (a file already rewritten is left alone).
+    local python_include numpy_include files=()
+    [ -d "$VENV/share" ] || return 0
+    mapfile -d '' files < <(grep -rlZ --include='*.cmake' '/opt/python/' "$VENV/share" 2>/dev/null || true)
+    [ "${#files[@]}" -gt 0 ] || return 0
     python_include="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
     numpy_include="$("$VENV/bin/python" -c 'import numpy; print(numpy.get_include())')"
-    for expected in $(grep -o '/opt/python/[^";) ]*' "$export_file" | sort -u); do
-        case "$expected" in
-            */numpy/_core/include | */numpy/core/include) target="$numpy_include" ;;
-            */include/python3*) target="$python_include" ;;
-            *) continue ;;
-        esac
-        [ -e "$expected" ] && continue
-        log "linking $expected -> $target (path baked into the rosidl wheels)"
-        $sudo mkdir -p "$(dirname "$expected")"
-        $sudo ln -sfn "$target" "$expected"
-    done
+    log "pointing ${#files[@]} CMake export files of the wheels at $python_include and $numpy_include"
+    sed -i -E \
+        -e "s#/opt/python/[^/\";]+/lib/python3\.[0-9]+/site-packages/numpy/(_core|core)/include#${numpy_include}#g" \
+        -e "s#/opt/python/[^/\";]+/include/python3\.[0-9]+#${python_include}#g" \
+        "${files[@]}"
 }
 
 build_workspace() {

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -82,3 +83,58 @@ def test_shake_hand_moves_the_gripper_as_recorded(coco_launch: Path, imported: P
     assert summary["samples"] == len(rows)
     assert summary["final_distance"] == pytest.approx(expected[-1], abs=1e-9)
     assert summary["final_bowl_target_distance"] is None  # no target in a recording
+
+
+@pytest.mark.parametrize("display", ["false", "true"])
+def test_at_full_speed_every_joint_state_that_moves_the_gripper_is_one_row(
+        coco_launch: Path, imported: Path, tmp_path: Path, display: str) -> None:
+    """``rate:=0`` replays the recording far faster than the graph, the distance and the summary take
+    it (and, with the display, while the view renders): still one CSV row per joint state that moved
+    the right gripper, in order, and nothing dropped on the way to the summary."""
+    from coco_core.transforms.urdf import UrdfModel
+
+    from coco_ros.baxter.importer import read_recording
+    from coco_ros.baxter.joints import BAXTER_JOINT_NAMES
+
+    output = tmp_path / "teleop"
+    result = run_launcher(coco_launch, APP, f"bag:={imported}", f"output:={output}", "fixed_bowl:=true",
+                          f"bowl_xyz:={' '.join(map(str, BOWL))}", "arm:=right", f"time_origin:={START}",
+                          "rate:=0", f"display:={display}", "frames_format:=png", "--profile", "100",
+                          "--duration", "120", timeout=180)
+    assert result.returncode == 0, result.stderr
+    assert "replayed (813 messages)" in result.stderr, result.stderr
+
+    recording = read_recording(RECORDING)
+    robot = UrdfModel.load(URDF)
+    moved, previous = [], None
+    for positions in recording.positions:
+        robot.set_positions(dict(zip(BAXTER_JOINT_NAMES, positions)))
+        gripper = robot.placement("right_gripper").copy()
+        if previous is None or not np.array_equal(gripper, previous):
+            moved.append(float(np.linalg.norm(gripper[:3, 3] - BOWL)))
+        previous = gripper
+    assert 100 < len(moved) <= len(recording)
+
+    with (output / "distance.csv").open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == len(moved), f"{len(rows)} rows for {len(moved)} joint states that moved the gripper"
+    assert [int(row["seq"]) for row in rows] == list(range(1, len(rows) + 1))
+    assert [float(row["distance"]) for row in rows] == pytest.approx(moved, abs=2e-6)
+    summary = json.loads((output / "summary.json").read_text())
+    assert summary["samples"] == len(moved)
+    shown = summary["display_latency_ms"]
+    if display == "true":  # frames that showed a new joint state or colour: their sensor-to-display latency
+        assert shown["frames"] > 0 and 0 < shown["median"] <= shown["max"], shown
+        assert re.search(r"^display\s+display\s.*\s[0-9.]+ / [0-9.]+\s*$", result.stdout + result.stderr, re.M)
+    else:
+        assert shown["frames"] == 0
+
+    # The profile's connection table: nothing dropped between the replay and the summary.
+    profile = result.stdout + result.stderr
+    for connection in ("replay.robot_joint_states -> tf.joints", "tf.gripper -> distance.gripper",
+                       "distance.distance -> summary.distance", "distance.color -> summary.color"):
+        line = next((line for line in profile.splitlines() if connection in line), None)
+        assert line is not None, f"{connection} missing from the profile:\n{profile[-3000:]}"
+        cells = [cell.strip() for cell in line.split("|") if cell.strip()] if "|" in line else line.split()
+        written, read, dropped = (int(cell) for cell in cells[-4:-1])
+        assert dropped == 0 and written == read, line

@@ -41,9 +41,20 @@ EMPTY: Any = _Empty()
 class Connection:
     """One channel from ``source`` to ``sink`` with a :class:`ConnectionPolicy`.
 
-    ``written`` counts values offered by the writer, ``read`` values taken by the reader; whatever is
-    neither taken nor still pending was dropped by the policy. ``trigger`` is called after a value was
-    stored when the sink is an event port, to wake the sink's triggered activity.
+    Counting contract (every connection class, including any later one across processes, keeps it,
+    because the profile's ``dropped`` column is the only place a lost sample shows):
+
+    - ``written``: values offered by the writer (``push``), whether stored or not;
+    - ``read``: values the reader took *and used* (``pop``, minus those given back to :meth:`skip`);
+    - ``pending``: values stored and not taken yet;
+    - ``dropped`` = ``written - read - pending``: everything else, i.e. values the policy discarded
+      (DATA overwrote, a full BUFFER refused, CIRCULAR pushed out as oldest) **and** values the
+      reader took but discarded unused (:meth:`pop_newest`, or :meth:`skip` after a ``pop``): a read
+      that keeps only the newest of several waiting items drops the others.
+
+    The writer only ever touches ``written``, the reader only ``read``, so neither needs the other's
+    lock to count. ``trigger`` is called after a value was stored when the sink is an event port, to
+    wake the sink's triggered activity.
     """
 
     __slots__ = ("source", "sink", "policy", "written", "read", "trigger", "__weakref__")
@@ -64,6 +75,23 @@ class Connection:
         """Take the next value, or :data:`EMPTY` when there is nothing new; never blocks."""
         raise NotImplementedError
 
+    def pop_newest(self) -> Any:
+        """Take every value waiting and return the newest (:data:`EMPTY` when none); the older ones
+        are skipped, so they count as dropped, not read (the one place a reader's skip is counted)."""
+        newest = self.pop()
+        if newest is EMPTY:
+            return EMPTY
+        while (value := self.pop()) is not EMPTY:
+            self.skip()
+            newest = value
+        return newest
+
+    def skip(self, count: int = 1) -> None:
+        """Count ``count`` values the reader took with ``pop`` but discarded unused as dropped.
+
+        Called by the reader's thread only (as ``pop``), so ``read`` still has a single writer."""
+        self.read -= count
+
     @property
     def pending(self) -> int:
         """Values written and not yet taken by the reader."""
@@ -71,7 +99,8 @@ class Connection:
 
     @property
     def dropped(self) -> int:
-        """Values the policy discarded (overwritten, refused when full, or pushed out as oldest)."""
+        """Values lost on the way: discarded by the policy (overwritten, refused when full, pushed
+        out as oldest) or skipped by the reader (see the class docstring)."""
         return self.written - self.read - self.pending
 
     @property

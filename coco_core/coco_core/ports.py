@@ -223,6 +223,36 @@ class InputPort(Port):
             return OLD_DATA, self._last
         return NO_DATA, None
 
+    def read_newest(self) -> tuple[ReadStatus, Any]:
+        """Like :meth:`read`, for a consumer that wants only the newest value: everything waiting is
+        taken and only the newest returned; every older value skipped counts as *dropped* on its
+        connection (:meth:`Connection.pop_newest`), so the profile shows what this reader missed.
+
+        With several connections, each one's newest is a candidate and the last in round-robin order
+        wins (there is no common clock to order them); the other candidates count as dropped too (a
+        skipped pooled frame is released).
+        """
+        newest: Any = EMPTY
+        newest_connection: Connection | None = None
+        count = len(self.connections)
+        for offset in range(count):
+            connection = self.connections[(self._next + offset) % count]
+            value = connection.pop_newest()
+            if value is EMPTY:
+                continue
+            if newest_connection is not None:
+                newest_connection.skip()
+                if isinstance(newest, Slot):
+                    newest.release()
+            newest, newest_connection = value, connection
+        if newest_connection is not None:
+            if self._keeps_last:
+                self._last, self._has_last = newest, True
+            return NEW_DATA, newest
+        if self._has_last:
+            return OLD_DATA, self._last
+        return NO_DATA, None
+
     def read_all(self) -> list[Any]:
         """Every value waiting on every connection, in round-robin order; empty when none."""
         values: list[Any] = []

@@ -162,6 +162,32 @@ def test_connection_pop_returns_empty_sentinel_not_none():
     assert conn.pop() is EMPTY
 
 
+@pytest.mark.parametrize("data,sync", ALL, ids=[f"{d.value}-{s.value}" for d, s in ALL])
+def test_read_newest_counts_what_it_skipped_as_dropped(data, sync):
+    """A reader that keeps only the newest drops the older items it took: the profile must show them."""
+    (out,), inp, (conn,) = pair(ConnectionPolicy(data, sync, 8))
+    assert inp.read_newest() == (NO_DATA, None)
+    for value in range(1, 6):
+        out.write(value)
+    assert inp.read_newest() == (NEW_DATA, 5)
+    written, read, dropped, pending = counters(conn)
+    assert (written, read, dropped, pending) == (5, 1, 4, 0)
+    assert inp.read_newest() == (OLD_DATA, 5)
+    out.write(6)
+    assert inp.read_newest() == (NEW_DATA, 6)
+    assert counters(conn) == (6, 2, 4, 0)
+
+
+def test_read_newest_over_several_connections_drops_the_other_candidates():
+    (a, b), inp, (ca, cb) = pair(ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 8), sources=2)
+    a.write("a1")
+    a.write("a2")
+    b.write("b1")
+    assert inp.read_newest() == (NEW_DATA, "b1")
+    assert counters(ca) == (2, 0, 2, 0)
+    assert counters(cb) == (1, 1, 0, 0)
+
+
 # --- fan-in, fan-out, unconnected ---------------------------------------------------------------
 
 

@@ -63,6 +63,16 @@ def test_buffer_refuses_new_values_when_full(arena: Arena) -> None:
     assert reader.counters() == {"written": 6, "read": 4, "dropped": 2, "pending": 0}
 
 
+def test_a_reader_that_wants_the_newest_counts_what_it_skipped(arena: Arena) -> None:
+    writer, reader = ends(arena, BufferPolicy.BUFFER, 8)
+    port = InputPort(object).bind(None)  # type: ignore[arg-type]
+    port.add_connection(reader)
+    for value in range(5):
+        writer.push(value)
+    assert port.read_newest() == (NEW_DATA, 4)
+    assert reader.counters() == {"written": 5, "read": 1, "dropped": 4, "pending": 0}
+
+
 def test_circular_drops_the_oldest(arena: Arena) -> None:
     writer, reader = ends(arena, BufferPolicy.CIRCULAR, 3)
     for value in range(7):

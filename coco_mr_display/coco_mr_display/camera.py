@@ -25,11 +25,13 @@ from coco_core.component import Component
 from coco_core.operations import operation
 from coco_core.ports import InputPort
 from coco_core.policy import NEW_DATA
+from coco_core.stamps import unstamped
 from coco_core.transforms import se3
 from coco_core.transforms.samples import FramePose, TransformSample
 
 from . import projection as proj
 from .poses import as_transform
+from .shown import ShownInputs
 from .view import Eye, RenderView
 
 OPTICAL_TO_GL = se3.make(np.diag([1.0, -1.0, -1.0]))
@@ -80,6 +82,8 @@ class GLCameraManager(Component):
                     "4x4) or a 3-vector position")
 
     def init(self) -> None:
+        self.shown = ShownInputs()
+        """The origins of the camera and head poses the next frame shows first."""
         self._pose = np.eye(4)
         self._head = np.eye(4)
         self._head_oriented = False
@@ -128,16 +132,22 @@ class GLCameraManager(Component):
         self.reset_pose()  # attributes may have changed since init()
 
     def on_update(self) -> None:
-        status, value = self.pose.read()
+        # The newest pose is used; the ones skipped count as dropped on their connections.
+        status, value = self.pose.read_newest()
         if status is NEW_DATA:
             self._pose = self._to_gl(as_transform(value))
+            self.shown.add(unstamped(value)[1])
+        graph = self.transform_graph
         if self.follow_frame:
-            self._pose = self._to_gl(self.transform_graph.lookup(self._world(), self.follow_frame))
-        status, value = self.eye.read()
+            self._pose = self._to_gl(graph.lookup(self._world(), self.follow_frame))
+            self.shown.add_graph(graph.query(self._world(), self.follow_frame).dependencies)
+        status, value = self.eye.read_newest()
         if status is NEW_DATA:
             self._set_head(value)
+            self.shown.add(unstamped(value)[1])
         if self.eye_frame:
-            self._head, self._head_oriented = self.transform_graph.lookup(self._world(), self.eye_frame), True
+            self._head, self._head_oriented = graph.lookup(self._world(), self.eye_frame), True
+            self.shown.add_graph(graph.query(self._world(), self.eye_frame).dependencies)
 
     def _set_head(self, value: Any) -> None:
         if np.size(value) == 3 and not isinstance(value, (FramePose, TransformSample)):

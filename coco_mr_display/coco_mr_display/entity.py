@@ -29,6 +29,7 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
+from coco_core.stamps import unstamped
 from coco_core.transforms import se3
 from coco_core.transforms.graph import TransformError
 
@@ -36,6 +37,7 @@ from .draw_state import DrawState
 from .mesh import PRIMITIVES, GpuMesh, MeshPart, color_problem, load_parts, merge_parts, parts_of, primitive
 from .phong import PhongPeer
 from .poses import reference_of
+from .shown import ShownInputs
 
 log = logging.getLogger("coco")
 
@@ -97,6 +99,8 @@ class GLEntity(PhongPeer):
                             if "preRender" in peer.operations]
         self._state: DrawState | None = None
         self._received: tuple[str | None, np.ndarray] | None = None
+        self.shown = ShownInputs()
+        """The origins of the poses the next frame shows first (a stamped pose input, or the graph's)."""
         self._meshes: list[GpuMesh] = []
         self._drawn: list[MeshPart] = []
         self._unplaced = False
@@ -109,9 +113,10 @@ class GLEntity(PhongPeer):
     def on_update(self) -> None:
         for peer in self.peers:
             peer.step()
-        status, value = self.pose.read()
+        status, value = self.pose.read_newest()  # a display shows the newest pose; skipped ones count as dropped
         if status is NEW_DATA:
             self._received = reference_of(value)  # a bad value raises here once; the last good one stays
+            self.shown.add(unstamped(value)[1])
         state = self.base_state()
         for pre_render in self._pre_render:
             pre_render(state)
@@ -134,8 +139,9 @@ class GLEntity(PhongPeer):
             self._upload(ctx, state.parts)
         model = state.pose @ np.diag([*state.scale, 1.0])
         if state.reference is not None and state.reference != view.frame:
+            graph = self.transform_graph
             try:
-                model = self.transform_graph.lookup(view.frame, state.reference) @ model
+                model = graph.lookup(view.frame, state.reference) @ model
             except TransformError as error:  # its frame comes with its first pose: not drawn until then
                 if not self._unplaced:
                     log.warning("%s: not drawn until the transformation graph can place %s in %s (%s)",
@@ -143,6 +149,7 @@ class GLEntity(PhongPeer):
                     self._unplaced = True
                 return
             self._unplaced = False
+            self.shown.add_graph(graph.query(view.frame, state.reference).dependencies)
         model_view = view.view @ model
         self.begin(ctx, view)
         for mesh in self._meshes:

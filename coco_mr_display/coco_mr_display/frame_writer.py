@@ -18,6 +18,7 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.ports import InputPort
+from coco_core.stamps import Stamped, unstamped
 from coco_mr_vision.image import Image
 
 from .contact_sheet import ContactSheet
@@ -38,7 +39,8 @@ class FrameWriter(Component):
     sheet_columns = Attribute(int, 4, "contact sheet columns", min=1)
     sheet_tile_width = Attribute(int, 240, "contact sheet thumbnail width in pixels", min=8)
 
-    image = InputPort(Image, event=True, doc="frames to record (any image format; depth is shown as grey)")
+    image = InputPort(Image | Stamped, event=True, doc="frames to record (any image format; depth is shown as grey), "
+                      "optionally Stamped (a stamped GLManager's)")
 
     def init(self) -> None:
         self.written = 0
@@ -65,7 +67,7 @@ class FrameWriter(Component):
 
     def on_update(self) -> None:
         for image in self.image.read_all():
-            self.write(image)
+            self.write(unstamped(image)[0])
 
     def write(self, image: Image) -> None:
         """Record one image (in the writer's own thread)."""

@@ -22,6 +22,7 @@ from coco_mr_vision.image import Image
 
 from .image_texture import ImageTexture
 from .peer import GLPeer
+from .shown import ShownInputs
 
 if TYPE_CHECKING:
     from .view import RenderView
@@ -76,15 +77,18 @@ class GLImage(GLPeer):
     def __init__(self, name: str | None = None, **attributes: object) -> None:
         super().__init__(name, **attributes)
         self._pending: Image | None = None
+        self.shown = ShownInputs()
+        """The origin of the image the next frame shows first (its GLManager stamps the frame with it)."""
         self._texture: ImageTexture | None = None
         self._program: moderngl.Program | None = None
         self._quad: moderngl.VertexArray | None = None
 
     def on_update(self) -> None:
-        status, value = self.image.read()
+        status, value = self.image.read_newest()  # the newest image is drawn; skipped ones count as dropped
         if status is NEW_DATA:
             image, stamp = unstamped(value)
             self._pending = image
+            self.shown.add(stamp)
             if stamp is not None:
                 self.record_latency(stamp)  # drawn this frame
 

@@ -10,6 +10,14 @@ Each update is one frame: window events go to the controller peers, every peer s
 ports), the camera peer provides the views (one, or a left and a right half in stereo; in 2D the
 manager's own pixel-space view), the framebuffer is cleared and every drawing peer renders each view,
 then the outputs are read back and, in a window, the frame is shown.
+
+Sensor-to-display latency (:mod:`.shown`): once a frame is drawn, the manager takes from every peer
+the origins of the inputs it shows for the first time and stamps the frame with the oldest (seq: the
+frame's number); a frame that shows nothing new is stamped at its own render time with the manager's
+name as source. When the frame is read back (the pixels exist), the manager records the frame's
+latency (``record_latency``: the ``display`` row of ``--profile``) and writes it on ``latency``
+(``Stamped[float]`` seconds, with the frame's stamp; only for frames that showed a new input). With
+``stamped``, ``color`` and ``depth`` carry ``Stamped(Image, frame stamp)``.
 """
 
 from __future__ import annotations
@@ -23,12 +31,14 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.ports import OutputPort
+from coco_core.stamps import Stamp, Stamped
 from coco_mr_vision.image import Image, ImageFormat
 
 from . import projection as proj
 from .context import HeadlessSurface, Surface, WindowSurface
 from .events import EventKind, dispatch
 from .peer import GLPeer
+from .shown import ShownInputs
 from .view import Eye, RenderView
 
 log = logging.getLogger("coco.display")
@@ -61,14 +71,22 @@ class GLManager(Component):
     title = Attribute(str, "CoCo", "window title")
     depth_output = Attribute(bool, False, "also read back the depth buffer to the depth port (metres)")
     vsync = Attribute(bool, False, "window: wait for the display's refresh (off: the activity sets the rate)")
+    stamped = Attribute(bool, False, "write the images as Stamped(Image, frame stamp): the oldest input the "
+                        "frame is the first to show (sensor-to-display latency downstream)")
 
     color = OutputPort(Image, doc="the rendered frame, RGB8, top row first (like a camera image)")
     depth = OutputPort(Image, doc="with depth_output: distance along the view axis, DEPTH32F metres, NaN "
                        "where nothing was drawn")
+    latency = OutputPort(Stamped, doc="per frame that shows a new input: seconds from that input's origin (the "
+                         "frame's stamp) to the frame read back")
 
     def init(self) -> None:
+        if self.stamped:  # this instance's images go out wrapped: its bound ports say so, for the wiring check
+            self.color.type = self.depth.type = Stamped
         self.surface: Surface | None = None
         self.frames = 0
+        self.last_stamp: Stamp | None = None
+        """The stamp of the last frame rendered (see the module docstring)."""
         self._drawing: list[GLPeer] = []
         """The drawing peers whose gl_init succeeded, in drawing order: only these render and release."""
 
@@ -151,19 +169,41 @@ class GLManager(Component):
                     peer.render(ctx, view)
                 except Exception:
                     peer.report_error("render")
-        self._write_outputs(fbo, views)
+        self._write_outputs(fbo, views, self._frame_origin())
         return views
 
-    def _write_outputs(self, fbo: moderngl.Framebuffer, views: list[RenderView]) -> None:
+    def _frame_origin(self) -> Stamp | None:
+        """The oldest origin among the inputs this frame is the first to show (every peer's ``shown``)."""
+        oldest: Stamp | None = None
+        for peer in self.walk()[1:]:
+            shown = getattr(peer, "shown", None)
+            origin = shown.take() if isinstance(shown, ShownInputs) else None
+            if origin is not None and (oldest is None or origin.time < oldest.time):
+                oldest = origin
+        return oldest
+
+    def _write_outputs(self, fbo: moderngl.Framebuffer, views: list[RenderView], origin: Stamp | None) -> None:
         width, height = fbo.size
+        seq = self.frames + 1
+        frame = Stamp(origin.time, seq, origin.source) if origin is not None else Stamp.now(seq, self.name)
+        self.last_stamp = frame
         stamp = time.time()
         if self.color.connected:
             rgb = np.empty((height, width, 3), np.uint8)
             fbo.read_into(rgb, components=3, alignment=1)
             # GL's rows go bottom-up; the flipped view is free, images are read top row first.
-            self.color.write(Image(rgb[::-1], ImageFormat.RGB8, stamp, self.world))
+            self._write_image(self.color, Image(rgb[::-1], ImageFormat.RGB8, stamp, self.world), frame)
         if self.depth_output and self.depth.connected:
-            self.depth.write(Image(self.read_depth(fbo, views)[::-1], ImageFormat.DEPTH32F, stamp, self.world))
+            depth = Image(self.read_depth(fbo, views)[::-1], ImageFormat.DEPTH32F, stamp, self.world)
+            self._write_image(self.depth, depth, frame)
+        if origin is not None:  # the pixels exist now: read back, or finished here
+            if not (self.color.connected or self.depth_output and self.depth.connected):
+                self.surface.ctx.finish()  # type: ignore[union-attr]
+            self.record_latency(frame)
+            self.latency.write(Stamped(frame.age(), frame))
+
+    def _write_image(self, port: OutputPort, image: Image, frame: Stamp) -> None:
+        port.write(Stamped(image, frame) if self.stamped else image)
 
     @staticmethod
     def read_depth(fbo: moderngl.Framebuffer, views: list[RenderView]) -> np.ndarray:

@@ -45,12 +45,14 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
+from coco_core.stamps import Stamped, unstamped
 from coco_core.transforms import se3
 from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
 from coco_mr_vision.rgbd import RGBDFrame
 
 from .image_texture import ImageTexture
 from .peer import GLPeer
+from .shown import ShownInputs
 
 if TYPE_CHECKING:
     from .view import RenderView
@@ -240,9 +242,10 @@ class GLRGBDImage(GLPeer):
     the ``fx``/``fy``/``cx``/``cy`` attributes. Nothing is drawn until colour and depth have arrived.
     """
 
-    rgbd = InputPort(RGBDFrame, doc="colour + depth frames (each carries its depth scale)")
-    color = InputPort(Image, doc="colour images registered to the depth images (any non-depth format)")
-    depth = InputPort(Image, doc="DEPTH16 (units of 1/depth_scale m) or DEPTH32F (m) images")
+    rgbd = InputPort(RGBDFrame | Stamped, doc="colour + depth frames (each carries its depth scale), optionally Stamped")
+    color = InputPort(Image | Stamped, doc="colour images registered to the depth images (any non-depth format), "
+                      "optionally Stamped")
+    depth = InputPort(Image | Stamped, doc="DEPTH16 (units of 1/depth_scale m) or DEPTH32F (m) images, optionally Stamped")
     intrinsics = InputPort(CameraIntrinsics, doc="intrinsics of the depth camera")
 
     fx = Attribute(float, 0.0, "focal length in pixels along x (0: take the intrinsics from the data)", min=0.0)
@@ -280,23 +283,31 @@ class GLRGBDImage(GLPeer):
         self._grid_size: tuple[int, int] | None = None
         self._samples = np.zeros((3, 0, 3), np.float32)
         self._ready = False
+        self.shown = ShownInputs()
+        """The origins of the (Stamped) frames and images the next frame shows first."""
         self.last_stride = 0
         """Stride of the last view drawn (what the automatic stride chose; tools and benchmarks)."""
 
     # --- ports (step) -----------------------------------------------------------------------------
     def on_update(self) -> None:
-        status, intrinsics = self.intrinsics.read()
+        # Only the newest of each input is drawn; the ones skipped count as dropped on their connections.
+        status, intrinsics = self.intrinsics.read_newest()
         if status is NEW_DATA:
             self._port_intrinsics = intrinsics
-        status, frame = self.rgbd.read()
+        status, value = self.rgbd.read_newest()
         if status is NEW_DATA:
+            frame, origin = unstamped(value)
             self._color, self._depth = frame.color, (frame.depth, frame.depth_scale)
             self._data_intrinsics = frame.intrinsics
-        status, color = self.color.read()
+            self.shown.add(origin)
+        status, value = self.color.read_newest()
         if status is NEW_DATA:
-            self._color = color
-        status, depth = self.depth.read()
+            self._color, origin = unstamped(value)
+            self.shown.add(origin)
+        status, value = self.depth.read_newest()
         if status is NEW_DATA:
+            depth, origin = unstamped(value)
+            self.shown.add(origin)
             if not depth.format.is_depth:
                 raise ValueError(f"{self.name}.depth takes DEPTH16 or DEPTH32F images, got {depth.format.name}")
             self._depth = (depth, self.depth_scale)

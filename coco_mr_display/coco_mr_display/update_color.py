@@ -28,6 +28,7 @@ from coco_core.ports import InputPort
 from coco_core.stamps import Stamp, Stamped, unstamped
 
 from .draw_state import DrawState
+from .shown import ShownInputs
 
 ColorMap = Callable[[float], tuple[float, float, float, float]]
 
@@ -73,6 +74,8 @@ class UpdateColor(Component):
         self._map = colormap(self.colormap)
         self.current: tuple[float, ...] | None = None
         """The colour preRender applies; None until a value or colour arrived."""
+        self.shown = ShownInputs()
+        """The origin of the colour the next frame shows first (its GLManager stamps the frame with it)."""
 
     def map(self, value: float) -> tuple[float, float, float, float]:
         """The colour of ``value``: ``min``..``max`` through the colour map, clamped."""
@@ -80,19 +83,22 @@ class UpdateColor(Component):
         return self._map(min(1.0, max(0.0, s)))
 
     def on_update(self) -> None:
-        status, value = self.value.read()
+        # The newest value or colour is drawn; the ones skipped count as dropped on their connections.
+        status, value = self.value.read_newest()
         if status is NEW_DATA:
             scalar, stamp = unstamped(value)
             if not math.isnan(float(scalar)):
                 self._apply(self.map(float(scalar)), stamp)
-        status, value = self.color.read()
+        status, value = self.color.read_newest()
         if status is NEW_DATA:
             color, stamp = unstamped(value)
             self._apply(_color_of(color), stamp)
 
     def _apply(self, color: tuple[float, ...], stamp: Stamp | None) -> None:
-        """Use ``color`` from now on; a stamped input's latency ends here (it is drawn this frame)."""
+        """Use ``color`` from now on; a stamped input's latency to this peer ends here, to the screen
+        in its GLManager (``shown``)."""
         self.current = color
+        self.shown.add(stamp)
         if stamp is not None:
             self.record_latency(stamp)
 

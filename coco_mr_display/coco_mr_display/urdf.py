@@ -45,6 +45,7 @@ from coco_core.transforms.resources import resolve
 
 from .mesh import GpuMesh, MeshPart, color_problem, load_geometry, merge_parts, parts_of, primitive
 from .phong import PhongPeer
+from .shown import ShownInputs
 
 if TYPE_CHECKING:
     import moderngl
@@ -183,6 +184,8 @@ class GLUrdf(PhongPeer):
                         "frame shows the robot; the start waits for them (about 2 s for Baxter)")
 
     def init(self) -> None:
+        self.shown = ShownInputs()
+        """The origins of the joint states the next frame shows first (the graph's ``origin`` on the robot)."""
         self._links: list[_Link] | None = None
         self._missing: set[str] = set()
         self._cancel = threading.Event()
@@ -247,9 +250,11 @@ class GLUrdf(PhongPeer):
                     self._missing.add(link.frame)
                     first_error = first_error or str(error)
                 continue
+            dependencies = graph.query(world, link.frame).dependencies
             if self.wait_for_joints and any(isinstance(dependency, KinematicModel) and dependency.version == 0
-                                            for dependency in graph.query(world, link.frame).dependencies):
+                                            for dependency in dependencies):
                 continue
+            self.shown.add_graph(dependencies)
             model_view = view_matrix @ pose
             for mesh in link.meshes:
                 self.draw(mesh, model_view, link.color or (1.0, 1.0, 1.0, 1.0), link.color is not None)

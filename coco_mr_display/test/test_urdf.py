@@ -190,3 +190,20 @@ def test_wait_for_joints_draws_nothing_before_the_first_joint_state(robot):
     _, after = frame()
     assert after.sum() > 5000, "after a joint state the robot is drawn"
     assert before.sum() == 0, "the all-zero pose loaded at start is not drawn"
+
+
+def test_the_joint_state_a_frame_shows_first_is_its_input_origin(robot):
+    """A joint state written with its stamp (as TransformationInterface does) reaches GLUrdf's ``shown``
+    once: the frame that first draws it reports it, the next frame (nothing new) does not."""
+    from coco_core.stamps import Stamp
+
+    peer, app, frame = robot(simplify=0.25)
+    peer.wait_loaded(timeout=120)
+    frame()
+    peer.shown.take()  # the all-zero pose the graph holds at start has no stamp anyway
+    cause = Stamp.now(5, "/robot/joint_states")
+    app.transforms.set_joints(MOVED, cause=cause)
+    frame()
+    assert peer.shown.take() is cause
+    frame()
+    assert peer.shown.take() is None

@@ -163,3 +163,47 @@ def test_stamped_inputs_give_the_latency_from_their_origin():
     assert sample.value == 100.5  # the newest ROS stamp of the poses
     assert (sample.stamp.time, sample.stamp.seq, sample.stamp.source) == (oldest.time, 1, "/robot/joint_states")
     assert distance.stats.latency.count == 1 and distance.stats.latency.mean >= 0.05
+
+
+class BurstFeeder(Component):
+    """Writes a bowl pose and a burst of gripper poses (one of them a repeat) in a single update, as a
+    replay at full speed does, so the distance finds them all waiting at once."""
+
+    gripper = OutputPort(Stamped)
+    bowl = OutputPort(Stamped)
+    xs = (0.5, 0.4, 0.4, 0.3, 0.2)
+
+    def init(self) -> None:
+        self.done = False
+
+    def on_update(self) -> None:
+        if not self.done:
+            self.done = True
+            self.bowl.write(Stamped(pose(0.0, source="bowl"), Stamp.now(1, "/bowl/pose")))
+            for seq, x in enumerate(self.xs, start=2):
+                self.gripper.write(Stamped(pose(x, source="gripper"), Stamp.now(seq, "/robot/joint_states")))
+
+
+def test_every_pose_that_changed_gives_one_sample_even_when_they_wait_together():
+    app = Application("burst")
+    feeder = app.add(BurstFeeder("feeder"))
+    distance = app.add(EndEffectorDistance("distance"))
+    sink = app.add(StampedSink("sink"))
+    gripper = app.connect("feeder.gripper", "distance.gripper", BUFFER)
+    app.connect("feeder.bowl", "distance.bowl", BUFFER)
+    app.connect("distance.distance", "sink.values", BUFFER)
+    activity = PeriodicActivity("loop", 0.005)
+    for component in (feeder, distance, sink):
+        app.schedule(component, activity)
+    app.start()
+    try:
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and len(sink.got) < 4:
+            time.sleep(0.01)
+        time.sleep(0.05)
+    finally:
+        app.stop()
+    # The repeated 0.4 changed nothing: four samples, in order, each stamped by the pose that made it.
+    assert [sample.value for sample in sink.got] == pytest.approx([0.5, 0.4, 0.3, 0.2])
+    assert [sample.stamp.seq for sample in sink.got] == [1, 2, 3, 4]
+    assert gripper.counters() == {"written": 5, "read": 5, "dropped": 0, "pending": 0}

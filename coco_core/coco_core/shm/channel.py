@@ -48,7 +48,7 @@ SLOT_HEADER = 32
 RETRIES = 10_000
 """Reads of a slot that keeps changing before the reader gives up for this call (a writer that died
 half-way through a slot would otherwise keep it spinning)."""
-DEFAULT_CAPACITY = 16 * 1024
+DEFAULT_CAPACITY = 4 * 1024
 """Bytes of one slot (larger values go to the slot's overflow segment)."""
 
 
@@ -239,6 +239,10 @@ class ShmReader(ShmConnection):
 
     def push(self, value: Any) -> None:
         raise CocoError(f"connection {self.ring.spec.label}: the reader's end cannot be written")
+
+    def skip(self, count: int = 1) -> None:
+        """Values taken but discarded unused count as dropped (the counting contract of Connection)."""
+        self.ring.counters[READ] -= count
 
     def pop(self) -> Any:
         ring = self.ring

@@ -283,6 +283,10 @@ class ShmPoolReader(Connection):
     def push(self, value: Any) -> None:
         raise CocoError(f"connection {self.pool.spec.label}: the reader's end cannot be written")
 
+    def skip(self, count: int = 1) -> None:
+        """Frames taken but discarded unused count as dropped (the counting contract of Connection)."""
+        self._read -= count
+
     def pop(self) -> Any:
         slot = self.pool.take(self._seen)
         if slot is None:

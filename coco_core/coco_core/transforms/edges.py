@@ -19,6 +19,7 @@ import numpy as np
 from . import se3
 
 if TYPE_CHECKING:
+    from ..stamps import Stamp
     from .graph import Query
 
 
@@ -43,11 +44,15 @@ class ExtrapolationError(LookupError):
 class Dependency:
     """Something a query's value depends on: a version counter and the queries that watch it."""
 
-    __slots__ = ("version", "watchers", "__weakref__")
+    __slots__ = ("version", "watchers", "cause", "__weakref__")
 
     def __init__(self) -> None:
         self.version = 0
         self.watchers: set[Query] = set()
+        self.cause: Stamp | None = None
+        """The :class:`~coco_core.stamps.Stamp` of the input that made the current value, when its
+        writer knew it (``cause=`` of the graph's writes): a display that draws the value measures
+        its sensor-to-display latency from it."""
 
 
 class Edge(Dependency):

@@ -21,6 +21,7 @@ from typing import Any, Callable, ContextManager, Iterable, Mapping
 import numpy as np
 
 from ..errors import did_you_mean
+from ..stamps import Stamp
 from . import se3
 from .edges import AxisEdge, Dependency, DynamicEdge, Edge, EdgeKind, StaticEdge
 from .rwlock import ReadWriteLock
@@ -296,9 +297,11 @@ class TransformGraph:
             raise TransformError(f"unknown frame {frame!r}; {did_you_mean(frame, self._adjacent)}")
 
     # --- writes ---------------------------------------------------------------------------------
-    def set_transform(self, parent: str, child: str, transform: np.ndarray, stamp: float | None = None) -> None:
+    def set_transform(self, parent: str, child: str, transform: np.ndarray, stamp: float | None = None,
+                      cause: Stamp | None = None) -> None:
         """Write ``T_parent_child``: a sample of a dynamic edge (created on first write unless the
-        structure is strict) or, when not strict, a new value of a static edge."""
+        structure is strict) or, when not strict, a new value of a static edge. ``cause``: the stamp
+        of the input it came from, kept on the edge (:attr:`Dependency.cause`) for latency."""
         matrix = se3.frozen(se3.as_transform(transform))  # a bad matrix changes nothing
         with self._lock.write():
             edge = self._edges.get((parent, child))
@@ -333,6 +336,7 @@ class TransformGraph:
                 raise TransformError(f"edge {edge.name} is an {edge.kind.value} edge driven by joint "
                                      f"{getattr(edge, 'joint', '?')}: set its joint value instead")
             if changed or created:
+                edge.cause = cause
                 self.version += 1
         if changed or created:
             self._notify([edge], structure_changed=created)
@@ -357,8 +361,9 @@ class TransformGraph:
         if unknown:
             raise TransformError(f"unknown joint {joint!r}; {did_you_mean(joint, self.joint_names)}")
 
-    def set_joints(self, values: Mapping[str, float]) -> list[str]:
+    def set_joints(self, values: Mapping[str, float], cause: Stamp | None = None) -> list[str]:
         """Set many joint values at once (a JointState): each kinematic model updates in bulk.
+        ``cause``: the stamp of the input they came from, kept on what changed (for latency).
 
         Returns the names nothing in the graph drives; each is also logged once, as
         robot_state_publisher does, and otherwise ignored.
@@ -384,6 +389,8 @@ class TransformGraph:
                         edge.assign(value)
                         changed.append(edge)
             if changed:
+                for dependency in changed:
+                    dependency.cause = cause
                 self.version += 1
         new = [name for name in remaining if name not in self._reported_unknown_joints]
         if new:

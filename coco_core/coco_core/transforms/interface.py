@@ -108,13 +108,13 @@ class TransformationInterface(Component):
                     if not sample.source:
                         self._warn_unnamed(sample)
                         continue
-                    graph.set_transform(sample.target, sample.source, sample.transform, sample.stamp)
+                    graph.set_transform(sample.target, sample.source, sample.transform, sample.stamp, origin)
                 else:
-                    graph.set_transform(sample.parent, sample.child, sample.transform, sample.stamp)
+                    graph.set_transform(sample.parent, sample.child, sample.transform, sample.stamp, origin)
         for joints in self.joints.read_all():
             joints, origin = unstamped(joints)
             self._cause = (origin, joints.stamp)
-            graph.set_joints(joints.as_mapping())
+            graph.set_joints(joints.as_mapping(), origin)
 
     def _warn_unnamed(self, sample: FramePose) -> None:
         if not getattr(self, "_warned_unnamed", False):

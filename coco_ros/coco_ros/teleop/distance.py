@@ -7,7 +7,15 @@ Inputs (event ports, a triggered activity runs the component whenever either cha
 - ``bowl``: ``T_base_bowl`` (e.g. the lookup ``bowl=base:bowl`` of ``/bowl/pose`` in the graph).
   Both must be expressed in the same frame (their ``target``); a mismatch is logged once.
 
-Outputs, written once per update when both poses are known, all with the same :class:`Stamp`:
+Every sample (the paper's "for every change"): each input pose read is one change, taken in order
+of emission (the ports are drained, the values of both merged by their stamps' ``time``), and each
+change that alters a pose gives one sample once both poses are known. A pose equal to the one it
+replaces (e.g. a joint state that moved only the other arm) changes nothing and gives no sample. The
+connections into this component must therefore keep every pose (BUFFER, sized for the backlog a
+fast replay builds up); with a DATA or CIRCULAR connection the poses it discards are counted as
+dropped in the profile, never silently lost.
+
+Outputs, written once per sample, all with the same :class:`Stamp`:
 
 - ``distance``: ``Stamped[float]``, the Euclidean distance between the two frame origins (m);
 - ``color``: ``Stamped[tuple[float, float, float]]``, RGB in 0..1 (see :func:`distance_color`);
@@ -19,8 +27,8 @@ UpdateColorCalc mapping (:func:`distance_color`): green ``(0, 1, 0)`` at ``near`
 ``s = (d - near) / (far - near)``: ``r = min(1, 2 s)``, ``g = min(1, 2 (1 - s))``, ``b = 0``.
 
 Latency (``record_latency``, reported by ``--profile``): the outputs' stamp keeps the ``time`` (and
-``source``) of the oldest :class:`Stamp` among the inputs that triggered the update, so the interval
-measured runs **from the emission of that input upstream** (e.g. ``BagReplay`` with ``stamped``: the
+``source``) of the oldest :class:`Stamp` among the input poses the sample is the first to show (the
+pose that made it, or an earlier one that waited for the other pose), so the interval measured runs **from the emission of that input upstream** (e.g. ``BagReplay`` with ``stamped``: the
 joint state or bowl pose leaving the replay, through the graph) **to the outputs written here**; its
 ``seq`` counts this component's samples. A plain (unstamped) input counts from the moment it is read
 here. The stamp travels with the outputs, so ``TeleopSummary`` measures *emission -> CSV row* with it.
@@ -78,6 +86,8 @@ class EndEffectorDistance(Component):
         self._gripper: FramePose | None = None
         self._bowl: FramePose | None = None
         self._seq = 0
+        self._unshown: Stamp | None = None
+        """The oldest origin among the changes no sample has shown yet (a gripper pose before the first bowl pose)."""
         self._warned = False
         self.last_distance = math.nan
 
@@ -87,23 +97,33 @@ class EndEffectorDistance(Component):
 
     def on_update(self) -> None:
         read = Stamp.now()
-        origins: list[Stamp] = []
+        changes: list[tuple[Stamp, str, FramePose]] = []
         for port, attr in ((self.gripper, "_gripper"), (self.bowl, "_bowl")):
-            values = port.read_all()
-            if values:
-                pose, origin = unstamped(values[-1])
-                setattr(self, attr, pose)
-                origins.append(origin or read)
-        if not origins or self._gripper is None or self._bowl is None:
+            for value in port.read_all():
+                pose, origin = unstamped(value)
+                changes.append((origin or read, attr, pose))
+        changes.sort(key=lambda change: change[0].time)  # stable: each port's own order is kept
+        for origin, attr, pose in changes:
+            previous = getattr(self, attr)
+            setattr(self, attr, pose)
+            if previous is not None and np.array_equal(previous.transform, pose.transform):
+                continue
+            if self._unshown is None or origin.time < self._unshown.time:
+                self._unshown = origin
+            self._sample()
+
+    def _sample(self) -> None:
+        """One sample from the current poses, stamped with the oldest change it is the first to show."""
+        gripper, bowl, origin = self._gripper, self._bowl, self._unshown
+        if gripper is None or bowl is None or origin is None:
             return
-        gripper, bowl = self._gripper, self._bowl
+        self._unshown = None
         if gripper.target != bowl.target and not self._warned:
             self._warned = True
             log.warning("component %s: gripper pose is in %r but bowl pose in %r; the distance assumes one frame",
                         self.name, gripper.target, bowl.target)
         self._seq += 1
-        oldest = min(origins, key=lambda origin: origin.time)
-        stamp = Stamp(oldest.time, self._seq, oldest.source or self.name)
+        stamp = Stamp(origin.time, self._seq, origin.source or self.name)
         distance = frame_distance(gripper, bowl)
         self.last_distance = distance
         times = [t for t in (gripper.stamp, bowl.stamp) if t is not None]

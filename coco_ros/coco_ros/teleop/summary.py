@@ -3,7 +3,9 @@
 Inputs: ``distance`` (``Stamped[float]``, event), ``color`` (``Stamped[(r, g, b)]``), ``bag_time``
 (``Stamped[float]``, ROS seconds), all written by :class:`~.distance.EndEffectorDistance` with one
 shared :class:`Stamp` per sample (matched here by ``stamp.seq``); optional data ports ``bowl`` and
-``target`` (:class:`FramePose` in one frame, optionally Stamped) for the final bowl-to-target distance.
+``target`` (:class:`FramePose` in one frame, optionally Stamped) for the final bowl-to-target distance;
+optional ``display_latency`` (``Stamped[float]``, a GLManager's ``latency``: per rendered frame that
+showed a new input, seconds from that input's emission to the frame's pixels).
 
 CSV (``csv`` attribute): ``seq, time, distance, r, g, b, latency_ms`` — ``time`` is seconds after
 ``time_origin`` (the ROS time of session time 0; ``0``: the first sample's bag time), ``latency_ms``
@@ -13,7 +15,8 @@ stamped replay and graph upstream, from the emission of the input that caused th
 JSON (``json`` attribute, at ``on_stop``, after the last rows are flushed): ``samples``,
 ``min_distance``, ``min_distance_time``, ``final_distance``, ``grasp_time`` (first time the
 distance is below ``near``, or null), ``near``, ``time_origin``, ``final_bowl_target_distance``
-(null without ``bowl``/``target``), ``latency_ms`` (mean, max).
+(null without ``bowl``/``target``), ``latency_ms`` (mean, max), ``display_latency_ms`` (``frames``,
+``mean``, ``median``, ``p90``, ``max``: sensor-to-display latency; nulls without a display).
 
 :func:`describe` puts a JSON summary in a few lines: ``python -m coco_ros.teleop summary.json`` (what
 ``scripts/run_app.sh`` shows after the run).
@@ -24,12 +27,14 @@ from __future__ import annotations
 import csv
 import json
 import math
+import statistics
 import time
 from pathlib import Path
 from typing import IO, Any
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
 from coco_core.stamps import Stamped, unstamped
 from coco_core.transforms.samples import FramePose
@@ -39,6 +44,16 @@ from .distance import frame_distance
 
 def _finite(value: float) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
+
+
+def _milliseconds(seconds: list[float]) -> dict[str, Any]:
+    """Count, mean, median, 90th percentile and max in milliseconds (nulls when empty)."""
+    if not seconds:
+        return {"frames": 0, "mean": None, "median": None, "p90": None, "max": None}
+    ordered = sorted(seconds)
+    return {"frames": len(seconds), "mean": statistics.fmean(seconds) * 1e3,
+            "median": statistics.median(seconds) * 1e3, "p90": ordered[int(0.9 * (len(ordered) - 1))] * 1e3,
+            "max": ordered[-1] * 1e3}
 
 
 class TeleopSummary(Component):
@@ -54,6 +69,7 @@ class TeleopSummary(Component):
     bag_time = InputPort(Stamped, doc="ROS time (s) of each distance sample")
     bowl = InputPort(FramePose | Stamped, doc="bowl pose, optional (final bowl-to-target distance)")
     target = InputPort(FramePose | Stamped, doc="target pose, optional (final bowl-to-target distance)")
+    display_latency = InputPort(Stamped, doc="sensor-to-display latency (s) of each rendered frame, optional")
 
     def on_config(self) -> None:
         self.csv.parent.mkdir(parents=True, exist_ok=True)
@@ -70,6 +86,7 @@ class TeleopSummary(Component):
         self._final = math.nan
         self._grasp: float | None = None
         self._latencies: list[float] = []
+        self._display: list[float] = []
         self._bowl: FramePose | None = None
         self._target: FramePose | None = None
 
@@ -82,10 +99,11 @@ class TeleopSummary(Component):
             self._colors[sample.stamp.seq] = sample.value
         for sample in self.bag_time.read_all():
             self._times[sample.stamp.seq] = sample.value
+        self._display.extend(float(sample.value) for sample in self.display_latency.read_all())
         for port, attr in ((self.bowl, "_bowl"), (self.target, "_target")):
-            values = port.read_all()
-            if values:
-                setattr(self, attr, unstamped(values[-1])[0])
+            status, value = port.read_newest()  # only the last pose matters; older ones count as dropped
+            if status is NEW_DATA:
+                setattr(self, attr, unstamped(value)[0])
         if not self._pending:
             return
         now = time.perf_counter()
@@ -134,6 +152,7 @@ class TeleopSummary(Component):
             "final_bowl_target_distance": bowl_target,
             "latency_ms": {"mean": sum(lat) / len(lat) * 1e3 if lat else None,
                            "max": max(lat) * 1e3 if lat else None},
+            "display_latency_ms": _milliseconds(self._display),
             "csv": str(self.csv),
         }
 
@@ -162,4 +181,8 @@ def describe(summary: dict[str, Any]) -> str:
     latency = summary["latency_ms"]
     if latency["mean"] is not None:
         lines.append(f"latency, replay emission -> CSV row: mean {latency['mean']:.2f} ms, max {latency['max']:.2f} ms")
+    display = summary.get("display_latency_ms") or {}
+    if display.get("frames"):
+        lines.append(f"latency, replay emission -> rendered frame: median {display['median']:.1f} ms, "
+                     f"mean {display['mean']:.1f} ms, max {display['max']:.1f} ms ({display['frames']} frames)")
     return "\n".join(lines)

@@ -1,0 +1,102 @@
+"""Sensor-to-display latency: every frame GLManager renders carries the stamp of the oldest input it is
+the first to show (a stamped port value, or the origin the graph keeps on an edge or robot), and the
+frames that show a new input give their latency on ``latency`` and in the manager's profile."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from coco_core import Application
+from coco_core.component import Component
+from coco_core.policy import BufferPolicy, ConnectionPolicy
+from coco_core.ports import InputPort, OutputPort
+from coco_core.stamps import Stamp, Stamped
+from coco_core.transforms.samples import FramePose
+from coco_mr_display.camera import GLCameraManager
+from coco_mr_display.entity import GLEntity
+from coco_mr_display.manager import GLManager
+from coco_mr_display.update_color import UpdateColor
+
+
+class Inputs(Component):
+    """What the teleop app feeds the view: a stamped colour, and a stamped pose for an entity."""
+
+    color = OutputPort(Stamped)
+    pose = OutputPort(Stamped)
+
+
+class Collected(Component):
+    frames = InputPort(Stamped)
+    latency = InputPort(Stamped)
+
+
+def scene(color_policy: ConnectionPolicy | None = None) -> tuple[Application, GLManager, Inputs, Collected]:
+    app = Application("latency-test")
+    manager = GLManager("display", width=64, height=48, stamped=True, world="base")
+    manager.add_peer(GLCameraManager("camera", position=[0.0, -3.0, 0.0], look_at=[0.0, 0.0, 0.0]))
+    bowl = GLEntity("bowl", mesh="sphere", frame="bowl")
+    bowl.add_peer(UpdateColor("bowl_color"))
+    manager.add_peer(bowl)
+    manager.add_peer(GLEntity("marker", mesh="box", size=[0.1, 0.1, 0.1]))
+    inputs, collected = Inputs("inputs"), Collected("collected")
+    for component in (manager, inputs, collected):
+        app.add(component)
+    app.connect("inputs.color", "bowl_color.color", color_policy)
+    app.connect("inputs.pose", "marker.pose")
+    app.connect("display.color", "collected.frames")
+    app.connect("display.latency", "collected.latency")
+    app.transforms.add_frame("base")
+    return app, manager, inputs, collected
+
+
+def test_each_frame_is_stamped_with_the_oldest_input_it_shows_first():
+    app, manager, inputs, collected = scene()
+    graph = app.transforms
+    assert manager.configure(), "GLManager failed to configure (see the log)"
+    try:
+        # Frame 1: the bowl's edge written with a known origin, and an older stamped colour.
+        bowl_origin = Stamp.now(7, "/bowl/pose")
+        graph.set_transform("base", "bowl", np.eye(4), 1.0, cause=bowl_origin)
+        colour_origin = Stamp(bowl_origin.time - 0.010, 3, "distance")
+        inputs.color.write(Stamped((0.0, 1.0, 0.0), colour_origin))
+        manager.step()
+        [frame] = collected.frames.read_all()
+        assert frame.stamp == Stamp(colour_origin.time, 1, "distance")  # the older of the two
+        [latency] = collected.latency.read_all()
+        assert latency.stamp == frame.stamp and latency.value >= 0.010
+        assert manager.stats.latency.count == 1
+
+        # Frame 2: nothing new reaches the screen: stamped at render time, no latency recorded.
+        before = time.perf_counter()
+        manager.step()
+        [frame] = collected.frames.read_all()
+        assert frame.stamp.source == "display" and frame.stamp.seq == 2 and frame.stamp.time >= before
+        assert collected.latency.read_all() == [] and manager.stats.latency.count == 1
+
+        # Frame 3: a stamped pose of the marker, and the bowl moved again by a newer input.
+        pose_origin = Stamp.now(11, "/marker")
+        inputs.pose.write(Stamped(FramePose("base", "marker", np.eye(4), 2.0), pose_origin))
+        moved = np.eye(4)
+        moved[0, 3] = 0.1
+        graph.set_transform("base", "bowl", moved, 2.0, cause=Stamp.now(8, "/bowl/pose"))
+        manager.step()
+        [frame] = collected.frames.read_all()
+        assert frame.stamp == Stamp(pose_origin.time, 3, "/marker")
+        assert manager.stats.latency.count == 2
+    finally:
+        manager.stop()
+
+
+def test_a_display_reading_the_newest_counts_the_skipped_inputs_as_dropped():
+    app, manager, inputs, collected = scene(ConnectionPolicy(BufferPolicy.BUFFER, size=16))
+    assert manager.configure()
+    try:
+        for seq in range(5):
+            inputs.color.write(Stamped((0.0, 1.0, 0.0), Stamp.now(seq, "distance")))
+        manager.step()
+    finally:
+        manager.stop()
+    connection = next(c for c in app.connections if c.sink is not None and c.sink.name == "color")
+    assert connection.counters() == {"written": 5, "read": 1, "dropped": 4, "pending": 0}

@@ -1,0 +1,239 @@
+"""Every shell command the documentation shows runs as written, after the README's own steps.
+
+The commands are read from the Markdown itself (every line of every ```bash / ```sh block of
+README.md and docs/*.md), so a command added to the docs is covered without touching this file.
+
+How a documented line is run (the rules a reader of a failure needs):
+
+- in a fresh ``bash`` started in the workspace root, with the environment of a new terminal (no
+  virtual environment, no workspace on PATH, PYTHONPATH, AMENT_PREFIX_PATH...), after the README's
+  step ``source install/setup.bash`` and after the ``source ...`` lines above it in its own block;
+  the lines of one block run in order (a later line may use what an earlier one made);
+- a line that runs an application until it is stopped (``coco-launch`` / ``launcher`` with an
+  application file and without ``--check`` / ``--list``, or ``scripts/run_app.sh``) gets
+  ``--duration 4`` (``APP_SECONDS``): right after the file for a launcher (before ``--ros-args``),
+  at the end for run_app.sh, which hands its arguments to the launcher. The launcher takes the
+  last ``--duration``, so this also shortens a documented one;
+- a file the docs name as the *user's own* (``USER_FILES``, e.g. the Baxter SDK recording
+  ``shake_hand.dat``) is linked into the workspace root for the run from ``../shared/data``;
+- an output the line names under ``out/`` (e.g. ``out/shake_hand``) is made by it: one left by an
+  earlier run is moved aside for the block and put back afterwards (a bag is never overwritten);
+- it must exit with status 0 within ``TIMEOUT`` seconds;
+- the lines in ``NOT_RUN`` are not run, each for the reason given there (a test checks the list
+  names only lines the docs still show, so it cannot rot).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import subprocess
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT, SHARED_DATA
+
+APP_SECONDS = 4
+TIMEOUT = 300
+SHELLS = {"bash", "sh"}
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+NOT_RUN: dict[str, str] = {
+    "./scripts/run_tests.sh":
+        "runs the whole test suite, this test included (it would run itself); the suite run is how it is exercised",
+    "ros2 run coco_ros launcher config/demo_pipeline.xml":
+        "needs the ros2 command line (ros2cli), which the PyPI wheels here do not include; the line above runs the "
+        "same installed script by its path",
+    "PYTHONPATH=coco_core python bench/run_all.py --markdown /tmp/tables.md":
+        "a benchmark run (about 6 minutes of full load): benchmarks are run by hand, never as tests",
+    "PYTHONPATH=coco_core python bench/run_all.py --seconds 2":
+        "runs all seven benchmarks (minutes of full load): benchmarks are run by hand, never as tests",
+    "PYTHONPATH=coco_core python bench/run_all.py --only bench_period":
+        "a benchmark run (minutes of full load): benchmarks are run by hand, never as tests",
+    "PYTHONPATH=coco_core python bench/bench_ports.py --no-plot":
+        "a benchmark run: benchmarks are run by hand, never as tests",
+}
+
+USER_FILES: dict[str, Path] = {
+    "shake_hand.dat": SHARED_DATA / "baxter" / "shake_hand.dat",
+}
+
+LAUNCHERS = {"coco-launch", "launcher"}
+
+
+@dataclass
+class Command:
+    """One documented command line and where it is written."""
+
+    path: Path
+    line: int
+    text: str
+
+    @property
+    def where(self) -> str:
+        return f"{self.path.relative_to(ROOT)}:{self.line}"
+
+    @property
+    def bare(self) -> str:
+        """The line without its trailing comment (the key of ``NOT_RUN``)."""
+        return re.sub(r"\s+#\s.*$", "", self.text).strip()
+
+
+@dataclass
+class Block:
+    """A fenced shell block: its commands, run in order in one test."""
+
+    path: Path
+    line: int
+    commands: list[Command] = field(default_factory=list)
+
+
+def shell_blocks(path: Path) -> list[Block]:
+    """The ```bash / ```sh blocks of a Markdown file; continued lines (``\\``) are joined."""
+    blocks: list[Block] = []
+    current: Block | None = None
+    pending: tuple[int, str] | None = None
+    for number, raw in enumerate(path.read_text().splitlines(), start=1):
+        fence = re.match(r"^\s*```\s*([\w+-]*)", raw)
+        if fence:
+            if current is None:
+                current = Block(path, number) if fence.group(1) in SHELLS else Block(path, -number)
+            else:
+                if current.line > 0:
+                    blocks.append(current)
+                current = None
+            continue
+        if current is None or current.line < 0:
+            continue
+        start, text = pending if pending else (number, "")
+        text = f"{text} {raw.strip()}" if text else raw.strip()
+        if text.endswith("\\"):
+            pending = (start, text[:-1].rstrip())
+            continue
+        pending = None
+        if text and not text.startswith("#"):
+            current.commands.append(Command(path, start, text))
+    return blocks
+
+
+def all_blocks() -> list[Block]:
+    return [block for path in DOCS for block in shell_blocks(path)]
+
+
+def fresh_terminal_env() -> dict[str, str]:
+    """The environment of a new terminal: nothing of this workspace or its venv on any search path."""
+    env = {key: value for key, value in os.environ.items()
+           if key not in {"VIRTUAL_ENV", "PYTHONPATH", "AMENT_PREFIX_PATH", "CMAKE_PREFIX_PATH",
+                          "COLCON_PREFIX_PATH", "PYTHONHOME", "VIRTUAL_ENV_PROMPT"}
+           # _ROS_WHEELS_BOOTSTRAP_COMPLETE: the ROS wheels' start-up already set LD_LIBRARY_PATH in the
+           # venv's interpreter that runs this test; a new terminal has not.
+           and not key.startswith(("COLCON_", "_ROS_"))}
+    root = str(ROOT)
+    for key in ("PATH", "LD_LIBRARY_PATH"):
+        if key in env:
+            env[key] = os.pathsep.join(entry for entry in env[key].split(os.pathsep)
+                                       if entry and not entry.startswith(root))
+    env.update(ROS_DOMAIN_ID="83", ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", PYTHONUNBUFFERED="1")
+    return env
+
+
+def shortened(command: str) -> str:
+    """The command with ``--duration APP_SECONDS`` where it runs an application (module docstring)."""
+    bare = re.sub(r"\s+#\s.*$", "", command).strip()
+    words = shlex.split(bare)
+    program = Path(words[0]).name if words else ""
+    if program == "run_app.sh":
+        return f"{bare} --duration {APP_SECONDS}"
+    if program in LAUNCHERS and not {"--check", "--list"} & set(words):
+        files = [i for i, word in enumerate(words) if word.endswith(".xml")]
+        if files:
+            words.insert(files[0] + 1, "--duration")
+            words.insert(files[0] + 2, str(APP_SECONDS))
+            return shlex.join(words)
+    return command
+
+
+def test_the_docs_show_commands_and_the_extraction_finds_them() -> None:
+    """A sanity check of the extraction itself: the README's own commands are among those found."""
+    commands = [command.bare for block in all_blocks() for command in block.commands]
+    assert "source install/setup.bash" in commands
+    assert any(command.startswith("coco-launch config/demo_pipeline.xml") for command in commands)
+    assert any(command.startswith("baxter-import") for command in commands)
+
+
+def test_every_line_not_run_is_still_documented() -> None:
+    documented = {command.bare for block in all_blocks() for command in block.commands}
+    stale = sorted(set(NOT_RUN) - documented)
+    assert not stale, f"NOT_RUN names lines the docs no longer show: {stale}"
+
+
+def test_shortened_inserts_the_duration_after_the_application_file() -> None:
+    assert shortened("launcher config/a.xml x:=1 --ros-args -p a:=1") == \
+        f"launcher config/a.xml --duration {APP_SECONDS} x:=1 --ros-args -p a:=1"
+    assert shortened("coco-launch config/a.xml --check   # comment") == "coco-launch config/a.xml --check   # comment"
+    assert shortened("./scripts/run_app.sh   # main job") == f"./scripts/run_app.sh --duration {APP_SECONDS}"
+
+
+@pytest.fixture
+def fresh_outputs(request):
+    """Moves aside, for one block, the ``out/...`` paths its lines name, and puts them back after."""
+    block: Block = request.param
+    moved: list[tuple[Path, Path]] = []
+    for command in block.commands:
+        for word in shlex.split(command.bare):
+            path = ROOT / word.partition(":=")[2 if ":=" in word else 0]
+            if path.is_relative_to(ROOT / "out") and path != ROOT / "out" and path.exists():
+                aside = path.with_name(f".{path.name}.before-test")
+                shutil.rmtree(aside, ignore_errors=True)
+                path.rename(aside)
+                moved.append((path, aside))
+    yield block
+    for path, aside in moved:
+        shutil.rmtree(path, ignore_errors=True)
+        aside.rename(path)
+
+
+@pytest.mark.parametrize("fresh_outputs", all_blocks(), indirect=True,
+                         ids=lambda block: f"{block.path.relative_to(ROOT)}:{block.line}")
+def test_documented_block_runs_as_written(fresh_outputs: Block) -> None:
+    block = fresh_outputs
+    env = fresh_terminal_env()
+    sourced: list[str] = []
+    failures: list[str] = []
+    ran = 0
+    for command in block.commands:
+        if command.bare in NOT_RUN:
+            print(f"not run: {command.where}: {command.bare} ({NOT_RUN[command.bare]})")
+            continue
+        links = []
+        for name, source in USER_FILES.items():
+            if name in shlex.split(command.bare):
+                if not source.exists():
+                    pytest.skip(f"{command.where} needs {source} (the shared test data), which is absent")
+                link = ROOT / name
+                if not link.exists():
+                    link.symlink_to(source)
+                    links.append(link)
+        script = "\n".join(["source install/setup.bash", *sourced, shortened(command.text)])
+        try:
+            done = subprocess.run(["bash", "-c", script], cwd=ROOT, env=env, capture_output=True, text=True,
+                                  timeout=TIMEOUT)
+        except subprocess.TimeoutExpired as error:
+            failures.append(f"{command.where}: `{command.text}` did not finish within {TIMEOUT} s:\n{error.stdout}")
+            continue
+        finally:
+            for link in links:
+                link.unlink()
+        ran += 1
+        if done.returncode != 0:
+            failures.append(f"{command.where}: `{command.text}` exited with {done.returncode}:\n"
+                            f"{done.stdout[-3000:]}\n{done.stderr[-3000:]}")
+        if command.bare.startswith("source "):
+            sourced.append(command.bare)
+    assert not failures, "\n\n".join(failures)
+    if not ran:
+        pytest.skip("every line of this block is in NOT_RUN (reasons printed above)")
