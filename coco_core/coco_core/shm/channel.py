@@ -31,10 +31,14 @@ common case.
 
 from __future__ import annotations
 
+import copyreg
+import io
 import pickle
 import struct
 from dataclasses import dataclass
 from typing import Any
+
+import numpy as np
 
 from ..connections import EMPTY, Connection
 from ..errors import CocoError
@@ -96,13 +100,15 @@ class _Ring:
         self.capacity = spec.capacity
         self.stride = SLOT_HEADER + spec.capacity
         self.view = self.segment.view
-
-    def stamp_view(self, index: int) -> memoryview:
-        offset = HEADER + (index % self.slots) * self.stride
-        return self.view[offset:offset + SLOT_HEADER].cast("q")
+        self.map = self.segment.map
+        self.words = self.segment.view[HEADER:].cast("q")
+        """The ring as 64-bit words: slot ``i``'s header starts at word ``i * stride // 8``, so headers
+        are read and written without making a view per access."""
+        self.slot_words = self.stride // 8
 
     def close(self) -> None:
         self.counters.release()
+        self.words.release()
         self.segment.close()
 
 
@@ -178,7 +184,11 @@ class ShmWriter(ShmConnection):
         counters = ring.counters
         buffers: list[pickle.PickleBuffer] = []
         try:
-            data = pickle.dumps(value, protocol=5, buffer_callback=buffers.append)
+            out = io.BytesIO()
+            pickler = pickle.Pickler(out, 5, buffer_callback=buffers.append)
+            pickler.dispatch_table = _DISPATCH
+            pickler.dump(value)
+            data = out.getvalue()
             raws = [buffer.raw() for buffer in buffers]
         except Exception as error:
             raise ChannelError(f"connection {ring.spec.label}: {type(value).__name__} value cannot be sent to "
@@ -190,22 +200,23 @@ class ShmWriter(ShmConnection):
         if self.mode is BufferPolicy.BUFFER and stored - counters[CURSOR] >= ring.slots:
             return  # full: the new value is refused, as an in-process BUFFER refuses it
         index = stored % ring.slots
-        offset = HEADER + index * ring.stride
-        stamp = ring.view[offset:offset + SLOT_HEADER].cast("q")
-        stamp[0] = 0  # being written: a reader of this slot retries
-        stamp[1] = size
+        words, word = ring.words, index * ring.slot_words
+        words[word] = 0  # being written: a reader of this slot retries
+        words[word + 1] = size
         if size <= ring.capacity:
-            stamp[2] = 0
-            target, at = ring.view, offset + SLOT_HEADER
+            words[word + 2] = 0
+            target, at = ring.map, HEADER + index * ring.stride + SLOT_HEADER
         else:  # a large value (a camera image on a plain port): the slot's overflow segment holds it
-            stamp[2] = self._overflow(index, size)
-            target, at = self._overflows[index][1].view, 0
-        for part in (table, data, *raws):  # arrays go from their own memory into the slot: one copy
-            end = at + len(part) if isinstance(part, bytes) else at + part.nbytes
-            target[at:end] = part
-            at = end
-        stamp[0] = stored + 1
-        stamp.release()
+            words[word + 2] = self._overflow(index, size)
+            target, at = self._overflows[index][1].map, 0
+        target[at:at + len(table)] = table
+        at += len(table)
+        target[at:at + len(data)] = data
+        at += len(data)
+        for raw in raws:  # arrays go from their own memory into the slot: one copy
+            target[at:at + raw.nbytes] = raw
+            at += raw.nbytes
+        words[word] = stored + 1
         counters[STORED] = stored + 1
         trigger = self.trigger
         if trigger is not None:
@@ -259,29 +270,42 @@ class ShmReader(ShmConnection):
                 index = stored - slots  # lapped by the writer: the oldest still in the ring
             else:
                 index = cursor
-            offset = HEADER + (index % slots) * ring.stride
-            stamp = ring.view[offset:offset + SLOT_HEADER].cast("q")
-            before = stamp[0]
+            slot = index % slots
+            words, word = ring.words, slot * ring.slot_words
+            before = words[word]
             if before != index + 1:  # being written, or already overwritten: look again
-                stamp.release()
                 continue
-            size, generation = stamp[1], stamp[2]
+            size, generation = words[word + 1], words[word + 2]
             if generation:
-                large = self._large(index % slots, generation, size)
+                large = self._large(slot, generation, size)
                 if large is None:
-                    stamp.release()
                     continue
                 data = large
             else:
-                data = bytearray(ring.view[offset + SLOT_HEADER:offset + SLOT_HEADER + size])
-            after = stamp[0]
-            stamp.release()
-            if after != before:  # overwritten during the copy
+                start = HEADER + slot * ring.stride + SLOT_HEADER
+                data = bytearray(ring.map[start:start + size])
+            if words[word] != before:  # overwritten during the copy
                 continue
             counters[CURSOR] = index + 1
             counters[READ] += 1
             return _decode(data)
         return EMPTY  # the writer stopped in the middle of a slot (it died): nothing to read
+
+
+def _array(buffer: Any, dtype: str, shape: tuple[int, ...]) -> np.ndarray:
+    """An array over ``buffer`` (the reader's copy of the slot), as :func:`_reduce_array` sent it."""
+    return np.frombuffer(buffer, dtype).reshape(shape)
+
+
+def _reduce_array(array: np.ndarray) -> Any:
+    """A contiguous array as its raw memory (out of band), its dtype's code and shape: numpy's own
+    reduction pickles the dtype object, which costs most of a small sample's encoding."""
+    if array.flags.c_contiguous and not array.dtype.hasobject:
+        return _array, (pickle.PickleBuffer(array), array.dtype.str, array.shape)
+    return array.__reduce_ex__(5)
+
+
+_DISPATCH = {**copyreg.dispatch_table, np.ndarray: _reduce_array}
 
 
 def _decode(data: bytearray) -> Any:
