@@ -13,6 +13,8 @@ setup(
         # Listed in colcon.pkg: puts lib/<pkg> (the console scripts, where `ros2 run` looks) on PATH.
         (f"share/{PACKAGE}/hook", ["hook/scripts_path.dsv", "hook/scripts_path.sh"]),
     ],
+    # coco-launch is a plain script, not a console-script entry point: see scripts/coco-launch.
+    scripts=["scripts/coco-launch"],
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="CoCo for ROS 2 developers",
@@ -21,9 +23,6 @@ setup(
     license="MIT",
     tests_require=["pytest"],
     entry_points={
-        'console_scripts': [
-            'coco-launch = coco_core.launcher:main',
-        ],
         'coco.components': [
             'SignalGenerator = coco_core.demo.signal_generator:SignalGenerator',
             'MovingAverage = coco_core.demo.moving_average:MovingAverage',

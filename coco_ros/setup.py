@@ -12,6 +12,8 @@ setup(
         # Listed in colcon.pkg: puts lib/<pkg> (the console scripts, where `ros2 run` looks) on PATH.
         (f"share/{PACKAGE}/hook", ["hook/scripts_path.dsv", "hook/scripts_path.sh"]),
     ],
+    # The launcher is a plain script, not a console-script entry point: see scripts/launcher.
+    scripts=["scripts/launcher"],
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="CoCo for ROS 2 developers",
@@ -21,7 +23,6 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [
-            "launcher = coco_ros.launcher:main",
             "baxter-import = coco_ros.baxter.importer:main",
             "baxter-session = coco_ros.baxter.session:main",
             "coco-replay = coco_ros.replay.cli:main",

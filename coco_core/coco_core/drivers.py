@@ -80,6 +80,7 @@ class ThreadDriver:
     def run(self, activity: Activity) -> None:
         """The activity's life in the calling thread: configure, loop until stopped, finish."""
         self._activity, self._entered = activity, True
+        self._thread = threading.current_thread()
         set_current_activity(activity)
         try:
             for warning in apply_to_current_thread(activity.scheduling, activity.reserved_cores):
@@ -131,6 +132,12 @@ class ThreadDriver:
             if activity.stopping:
                 return None
         return now
+
+    @property
+    def thread(self) -> threading.Thread | None:
+        """The thread that runs the activity (None before it started, or while a main activity waits
+        for the launcher's thread)."""
+        return self._thread
 
     def wake(self) -> None:
         self._wake.set()

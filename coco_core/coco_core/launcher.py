@@ -3,8 +3,8 @@
     coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown]] [--list]
 
 Ctrl-C (or SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran in
-its own thread; a second Ctrl-C forces the exit. The ROS 2 launcher (``coco_ros``) shares this
-command line.
+its own thread (:mod:`coco_core.signals` has the rules and the exit statuses). The ROS 2 launcher
+(``coco_ros``) shares this command line.
 """
 
 from __future__ import annotations
@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
-import signal
 import sys
 import threading
 from pathlib import Path
@@ -30,6 +29,7 @@ from .processes.level import process_level
 from .processes.placement import LAUNCHER, Placement
 from .processes.supervisor import ProcessSupervisor
 from .report import profile_report
+from .signals import INTERRUPTED, Interrupted, LaunchSignals, leave
 from .xml import load_application
 
 log = logging.getLogger("coco")
@@ -146,19 +146,6 @@ def describe_processes(spec: AppSpec, launcher_part: Application, allow_unknown:
     return "\n".join(lines)
 
 
-def install_signal_handlers(app: Application) -> None:
-    """First Ctrl-C / SIGTERM: clean stop. Second Ctrl-C: give up at once."""
-
-    def handle(signum: int, _frame: object) -> None:
-        if app.stop_requested and signum == signal.SIGINT:
-            signal.signal(signal.SIGINT, signal.SIG_DFL)
-            raise KeyboardInterrupt
-        app.request_stop(f"received {signal.Signals(signum).name}")
-
-    signal.signal(signal.SIGINT, handle)
-    signal.signal(signal.SIGTERM, handle)
-
-
 def start_profile_printer(report: Callable[[], str], every: float) -> threading.Event:
     """Print ``report()`` every ``every`` seconds until the returned event is set."""
     done = threading.Event()
@@ -174,11 +161,10 @@ def start_profile_printer(report: Callable[[], str], every: float) -> threading.
 @contextlib.contextmanager
 def launcher_services(app: Application, options: argparse.Namespace,
                       processes: ProcessSupervisor | None = None) -> Iterator[None]:
-    """What every launcher runs around an application: Ctrl-C handling, the profile (every
+    """What every launcher runs around an application: the profile (every
     ``--profile`` seconds and once at the end, of every process of the application) and the
     transformation graph's server (``--transforms-server``); the server stops and the final profile
     prints when the block ends."""
-    install_signal_handlers(app)
     report = processes.report if processes is not None else lambda: profile_report(app)
     printer = start_profile_printer(report, options.profile) if options.profile else None
     server = None
@@ -216,8 +202,9 @@ def load_and_build(options: argparse.Namespace) -> tuple[AppSpec, Application]:
     return spec, app
 
 
-def run(options: argparse.Namespace) -> int:
-    """Load, build and run according to parsed ``options``; returns the exit code."""
+def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> int:
+    """Load, build and run according to parsed ``options``; returns the exit code. ``signals``: the
+    launcher's signal handling when the entry point installed it already."""
     logging.basicConfig(level=options.log_level, format="[%(levelname)s] %(name)s: %(message)s")
     if options.list:
         print(list_components())
@@ -225,8 +212,13 @@ def run(options: argparse.Namespace) -> int:
     if options.app is None:
         print("coco-launch: an application file is needed (or --list)", file=sys.stderr)
         return 2
+    signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
     try:
         spec, app = load_and_build(options)
+        signals.check()
+    except Interrupted as interrupted:
+        print(f"coco-launch: {interrupted}", file=sys.stderr)
+        return interrupted.status
     except CocoError as error:
         print(f"coco-launch: {error}", file=sys.stderr)
         return 1
@@ -240,19 +232,26 @@ def run(options: argparse.Namespace) -> int:
     configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
     try:
         with process_level(spec, app, logging.getLevelName(options.log_level)) as processes:
+            signals.attach(app)
             with launcher_services(app, options, processes):
                 app.run(options.duration)
             clean = app.stop()
+    except Interrupted as interrupted:
+        print(f"coco-launch: {interrupted}", file=sys.stderr)
+        return interrupted.status
     except ProcessError as error:
         print(f"coco-launch: {error}", file=sys.stderr)
         return 1
     failed = stopped_by_a_failure(app) or (processes is not None and processes.failed)
-    return 0 if clean and not failed else 1
+    status = 0 if clean and not failed else 1
+    if signals.forced or not clean:  # a second Ctrl-C, or an activity that did not stop: leave now
+        leave(INTERRUPTED if signals.forced else status)
+    return status
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, signals: LaunchSignals | None = None) -> int:
     # Intermixed: `app.xml --duration 3 window:=4` puts an argument after an option.
-    return run(make_parser().parse_intermixed_args(argv))
+    return run(make_parser().parse_intermixed_args(argv), signals)
 
 
 if __name__ == "__main__":

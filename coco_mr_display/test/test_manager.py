@@ -193,7 +193,7 @@ def test_two_managers_render_at_once_on_their_own_activities() -> None:
             time.sleep(0.05)
     finally:
         assert app.stop()
-    threads = {app.activity("render0")._thread, app.activity("render1")._thread}
+    threads = {app.activity("render0").driver.thread, app.activity("render1").driver.thread}
     assert len(threads) == 2
     for sink, colour in zip(sinks, (RED, (0, 0, 255))):
         assert len(sink.images) >= 10

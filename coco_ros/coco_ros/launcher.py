@@ -9,8 +9,9 @@ The command line is ``coco-launch``'s (same file format, same ``name:=value`` ar
 name is the application's, ``-r __node:=NAME`` renames it), parameters (``-p``, declared on the node
 from the overrides), log levels. The application's activities run as callback groups of an rclpy
 executor (multi-threaded; single-threaded when it hosts the only activity) or on threads of their own
-(:mod:`coco_ros.hosting` decides, ``--threads`` overrides). Ctrl-C (or SIGTERM) stops every activity within a second, after each component's
-``on_stop`` ran; a second Ctrl-C forces the exit.
+(:mod:`coco_ros.hosting` decides, ``--threads`` overrides). Ctrl-C (or SIGTERM) stops every activity
+within a second, after each component's ``on_stop`` ran (:mod:`coco_core.signals`: the rules and the
+exit statuses).
 
 Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.ros_node``).
 """
@@ -19,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
 import re
 import sys
 import threading
@@ -39,6 +39,7 @@ from coco_core.launcher import (
 )
 from coco_core.processes.level import process_level
 from coco_core.processes.supervisor import ProcessSupervisor
+from coco_core.signals import INTERRUPTED, Interrupted, LaunchSignals, leave
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
 
@@ -105,12 +106,14 @@ def _threads(values: Sequence[str]) -> list[str]:
     return [name.strip() for value in values for name in value.split(",") if name.strip()]
 
 
-def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
+def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: LaunchSignals | None = None) -> int:
     """Load, build and run according to parsed ``options``; ``ros_args`` go to ``rclpy.init`` (the
     whole command line may be given: rcl only takes its ``--ros-args`` sections).
 
     Returns the exit code: 0 after a clean stop, 1 for a wrong file or a component that stopped the
-    application, 2 for a wrong command line, :data:`HUNG` when an activity did not stop in time.
+    application, 2 for a wrong command line, 128 + the signal number when a signal came before the
+    application ran or a second Ctrl-C during its stop (:mod:`coco_core.signals`), :data:`HUNG`
+    when an activity did not stop in time.
     """
     logging.basicConfig(level=options.log_level, format="[%(levelname)s] %(name)s: %(message)s")
     if options.list:
@@ -119,9 +122,14 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
     if options.app is None:
         print(f"{_NAME}: an application file is needed (or --list)", file=sys.stderr)
         return 2
+    signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
     try:
         spec, app = load_and_build(options)
         plan = plan_hosting(app, _threads(options.threads), options.all_threads)
+        signals.check()
+    except Interrupted as interrupted:
+        print(f"{_NAME}: {interrupted}", file=sys.stderr)
+        return interrupted.status
     except CocoError as error:
         print(f"{_NAME}: {error}", file=sys.stderr)
         return 1
@@ -156,7 +164,12 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
             executor = host.create_executor(options.executor_threads)
             executor.add_node(node)
             log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
-            return _run_hosted(app, host, executor, options, processes)
+            signals.attach(app)
+            code = _run_hosted(app, host, executor, options, processes)
+            return INTERRUPTED if signals.forced else code
+    except Interrupted as interrupted:
+        print(f"{_NAME}: {interrupted}", file=sys.stderr)
+        return interrupted.status
     except ProcessError as error:
         print(f"{_NAME}: {error}", file=sys.stderr)
         return 1
@@ -206,19 +219,15 @@ def run_hosted(app: Application, host: ExecutorHost, executor: object, duration:
     return clean
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point (``lib/coco_ros/launcher``): ``argv`` without the program name."""
+def main(argv: Sequence[str] | None = None, signals: LaunchSignals | None = None) -> int:
+    """Entry point (``lib/coco_ros/launcher``, through ``coco_ros.entry``): ``argv`` without the
+    program name; ``signals``: the launcher's signal handling when the entry point installed it."""
     argv = list(sys.argv[1:] if argv is None else argv)
     own, ros_args = split_ros_args(argv)
     options = make_ros_parser().parse_intermixed_args(own)
-    try:
-        code = run(options, ros_args)  # only the --ros-args sections reach rcl
-    except KeyboardInterrupt:  # the second Ctrl-C: give up at once, whatever still runs
-        code = HUNG
-    if code == HUNG:  # an executor worker may still be inside a hung on_update: do not join it
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(1)
+    code = run(options, ros_args, signals)  # only the --ros-args sections reach rcl
+    if code in (HUNG, INTERRUPTED):  # a hung on_update, or a second Ctrl-C: do not wait for threads
+        leave(1 if code == HUNG else code)
     return code
 
 

@@ -186,7 +186,8 @@ class ProcessSupervisor:
         try:  # every child gets every wake-up eventfd: it may write to any process's reader
             popen = subprocess.Popen(
                 [sys.executable, "-m", self.child_module, str(theirs), str(os.getpid())],
-                pass_fds=(theirs, *self._wakes.values()), stdin=subprocess.DEVNULL)
+                pass_fds=(theirs, *self._wakes.values()), stdin=subprocess.DEVNULL,
+                start_new_session=True)  # a terminal's Ctrl-C reaches the launcher, which stops them
         finally:
             os.close(theirs)
         link.send("config", spec=self.spec, process=name, launch=self.launch_id, wakes=self._wakes,

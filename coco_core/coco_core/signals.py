@@ -1,0 +1,86 @@
+"""Ctrl-C and SIGTERM for a whole launch, from its first instant to its last.
+
+The handlers are installed before anything is loaded, so a signal at any moment has one defined
+effect, and none of them ever raises into the interrupted code (a library that swallows
+``KeyboardInterrupt``, or a native thread torn down by an exception, cannot turn a Ctrl-C into
+nothing or into an abort):
+
+- before the application runs (the file is being read, components built, child processes started),
+  the signal is recorded and the launch ends at the next step with exit status 128 + the signal
+  number (130 for Ctrl-C, 143 for SIGTERM), having started nothing;
+- while it runs, the first Ctrl-C or SIGTERM stops it cleanly: every activity finishes its cycle and
+  runs ``on_stop`` within a second, outputs are flushed, and the status is the application's own
+  (0, or 1 for a failure);
+- a second Ctrl-C during that stop does not interrupt the flushing: the stop, bounded by a second,
+  completes, and then the launcher leaves at once (no waiting for other threads) with status 130.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import sys
+from typing import TYPE_CHECKING
+
+from .errors import CocoError
+
+if TYPE_CHECKING:
+    from .application import Application
+
+log = logging.getLogger("coco")
+
+INTERRUPTED = 128 + signal.SIGINT
+"""The exit status of a launch ended by Ctrl-C before it ran, or left at once by a second Ctrl-C."""
+
+
+class Interrupted(CocoError):
+    """The launch was interrupted before the application ran."""
+
+    def __init__(self, signum: int) -> None:
+        self.status = 128 + signum
+        super().__init__(f"interrupted by {signal.Signals(signum).name} before the application started")
+
+
+class LaunchSignals:
+    """The launcher's handling of SIGINT and SIGTERM (see the module's documentation)."""
+
+    def __init__(self) -> None:
+        self.app: Application | None = None
+        self.received: list[int] = []
+        self.forced = False
+        """A second Ctrl-C came: leave as soon as the stop is done."""
+
+    def install(self) -> LaunchSignals:
+        signal.signal(signal.SIGINT, self._handle)
+        signal.signal(signal.SIGTERM, self._handle)
+        return self
+
+    def _handle(self, signum: int, _frame: object) -> None:
+        self.received.append(signum)
+        app = self.app
+        if app is None:
+            return  # checked between the steps of the launch
+        if app.stop_requested and signum == signal.SIGINT:
+            self.forced = True
+            print("coco: stopping (at most 1 s), then leaving at once", file=sys.stderr, flush=True)
+        app.request_stop(f"received {signal.Signals(signum).name}")
+
+    def check(self) -> None:
+        """Raise :class:`Interrupted` when a signal came before the application runs."""
+        if self.received and self.app is None:
+            raise Interrupted(self.received[0])
+
+    def attach(self, app: Application) -> None:
+        """From now on a signal stops ``app`` (after a last :meth:`check`)."""
+        self.check()
+        self.app = app
+
+
+def leave(status: int) -> None:
+    """Exit with ``status`` now, after flushing what Python buffers, without waiting for threads
+    (a hung activity, rclpy's or Mesa's native threads) or running interpreter teardown."""
+    logging.shutdown()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)

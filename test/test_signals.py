@@ -1,0 +1,81 @@
+"""Signals at any moment of a launch (issue: Ctrl-C during start-up was swallowed, a second Ctrl-C
+aborted in native code and lost the contact sheet, SIGTERM during start-up killed silently).
+
+The rules (coco_core.signals, README's exit statuses): a signal before the application runs ends
+the launch with 128 + its number and nothing started; while it runs, the first Ctrl-C or SIGTERM
+stops it cleanly within a second (status 0) with its outputs flushed; a second Ctrl-C lets that
+stop finish and leaves at once with 130. Never a negative status (killed by a signal) or an abort.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import DEMO_APP, ROOT, read_rows, start_launcher
+from test_baxter_app import APP as BAXTER_APP
+from test_baxter_app import session  # noqa: F401  (the generated session, a module fixture)
+
+DELAYS = [0.3, 0.7, 1.2, 2.0, 3.5]
+"""Seconds from the start of the launcher to the signal: while the runtime is imported, while the
+file is read and components are built, and while it runs (the demo starts in about 1-2 s here). The
+launcher's handling is in force about 0.1 s after the interpreter starts (``coco_core.entry``)."""
+
+
+def launchers() -> list[Path]:
+    return [ROOT / "install" / "coco_core" / "lib" / "coco_core" / "coco-launch",
+            ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"]
+
+
+@pytest.fixture(autouse=True)
+def ros_domain(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("ROS_DOMAIN_ID", "66")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+
+@pytest.mark.parametrize("launcher", launchers(), ids=["coco-launch", "ros-launcher"])
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_at_any_moment_ends_the_launch_cleanly(launcher: Path, signum: int, tmp_path: Path) -> None:
+    for delay in DELAYS:
+        output = tmp_path / f"run_{delay}.csv"
+        process = start_launcher(launcher, DEMO_APP, f"output:={output}", "--duration", "60")
+        time.sleep(delay)
+        sent = time.monotonic()
+        process.send_signal(signum)
+        out, _ = process.communicate(timeout=30)
+        took = time.monotonic() - sent
+        code = process.returncode
+        assert code in (0, 128 + signum), f"{delay} s: status {code}\n{out}"
+        assert took < 3.0, f"{delay} s: stopped {took:.1f} s after the signal\n{out}"  # 1 s + interpreter exit
+        assert "Traceback" not in out and "terminate called" not in out, f"{delay} s:\n{out}"
+        if code == 128 + signum:
+            assert "before the application started" in out, out
+            assert not output.exists(), "nothing ran, nothing was written"
+        else:
+            assert "(clean)" in out, out
+            rows = read_rows(output)  # flushed: complete rows only
+            assert all(row["value"] not in (None, "") for row in rows), rows[-1:]
+
+
+def test_a_second_ctrl_c_during_the_stop_keeps_the_outputs(coco_launch: Path, session, tmp_path: Path) -> None:  # noqa: F811
+    folder, _ = session
+    output = tmp_path / "teleop"
+    process = subprocess.Popen([str(coco_launch), BAXTER_APP, f"bag:={folder}", f"output:={output}"], cwd=ROOT,
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    video = output / "frames.mp4"
+    deadline = time.monotonic() + 60
+    while not (video.exists() and video.stat().st_size > 0) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(1.0)
+    process.send_signal(signal.SIGINT)
+    time.sleep(0.02)
+    process.send_signal(signal.SIGINT)
+    out, _ = process.communicate(timeout=30)
+    assert process.returncode == 130, f"status {process.returncode}\n{out}"
+    assert "terminate called" not in out and "Traceback" not in out, out
+    assert (output / "contact_sheet.png").stat().st_size > 0, "the contact sheet was written"
+    assert (output / "summary.json").exists(), "the summary was written"
