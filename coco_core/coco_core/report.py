@@ -55,11 +55,11 @@ def profile_report(app: Application) -> str:
                     _ms(stats.compute.total),
                     _us(stats.compute.mean), _us(stats.compute.std),
                     _ms(stats.service.mean), _ms(stats.service.std),
-                    str(stats.errors),
+                    str(stats.errors), str(stats.refused),
                     f"{_ms(latency.mean)} / {_ms(latency.max)}" if latency.count else "-",
                 ])
     parts.append(_table(["component", "activity", "execs", "total ms", "compute mean us", "compute std us",
-                         "service mean ms", "service std ms", "errors", "latency mean/max ms"], rows))
+                         "service mean ms", "service std ms", "errors", "refused", "latency mean/max ms"], rows))
 
     rows = []
     for connection in app.connections:

@@ -192,7 +192,10 @@ def test_rest_lookup_values_paths_times_and_errors(graph, servers) -> None:
     status, data = get_json(server, "api/lookup?target=world")
     assert status == 400 and "missing query parameter 'source'" in data["error"]
     status, data = get_json(server, "api/lookup?target=world&source=camera&time=soon")
-    assert status == 400 and "time must be a number" in data["error"]
+    assert status == 400 and "time must be a finite number" in data["error"]
+    for bad in ("nan", "inf", "-inf"):
+        status, data = get_json(server, f"api/lookup?target=world&source=camera&time={bad}")
+        assert status == 400 and "finite" in data["error"], (bad, status, data)
 
 
 def test_page_and_its_files_are_served(graph, servers) -> None:

@@ -14,6 +14,7 @@ Consecutive edges of one :class:`KinematicModel` (a URDF robot) are evaluated to
 from __future__ import annotations
 
 import logging
+import math
 import time as _time
 from collections import deque
 from typing import Any, Callable, ContextManager, Iterable, Mapping
@@ -32,6 +33,14 @@ Callback = Callable[[np.ndarray], None]
 
 class TransformError(LookupError):
     """An unknown frame, no path, or a write the declared structure forbids."""
+
+
+def _finite_time(value: Any, what: str) -> float:
+    """``value`` as seconds; NaN and infinities are refused (they compare false with every stamp, so
+    they would silently break the order of a history or return a NaN pose)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value):
+        raise ValueError(f"{what} must be a finite number of seconds, got {value!r}")
+    return value
 
 
 class KinematicModel(Dependency):
@@ -300,6 +309,8 @@ class TransformGraph:
         """Write ``T_parent_child``: a sample of a dynamic edge (created on first write unless the
         structure is strict) or, when not strict, a new value of a static edge."""
         matrix = se3.frozen(se3.as_transform(transform))  # a bad matrix changes nothing
+        if stamp is not None:
+            stamp = _finite_time(stamp, "stamp")  # a NaN stamp would break the history's order
         with self._lock.write():
             edge = self._edges.get((parent, child))
             if edge is None:
@@ -347,6 +358,29 @@ class TransformGraph:
             self.version += 1
         self._notify([edge])
 
+    def place_static(self, parent: str, child: str, transform: np.ndarray) -> bool:
+        """Make ``parent -> child`` a static edge with this value, as tf2 treats /tf_static: add it,
+        replace its value (a new calibration), or nothing when it already has this value (a static
+        broadcaster re-sends its whole set). Returns whether the graph changed; an edge of another
+        kind is a :class:`TransformError`."""
+        matrix = se3.frozen(se3.as_transform(transform))
+        with self._lock.write():
+            edge = self._edges.get((parent, child)) or self._edges.get((child, parent))
+        if edge is None:
+            try:
+                self.add_edge(StaticEdge(parent, child, matrix))
+                return True
+            except TransformError:  # another writer added it meanwhile: replace its value below
+                edge = self.edge(parent, child)
+        if not isinstance(edge, StaticEdge):
+            raise TransformError(f"edge {edge.name} is a {edge.kind.value} edge of the graph, not a static "
+                                 "one: a static transform cannot set it")
+        value = matrix if edge.parent == parent else se3.frozen(se3.inverse(matrix))
+        if np.array_equal(edge.transform(), value):
+            return False
+        self.set_static(edge.parent, edge.child, value)
+        return True
+
     def reading(self) -> ContextManager[None]:
         """Hold the read lock: several lookups inside see one consistent state of the graph."""
         return self._lock.read()
@@ -365,8 +399,8 @@ class TransformGraph:
         """
         changed: list[Dependency] = []
         for name, value in values.items():  # nothing changes when one value is wrong
-            if not isinstance(value, (int, float, np.number)) or isinstance(value, bool) or value != value:
-                raise ValueError(f"joint {name}: expected a number, got {value!r}")
+            if not isinstance(value, (int, float, np.number)) or isinstance(value, bool) or not math.isfinite(value):
+                raise ValueError(f"joint {name}: expected a finite number, got {value!r}")
         with self._lock.write():
             remaining = dict(values)
             for model in self._models.values():
@@ -408,6 +442,7 @@ class TransformGraph:
             if query is not None and query.graph_version == self.version:
                 return query.value
             return self._refresh(query or self._new_query(target, source))
+        time = _finite_time(time, "time")
         with self._lock.read():
             steps = self._resolve(target, source)
             return self._product(steps, time)

@@ -24,6 +24,7 @@ from coco_core.transforms.samples import FramePose, TransformSample
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
 
 from .base import Converter, header_stamp, make_header, message_class
+from .stamps import RosTime
 
 
 def matrix_of(translation: Any, rotation: Any) -> np.ndarray:
@@ -98,6 +99,15 @@ def transform_sample(msg: TransformStamped) -> TransformSample:
                            matrix_of(transform.translation, transform.rotation), header_stamp(msg.header))
 
 
+def static_sample(msg: TransformStamped) -> TransformSample:
+    """A /tf_static transform: a static sample, its stamp kept as given (0 included)."""
+    transform = msg.transform
+    stamp = msg.header.stamp
+    return TransformSample(msg.header.frame_id, msg.child_frame_id,
+                           matrix_of(transform.translation, transform.rotation),
+                           RosTime(stamp.sec, stamp.nanosec), static=True)
+
+
 def transform_stamped(value: TransformSample | FramePose) -> TransformStamped:
     parent, child = _frames(value)
     return TransformStamped(header=make_header(value.stamp, parent), child_frame_id=child,
@@ -112,12 +122,17 @@ class TFMessageConverter(Converter[Any, list]):
     converter is made: no PyPI wheel carries it, the workspace builds it (``vendor/tf2_msgs``), so a
     shell that did not source the workspace's ``install/setup.bash`` gets an error saying so, while
     the other geometry converters still work.
+
+    ``static``: the messages come from /tf_static (or another latched TF topic): their samples are
+    marked ``static`` and become static edges of the graph, like TFBridge makes them, whatever their
+    stamp (a static broadcaster's stamp is often 0, which is no "unset" here).
     """
 
     type_name = "tf2_msgs/msg/TFMessage"
     coco_type = list
 
-    def __init__(self) -> None:
+    def __init__(self, static: bool = False) -> None:
+        self.static = static
         try:
             self._message = message_class(self.type_name)
         except ImportError as error:
@@ -131,6 +146,8 @@ class TFMessageConverter(Converter[Any, list]):
 
     def to_coco(self, msg: Any) -> list[TransformSample]:
         self._check_message(msg)
+        if self.static:
+            return [static_sample(transform) for transform in msg.transforms]
         return [transform_sample(transform) for transform in msg.transforms]
 
     def to_ros(self, value: TransformSample | FramePose | Iterable[TransformSample | FramePose]) -> Any:

@@ -18,7 +18,9 @@ Attributes (all settable from the application XML):
 - ``output``: what the ports carry. ``coco`` (default): the converter's CoCo value
   (:func:`coco_ros.convert.converter_for`, port type ``converter.coco_type``), and for a type without
   converter the deserialized rclpy message (port type ``object``); ``/tf`` and ``/tf_static``
-  become lists of ``TransformSample`` (tf2_msgs' converter). ``ros``: always the
+  become lists of ``TransformSample`` (tf2_msgs' converter), those of ``/tf_static`` (any latched
+  TFMessage topic) marked ``static``: a TransformationInterface makes them static edges, as TFBridge
+  does, whatever their stamp (0 is usual). ``ros``: always the
   deserialized rclpy message. ``bag``: the :class:`~coco_ros.bag.BagMessage` itself (CDR bytes,
   log time, topic), nothing decoded.
 - ``stop_at_end``: request the application stop once the bag is replayed (not with ``loop``) and the
@@ -66,6 +68,7 @@ from coco_core.ports import OutputPort
 from coco_core.stamps import Stamp, Stamped
 
 from ..bag import BagError, BagMessage, BagReader
+from ..bag.message_types import TF_MESSAGE
 from ..interface.topic import converter_options, parse_options
 from .player import Played, Player, parse_remaps
 
@@ -141,6 +144,8 @@ class BagReplay(Component):
             type_name = self._reader.topics[topic].type
             out_topic = self._remaps.get(topic, topic)
             given = options.pop(out_topic, None) or options.pop(topic, {})
+            if type_name == TF_MESSAGE and self._reader.topics[topic].latched and "static" not in given:
+                given = {**given, "static": "true"}  # /tf_static: static edges, as TFBridge makes them
             try:
                 converter = _converter(type_name, given) if self.output == "coco" else None
             except (ValueError, ImportError) as error:
