@@ -97,3 +97,25 @@ def test_not_a_bag_exits_1(tmp_path):
     bad.write_bytes(b"not an mcap file at all")
     result = cli(str(bad), "--fast", "--delay", "0")
     assert result.returncode == 1 and str(bad) in result.stderr
+
+
+def test_bag_cut_at_a_record_boundary_exits_1_naming_what_is_lost(chatter_bag, tmp_path):
+    """No byte of a record is cut: only metadata.yaml's counts show that the bag lost its end."""
+    import shutil
+    import struct
+
+    folder = tmp_path / "cut"
+    shutil.copytree(chatter_bag, folder)
+    mcap = folder / "chatter_0.mcap"
+    data = mcap.read_bytes()
+    position, chunks = 8, []
+    while position < len(data) - 8:
+        opcode, length = struct.unpack_from("<BQ", data, position)
+        if opcode == 0x06:  # Chunk
+            chunks.append(position)
+        position += 9 + length
+    mcap.write_bytes(data[: chunks[len(chunks) // 2]])
+    result = cli(str(folder), "--fast", "--delay", "0")
+    assert result.returncode == 1, result.stderr
+    assert f"{folder / 'metadata.yaml'}: the storage files hold fewer messages" in result.stderr, result.stderr
+    assert "are lost" in result.stderr

@@ -47,8 +47,10 @@ Operations: ``pause()``, ``resume()``, ``step(n=1)`` (deliver the next n message
 ``progress()`` -> ``(time, end)`` in seconds after the bag start.
 
 An ``clock`` output port carries the replayed (simulated) time in seconds after each update that
-delivered messages. A damaged bag is replayed as far as it is readable, then its error (file and
-byte offset) is logged once.
+delivered messages. A damaged bag (cut, corrupt, or holding fewer messages than its metadata.yaml
+declares) is replayed as far as it is readable, then its error (file and byte offset, or what is
+lost) is logged once and reported to the application (:meth:`Application.report_damage`): the
+launcher exits with 1 and a summary that reads ``app.damage`` shows it.
 """
 
 from __future__ import annotations
@@ -206,6 +208,8 @@ class BagReplay(Component):
 
     def _on_bag_error(self, error: BagError) -> None:
         log.error("component %s: bag damaged, replayed what was readable: %s", self.name, error)
+        if self.app is not None:  # the launcher's exit status and the summaries carry it
+            self.app.report_damage(f"{self.name}: {error}")
 
     def on_update(self) -> None:
         player = self._player

@@ -13,7 +13,9 @@ stamped replay and graph upstream, from the emission of the input that caused th
 JSON (``json`` attribute, at ``on_stop``, after the last rows are flushed): ``samples``,
 ``min_distance``, ``min_distance_time``, ``final_distance``, ``grasp_time`` (first time the
 distance is below ``near``, or null), ``near``, ``time_origin``, ``final_bowl_target_distance``
-(null without ``bowl``/``target``), ``latency_ms`` (mean, max).
+(null without ``bowl``/``target``), ``latency_ms`` (mean, max), ``input_damage`` (the
+application's :attr:`~coco_core.application.Application.damage`: e.g. a truncated bag; empty when
+the inputs were whole).
 
 :func:`describe` puts a JSON summary in a few lines: ``python -m coco_ros.teleop summary.json`` (what
 ``scripts/run_app.sh`` shows after the run).
@@ -135,6 +137,7 @@ class TeleopSummary(Component):
             "latency_ms": {"mean": sum(lat) / len(lat) * 1e3 if lat else None,
                            "max": max(lat) * 1e3 if lat else None},
             "csv": str(self.csv),
+            "input_damage": list(self.app.damage) if self.app is not None else [],
         }
 
     def on_stop(self) -> None:
@@ -159,6 +162,8 @@ def describe(summary: dict[str, Any]) -> str:
              f"final gripper-to-bowl distance {metres(summary['final_distance'])}"
              + (f"; bowl left {metres(summary['final_bowl_target_distance'])} from its target"
                 if summary["final_bowl_target_distance"] is not None else "")]
+    for damage in summary.get("input_damage") or ():
+        lines.append(f"DAMAGED INPUT (the run used what was readable): {damage}")
     latency = summary["latency_ms"]
     if latency["mean"] is not None:
         lines.append(f"latency, replay emission -> CSV row: mean {latency['mean']:.2f} ms, max {latency['max']:.2f} ms")
