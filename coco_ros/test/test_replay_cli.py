@@ -173,6 +173,7 @@ def robot_bag(tmp_path_factory) -> Path:
     /amcl_pose offered transient local with depth 1, as nav2's AMCL does."""
     from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
     from nav_msgs.msg import Odometry
+    from std_msgs.msg import String
 
     from coco_ros.bag import Qos
 
@@ -188,7 +189,7 @@ def robot_bag(tmp_path_factory) -> Path:
             writer.write("/tf", TFMessage(transforms=transforms), T0 + 10 * MS + i * MS)
             if i % 2 == 0:
                 writer.write("/odom", Odometry(child_frame_id="base_link"), T0 + 10 * MS + i * MS)
-        writer.write("/amcl_pose", PoseWithCovarianceStamped(), T0 + 5000 * MS)  # keeps a 1x replay alive 5 s
+        writer.write("/keepalive", String(data="end"), T0 + 8000 * MS)  # keeps a 1x replay alive 8 s
     return folder
 
 
@@ -227,7 +228,7 @@ def test_replay_offers_the_recorded_depth_to_late_transient_local_subscribers(ro
     replay published ten of them gets one, as it would have from the recorded publisher."""
     subscriber = start_subscriber("late", 3.0)
     try:
-        result = cli(str(robot_bag), "--delay", "0", "--topics", "/amcl_pose", timeout=60)
+        result = cli(str(robot_bag), "--delay", "0", "--topics", "/amcl_pose", "/keepalive", timeout=60)
         assert result.returncode == 0, result.stderr
         lines = subscriber.communicate(timeout=30)[0].split("\n")
     finally:
