@@ -9,7 +9,8 @@ Standard library only (``http.server``), bound to 127.0.0.1 by default::
 
 REST (GET, JSON unless said otherwise)
 
-- ``/api/graph``: the whole graph (:func:`.export.graph_dict`)
+- ``/api/graph``: the whole graph (:func:`.export.graph_dict`), serialised once per graph version
+  and at most every ``GRAPH_MAX_AGE`` s while it changes, shared by concurrent requests
 - ``/api/frames``: ``{"frames": [...]}``
 - ``/api/edges``: ``{"edges": [...]}``
 - ``/api/lookup?target=a&source=b[&time=t]``: ``T_a_b`` as ``matrix``, ``translation``, ``quaternion``
