@@ -1210,3 +1210,40 @@ def test_place_static_adds_replaces_or_keeps_a_static_edge():
     graph.set_transform("world", "base", np.eye(4), 1.0)
     with pytest.raises(TransformError, match="world->base is a dynamic edge"):
         graph.place_static("world", "base", np.eye(4))
+
+
+def test_partial_products_follow_any_sequence_of_changes():
+    """A lookup after a change reuses the products before and after the changed edge: over random
+    sequences (one edge, several, none, the same again, edges off the path, static replacements)
+    it always equals the plain product of the path."""
+    rng = np.random.default_rng(5)
+
+    def random_transform() -> np.ndarray:
+        q = rng.normal(size=4)
+        return se3.from_pose(rng.normal(size=3), q / np.linalg.norm(q))
+
+    graph = TransformGraph()
+    values = [random_transform() for _ in range(8)]
+    dynamic = {1, 4, 6}
+    for i, value in enumerate(values):
+        if i in dynamic:
+            graph.set_transform(f"f{i}", f"f{i + 1}", value, 0.0)
+        else:
+            graph.add_static(f"f{i}", f"f{i + 1}", value)
+    graph.set_transform("f3", "side", random_transform(), 0.0)
+    stamp = 1.0
+    for _ in range(300):
+        for _ in range(int(rng.integers(0, 3))):
+            i = int(rng.choice([1, 4, 6, 2, 7, -1]))
+            if i == -1:
+                graph.set_transform("f3", "side", random_transform(), stamp)
+            elif i in dynamic:
+                values[i] = random_transform()
+                graph.set_transform(f"f{i}", f"f{i + 1}", values[i], stamp)
+            else:
+                values[i] = random_transform()
+                graph.set_static(f"f{i}", f"f{i + 1}", values[i])
+            stamp += 1.0
+        expected = np.linalg.multi_dot(values)
+        np.testing.assert_allclose(graph.lookup("f0", "f8"), expected, atol=1e-9)
+        np.testing.assert_allclose(graph.lookup("f8", "f0"), np.linalg.inv(expected), atol=1e-9)

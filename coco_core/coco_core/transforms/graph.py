@@ -144,7 +144,8 @@ class Query:
     """A cached lookup of ``T_target_source``; get one from :meth:`TransformGraph.query`."""
 
     __slots__ = ("graph", "target", "source", "steps", "dependencies", "versions", "graph_version",
-                 "structure_version", "value", "callbacks", "notified", "__weakref__")
+                 "structure_version", "value", "callbacks", "notified", "step_versions", "prefix", "suffix",
+                 "prefix_valid", "suffix_valid", "positions", "__weakref__")
 
     def __init__(self, graph: TransformGraph, target: str, source: str) -> None:
         self.graph = graph
@@ -159,6 +160,18 @@ class Query:
         self.callbacks: list[Callback] = []
         self.notified: np.ndarray | None = None
         """The value callbacks saw last: a structure change elsewhere that leaves it equal is silent."""
+        self.step_versions: list[int] = []
+        """The version of each step's dependency when the value was computed."""
+        self.prefix: list[np.ndarray] = []
+        """``prefix[k]``: the product of steps ``0..k-1`` (``prefix[0]`` the identity)."""
+        self.suffix: list[np.ndarray] = []
+        """``suffix[k]``: the product of steps ``k..n-1`` (``suffix[n]`` the identity)."""
+        self.prefix_valid = -1
+        """``prefix[0..prefix_valid]`` hold the current values; the later ones are stale."""
+        self.suffix_valid = 1 << 30
+        """``suffix[suffix_valid..n]`` hold the current values; the earlier ones are stale."""
+        self.positions: dict[Dependency, int] = {}
+        """Dependency -> index of its step (empty when a dependency has several steps)."""
 
     @property
     def path(self) -> list[str]:
@@ -215,6 +228,9 @@ class TransformGraph:
         self.version = 0
         self.structure_version = 0
         self._reported_unknown_joints: set[str] = set()
+        self._last_change: tuple[int, Dependency | None] = (-1, None)
+        """(graph version, the edge) of the last write that changed exactly one edge: a query one
+        version behind knows what changed without comparing every version on its path."""
 
     # --- structure ------------------------------------------------------------------------------
     @property
@@ -345,6 +361,7 @@ class TransformGraph:
                                      f"{getattr(edge, 'joint', '?')}: set its joint value instead")
             if changed or created:
                 self.version += 1
+                self._last_change = (self.version, edge)
         if changed or created:
             self._notify([edge], structure_changed=created)
 
@@ -426,6 +443,49 @@ class TransformGraph:
         self._notify(changed)
         return list(remaining)
 
+    def set_joint_array(self, names: tuple[str, ...], positions: np.ndarray) -> list[str]:
+        """:meth:`set_joints` for values as they arrive in a JointState: names and an array, kept an
+        array down to the kinematic models (:meth:`UrdfModel.set_array
+        <coco_core.transforms.urdf.UrdfModel.set_array>`). Refused, changing nothing: a length that
+        differs from the names', a non-finite value."""
+        positions = np.asarray(positions, dtype=float)
+        if positions.shape != (len(names),):
+            raise ValueError(f"joint sample with {len(names)} names but {positions.size} positions: refused")
+        if not np.isfinite(positions).all():
+            bad = next(i for i, value in enumerate(positions.tolist()) if not math.isfinite(value))
+            raise ValueError(f"joint {names[bad]}: expected a finite number, got {positions[bad]!r}")
+        models = [model for model in self._models.values() if hasattr(model, "set_array")]
+        if not models or len(models) != len(self._models):
+            return self.set_joints(dict(zip(names, positions.tolist())))
+        changed: list[Dependency] = []
+        with self._lock.write():
+            remaining: tuple[str, ...] | None = None
+            for model in models:
+                before = model.version
+                unknown = model.set_array(names, positions)
+                if model.version != before:
+                    changed.append(model)
+                remaining = unknown if remaining is None else tuple(n for n in remaining if n in unknown)
+            left = []
+            if remaining:
+                values = dict(zip(names, positions.tolist()))
+                for name in remaining:
+                    edge = self._joints.get(name)
+                    if edge is None:
+                        left.append(name)
+                    elif edge.value != values[name]:
+                        edge.assign(values[name])
+                        changed.append(edge)
+            if changed:
+                self.version += 1
+        new = [name for name in left if name not in self._reported_unknown_joints]
+        if new:
+            self._reported_unknown_joints.update(new)
+            log.warning("ignoring joint(s) that no edge or model has: %s", ", ".join(sorted(new)))
+        if changed:
+            self._notify(changed)
+        return left
+
     @property
     def joint_names(self) -> list[str]:
         names = list(self._joints)
@@ -475,17 +535,91 @@ class TransformGraph:
         query.steps, query.dependencies = steps, dependencies
         query.structure_version = self.structure_version
         query.versions = ()
+        query.step_versions = []
+        query.positions = ({step.dependency: index for index, step in enumerate(steps)}
+                           if len(dependencies) == len(steps) else {})
 
     def _refresh(self, query: Query) -> np.ndarray:
         with self._lock.read():
             version = self.version
+            last_version, last_edge = self._last_change
+            if (last_version == version and query.graph_version == version - 1 and query.step_versions
+                    and query.structure_version == self.structure_version):
+                # Exactly one write since this query's value: one edge changed, known without scanning.
+                index = query.positions.get(last_edge)
+                if index is None and last_edge not in query.dependencies:
+                    query.graph_version = version  # off the path: the value stands
+                    return query.value
+                if index is not None and index <= query.prefix_valid and index + 1 >= query.suffix_valid:
+                    query.value = self._replace_step(query, index)
+                    query.step_versions[index] = last_edge.version
+                    query.versions = None  # the slow path compares step_versions instead
+                    query.graph_version = version
+                    return query.value
             self._resolve_path(query)
             versions = tuple(dependency.version for dependency in query.dependencies)
             if versions != query.versions:
-                query.value = self._product(query.steps, None)
+                query.value = self._evaluate(query)
                 query.versions = versions
             query.graph_version = version
             return query.value
+
+    @staticmethod
+    def _evaluate(query: Query) -> np.ndarray:
+        """The query's value after some steps changed, from cached partial products.
+
+        The common change is one edge of a long path (a tracked object under a chain of static
+        edges): the value is then ``prefix[k] @ step_k @ suffix[k+1]``, two matrix products instead
+        of one per hop; the prefix products before the change and the suffix products after it stay
+        valid for the next change of the same edge. Any other change rebuilds every prefix and suffix
+        product (twice the products of a plain evaluation, once).
+        """
+        steps = query.steps
+        count = len(steps)
+        if count < 3:  # nothing to save
+            query.step_versions = []
+            return TransformGraph._product(steps, None)
+        now = [step.dependency.version for step in steps]
+        old = query.step_versions
+        query.step_versions = now
+        if len(old) == count:
+            changed = [k for k in range(count) if now[k] != old[k]]
+            if not changed:
+                return query.value
+            low, high = changed[0], changed[-1]
+            if low == high and low <= query.prefix_valid and low + 1 >= query.suffix_valid:
+                return TransformGraph._replace_step(query, low)
+            if low <= query.prefix_valid and high + 1 >= query.suffix_valid:
+                result = query.prefix[low] if low else None
+                for k in range(low, high + 1):
+                    value = steps[k].value(None)
+                    result = value if result is None else result @ value
+                if high + 1 < count:
+                    result = result @ query.suffix[high + 1]
+                query.prefix_valid, query.suffix_valid = low, high + 1
+                return se3.frozen(result) if result.flags.writeable else result
+        values = [step.value(None) for step in steps]
+        prefix = [se3.IDENTITY, values[0]]
+        for value in values[1:]:
+            prefix.append(prefix[-1] @ value)
+        suffix = [se3.IDENTITY] * (count + 1)
+        suffix[count - 1] = values[-1]
+        for k in range(count - 2, -1, -1):
+            suffix[k] = values[k] @ suffix[k + 1]
+        query.prefix, query.suffix = prefix, suffix
+        query.prefix_valid, query.suffix_valid = count, 0
+        return se3.frozen(prefix[count])
+
+    @staticmethod
+    def _replace_step(query: Query, index: int) -> np.ndarray:
+        """The value when only step ``index`` changed: ``prefix[index] @ step @ suffix[index + 1]``."""
+        value = query.steps[index].value(None)
+        if index:
+            value = query.prefix[index] @ value
+        if index + 1 < len(query.steps):
+            value = value @ query.suffix[index + 1]
+        query.prefix_valid, query.suffix_valid = index, index + 1
+        return se3.frozen(value) if value.flags.writeable else value
 
     @staticmethod
     def _product(steps: list[_Step], time: float | None) -> np.ndarray:

@@ -114,8 +114,8 @@ class TransformationInterface(Component):
         for joints in self.joints.read_all():
             joints, origin = unstamped(joints)
             self._cause = (origin, joints.stamp)
-            try:
-                graph.set_joints(joints.as_mapping())
+            try:  # the positions stay an array down to the kinematic models
+                graph.set_joint_array(joints.names, joints.positions)
             except (ValueError, LookupError) as error:
                 self.record_refusal(f"a joint sample on port {self.joints.name}", error)
 
