@@ -64,6 +64,12 @@ class KinematicModel(Dependency):
         """Set joint values by name in one bulk update; return the names the model does not have."""
         raise NotImplementedError
 
+    def set_array(self, names: tuple[str, ...], positions: np.ndarray) -> tuple[str, ...]:
+        """Set joint values given as names and a (checked, finite) array; return the names the model
+        does not have. This default goes through :meth:`set_positions`; a model that can take the
+        array as it is overrides it."""
+        return tuple(self.set_positions(dict(zip(names, positions.tolist()))))
+
     @property
     def joint_names(self) -> list[str]:
         raise NotImplementedError
@@ -445,28 +451,25 @@ class TransformGraph:
 
     def set_joint_array(self, names: tuple[str, ...], positions: np.ndarray) -> list[str]:
         """:meth:`set_joints` for values as they arrive in a JointState: names and an array, kept an
-        array down to the kinematic models (:meth:`UrdfModel.set_array
-        <coco_core.transforms.urdf.UrdfModel.set_array>`). Refused, changing nothing: a length that
-        differs from the names', a non-finite value."""
-        positions = np.asarray(positions, dtype=float)
+        array down to the kinematic models (:meth:`KinematicModel.set_array`). Refused, changing
+        nothing: a length that differs from the names', a non-finite value."""
+        if type(positions) is not np.ndarray or positions.dtype != np.float64:
+            positions = np.asarray(positions, dtype=float)
         if positions.shape != (len(names),):
             raise ValueError(f"joint sample with {len(names)} names but {positions.size} positions: refused")
-        if not np.isfinite(positions).all():
+        if not math.isfinite(positions.sum()):  # NaN and infinities make the sum non-finite
             bad = next(i for i, value in enumerate(positions.tolist()) if not math.isfinite(value))
             raise ValueError(f"joint {names[bad]}: expected a finite number, got {positions[bad]!r}")
-        models = [model for model in self._models.values() if hasattr(model, "set_array")]
-        if not models or len(models) != len(self._models):
-            return self.set_joints(dict(zip(names, positions.tolist())))
         changed: list[Dependency] = []
+        left: list[str] = []
         with self._lock.write():
-            remaining: tuple[str, ...] | None = None
-            for model in models:
+            remaining: tuple[str, ...] = names
+            for model in self._models.values():
                 before = model.version
                 unknown = model.set_array(names, positions)
                 if model.version != before:
                     changed.append(model)
-                remaining = unknown if remaining is None else tuple(n for n in remaining if n in unknown)
-            left = []
+                remaining = unknown if remaining is names else tuple(n for n in remaining if n in unknown)
             if remaining:
                 values = dict(zip(names, positions.tolist()))
                 for name in remaining:
@@ -478,8 +481,8 @@ class TransformGraph:
                         changed.append(edge)
             if changed:
                 self.version += 1
-        new = [name for name in left if name not in self._reported_unknown_joints]
-        if new:
+        if left and not self._reported_unknown_joints.issuperset(left):
+            new = [name for name in left if name not in self._reported_unknown_joints]
             self._reported_unknown_joints.update(new)
             log.warning("ignoring joint(s) that no edge or model has: %s", ", ".join(sorted(new)))
         if changed:
