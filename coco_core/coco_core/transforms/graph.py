@@ -471,13 +471,18 @@ class TransformGraph:
                     changed.append(model)
                 remaining = unknown if remaining is names else tuple(n for n in remaining if n in unknown)
             if remaining:
-                values = dict(zip(names, positions.tolist()))
+                joints = self._joints
+                values: list[float] | None = None
                 for name in remaining:
-                    edge = self._joints.get(name)
+                    edge = joints.get(name)
                     if edge is None:
                         left.append(name)
-                    elif edge.value != values[name]:
-                        edge.assign(values[name])
+                        continue
+                    if values is None:
+                        values = positions.tolist()
+                    value = values[names.index(name)]
+                    if edge.value != value:
+                        edge.assign(value)
                         changed.append(edge)
             if changed:
                 self.version += 1
@@ -545,6 +550,11 @@ class TransformGraph:
     def _refresh(self, query: Query) -> np.ndarray:
         with self._lock.read():
             version = self.version
+            if len(query.steps) == 1 and query.structure_version == self.structure_version:
+                # One step (a robot's base to its gripper): the step caches its own value per version.
+                query.value = query.steps[0].value(None)
+                query.graph_version = version
+                return query.value
             last_version, last_edge = self._last_change
             if (last_version == version and query.graph_version == version - 1 and query.step_versions
                     and query.structure_version == self.structure_version):
