@@ -136,7 +136,8 @@ def test_a_truncated_bag_makes_the_app_exit_1_with_the_damage_in_its_summary(coc
     only metadata.yaml's counts reveal it): the app replays what is readable, exits 1, and summary.json
     names the loss."""
     import shutil
-    import struct
+
+    from mcap.reader import make_reader
 
     from coco_ros.teleop.summary import describe
 
@@ -144,15 +145,10 @@ def test_a_truncated_bag_makes_the_app_exit_1_with_the_damage_in_its_summary(coc
     damaged = tmp_path / "damaged"
     shutil.copytree(folder, damaged)
     mcap = next(damaged.glob("*.mcap"))
-    data = mcap.read_bytes()
-    position, chunks = 8, []
-    while position < len(data) - 8:
-        opcode, length = struct.unpack_from("<BQ", data, position)
-        if opcode == 0x06:  # Chunk
-            chunks.append(position)
-        position += 9 + length
+    with mcap.open("rb") as stream:
+        chunks = sorted(c.chunk_start_offset for c in make_reader(stream).get_summary().chunk_indexes)
     assert len(chunks) >= 2
-    mcap.write_bytes(data[:chunks[-1]])
+    mcap.write_bytes(mcap.read_bytes()[: chunks[-1]])
     output = tmp_path / "teleop"
     result = run_launcher(coco_launch, APP, f"bag:={damaged}", f"output:={output}", "display:=false", "rate:=4",
                           f"time_origin:={info.start_ns / 1e9}", "--duration", "60", timeout=120)
