@@ -12,7 +12,10 @@ Variants, each a whole pass over the bag, per message (interleaved rounds, media
 - *CoCo BagReader + message*: ``BagReader.messages()`` + ``BagMessage.message`` (rclpy's
   ``deserialize_message``): the rclpy message a node or a converter gets;
 - *no decoding*: both readers handing out the CDR bytes only (what a replay to DDS, ``coco-replay``
-  and ``BagReplay output=bag``, needs).
+  and ``BagReplay output=bag``, needs);
+- 6c, ``/joint_states`` alone into what a consumer uses: rosbags' message against CoCo's
+  ``JointSample`` read straight from the CDR bytes (``JointStateConverter.from_cdr``, what
+  ``BagReplay output=coco`` does) and through an rclpy message.
 
 Goal (issue 12): CoCo reading + decoding at least as fast as rosbags.
 
@@ -33,6 +36,10 @@ from _table import Table, fmt_ratio, fmt_time_ns, verdict
 ANCHOR = "rosbags Reader + deserialize_cdr"
 COCO = "CoCo BagReader + message (rclpy)"
 COCO_RAW = "CoCo BagReader, no decoding"
+JOINTS = "/joint_states"
+JS_ANCHOR = "rosbags Reader + deserialize_cdr (/joint_states)"
+JS_CDR = "CoCo BagReader + JointStateConverter.from_cdr"
+JS_RCLPY = "CoCo BagReader + rclpy message + to_coco"
 ANCHOR_RAW = "rosbags Reader, no decoding"
 T0 = 1_700_000_000_000_000_000
 SECONDS = 20
@@ -137,6 +144,45 @@ def variants(path: Path) -> dict[str, Callable[[], int]]:
     return {ANCHOR: anchor, COCO: coco, ANCHOR_RAW: anchor_raw, COCO_RAW: coco_raw}
 
 
+def joint_variants(path: Path) -> dict[str, Callable[[], int]]:
+    """The joint states alone, into what a consumer uses: rosbags' message, CoCo's JointSample."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    from coco_ros.bag import BagReader
+    from coco_ros.convert import converter_for
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    converter = converter_for("sensor_msgs/msg/JointState")
+
+    def anchor() -> int:
+        count = 0
+        with Reader(path) as reader:
+            connections = [c for c in reader.connections if c.topic == JOINTS]
+            for connection, _, raw in reader.messages(connections=connections):
+                store.deserialize_cdr(raw, connection.msgtype)
+                count += 1
+        return count
+
+    def from_cdr() -> int:
+        count = 0
+        with BagReader(path) as reader:
+            for message in reader.messages(JOINTS):
+                converter.from_cdr(message.data)
+                count += 1
+        return count
+
+    def through_rclpy() -> int:
+        count = 0
+        with BagReader(path) as reader:
+            for message in reader.messages(JOINTS):
+                converter.to_coco(message.message)
+                count += 1
+        return count
+
+    return {JS_ANCHOR: anchor, JS_CDR: from_cdr, JS_RCLPY: through_rclpy}
+
+
 def measure(passes: dict[str, Callable[[], int]], rounds: int) -> dict[str, list[float]]:
     """ns per message of each variant, one value per round, the order rotated per round."""
     names = list(passes)
@@ -163,6 +209,7 @@ def main() -> None:
         with _report.LoadMeter() as load:
             results = {"BagWriter": measure(variants(ours), args.rounds),
                        "rosbags Writer": measure(variants(theirs), args.rounds)}
+            joints = measure(joint_variants(ours), args.rounds)
     others = "n/a" if load.others is None else f"{load.others:.0%}"
     tables, document = [], {}
     for writer, samples in results.items():
@@ -184,6 +231,20 @@ def main() -> None:
                            f"(about 4.6 us per message of the uncompressed file), rosbags does not; other "
                            f"processes used {others} of the {_report.machine()['cpus']} cores meanwhile.")
         tables.append(table)
+    table = Table(f"Figure 6c - /joint_states alone (2,000 of 19 joints, BagWriter bag) into what a consumer "
+                  f"uses, per message (median of {args.rounds} rounds)",
+                  ["variant", "time/message", "messages/s", "vs rosbags (x faster)", "goal >= rosbags"])
+    document["joint_states"] = {}
+    for name, values in joints.items():
+        median = statistics.median(values)
+        ratio = statistics.median(a / v for a, v in zip(joints[JS_ANCHOR], values))
+        ok = ratio >= 1.0 if name == JS_CDR else None
+        table.add(name, fmt_time_ns(median), f"{1e9 / median:,.0f}", fmt_ratio(ratio), verdict(ok))
+        document["joint_states"][name] = {"median_ns": median, "per_message_ns": values,
+                                          "x_faster_than_rosbags": ratio, "goal_met": ok}
+    table.notes.append("from_cdr reads the CDR bytes into a JointStateSample whose arrays are views of the "
+                       "bytes (what BagReplay output=coco delivers); rosbags gives its JointState dataclass.")
+    tables.append(table)
     _report.emit("bench_bag", args, tables, {"per_writer": document, "others_cpu": load.others})
     _report.save_plot(args, lambda plt: draw(plt, results))
 

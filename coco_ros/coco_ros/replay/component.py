@@ -245,8 +245,8 @@ class BagReplay(Component):
         port, converter = self._routes[played.message.topic]
         if self.output == "bag":
             value = played.message
-        elif converter is not None:
-            value = converter.to_coco(played.message.message)
+        elif converter is not None:  # from the CDR bytes: a converter may skip the rclpy message
+            value = converter.from_cdr(played.message.data)
         else:
             value = played.message.message
         if self.stamped:
