@@ -42,13 +42,22 @@ def inverse(transform: np.ndarray) -> np.ndarray:
 
 
 def quaternion_to_matrix(q: Sequence[float]) -> np.ndarray:
-    """3x3 rotation of a quaternion ``(x, y, z, w)``; normalised first."""
-    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([
+    """3x3 rotation of a quaternion ``(x, y, z, w)``; normalised first (on Python floats: every
+    received pose goes through here, and four numbers are cheaper outside numpy)."""
+    return np.array(_rotation_rows(q))
+
+
+def _rotation_rows(q: Sequence[float]) -> list[list[float]]:
+    x, y, z, w = (float(c) for c in q)
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not norm > 0.0:
+        raise ValueError(f"quaternion {(x, y, z, w)} has no direction (norm {norm}): not a rotation")
+    x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    return [
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    ]
 
 
 def matrix_to_quaternion(rotation: np.ndarray) -> np.ndarray:
@@ -74,8 +83,11 @@ def matrix_to_quaternion(rotation: np.ndarray) -> np.ndarray:
 
 
 def from_pose(translation: Sequence[float], quaternion: Sequence[float]) -> np.ndarray:
-    """4x4 transform of a translation and a quaternion ``(x, y, z, w)`` (a ROS Pose)."""
-    return make(quaternion_to_matrix(quaternion), translation)
+    """4x4 transform of a translation and a quaternion ``(x, y, z, w)`` (a ROS Pose), built as one
+    array from Python floats."""
+    (a, b, c), (d, e, f), (g, h, i) = _rotation_rows(quaternion)
+    x, y, z = (float(t) for t in translation)
+    return np.array([[a, b, c, x], [d, e, f, y], [g, h, i, z], [0.0, 0.0, 0.0, 1.0]])
 
 
 def to_pose(transform: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
