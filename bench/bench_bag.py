@@ -13,9 +13,9 @@ Variants, each a whole pass over the bag, per message (interleaved rounds, media
   ``deserialize_message``): the rclpy message a node or a converter gets;
 - *no decoding*: both readers handing out the CDR bytes only (what a replay to DDS, ``coco-replay``
   and ``BagReplay output=bag``, needs);
-- 6c, ``/joint_states`` alone into what a consumer uses: rosbags' message against CoCo's
-  ``JointSample`` read straight from the CDR bytes (``JointStateConverter.from_cdr``, what
-  ``BagReplay output=coco`` does) and through an rclpy message.
+- 6c, ``/joint_states`` and ``/tf`` alone into what a consumer uses: rosbags' messages against
+  CoCo's ``JointSample`` and ``TransformSample`` values read straight from the CDR bytes
+  (``Converter.from_cdr``, what ``BagReplay output=coco`` does) and through rclpy messages.
 
 Goal (issue 12): CoCo reading + decoding at least as fast as rosbags.
 
@@ -36,9 +36,10 @@ from _table import Table, fmt_ratio, fmt_time_ns, verdict
 ANCHOR = "rosbags Reader + deserialize_cdr"
 COCO = "CoCo BagReader + message (rclpy)"
 COCO_RAW = "CoCo BagReader, no decoding"
-JOINTS = "/joint_states"
-JS_ANCHOR = "rosbags Reader + deserialize_cdr (/joint_states)"
-JS_CDR = "CoCo BagReader + JointStateConverter.from_cdr"
+CONVERTED = {"/joint_states": "sensor_msgs/msg/JointState", "/tf": "tf2_msgs/msg/TFMessage"}
+"""The topics of figure 6c and their types: the ones a CoCo application turns into graph input."""
+JS_ANCHOR = "rosbags Reader + deserialize_cdr"
+JS_CDR = "CoCo BagReader + converter.from_cdr"
 JS_RCLPY = "CoCo BagReader + rclpy message + to_coco"
 ANCHOR_RAW = "rosbags Reader, no decoding"
 T0 = 1_700_000_000_000_000_000
@@ -145,7 +146,7 @@ def variants(path: Path) -> dict[str, Callable[[], int]]:
 
 
 def joint_variants(path: Path) -> dict[str, Callable[[], int]]:
-    """The joint states alone, into what a consumer uses: rosbags' message, CoCo's JointSample."""
+    """/joint_states and /tf alone, into what a consumer uses: rosbags' messages, CoCo's values."""
     from rosbags.rosbag2 import Reader
     from rosbags.typesys import Stores, get_typestore
 
@@ -153,12 +154,12 @@ def joint_variants(path: Path) -> dict[str, Callable[[], int]]:
     from coco_ros.convert import converter_for
 
     store = get_typestore(Stores.ROS2_JAZZY)
-    converter = converter_for("sensor_msgs/msg/JointState")
+    converters = {topic: converter_for(type_name) for topic, type_name in CONVERTED.items()}
 
     def anchor() -> int:
         count = 0
         with Reader(path) as reader:
-            connections = [c for c in reader.connections if c.topic == JOINTS]
+            connections = [c for c in reader.connections if c.topic in CONVERTED]
             for connection, _, raw in reader.messages(connections=connections):
                 store.deserialize_cdr(raw, connection.msgtype)
                 count += 1
@@ -167,16 +168,16 @@ def joint_variants(path: Path) -> dict[str, Callable[[], int]]:
     def from_cdr() -> int:
         count = 0
         with BagReader(path) as reader:
-            for message in reader.messages(JOINTS):
-                converter.from_cdr(message.data)
+            for message in reader.messages(list(CONVERTED)):
+                converters[message.topic].from_cdr(message.data)
                 count += 1
         return count
 
     def through_rclpy() -> int:
         count = 0
         with BagReader(path) as reader:
-            for message in reader.messages(JOINTS):
-                converter.to_coco(message.message)
+            for message in reader.messages(list(CONVERTED)):
+                converters[message.topic].to_coco(message.message)
                 count += 1
         return count
 
@@ -231,8 +232,8 @@ def main() -> None:
                            f"(about 4.6 us per message of the uncompressed file), rosbags does not; other "
                            f"processes used {others} of the {_report.machine()['cpus']} cores meanwhile.")
         tables.append(table)
-    table = Table(f"Figure 6c - /joint_states alone (2,000 of 19 joints, BagWriter bag) into what a consumer "
-                  f"uses, per message (median of {args.rounds} rounds)",
+    table = Table(f"Figure 6c - /joint_states and /tf alone (4,000 messages, BagWriter bag) into what a "
+                  f"consumer uses, per message (median of {args.rounds} rounds)",
                   ["variant", "time/message", "messages/s", "vs rosbags (x faster)", "goal >= rosbags"])
     document["joint_states"] = {}
     for name, values in joints.items():
@@ -242,8 +243,10 @@ def main() -> None:
         table.add(name, fmt_time_ns(median), f"{1e9 / median:,.0f}", fmt_ratio(ratio), verdict(ok))
         document["joint_states"][name] = {"median_ns": median, "per_message_ns": values,
                                           "x_faster_than_rosbags": ratio, "goal_met": ok}
-    table.notes.append("from_cdr reads the CDR bytes into a JointStateSample whose arrays are views of the "
-                       "bytes (what BagReplay output=coco delivers); rosbags gives its JointState dataclass.")
+    table.notes.append("from_cdr reads the CDR bytes into a JointStateSample (its arrays views of the bytes) and "
+                       "TransformSamples (4x4 matrices), what BagReplay output=coco delivers; rosbags gives its "
+                       "JointState and TFMessage dataclasses; the chunks also hold the other topics' messages, "
+                       "which both readers must decompress.")
     tables.append(table)
     _report.emit("bench_bag", args, tables, {"per_writer": document, "others_cpu": load.others})
     _report.save_plot(args, lambda plt: draw(plt, results))
