@@ -9,6 +9,7 @@ velocities or efforts is refused, since a sample without positions would move no
 
 from __future__ import annotations
 
+import functools
 import struct
 from dataclasses import dataclass
 
@@ -94,12 +95,14 @@ def _joint_state_from_cdr(data: bytes) -> JointStateSample:
         position += -(position - 4) % 4
         return _U32.unpack_from(data, position)[0], position + 4
 
+    start = position
     count, position = count_at(position)
-    names = []
-    for _ in range(count):
+    for _ in range(count):  # walk the names; they are decoded once per distinct list (_names)
         length, position = count_at(position)
-        names.append(data[position:position + length - 1].decode("utf-8"))
         position += length
+    if position > len(data):
+        raise ValueError("the joint names run past the end")
+    names_tuple = _names(data[start:position], (start - 4) % 4)
     arrays = []
     for _ in range(3):  # position, velocity, effort
         count, position = count_at(position)
@@ -109,12 +112,29 @@ def _joint_state_from_cdr(data: bytes) -> JointStateSample:
             raise ValueError(f"a sequence of {count} doubles runs past the end")
         arrays.append(np.frombuffer(data, "<f8", count, position))
         position += 8 * count
-    names_tuple = tuple(names)
     positions, velocities, efforts = (_sized(values, label, names_tuple, required)
                                       for values, label, required in zip(arrays, ("position", "velocity", "effort"),
                                                                          (True, False, False)))
     stamp = None if sec == 0 and nanosec == 0 else RosTime(sec, nanosec)
     return JointStateSample(names_tuple, positions, stamp, velocities, efforts)
+
+
+@functools.lru_cache(maxsize=256)
+def _names(section: bytes, misalignment: int) -> tuple[str, ...]:
+    """The joint names of a JointState's name section (its count, then each length-prefixed string):
+    a robot sends the same list every time, so the strings are decoded once, and every sample of
+    that robot carries the same tuple (which the kinematic models' plans are keyed by)."""
+    padded = bytes(misalignment) + section  # re-create the alignment the section had in its message
+    position = misalignment + (-misalignment % 4)  # offsets in ``padded`` align as in the message
+    count = _U32.unpack_from(padded, position)[0]
+    position += 4
+    names = []
+    for _ in range(count):
+        position += -position % 4
+        length = _U32.unpack_from(padded, position)[0]
+        names.append(padded[position + 4:position + 3 + length].decode("utf-8"))
+        position += 4 + length
+    return tuple(names)
 
 
 def _sized(values: np.ndarray, label: str, names: tuple[str, ...], required: bool) -> np.ndarray | None:
