@@ -373,7 +373,7 @@ def draw(figures: list[tuple[str, dict[str, Samples], str, str, float | None]]):
                 ax.text(v * 1.1, y, fmt_time_ns(v * 1e3), va="center", fontsize=8, zorder=3,
                         bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5})
             if goal_ns is not None:
-                ax.axvline(goal_ns / 1e3, color="tab:green", linestyle="--", label=f"goal < {goal_ns / 1e3:g} us")
+                ax.axvline(goal_ns / 1e3, color="tab:green", linestyle="--", label=f"goal < {goal_ns / 1e3:.3g} us")
                 ax.legend(loc="lower right", fontsize=8)
             ax.set_title(title, fontsize=10)
             ax.tick_params(axis="y", labelsize=8)
