@@ -8,7 +8,9 @@ Damage (see :mod:`.mcap_file`): whatever is readable is read. Problems are :clas
 name the file and the byte where reading stopped; they are collected in :attr:`BagReader.errors`
 and reported by :meth:`BagReader.messages` *after* the last readable message: raised by default, or
 handed to the ``on_error`` callback given to the reader (then nothing is raised). A file that is not
-MCAP at all fails at once, when the reader is made.
+MCAP at all fails at once, when the reader is made. Fewer readable messages than the recorder's
+``metadata.yaml`` declares (a file cut exactly at a record boundary leaves no other trace) is damage
+too, reported the same way, per topic.
 """
 
 from __future__ import annotations
