@@ -24,8 +24,8 @@ from pathlib import Path
 from _report import BENCH_DIR, IMG_DIR, REPO
 from _table import Table
 
-BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms", "bench_replay", "bench_latency",
-              "bench_display", "bench_check"]
+BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms", "bench_bag", "bench_replay",
+              "bench_latency", "bench_display", "bench_check", "bench_processes", "bench_ipc"]
 
 
 def markdown(results: Path) -> str:

@@ -132,3 +132,33 @@ def test_teleop_app_in_the_ros_launcher(session, tmp_path: Path, monkeypatch: py
     assert len(frames) > 30, len(frames)
     background = [frame[5, 5].astype(int) for frame in frames]  # BGR of the clear colour 0.16 0.17 0.20
     assert all(np.abs(pixel - (51, 43, 41)).max() <= 6 for pixel in background), background
+
+
+def test_a_truncated_bag_makes_the_app_exit_1_with_the_damage_in_its_summary(coco_launch: Path, session,
+                                                                             tmp_path: Path) -> None:
+    """The session cut at a record boundary, where its last chunk starts (no byte of a record is cut, so
+    only metadata.yaml's counts reveal it): the app replays what is readable, exits 1, and summary.json
+    names the loss."""
+    import shutil
+
+    from mcap.reader import make_reader
+
+    from coco_ros.teleop.summary import describe
+
+    folder, info = session
+    damaged = tmp_path / "damaged"
+    shutil.copytree(folder, damaged)
+    mcap = next(damaged.glob("*.mcap"))
+    with mcap.open("rb") as stream:
+        chunks = sorted(c.chunk_start_offset for c in make_reader(stream).get_summary().chunk_indexes)
+    assert len(chunks) >= 2
+    mcap.write_bytes(mcap.read_bytes()[: chunks[-1]])
+    output = tmp_path / "teleop"
+    result = run_launcher(coco_launch, APP, f"bag:={damaged}", f"output:={output}", "display:=false", "rate:=4",
+                          f"time_origin:={info.start_ns / 1e9}", "--duration", "60", timeout=120)
+    assert result.returncode == 1, result.stderr
+    assert "are lost" in result.stderr, result.stderr
+    summary = json.loads((output / "summary.json").read_text())
+    assert summary["samples"] > 0 and len(summary["input_damage"]) == 1, summary
+    assert "metadata.yaml" in summary["input_damage"][0] and "are lost" in summary["input_damage"][0]
+    assert "DAMAGED INPUT" in describe(summary)

@@ -83,6 +83,9 @@ class Application:
         self.started_at = 0.0
         self.transforms = TransformGraph()
         """The application's transformation graph, shared by every component (thread-safe)."""
+        self.damage: list[str] = []
+        """Damaged input found while running (e.g. a truncated bag), one line each: the launchers
+        exit non-zero and summaries report it, although the application ran on what was readable."""
 
     # --- composition ----------------------------------------------------------------------------
     def add(self, component: Component, activity: Activity | str | None = None) -> Component:
@@ -263,6 +266,10 @@ class Application:
             if timer is not None:
                 timer.cancel()
             self.stop()
+
+    def report_damage(self, what: str) -> None:
+        """Record damaged input (see :attr:`damage`); list.append is atomic, any thread may call it."""
+        self.damage.append(what)
 
     def request_stop(self, reason: str = "stop requested") -> None:
         """Ask every activity to stop; returns at once (safe from signal handlers and components)."""

@@ -123,6 +123,7 @@ class Component:
         """Set once ``on_config`` succeeded: only configured components get ``on_stop``. Private,
         like every base-class field a subclass could otherwise shadow by accident."""
         self._last_error_log = 0.0
+        self._refusals_reported: set[type] = set()
         for attribute_name, value in attributes.items():
             self.set_attribute_now(attribute_name, value)
 
@@ -330,6 +331,15 @@ class Component:
                 self.app.request_stop(f"component {self.name} raised in {phase}")
             elif self.activity is not None:
                 self.activity.stop()
+
+    def record_refusal(self, what: str, error: Exception) -> None:
+        """Count an input sample this component refused (a malformed value: it read it, so its
+        connection shows no drop); the profile reports the count, the log the first reason of each kind."""
+        self.stats.refused += 1
+        if type(error) not in self._refusals_reported:
+            self._refusals_reported.add(type(error))
+            log.error("component %s refused %s: %s (further refusals are counted in the profile)",
+                      self.name, what, error)
 
     def record_latency(self, stamp: Stamp) -> None:
         """Record the age of ``stamp`` now: call when this component outputs what the stamped data

@@ -184,8 +184,11 @@ def launcher_services(app: Application, options: argparse.Namespace,
 
 
 def stopped_by_a_failure(app: Application) -> bool:
-    """Whether a component's error stopped the application (its ``on_error`` policy): the launcher
-    then exits with 1, so that scripts notice."""
+    """Whether a component's error stopped the application (its ``on_error`` policy), or damaged
+    input was found (:attr:`Application.damage`, e.g. a truncated bag): the launcher then exits with
+    1, so that scripts notice."""
+    if app.damage:
+        return True
     return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
 
 

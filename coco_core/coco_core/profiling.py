@@ -46,7 +46,7 @@ class RunningStats:
 class ComponentStats:
     """Execution profile of one component."""
 
-    __slots__ = ("compute", "service", "latency", "errors", "_last_start")
+    __slots__ = ("compute", "service", "latency", "errors", "refused", "_last_start")
 
     def __init__(self) -> None:
         self.compute = RunningStats()
@@ -54,6 +54,9 @@ class ComponentStats:
         self.latency = RunningStats()
         """Stamp-to-output latency, fed by the component (:meth:`Component.record_latency`)."""
         self.errors = 0
+        self.refused = 0
+        """Input samples the component read and refused (malformed values), see
+        :meth:`Component.record_refusal`: the connection counts them as read, so they are shown here."""
         self._last_start: float | None = None
 
     def record(self, start: float, end: float) -> None:

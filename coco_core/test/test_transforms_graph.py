@@ -1174,3 +1174,76 @@ def test_to_dict_is_json_serialisable_and_complete(tmp_path):
         p2 = edges[("r_s1", "r_s2")]
         assert p2["kind"] == "axis" and p2["joint"] == "p2" and p2["value"] == 0.5 and p2["model"] == models[0]
         assert edges[("r_s4", "r_tool")]["kind"] == "static"
+
+
+# --- non-finite values are refused (issue 14) ----------------------------------------------------------
+
+def test_non_finite_joint_values_stamps_and_times_are_refused():
+    graph = TransformGraph()
+    graph.add_axis("base", "arm", "shoulder", "revolute")
+    graph.set_transform("world", "base", np.eye(4), 1.0)
+    graph.set_transform("world", "base", np.eye(4), 2.0)
+    for bad in (math.inf, -math.inf, math.nan):
+        with pytest.raises(ValueError, match="joint shoulder: expected a finite number"):
+            graph.set_joints({"shoulder": bad})
+        with pytest.raises(ValueError, match="stamp must be a finite number of seconds"):
+            graph.set_transform("world", "base", np.eye(4), bad)
+        with pytest.raises(ValueError, match="time must be a finite number of seconds"):
+            graph.lookup("world", "arm", bad)
+    assert graph.edge("base", "arm").value == 0.0
+    assert graph.edge("world", "base").time_range == (1.0, 2.0)  # the history kept its order and size
+    np.testing.assert_array_equal(graph.lookup("world", "arm", 1.5), np.eye(4))
+
+
+def test_place_static_adds_replaces_or_keeps_a_static_edge():
+    graph = TransformGraph()
+    moved = np.eye(4)
+    moved[0, 3] = 1.0
+    assert graph.place_static("base", "tool", moved) is True
+    version = graph.version
+    assert graph.place_static("base", "tool", moved) is False and graph.version == version
+    np.testing.assert_array_equal(graph.lookup("tool", "base")[:3, 3], [-1.0, 0.0, 0.0])
+    back = np.linalg.inv(moved)
+    back[0, 3] = -2.0
+    assert graph.place_static("tool", "base", back) is True  # given in the other direction
+    np.testing.assert_allclose(graph.lookup("base", "tool")[:3, 3], [2.0, 0.0, 0.0])
+    graph.set_transform("world", "base", np.eye(4), 1.0)
+    with pytest.raises(TransformError, match="world->base is a dynamic edge"):
+        graph.place_static("world", "base", np.eye(4))
+
+
+def test_partial_products_follow_any_sequence_of_changes():
+    """A lookup after a change reuses the products before and after the changed edge: over random
+    sequences (one edge, several, none, the same again, edges off the path, static replacements)
+    it always equals the plain product of the path."""
+    rng = np.random.default_rng(5)
+
+    def random_transform() -> np.ndarray:
+        q = rng.normal(size=4)
+        return se3.from_pose(rng.normal(size=3), q / np.linalg.norm(q))
+
+    graph = TransformGraph()
+    values = [random_transform() for _ in range(8)]
+    dynamic = {1, 4, 6}
+    for i, value in enumerate(values):
+        if i in dynamic:
+            graph.set_transform(f"f{i}", f"f{i + 1}", value, 0.0)
+        else:
+            graph.add_static(f"f{i}", f"f{i + 1}", value)
+    graph.set_transform("f3", "side", random_transform(), 0.0)
+    stamp = 1.0
+    for _ in range(300):
+        for _ in range(int(rng.integers(0, 3))):
+            i = int(rng.choice([1, 4, 6, 2, 7, -1]))
+            if i == -1:
+                graph.set_transform("f3", "side", random_transform(), stamp)
+            elif i in dynamic:
+                values[i] = random_transform()
+                graph.set_transform(f"f{i}", f"f{i + 1}", values[i], stamp)
+            else:
+                values[i] = random_transform()
+                graph.set_static(f"f{i}", f"f{i + 1}", values[i])
+            stamp += 1.0
+        expected = np.linalg.multi_dot(values)
+        np.testing.assert_allclose(graph.lookup("f0", "f8"), expected, atol=1e-9)
+        np.testing.assert_allclose(graph.lookup("f8", "f0"), np.linalg.inv(expected), atol=1e-9)

@@ -370,3 +370,44 @@ def test_urdf_attribute_with_the_lookup_operation(make_app, wait_until, tmp_path
     assert wait_until(lambda: interface.model.positions["shoulder"] == 1.2)
     value = interface.call("lookup", "base", "tool").result(timeout=2.0)
     np.testing.assert_allclose(value, homogeneous(rot_z(1.2), (math.cos(1.2), math.sin(1.2), 0.5)), atol=1e-9)
+
+
+# --- malformed samples (issue 14) ------------------------------------------------------------------
+
+def test_a_refused_sample_does_not_discard_the_rest_of_its_cycle(make_app, wait_until):
+    """Ten joint samples read in one cycle, the second bad (inf, then too few positions, then too
+    many): the bad ones are refused and counted, the other eight are all applied in order."""
+    app, source, interface, sink = build(make_app, outputs=["hand=base:hand"])
+    app.transforms.add_axis("base", "hand", "shoulder", "revolute")
+    app.start()
+    assert wait_until(lambda: sink.count() >= 1)
+    samples = [JointSample(("shoulder",), np.array([0.1 * i])) for i in range(10)]
+    samples[1] = JointSample(("shoulder",), np.array([math.inf]))
+    samples[4] = JointSample(("shoulder", "elbow"), np.array([0.3]))
+    samples[6] = JointSample(("shoulder",), np.array([0.3, 0.4]))
+    gate = threading.Event()
+    app.activities["tf"].enqueue(lambda: gate.wait(5.0))  # hold the interface: one cycle reads all ten
+    for sample in samples:
+        send(source, "js", sample)
+    gate.set()
+    applied = [0.1 * i for i in range(10) if i not in (1, 4, 6)]
+    assert wait_until(lambda: sink.count() >= len(applied))  # the first (0.0) changes nothing
+    poses = sink.call("collected").result(timeout=2.0)[1:]
+    angles = [math.atan2(p.transform[1, 0], p.transform[0, 0]) for p in poses]
+    assert angles == pytest.approx(applied[1:])  # the first (0.0) leaves the zero pose as it was
+    assert interface.stats.refused == 3
+    connection = next(c for c in app.connections if c.sink is interface.joints)
+    assert connection.counters()["read"] == 10 and connection.counters()["dropped"] == 0
+
+
+def test_non_finite_transform_samples_are_refused_and_counted(make_app, wait_until):
+    app, source, interface, sink = build(make_app, outputs=["obj=world:obj"])
+    app.start()
+    good = TransformSample("world", "obj", transform(x=1.0), 1.0)
+    nan_stamp = TransformSample("world", "obj", transform(x=2.0), math.nan)
+    inf_matrix = TransformSample("world", "obj", transform(x=math.inf), 2.0)
+    later = TransformSample("world", "obj", transform(x=3.0), 3.0)
+    send(source, "tf", [good, nan_stamp, inf_matrix, later])
+    assert wait_until(lambda: interface.stats.refused == 2 and sink.count() >= 2)
+    assert app.transforms.edge("world", "obj").time_range == (1.0, 3.0)
+    np.testing.assert_allclose(app.transforms.lookup("world", "obj")[:3, 3], [3.0, 0.0, 0.0])

@@ -192,7 +192,10 @@ def test_rest_lookup_values_paths_times_and_errors(graph, servers) -> None:
     status, data = get_json(server, "api/lookup?target=world")
     assert status == 400 and "missing query parameter 'source'" in data["error"]
     status, data = get_json(server, "api/lookup?target=world&source=camera&time=soon")
-    assert status == 400 and "time must be a number" in data["error"]
+    assert status == 400 and "time must be a finite number" in data["error"]
+    for bad in ("nan", "inf", "-inf"):
+        status, data = get_json(server, f"api/lookup?target=world&source=camera&time={bad}")
+        assert status == 400 and "finite" in data["error"], (bad, status, data)
 
 
 def test_page_and_its_files_are_served(graph, servers) -> None:
@@ -602,3 +605,60 @@ def test_page_shows_graph_and_live_values_in_chromium(graph, servers) -> None:
     assert "shoulder = 0.6250" in dom  # the tree's live joint value
     assert "unknown frame 'nowhere'" in dom  # the page explains a lookup it cannot watch
     assert 'id="status" class="status live"' in dom
+
+
+# --- load (issue 14) ------------------------------------------------------------------------------------
+
+def test_200_concurrent_graph_requests_are_all_answered_while_the_graph_changes(servers) -> None:
+    """200 clients ask for /api/graph (about 30 kB) at once while a writer changes a dynamic edge at
+    about 1 kHz, as a replay does: every request is answered with the whole graph, within the time
+    limit (they were refused by a listen queue of 5, or waited more than 30 s, before)."""
+    graph = TransformGraph()
+    for i in range(60):
+        graph.add_static("world", f"marker{i:02d}", translation(i * 0.01))
+        graph.set_transform(f"marker{i:02d}", f"tool{i:02d}", translation(0.0, i * 0.01), stamp=1.0)
+    server = servers(graph)
+    size = len(get(server, "api/graph")[2])
+    assert size > 20_000, size
+    stop = threading.Event()
+    written = [0]
+
+    def writer() -> None:
+        stamp = 2.0
+        while not stop.is_set():
+            graph.set_transform("marker00", "tool00", translation(stamp % 1.0), stamp=stamp)
+            stamp += 0.001
+            written[0] += 1
+            time.sleep(0.001)
+
+    answers: list[tuple[int, int]] = []
+    failures: list[str] = []
+    start = threading.Barrier(201)
+
+    def client() -> None:
+        start.wait()
+        try:
+            connection = http.client.HTTPConnection("127.0.0.1", server.port, timeout=30)
+            connection.request("GET", "/api/graph")
+            answer = connection.getresponse()
+            body = answer.read()
+            json.loads(body)
+            answers.append((answer.status, len(body)))
+            connection.close()
+        except Exception as error:  # every kind of failure is what this test counts
+            failures.append(repr(error))
+
+    thread = threading.Thread(target=writer, daemon=True)
+    thread.start()
+    clients = [threading.Thread(target=client, daemon=True) for _ in range(200)]
+    for c in clients:
+        c.start()
+    start.wait()
+    deadline = time.monotonic() + 60
+    for c in clients:
+        c.join(max(0.0, deadline - time.monotonic()))
+    stop.set()
+    thread.join(2)
+    assert not failures, failures[:5]
+    assert len(answers) == 200 and all(status == 200 and length > 20_000 for status, length in answers)
+    assert written[0] > 0

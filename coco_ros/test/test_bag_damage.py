@@ -263,3 +263,66 @@ def test_ctrl_c_closes_the_bag_completely(tmp_path):
         assert reader.errors == [] and reader.notes == []  # summary and footer are there
         assert reader.metadata.message_count == written
     assert values == list(range(written))
+
+
+# --- the damaged-bag matrix: cuts compared with metadata.yaml (issue 14) -----------------------------
+
+def top_level_records(data: bytes) -> list[tuple[int, int]]:
+    """(offset, opcode) of every record after the magic, in file order."""
+    import struct
+
+    records, position = [], 8
+    while position + 9 <= len(data) - 8:
+        opcode, length = struct.unpack_from("<BQ", data, position)
+        records.append((position, opcode))
+        position += 9 + length
+    return records
+
+
+def test_damaged_bag_matrix_every_loss_is_an_error_naming_what_is_lost(intact, tmp_path):
+    """A bag folder (metadata.yaml beside its .mcap) cut at every record boundary and after 60 bytes:
+    whatever loses messages is an error after the readable ones, naming metadata.yaml's count or the
+    byte where the file breaks; a cut that loses no message (inside the summary) is only a note.
+    Read as a folder and as the single .mcap file (the folder's metadata.yaml is found beside it)."""
+    from mcap.opcode import Opcode
+
+    path, messages, chunks = intact
+    data = path.read_bytes()
+    metadata = (path.parent / "metadata.yaml").read_text()
+    data_end = next(offset for offset, opcode in top_level_records(data) if opcode == Opcode.DATA_END)
+    cuts = sorted({60, *(offset for offset, _ in top_level_records(data) if offset <= data_end + 20)})
+    assert len(cuts) > 2 * len(chunks)
+    for cut in cuts:
+        folder = tmp_path / f"cut_{cut}"
+        folder.mkdir()
+        (folder / "metadata.yaml").write_text(metadata)
+        (folder / path.name).write_bytes(data[:cut])
+        complete = [c for c in chunks if c.chunk_start_offset + c.chunk_length <= cut]
+        readable = [m for m in messages if any(c.message_start_time <= m[1] <= c.message_end_time for c in complete)]
+        for target in (folder, folder / path.name):
+            got, error, reader = read_all(target)
+            reader.close()
+            assert got == readable, (cut, target)
+            if len(readable) == COUNT:
+                assert error is None, (cut, error)
+                continue
+            assert error is not None, f"cut at byte {cut} loses {COUNT - len(readable)} messages without an error"
+            assert str(folder) in str(error)
+            lost = COUNT - len(readable)
+            assert f"{lost} are lost" in str(error) or "truncated" in str(error), (cut, error)
+            assert "fewer messages than it declares" in str(error) or "at byte" in str(error), (cut, error)
+
+
+def test_a_bag_cut_at_a_record_boundary_names_each_topic_s_shortfall(intact, tmp_path):
+    path, messages, chunks = intact
+    folder = tmp_path / "bag"
+    folder.mkdir()
+    (folder / "metadata.yaml").write_text((path.parent / "metadata.yaml").read_text())
+    (folder / path.name).write_bytes(path.read_bytes()[: chunks[2].chunk_start_offset])
+    got, error, reader = read_all(folder)
+    reader.close()
+    on_a = sum(1 for m in messages if m[0] == "/a")
+    got_a = sum(1 for m in got if m[0] == "/a")
+    assert error is not None and error.path == str(folder / "metadata.yaml")
+    assert f"/a: {got_a} of {on_a}" in str(error) and f"{COUNT - len(got)} are lost" in str(error)
+    assert reader.damaged

@@ -114,6 +114,13 @@ def test_replay_offer_follows_rosbag2():
     mixed = qos_module.for_replay([TF_STATIC, Qos()])
     assert mixed == Qos() and not mixed.transient_local
     assert qos_module.for_replay([]) == Qos()
+    # Without a depth override, the recorded history: a late subscriber gets what the recording kept.
+    amcl = Qos(depth=1, durability="transient_local")
+    assert qos_module.for_replay([amcl, amcl]) == amcl
+    assert qos_module.for_replay([Qos(depth=5), Qos(depth=50)]).depth == 50
+    assert qos_module.for_replay([Qos(history="keep_all", depth=0)]).history == "keep_all"
+    old = Qos(history="unknown", depth=0)  # what the talker bag of rosbag2's tests lists
+    assert qos_module.for_replay([old]) == Qos(depth=10)
 
 
 def test_type_names():

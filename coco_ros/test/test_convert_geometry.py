@@ -161,3 +161,41 @@ def test_without_tf2_msgs_the_error_says_how_to_get_it(monkeypatch):
     monkeypatch.setattr(geometry, "message_class", missing)
     with pytest.raises(ImportError, match="needs the tf2_msgs Python package .*vendor/tf2_msgs.*scripts/setup.sh"):
         converter_for("tf2_msgs/msg/TFMessage")
+
+
+@pytest.mark.parametrize("static", [False, True])
+def test_tf_message_from_cdr_reads_the_bytes_as_to_coco_reads_the_message(static):
+    """TFMessages of 0-6 transforms with frame names of every length (every alignment), zero and real
+    stamps, random poses, serialised by rclpy: from_cdr gives the samples to_coco gives."""
+    import random
+
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import Quaternion, Transform, TransformStamped, Vector3
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Header
+
+    converter = converter_for("tf2_msgs/msg/TFMessage", static=static)
+    message_class = converter.message_type
+    rng = random.Random(3)
+    for _ in range(300):
+        transforms = []
+        for _ in range(rng.randint(0, 6)):
+            quaternion = [rng.uniform(-1, 1) for _ in range(4)]
+            transforms.append(TransformStamped(
+                header=Header(stamp=Time(sec=rng.choice([0, 1_700_000_000]), nanosec=rng.choice([0, 5])),
+                              frame_id="p" * rng.randint(1, 9)),
+                child_frame_id="cé" * rng.randint(1, 5),
+                transform=Transform(translation=Vector3(x=rng.uniform(-5, 5), y=rng.uniform(-5, 5), z=1.0),
+                                    rotation=Quaternion(x=quaternion[0], y=quaternion[1], z=quaternion[2],
+                                                        w=quaternion[3]))))
+        msg = message_class(transforms=transforms)
+        expected = converter.to_coco(msg)
+        got = converter.from_cdr(serialize_message(msg))
+        assert [(s.parent, s.child, s.stamp, s.static) for s in got] == \
+            [(s.parent, s.child, s.stamp, s.static) for s in expected]
+        for ours, theirs in zip(got, expected):
+            np.testing.assert_allclose(ours.transform, theirs.transform, atol=1e-12)
+    zero = message_class(transforms=[TransformStamped(child_frame_id="a", transform=Transform(
+        rotation=Quaternion(x=0.0, y=0.0, z=0.0, w=0.0)))])
+    with pytest.raises(ValueError, match="is zero: not a rotation"):
+        converter.from_cdr(serialize_message(zero))

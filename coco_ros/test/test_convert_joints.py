@@ -67,3 +67,46 @@ def test_inconsistent_samples_are_refused():
         joints.to_ros(JointStateSample(("a",), np.zeros(1), None, np.zeros(2)))
     with pytest.raises(TypeError, match="publishes JointSample values"):
         joints.to_ros({"a": 1.0})
+
+
+def test_from_cdr_reads_the_bytes_as_to_coco_reads_the_message():
+    """JointStates of every shape (0-25 joints, names of varying length for every alignment, optional
+    velocities and efforts, zero and real stamps, mismatched lengths) serialised by rclpy: from_cdr
+    gives what to_coco gives, or the same refusal; the positions are views of the CDR bytes."""
+    import random
+
+    converter = converter_for("sensor_msgs/msg/JointState")
+    rng = random.Random(7)
+    refused = 0
+    for _ in range(500):
+        count = rng.randint(0, 25)
+        names = ["".join(rng.choice("abcé_xyz0123") for _ in range(rng.randint(1, 12))) for _ in range(count)]
+        msg = JointState(header=Header(stamp=Time(sec=rng.choice([0, 1_700_000_000]), nanosec=rng.choice([0, 123])),
+                                       frame_id="f" * rng.randint(0, 9)), name=names)
+        msg.position = [rng.uniform(-3, 3) for _ in range(count + rng.choice([0, 0, 0, 1]))]
+        if rng.random() < 0.5:
+            msg.velocity = [rng.uniform(-3, 3) for _ in range(count)]
+        if rng.random() < 0.5:
+            msg.effort = [rng.uniform(-3, 3) for _ in range(count)]
+        data = serialize_message(msg)
+        try:
+            expected = converter.to_coco(msg)
+        except ValueError as error:
+            refused += 1
+            with pytest.raises(ValueError, match=str(error).replace("(", r"\(").replace(")", r"\)")):
+                converter.from_cdr(data)
+            continue
+        got = converter.from_cdr(data)
+        assert got.names == expected.names and got.stamp == expected.stamp
+        np.testing.assert_array_equal(got.positions, expected.positions)
+        for ours, theirs in ((got.velocities, expected.velocities), (got.efforts, expected.efforts)):
+            assert (ours is None and theirs is None) or np.array_equal(ours, theirs)
+        assert got.positions.base is not None and not got.positions.flags.writeable  # a view of the bytes
+    assert 0 < refused < 500
+
+
+def test_from_cdr_refuses_cut_bytes():
+    converter = converter_for("sensor_msgs/msg/JointState")
+    data = serialize_message(JointState(name=["a", "b"], position=[1.0, 2.0]))
+    with pytest.raises(ValueError, match="malformed JointState CDR"):
+        converter.from_cdr(data[:-9])

@@ -65,3 +65,23 @@ def test_converters_are_stateless_and_reusable():
     second = converter.to_coco(converter.to_ros(np.array([3])))
     np.testing.assert_array_equal(first, [1, 2])
     np.testing.assert_array_equal(second, [3])
+
+
+def test_every_converter_reads_cdr_bytes_as_it_reads_the_message():
+    """``from_cdr`` (what BagReplay uses) agrees with ``to_coco`` for every registered type: same
+    value type, or the same refusal, on each type's default message."""
+    from rclpy.serialization import serialize_message
+
+    from coco_ros.convert import converter_for, supported_types
+
+    def outcome(call):
+        try:
+            return "value", type(call()).__name__
+        except ValueError as error:
+            return "refused", str(error)
+
+    for type_name in supported_types():
+        converter = converter_for(type_name)
+        message = converter.message_type()
+        data = serialize_message(message)
+        assert outcome(lambda: converter.from_cdr(data)) == outcome(lambda: converter.to_coco(message)), type_name

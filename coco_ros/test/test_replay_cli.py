@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -97,3 +98,139 @@ def test_not_a_bag_exits_1(tmp_path):
     bad.write_bytes(b"not an mcap file at all")
     result = cli(str(bad), "--fast", "--delay", "0")
     assert result.returncode == 1 and str(bad) in result.stderr
+
+
+def test_bag_cut_at_a_record_boundary_exits_1_naming_what_is_lost(chatter_bag, tmp_path):
+    """No byte of a record is cut: only metadata.yaml's counts show that the bag lost its end."""
+    import shutil
+
+    from mcap.reader import make_reader
+
+    folder = tmp_path / "cut"
+    shutil.copytree(chatter_bag, folder)
+    mcap = folder / "chatter_0.mcap"
+    with mcap.open("rb") as stream:
+        chunks = sorted(c.chunk_start_offset for c in make_reader(stream).get_summary().chunk_indexes)
+    mcap.write_bytes(mcap.read_bytes()[: chunks[len(chunks) // 2]])
+    result = cli(str(folder), "--fast", "--delay", "0")
+    assert result.returncode == 1, result.stderr
+    assert f"{folder / 'metadata.yaml'}: the storage files hold fewer messages" in result.stderr, result.stderr
+    assert "are lost" in result.stderr
+
+
+SUBSCRIBER = """
+import os, signal, sys, time
+import rclpy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
+from nav_msgs.msg import Odometry
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from tf2_msgs.msg import TFMessage
+
+rclpy.init()
+node = rclpy.create_node("counting_subscriber")
+counts = {"/tf": 0, "/odom": 0, "/amcl_pose": 0}
+def counter(topic):
+    def count(message):
+        counts[topic] += 1
+        if mode == "stuck":  # a subscriber that hangs once the data flows: it acknowledges no more
+            os.kill(os.getpid(), signal.SIGSTOP)
+    return count
+mode = sys.argv[1]
+if mode in ("stream", "stuck"):  # subscribers that want every message: reliable, KEEP_ALL
+    every = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=0)
+    node.create_subscription(TFMessage, "/tf", counter("/tf"), every)
+    node.create_subscription(Odometry, "/odom", counter("/odom"), every)
+else:  # a late subscriber of a transient-local topic, deeper than the recording's depth 1
+    while node.count_publishers("/amcl_pose") == 0:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    time.sleep(1.0)  # the replay has published every /amcl_pose by now
+    node.create_subscription(PoseWithCovarianceStamped, "/amcl_pose", counter("/amcl_pose"),
+                             QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+print("ready", flush=True)
+deadline = time.monotonic() + float(sys.argv[2])
+last, seen = time.monotonic(), 0
+while time.monotonic() < deadline and not (seen and time.monotonic() - last > 3.0):  # 3 s quiet: done
+    rclpy.spin_once(node, timeout_sec=0.05)
+    if sum(counts.values()) != seen:
+        last, seen = time.monotonic(), sum(counts.values())
+print(counts["/tf"], counts["/odom"], counts["/amcl_pose"], flush=True)
+"""
+
+
+def start_subscriber(mode: str, seconds: float) -> subprocess.Popen:
+    env = dict(os.environ, ROS_DOMAIN_ID=DOMAIN, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    return subprocess.Popen([sys.executable, "-c", SUBSCRIBER, mode, str(seconds)], stdout=subprocess.PIPE,
+                            text=True, env=env)
+
+
+@pytest.fixture(scope="module")
+def robot_bag(tmp_path_factory) -> Path:
+    """/tf (reliable, depth 100), /odom (reliable, depth 10) as fast as a robot records them, and
+    /amcl_pose offered transient local with depth 1, as nav2's AMCL does."""
+    from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+    from nav_msgs.msg import Odometry
+    from std_msgs.msg import String
+
+    from coco_ros.bag import Qos
+
+    folder = tmp_path_factory.mktemp("replay_flow") / "robot"
+    with BagWriter(folder) as writer:
+        writer.add_topic("/tf", "tf2_msgs/msg/TFMessage", qos=Qos(depth=100))
+        writer.add_topic("/amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped",
+                         qos=Qos(depth=1, durability="transient_local"))
+        for i in range(10):
+            writer.write("/amcl_pose", PoseWithCovarianceStamped(), T0 + i * MS)
+        for i in range(3000):
+            transforms = [TransformStamped(child_frame_id=f"link{k}") for k in range(3)]
+            writer.write("/tf", TFMessage(transforms=transforms), T0 + 10 * MS + i * MS)
+            if i % 2 == 0:
+                writer.write("/odom", Odometry(child_frame_id="base_link"), T0 + 10 * MS + i * MS)
+        writer.write("/keepalive", String(data="end"), T0 + 8000 * MS)  # keeps a 1x replay alive 8 s
+    return folder
+
+
+def replay_to_subscriber(bag: Path, mode: str) -> tuple[subprocess.CompletedProcess, list[str]]:
+    """``coco-replay --fast`` of /tf and /odom to a subscriber process in ``mode``: (result, its counts)."""
+    subscriber = start_subscriber(mode, 25.0)
+    try:
+        assert subscriber.stdout.readline().strip() == "ready"
+        result = cli(str(bag), "--fast", "--wait-subscribers", "2", "--topics", "/tf", "/odom", timeout=60)
+        if mode == "stuck":
+            return result, []
+        return result, subscriber.communicate(timeout=30)[0].split()
+    finally:
+        if subscriber.poll() is None:
+            subscriber.send_signal(signal.SIGCONT)
+            subscriber.kill()
+            subscriber.wait()
+
+
+def test_fast_replay_delivers_every_message_to_reliable_subscribers(robot_bag):
+    """A separate rclpy process with reliable KEEP_ALL subscriptions receives all of /tf and /odom."""
+    result, counts = replay_to_subscriber(robot_bag, "stream")
+    assert result.returncode == 0, result.stderr
+    assert "acknowledge" not in result.stderr, result.stderr
+    assert counts[:2] == ["3000", "1500"], counts
+
+
+def test_fast_replay_reports_a_stuck_reliable_subscriber(robot_bag):
+    """A subscriber that stops acknowledging (its process stops itself at its first message) is
+    reported, not ignored."""
+    result, _ = replay_to_subscriber(robot_bag, "stuck")
+    assert result.returncode == 0, result.stderr
+    assert "did not acknowledge every message" in result.stderr and "/tf" in result.stderr, result.stderr
+
+
+def test_replay_offers_the_recorded_depth_to_late_transient_local_subscribers(robot_bag):
+    """The recording offered /amcl_pose at depth 1, transient local: a subscriber joining after the
+    replay published ten of them gets one, as it would have from the recorded publisher."""
+    subscriber = start_subscriber("late", 3.0)
+    try:
+        result = cli(str(robot_bag), "--delay", "0", "--topics", "/amcl_pose", "/keepalive", timeout=60)
+        assert result.returncode == 0, result.stderr
+        lines = subscriber.communicate(timeout=30)[0].split("\n")
+    finally:
+        if subscriber.poll() is None:
+            subscriber.kill()
+            subscriber.wait()
+    assert lines[0] == "ready" and lines[1].split()[2] == "1", lines

@@ -279,3 +279,40 @@ def test_replay_in_a_triggered_activity_starts_by_itself(talker_bag):
     run(app, timeout=5.0)
     assert replay._player.delivered == 10
     assert [m.data for m in sink.got] == [f"Hello, world! {i}" for i in range(10)]
+
+
+def test_tf_static_from_a_bag_becomes_static_edges_for_timed_lookups(tmp_path):
+    """A /tf_static stamped 0 (as static broadcasters send it) and a moving /tf: through BagReplay
+    and a TransformationInterface the static transform is a static edge, so a timed lookup through
+    it only needs the dynamic edge's history (issue 13: it was a dynamic edge at wall-clock time)."""
+    from builtin_interfaces.msg import Time
+    from coco_core.activity import TriggeredActivity
+    from coco_core.transforms.edges import DynamicEdge, StaticEdge
+    from coco_core.transforms.interface import TransformationInterface
+    from geometry_msgs.msg import Transform, TransformStamped, Vector3
+    from std_msgs.msg import Header
+
+    folder = tmp_path / "tf"
+    with BagWriter(folder) as writer:
+        static = TransformStamped(header=Header(frame_id="base_link"), child_frame_id="laser",
+                                  transform=Transform(translation=Vector3(x=0.2)))
+        static.transform.rotation.w = 1.0
+        writer.write("/tf_static", TFMessage(transforms=[static]), T0)
+        for i in range(20):
+            moving = TransformStamped(header=Header(frame_id="odom", stamp=Time(sec=1_700_000_000, nanosec=i * MS)),
+                                      child_frame_id="base_link", transform=Transform(translation=Vector3(x=0.01 * i)))
+            moving.transform.rotation.w = 1.0
+            writer.write("/tf", TFMessage(transforms=[moving]), T0 + (i + 1) * MS)
+    app = Application("tf_static")
+    app.add(BagReplay("replay", bag=folder, rate=0, stop_at_end=True))
+    interface = app.add(TransformationInterface("tf"), TriggeredActivity("tf"))
+    app.connect("replay.tf", "tf.transform", BUFFER)
+    app.connect("replay.tf_static", "tf.transform", BUFFER)
+    app.schedule("replay", PeriodicActivity("loop", 0.002))
+    run(app)
+    graph = app.transforms
+    assert isinstance(graph.edge("base_link", "laser"), StaticEdge)
+    assert isinstance(graph.edge("odom", "base_link"), DynamicEdge)
+    at = 1_700_000_000 + 0.0105
+    np.testing.assert_allclose(graph.lookup("odom", "laser", at)[:3, 3], [0.105 + 0.2, 0.0, 0.0], atol=1e-9)
+    assert interface.stats.refused == 0

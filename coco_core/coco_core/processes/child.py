@@ -27,6 +27,7 @@ from ..application import Application
 from ..builder import build_application
 from ..drivers import EventfdDriver
 from ..errors import CocoError, ProcessError
+from ..launcher import stopped_by_a_failure
 from ..report import snapshot
 from .channels import attach
 from .control import ControlLink
@@ -114,7 +115,7 @@ class ChildProcess:
         listener = threading.Thread(target=self._serve, name="coco:control", daemon=True)
         listener.start()
         clean = self.run_app(app, config)
-        failed = any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
+        failed = stopped_by_a_failure(app)  # a component's error policy, or damaged input
         self.link.send("stopped", clean=clean, failed=failed, snapshot=snapshot(app, process))
         return 0 if clean else 1
 

@@ -137,6 +137,11 @@ class DynamicEdge(Edge):
         (older than a full history). ``checked``: the matrix is already validated and read-only."""
         value = transform if checked else se3.frozen(se3.as_transform(transform))
         stamps = self._stamps
+        if not stamps or stamp > stamps[-1]:  # the usual case: a newer sample
+            stamps.append(stamp)
+            self._values.append(value)
+            self.version += 1
+            return True
         index = bisect.bisect_left(stamps, stamp)
         if index < len(stamps) and stamps[index] == stamp:
             self._values[index] = value

@@ -14,6 +14,7 @@ Consecutive edges of one :class:`KinematicModel` (a URDF robot) are evaluated to
 from __future__ import annotations
 
 import logging
+import math
 import time as _time
 from collections import deque
 from typing import Any, Callable, ContextManager, Iterable, Mapping
@@ -33,6 +34,14 @@ Callback = Callable[[np.ndarray], None]
 
 class TransformError(LookupError):
     """An unknown frame, no path, or a write the declared structure forbids."""
+
+
+def _finite_time(value: Any, what: str) -> float:
+    """``value`` as seconds; NaN and infinities are refused (they compare false with every stamp, so
+    they would silently break the order of a history or return a NaN pose)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value):
+        raise ValueError(f"{what} must be a finite number of seconds, got {value!r}")
+    return value
 
 
 class KinematicModel(Dependency):
@@ -55,6 +64,12 @@ class KinematicModel(Dependency):
     def set_positions(self, values: Mapping[str, float]) -> list[str]:
         """Set joint values by name in one bulk update; return the names the model does not have."""
         raise NotImplementedError
+
+    def set_array(self, names: tuple[str, ...], positions: np.ndarray) -> tuple[str, ...]:
+        """Set joint values given as names and a (checked, finite) array; return the names the model
+        does not have. This default goes through :meth:`set_positions`; a model that can take the
+        array as it is overrides it."""
+        return tuple(self.set_positions(dict(zip(names, positions.tolist()))))
 
     @property
     def joint_names(self) -> list[str]:
@@ -136,7 +151,8 @@ class Query:
     """A cached lookup of ``T_target_source``; get one from :meth:`TransformGraph.query`."""
 
     __slots__ = ("graph", "target", "source", "steps", "dependencies", "versions", "graph_version",
-                 "structure_version", "value", "callbacks", "notified", "__weakref__")
+                 "structure_version", "value", "callbacks", "notified", "step_versions", "prefix", "suffix",
+                 "prefix_valid", "suffix_valid", "positions", "__weakref__")
 
     def __init__(self, graph: TransformGraph, target: str, source: str) -> None:
         self.graph = graph
@@ -151,6 +167,18 @@ class Query:
         self.callbacks: list[Callback] = []
         self.notified: np.ndarray | None = None
         """The value callbacks saw last: a structure change elsewhere that leaves it equal is silent."""
+        self.step_versions: list[int] = []
+        """The version of each step's dependency when the value was computed."""
+        self.prefix: list[np.ndarray] = []
+        """``prefix[k]``: the product of steps ``0..k-1`` (``prefix[0]`` the identity)."""
+        self.suffix: list[np.ndarray] = []
+        """``suffix[k]``: the product of steps ``k..n-1`` (``suffix[n]`` the identity)."""
+        self.prefix_valid = -1
+        """``prefix[0..prefix_valid]`` hold the current values; the later ones are stale."""
+        self.suffix_valid = 1 << 30
+        """``suffix[suffix_valid..n]`` hold the current values; the earlier ones are stale."""
+        self.positions: dict[Dependency, int] = {}
+        """Dependency -> index of its step (empty when a dependency has several steps)."""
 
     @property
     def path(self) -> list[str]:
@@ -207,6 +235,9 @@ class TransformGraph:
         self.version = 0
         self.structure_version = 0
         self._reported_unknown_joints: set[str] = set()
+        self._last_change: tuple[int, Dependency | None] = (-1, None)
+        """(graph version, the edge) of the last write that changed exactly one edge: a query one
+        version behind knows what changed without comparing every version on its path."""
 
     # --- structure ------------------------------------------------------------------------------
     @property
@@ -303,6 +334,8 @@ class TransformGraph:
         structure is strict) or, when not strict, a new value of a static edge. ``cause``: the stamp
         of the input it came from, kept on the edge (:attr:`Dependency.cause`) for latency."""
         matrix = se3.frozen(se3.as_transform(transform))  # a bad matrix changes nothing
+        if stamp is not None:
+            stamp = _finite_time(stamp, "stamp")  # a NaN stamp would break the history's order
         with self._lock.write():
             edge = self._edges.get((parent, child))
             if edge is None:
@@ -338,6 +371,7 @@ class TransformGraph:
             if changed or created:
                 edge.cause = cause
                 self.version += 1
+                self._last_change = (self.version, edge)
         if changed or created:
             self._notify([edge], structure_changed=created)
 
@@ -350,6 +384,29 @@ class TransformGraph:
             edge.assign(transform if edge.parent == parent else se3.inverse(np.asarray(transform, dtype=float)))
             self.version += 1
         self._notify([edge])
+
+    def place_static(self, parent: str, child: str, transform: np.ndarray) -> bool:
+        """Make ``parent -> child`` a static edge with this value, as tf2 treats /tf_static: add it,
+        replace its value (a new calibration), or nothing when it already has this value (a static
+        broadcaster re-sends its whole set). Returns whether the graph changed; an edge of another
+        kind is a :class:`TransformError`."""
+        matrix = se3.frozen(se3.as_transform(transform))
+        with self._lock.write():
+            edge = self._edges.get((parent, child)) or self._edges.get((child, parent))
+        if edge is None:
+            try:
+                self.add_edge(StaticEdge(parent, child, matrix))
+                return True
+            except TransformError:  # another writer added it meanwhile: replace its value below
+                edge = self.edge(parent, child)
+        if not isinstance(edge, StaticEdge):
+            raise TransformError(f"edge {edge.name} is a {edge.kind.value} edge of the graph, not a static "
+                                 "one: a static transform cannot set it")
+        value = matrix if edge.parent == parent else se3.frozen(se3.inverse(matrix))
+        if np.array_equal(edge.transform(), value):
+            return False
+        self.set_static(edge.parent, edge.child, value)
+        return True
 
     def reading(self) -> ContextManager[None]:
         """Hold the read lock: several lookups inside see one consistent state of the graph."""
@@ -370,8 +427,8 @@ class TransformGraph:
         """
         changed: list[Dependency] = []
         for name, value in values.items():  # nothing changes when one value is wrong
-            if not isinstance(value, (int, float, np.number)) or isinstance(value, bool) or value != value:
-                raise ValueError(f"joint {name}: expected a number, got {value!r}")
+            if not isinstance(value, (int, float, np.number)) or isinstance(value, bool) or not math.isfinite(value):
+                raise ValueError(f"joint {name}: expected a finite number, got {value!r}")
         with self._lock.write():
             remaining = dict(values)
             for model in self._models.values():
@@ -399,6 +456,54 @@ class TransformGraph:
         self._notify(changed)
         return list(remaining)
 
+    def set_joint_array(self, names: tuple[str, ...], positions: np.ndarray, cause: Stamp | None = None) -> list[str]:
+        """:meth:`set_joints` for values as they arrive in a JointState: names and an array, kept an
+        array down to the kinematic models (:meth:`KinematicModel.set_array`). Refused, changing
+        nothing: a length that differs from the names', a non-finite value. ``cause``: the stamp of
+        the input they came from, kept on what changed (for latency)."""
+        if type(positions) is not np.ndarray or positions.dtype != np.float64:
+            positions = np.asarray(positions, dtype=float)
+        if positions.shape != (len(names),):
+            raise ValueError(f"joint sample with {len(names)} names but {positions.size} positions: refused")
+        if not math.isfinite(positions.sum()):  # NaN and infinities make the sum non-finite
+            bad = next(i for i, value in enumerate(positions.tolist()) if not math.isfinite(value))
+            raise ValueError(f"joint {names[bad]}: expected a finite number, got {positions[bad]!r}")
+        changed: list[Dependency] = []
+        left: list[str] = []
+        with self._lock.write():
+            remaining: tuple[str, ...] = names
+            for model in self._models.values():
+                before = model.version
+                unknown = model.set_array(names, positions)
+                if model.version != before:
+                    changed.append(model)
+                remaining = unknown if remaining is names else tuple(n for n in remaining if n in unknown)
+            if remaining:
+                joints = self._joints
+                values: list[float] | None = None
+                for name in remaining:
+                    edge = joints.get(name)
+                    if edge is None:
+                        left.append(name)
+                        continue
+                    if values is None:
+                        values = positions.tolist()
+                    value = values[names.index(name)]
+                    if edge.value != value:
+                        edge.assign(value)
+                        changed.append(edge)
+            if changed:
+                for dependency in changed:
+                    dependency.cause = cause
+                self.version += 1
+        if left and not self._reported_unknown_joints.issuperset(left):
+            new = [name for name in left if name not in self._reported_unknown_joints]
+            self._reported_unknown_joints.update(new)
+            log.warning("ignoring joint(s) that no edge or model has: %s", ", ".join(sorted(new)))
+        if changed:
+            self._notify(changed)
+        return left
+
     @property
     def joint_names(self) -> list[str]:
         names = list(self._joints)
@@ -415,6 +520,7 @@ class TransformGraph:
             if query is not None and query.graph_version == self.version:
                 return query.value
             return self._refresh(query or self._new_query(target, source))
+        time = _finite_time(time, "time")
         with self._lock.read():
             steps = self._resolve(target, source)
             return self._product(steps, time)
@@ -447,17 +553,96 @@ class TransformGraph:
         query.steps, query.dependencies = steps, dependencies
         query.structure_version = self.structure_version
         query.versions = ()
+        query.step_versions = []
+        query.positions = ({step.dependency: index for index, step in enumerate(steps)}
+                           if len(dependencies) == len(steps) else {})
 
     def _refresh(self, query: Query) -> np.ndarray:
         with self._lock.read():
             version = self.version
+            if len(query.steps) == 1 and query.structure_version == self.structure_version:
+                # One step (a robot's base to its gripper): the step caches its own value per version.
+                query.value = query.steps[0].value(None)
+                query.graph_version = version
+                return query.value
+            last_version, last_edge = self._last_change
+            if (last_version == version and query.graph_version == version - 1 and query.step_versions
+                    and query.structure_version == self.structure_version):
+                # Exactly one write since this query's value: one edge changed, known without scanning.
+                index = query.positions.get(last_edge)
+                if index is None and last_edge not in query.dependencies:
+                    query.graph_version = version  # off the path: the value stands
+                    return query.value
+                if index is not None and index <= query.prefix_valid and index + 1 >= query.suffix_valid:
+                    query.value = self._replace_step(query, index)
+                    query.step_versions[index] = last_edge.version
+                    query.versions = None  # the slow path compares step_versions instead
+                    query.graph_version = version
+                    return query.value
             self._resolve_path(query)
             versions = tuple(dependency.version for dependency in query.dependencies)
             if versions != query.versions:
-                query.value = self._product(query.steps, None)
+                query.value = self._evaluate(query)
                 query.versions = versions
             query.graph_version = version
             return query.value
+
+    @staticmethod
+    def _evaluate(query: Query) -> np.ndarray:
+        """The query's value after some steps changed, from cached partial products.
+
+        The common change is one edge of a long path (a tracked object under a chain of static
+        edges): the value is then ``prefix[k] @ step_k @ suffix[k+1]``, two matrix products instead
+        of one per hop; the prefix products before the change and the suffix products after it stay
+        valid for the next change of the same edge. Any other change rebuilds every prefix and suffix
+        product (twice the products of a plain evaluation, once).
+        """
+        steps = query.steps
+        count = len(steps)
+        if count < 3:  # nothing to save
+            query.step_versions = []
+            return TransformGraph._product(steps, None)
+        now = [step.dependency.version for step in steps]
+        old = query.step_versions
+        query.step_versions = now
+        if len(old) == count:
+            changed = [k for k in range(count) if now[k] != old[k]]
+            if not changed:
+                return query.value
+            low, high = changed[0], changed[-1]
+            if low == high and low <= query.prefix_valid and low + 1 >= query.suffix_valid:
+                return TransformGraph._replace_step(query, low)
+            if low <= query.prefix_valid and high + 1 >= query.suffix_valid:
+                result = query.prefix[low] if low else None
+                for k in range(low, high + 1):
+                    value = steps[k].value(None)
+                    result = value if result is None else result @ value
+                if high + 1 < count:
+                    result = result @ query.suffix[high + 1]
+                query.prefix_valid, query.suffix_valid = low, high + 1
+                return se3.frozen(result) if result.flags.writeable else result
+        values = [step.value(None) for step in steps]
+        prefix = [se3.IDENTITY, values[0]]
+        for value in values[1:]:
+            prefix.append(prefix[-1] @ value)
+        suffix = [se3.IDENTITY] * (count + 1)
+        suffix[count - 1] = values[-1]
+        for k in range(count - 2, -1, -1):
+            suffix[k] = values[k] @ suffix[k + 1]
+        query.prefix, query.suffix = prefix, suffix
+        query.prefix_valid, query.suffix_valid = count, 0
+        return se3.frozen(prefix[count])
+
+    @staticmethod
+    def _replace_step(query: Query, index: int) -> np.ndarray:
+        """The value when only step ``index`` changed: ``prefix[index] @ step @ suffix[index + 1]``."""
+        value = query.steps[index].value(None)
+        if index:
+            value = query.prefix[index] @ value
+        if index + 1 < len(query.steps):
+            value = value @ query.suffix[index + 1]
+        query.prefix_valid, query.suffix_valid = index, index + 1
+        return se3.frozen(value) if value.flags.writeable else value
 
     @staticmethod
     def _product(steps: list[_Step], time: float | None) -> np.ndarray:

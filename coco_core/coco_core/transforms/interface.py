@@ -23,8 +23,8 @@ from ..component import Component
 from ..operations import current_activity, operation
 from ..ports import InputPort, OutputPort
 from ..stamps import Stamp, Stamped, unstamped
-from .graph import KinematicModel, Query
-from .samples import FramePose, JointSample
+from .graph import KinematicModel, Query, TransformGraph
+from .samples import FramePose, JointSample, TransformSample
 
 log = logging.getLogger("coco.transforms")
 
@@ -99,22 +99,36 @@ class TransformationInterface(Component):
             self._cause = (None, None)
 
     def _apply_inputs(self) -> None:
+        """Apply every sample read in this cycle; a malformed one (non-finite values or stamp, a
+        matrix that is not a rigid transform, positions that do not match the names) is refused and
+        counted (:meth:`record_refusal`), and the samples after it are still applied."""
         graph = self.transform_graph
         for item in self.transform.read_all():
             item, origin = unstamped(item)
             for sample in item if isinstance(item, (list, tuple)) else (item,):
                 self._cause = (origin, sample.stamp)
-                if isinstance(sample, FramePose):  # T_target_source: target is the parent, source the child
-                    if not sample.source:
-                        self._warn_unnamed(sample)
-                        continue
-                    graph.set_transform(sample.target, sample.source, sample.transform, sample.stamp, origin)
-                else:
-                    graph.set_transform(sample.parent, sample.child, sample.transform, sample.stamp, origin)
+                try:
+                    self._apply_transform(graph, sample, origin)
+                except (ValueError, LookupError) as error:
+                    self.record_refusal(f"a transform sample on port {self.transform.name}", error)
         for joints in self.joints.read_all():
             joints, origin = unstamped(joints)
             self._cause = (origin, joints.stamp)
-            graph.set_joints(joints.as_mapping(), origin)
+            try:  # the positions stay an array down to the kinematic models
+                graph.set_joint_array(joints.names, joints.positions, origin)
+            except (ValueError, LookupError) as error:
+                self.record_refusal(f"a joint sample on port {self.joints.name}", error)
+
+    def _apply_transform(self, graph: TransformGraph, sample: TransformSample | FramePose, origin: Stamp | None) -> None:
+        if isinstance(sample, FramePose):  # T_target_source: target is the parent, source the child
+            if not sample.source:
+                self._warn_unnamed(sample)
+                return
+            graph.set_transform(sample.target, sample.source, sample.transform, sample.stamp, origin)
+        elif sample.static:  # /tf_static: a static edge, whatever its stamp (0 is usual)
+            graph.place_static(sample.parent, sample.child, sample.transform)
+        else:
+            graph.set_transform(sample.parent, sample.child, sample.transform, sample.stamp, origin)
 
     def _warn_unnamed(self, sample: FramePose) -> None:
         if not getattr(self, "_warned_unnamed", False):

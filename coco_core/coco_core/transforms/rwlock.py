@@ -2,13 +2,17 @@
 
 Re-entrant for readers: a thread that already reads (e.g. inside ``TransformGraph.reading()``) or
 writes may read again without waiting, so it cannot deadlock against a writer queued in between.
+
+It is on the path of every edge update and every lookup after a change, so ``read()`` and
+``write()`` hand out one reusable guard object each (a class with ``__enter__``/``__exit__``, not a
+generator context manager) and nobody is notified when nobody waits: an uncontended write costs two
+short critical sections and no ``notify_all``.
 """
 
 from __future__ import annotations
 
 import threading
-from contextlib import contextmanager
-from typing import Iterator
+from threading import get_ident
 
 
 class ReadWriteLock:
@@ -19,52 +23,95 @@ class ReadWriteLock:
         self._readers = 0
         self._writer: int | None = None
         """Thread id of the writer holding the lock."""
+        self._write_depth = 0
+        """Nested writes of the writer thread (only that thread touches it)."""
         self._writers_waiting = 0
+        self._waiting = 0
+        """Threads waiting on the condition (readers or writers): notify only when there are some."""
         self._local = threading.local()
+        self._read_guard = _ReadGuard(self)
+        self._write_guard = _WriteGuard(self)
 
-    def _depth(self) -> int:
-        return getattr(self._local, "depth", 0)
+    def read(self) -> _ReadGuard:
+        """``with lock.read():`` shares the lock with other readers."""
+        return self._read_guard
 
-    @contextmanager
-    def read(self) -> Iterator[None]:
-        if self._depth() or self._writer == threading.get_ident():
-            self._local.depth = self._depth() + 1  # already inside: never wait for queued writers
-            try:
-                yield
-            finally:
-                self._local.depth -= 1
-            return
-        with self._condition:
-            while self._writer is not None or self._writers_waiting:
-                self._condition.wait()
-            self._readers += 1
-        self._local.depth = 1
+    def write(self) -> _WriteGuard:
+        """``with lock.write():`` holds the lock alone (nested writes by the same thread are fine)."""
+        return self._write_guard
+
+    def _wait(self) -> None:
+        self._waiting += 1
         try:
-            yield
+            self._condition.wait()
         finally:
-            self._local.depth = 0
-            with self._condition:
-                self._readers -= 1
-                if self._readers == 0:
-                    self._condition.notify_all()
+            self._waiting -= 1
 
-    @contextmanager
-    def write(self) -> Iterator[None]:
-        if self._depth():
+
+class _ReadGuard:
+    __slots__ = ("lock",)
+
+    def __init__(self, lock: ReadWriteLock) -> None:
+        self.lock = lock
+
+    def __enter__(self) -> None:
+        lock = self.lock
+        local = lock._local
+        depth = getattr(local, "depth", 0)
+        if depth or lock._writer == get_ident():
+            local.depth = depth + 1  # already inside: never wait for queued writers
+            return
+        with lock._condition:
+            while lock._writer is not None or lock._writers_waiting:
+                lock._wait()
+            lock._readers += 1
+        local.depth = 1
+        local.counted = True
+
+    def __exit__(self, *exc: object) -> None:
+        lock = self.lock
+        local = lock._local
+        local.depth -= 1
+        if local.depth or not getattr(local, "counted", False):
+            return
+        local.counted = False
+        with lock._condition:
+            lock._readers -= 1
+            if lock._readers == 0 and lock._waiting:
+                lock._condition.notify_all()
+
+
+class _WriteGuard:
+    __slots__ = ("lock",)
+
+    def __init__(self, lock: ReadWriteLock) -> None:
+        self.lock = lock
+
+    def __enter__(self) -> None:
+        lock = self.lock
+        if lock._readers and getattr(lock._local, "depth", 0):  # no reader at all: this thread is none
             raise RuntimeError("a thread that reads the transformation graph cannot write it inside the read")
-        me = threading.get_ident()
-        if self._writer == me:  # nested write by the same thread
-            yield
+        me = get_ident()
+        if lock._writer == me:  # nested write by the same thread
+            lock._write_depth += 1
             return
-        with self._condition:
-            self._writers_waiting += 1
-            while self._writer is not None or self._readers:
-                self._condition.wait()
-            self._writers_waiting -= 1
-            self._writer = me
-        try:
-            yield
-        finally:
-            with self._condition:
-                self._writer = None
-                self._condition.notify_all()
+        with lock._condition:
+            if lock._writer is not None or lock._readers:
+                lock._writers_waiting += 1
+                try:
+                    while lock._writer is not None or lock._readers:
+                        lock._wait()
+                finally:
+                    lock._writers_waiting -= 1
+            lock._writer = me
+        lock._write_depth = 1
+
+    def __exit__(self, *exc: object) -> None:
+        lock = self.lock
+        lock._write_depth -= 1
+        if lock._write_depth:
+            return
+        with lock._condition:
+            lock._writer = None
+            if lock._waiting:
+                lock._condition.notify_all()

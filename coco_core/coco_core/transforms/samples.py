@@ -13,12 +13,17 @@ import numpy as np
 
 @dataclass(frozen=True, slots=True)
 class TransformSample:
-    """``T_parent_child`` measured at ``stamp`` (seconds; the graph's time base, e.g. ROS time)."""
+    """``T_parent_child`` measured at ``stamp`` (seconds; the graph's time base, e.g. ROS time).
+
+    ``static``: a fixed transform (what /tf_static carries): it becomes a static edge, and its stamp
+    (usually 0) is no sample time.
+    """
 
     parent: str
     child: str
     transform: np.ndarray
     stamp: float | None = None
+    static: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -30,7 +35,16 @@ class JointSample:
     stamp: float | None = None
 
     def as_mapping(self) -> dict[str, float]:
+        """Values by name; a sample whose positions do not match its names one to one is refused
+        (zip would silently drop the extra names or values)."""
+        self.check()
         return dict(zip(self.names, self.positions.tolist()))
+
+    def check(self) -> None:
+        """Raise ``ValueError`` naming both lengths when positions and names differ in length."""
+        count = len(self.positions)
+        if count != len(self.names):
+            raise ValueError(f"joint sample with {len(self.names)} names but {count} positions: refused")
 
 
 @dataclass(frozen=True, slots=True)

@@ -9,7 +9,8 @@ Standard library only (``http.server``), bound to 127.0.0.1 by default::
 
 REST (GET, JSON unless said otherwise)
 
-- ``/api/graph``: the whole graph (:func:`.export.graph_dict`)
+- ``/api/graph``: the whole graph (:func:`.export.graph_dict`), serialised once per graph version
+  and at most every ``GRAPH_MAX_AGE`` s while it changes, shared by concurrent requests
 - ``/api/frames``: ``{"frames": [...]}``
 - ``/api/edges``: ``{"edges": [...]}``
 - ``/api/lookup?target=a&source=b[&time=t]``: ``T_a_b`` as ``matrix``, ``translation``, ``quaternion``
@@ -52,6 +53,7 @@ from __future__ import annotations
 import ipaddress
 import json
 import logging
+import math
 import socket
 import threading
 import time as _time
@@ -80,6 +82,13 @@ WEB_FILES = {
 
 ENDPOINTS = ["/", "/api/graph", "/api/frames", "/api/edges", "/api/lookup?target=A&source=B[&time=T]",
              "/api/graph.dot", "/ws/transforms?target=A&source=B[&rate=HZ]", "/ws/graph[?rate=HZ]"]
+
+BACKLOG = 1024
+"""Listen queue length: a burst of hundreds of clients waits in the kernel instead of being refused
+(the default of 5 overflowed thousands of times under 200 concurrent requests)."""
+GRAPH_MAX_AGE = 0.1
+"""Seconds a serialised ``/api/graph`` is served again while the graph changes (a replay changes it
+every few ms): under a flood, one serialisation per 0.1 s instead of one per request."""
 
 _LOOPBACK_NAMES = {"localhost", "localhost.localdomain", "ip6-localhost"}
 
@@ -130,6 +139,9 @@ class TransformServer:
         self._lock = threading.Lock()
         self._stopping = False
         self._web_cache: dict[str, bytes] = {}
+        self._graph_cache: tuple[int, float, bytes] | None = None
+        """(graph version, monotonic time, JSON) of the last ``/api/graph`` serialisation."""
+        self._graph_lock = threading.Lock()
 
     # --- life cycle -----------------------------------------------------------------------------
     def start(self) -> TransformServer:
@@ -199,6 +211,19 @@ class TransformServer:
             self._web_cache[name] = data
         return data
 
+    def _graph_json(self) -> bytes:
+        """``/api/graph`` as JSON bytes, serialised once per graph version: a flood of requests for
+        an unchanged graph costs one serialisation, not one (tens of kB, under the graph's lock)
+        per request, which kept the application's threads waiting on the graph's lock and the GIL."""
+        with self._graph_lock:  # concurrent requests wait for one serialisation, then share it
+            version, now = self.graph.version, _time.monotonic()
+            cached = self._graph_cache
+            if cached is not None and (cached[0] == version or now - cached[1] < GRAPH_MAX_AGE):
+                return cached[2]
+            body = json.dumps(export.jsonable(export.graph_dict(self.graph)), allow_nan=False).encode("utf-8")
+            self._graph_cache = (version, now, body)
+            return body
+
     def _register(self, connection: _Connection) -> bool:
         with self._lock:
             if self._stopping:
@@ -217,6 +242,7 @@ class TransformServer:
 
 class _HTTPServer(ThreadingHTTPServer):
     daemon_threads = True
+    request_queue_size = BACKLOG
     block_on_close = False  # stop() joins the WebSocket threads itself, with a time limit
     owner: TransformServer
 
@@ -459,7 +485,7 @@ class _Handler(BaseHTTPRequestHandler):
             elif route == "/api":
                 self._json({"endpoints": ENDPOINTS})
             elif route == "/api/graph":
-                self._json(export.graph_dict(self.owner.graph))
+                self._send(HTTPStatus.OK, self.owner._graph_json(), "application/json; charset=utf-8")
             elif route == "/api/frames":
                 self._json({"frames": self.owner.graph.frames})
             elif route == "/api/edges":
@@ -501,8 +527,11 @@ class _Handler(BaseHTTPRequestHandler):
         text = self._one(query, "time", required=False)
         try:
             time = None if text is None else float(text)
+            if time is not None and not math.isfinite(time):
+                raise ValueError
         except ValueError:
-            raise _RequestError(HTTPStatus.BAD_REQUEST, f"time must be a number of seconds, got {text!r}") from None
+            raise _RequestError(HTTPStatus.BAD_REQUEST,
+                                f"time must be a finite number of seconds, got {text!r}") from None
         graph = self.owner.graph
         try:
             path = graph.path(target, source)

@@ -235,7 +235,7 @@ class UrdfModel(KinematicModel):
 
     __slots__ = ("model", "data", "prefix", "joint_prefix", "source", "xml", "root_link", "joints", "_links",
                  "_frames", "_root_ids", "_slots", "_followers", "_derived", "_nq", "_values", "_q", "_state",
-                 "_unset", "_updated", "_lock")
+                 "_unset", "_updated", "_lock", "_plans")
 
     def __init__(self, description: UrdfDescription, model: Any, name: str | None = None, prefix: str = "",
                  source: Path | None = None, xml: str = "", joint_prefix: str = "") -> None:
@@ -265,7 +265,7 @@ class UrdfModel(KinematicModel):
         self._root_ids = {frame for frame in self._frames.values()
                           if model.frames[frame].parentJoint == 0 and model.frames[frame].placement.isIdentity()}
 
-        # Layout: self._values is Pinocchio's q as a list, followed by one raw angle per continuous
+        # Layout: self._values is Pinocchio's q (a numpy array), followed by one raw angle per continuous
         # joint (whose q entries are cos, sin). A joint name maps to one slot; mimic joints and
         # continuous joints are "derived" entries written from their slot when q is built. Names are
         # the ones values arrive under: joint_prefix + URDF joint name.
@@ -294,12 +294,15 @@ class UrdfModel(KinematicModel):
             if joint.type in ("floating", "planar"):
                 log.warning("%s: %s joint %s is kept fixed at its origin (as robot_state_publisher does)",
                             label, joint.type, joint.name)
-        self._values = values
-        self._q = self._build_q(values)
+        self._values = np.array(values, dtype=float)
+        self._q = self._build_q(self._values)
         self._state: tuple[int, dict[tuple[str, str], np.ndarray]] = (-1, {})
         self._unset = set(self._slots)
         self._updated = False
         self._lock = threading.Lock()
+        self._plans: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, tuple[str, ...]]] = {}
+        """Names of a joint sample -> (indices into its positions, slots they go to, unknown names),
+        made on the first sample with these names: later samples cost one gather and one scatter."""
 
     def _q_range(self, joint: str, label: str) -> tuple[int, int]:
         if not self.model.existJointName(joint):
@@ -392,13 +395,16 @@ class UrdfModel(KinematicModel):
         for name, value in values.items():
             slot = slots.get(name)
             if slot is not None:
-                new[slot] = value
+                try:
+                    new[slot] = value
+                except (TypeError, ValueError):
+                    raise ValueError(f"model {self.name}: joint {name} value {value!r} is not a number") from None
             elif name not in self._followers:
                 unknown.append(name)
         if self._unset:
             self._unset.difference_update(values)
-        if new != current:
-            self._q = self._build_q(new, values)
+        if new.tobytes() != current.tobytes():
+            self._q = self._build_q(new)
             self._values = new
             self.version += 1
         if not self._updated and len(unknown) != len(values):
@@ -408,25 +414,40 @@ class UrdfModel(KinematicModel):
                             "get one: %s", self.name, ", ".join(self.never_set))
         return unknown
 
-    def _build_q(self, values: list[Any], given: Mapping[str, Any] | None = None) -> np.ndarray:
-        try:
-            array = np.array(values, dtype=float)
-            q = array[:self._nq] if len(array) != self._nq else array
-            for index, slot, multiplier, offset, circular in self._derived:
-                value = multiplier * float(values[slot]) + offset
-                if circular:
-                    q[index] = math.cos(value)
-                    q[index + 1] = math.sin(value)
-                else:
-                    q[index] = value
-            return q
-        except (TypeError, ValueError):
-            for name, value in (given or {}).items():
-                try:
-                    float(value)
-                except (TypeError, ValueError):
-                    raise ValueError(f"model {self.name}: joint {name} value {value!r} is not a number") from None
-            raise
+    def set_array(self, names: tuple[str, ...], positions: np.ndarray) -> tuple[str, ...]:
+        """Apply joint values given as names and an array (a JointState as it arrives), without a
+        mapping: the values go from the array into Pinocchio's ``q`` by one indexed copy. The caller
+        checked the values (finite, as many as names). Returns the names this model does not have."""
+        plan = self._plans.get(names)
+        if plan is None:
+            selected = [i for i, name in enumerate(names) if name in self._slots]
+            unknown = tuple(name for name in names if name not in self._slots and name not in self._followers)
+            plan = (np.array(selected, dtype=np.intp), np.array([self._slots[names[i]] for i in selected],
+                                                                 dtype=np.intp), unknown)
+            self._plans[names] = plan
+        indices, slots, unknown = plan
+        if self._unset:
+            self._unset.difference_update(names)
+        new = self._values.copy()
+        new[slots] = positions[indices]
+        if new.tobytes() != self._values.tobytes():  # a byte compare: 10x cheaper than array_equal
+            self._q = self._build_q(new)
+            self._values = new
+            self.version += 1
+        return unknown
+
+    def _build_q(self, values: np.ndarray) -> np.ndarray:
+        """Pinocchio's ``q`` from the slot values: a copy of its first ``nq`` entries, then the
+        mimic joints and the (cos, sin) pairs of continuous joints written from their slots."""
+        q = values[:self._nq].copy()
+        for index, slot, multiplier, offset, circular in self._derived:
+            value = multiplier * float(values[slot]) + offset
+            if circular:
+                q[index] = math.cos(value)
+                q[index + 1] = math.sin(value)
+            else:
+                q[index] = value
+        return q
 
     # --- reads ----------------------------------------------------------------------------------
     def relative(self, a: str, b: str) -> np.ndarray:

@@ -60,6 +60,8 @@ class BagMetadata:
     compression_mode: str
     ros_distro: str
     custom_data: dict[str, str]
+    files: tuple[FileRecord, ...] = ()
+    """Per storage file (version 5 and later): what the recorder wrote into each."""
 
 
 def read_metadata(folder: str | Path) -> BagMetadata | None:
@@ -105,6 +107,15 @@ def read_metadata(folder: str | Path) -> BagMetadata | None:
             compression_mode=str(info.get("compression_mode") or ""),
             ros_distro=str(info.get("ros_distro") or ""),
             custom_data={str(k): str(v) for k, v in (info.get("custom_data") or {}).items()},
+            files=tuple(
+                FileRecord(
+                    path=str(entry["path"]),
+                    starting_time=int((entry.get("starting_time") or {}).get("nanoseconds_since_epoch", 0)),
+                    duration=int((entry.get("duration") or {}).get("nanoseconds", 0)),
+                    message_count=int(entry.get("message_count", 0)),
+                )
+                for entry in info.get("files") or ()
+            ),
         )
     except (KeyError, TypeError, ValueError, AttributeError) as error:
         raise BagError(path, f"unexpected content in rosbag2_bagfile_information: {error!r}") from None

@@ -183,23 +183,33 @@ def dump_profiles_string(profiles: Iterable[Qos]) -> str:
     return yaml.safe_dump(items, default_flow_style=False, sort_keys=False).rstrip("\n")
 
 
-def for_replay(profiles: Sequence[Qos], depth: int = 10) -> Qos:
+def for_replay(profiles: Sequence[Qos], depth: int | None = None) -> Qos:
     """The profile to offer when replaying a topic recorded with these offers.
 
     Like rosbag2's ``adapt_offer_to_recorded_offers``: when every recorded publisher offered the same
-    compatibility-relevant policies, offer those (with KEEP_LAST ``depth``); otherwise, or with no
-    record at all, the default profile.
+    compatibility-relevant policies, offer those; otherwise, or with no record at all, the default
+    profile. The history is the recorded one too (the deepest KEEP_LAST of the offers), so a late
+    subscriber of a transient-local topic gets what the recording's publishers would have kept for
+    it (one ``/amcl_pose`` at depth 1, not the replay's last ten); ``depth`` overrides it (KEEP_LAST
+    ``depth``). A recorded history rmw could not name (``unknown``, or KEEP_LAST 0 from old bags)
+    becomes KEEP_LAST 10, rclpy's default.
     """
     if not profiles:
-        return replace(Qos(), depth=depth)
+        return replace(Qos(), depth=depth or Qos().depth)
     first = profiles[0]
 
     def key(qos: Qos) -> tuple:
         return (qos.reliability, qos.durability, qos.deadline, qos.liveliness, qos.liveliness_lease_duration)
 
-    if all(key(profile) == key(first) for profile in profiles):
-        return replace(first, history="keep_last", depth=depth)
-    return replace(Qos(), depth=depth)
+    chosen = first if all(key(profile) == key(first) for profile in profiles) else Qos()
+    if depth is not None:
+        return replace(chosen, history="keep_last", depth=depth)
+    if chosen is not first:
+        return chosen
+    if all(profile.history == "keep_all" for profile in profiles):
+        return replace(chosen, history="keep_all", depth=0)
+    recorded = max((p.depth for p in profiles if p.history == "keep_last"), default=0)
+    return replace(chosen, history="keep_last", depth=recorded or Qos().depth)
 
 
 def _policy(value: Any, names: dict[int, str], field: str) -> str:

@@ -8,7 +8,9 @@ Damage (see :mod:`.mcap_file`): whatever is readable is read. Problems are :clas
 name the file and the byte where reading stopped; they are collected in :attr:`BagReader.errors`
 and reported by :meth:`BagReader.messages` *after* the last readable message: raised by default, or
 handed to the ``on_error`` callback given to the reader (then nothing is raised). A file that is not
-MCAP at all fails at once, when the reader is made.
+MCAP at all fails at once, when the reader is made. Fewer readable messages than the recorder's
+``metadata.yaml`` declares (a file cut exactly at a record boundary leaves no other trace) is damage
+too, reported the same way, per topic.
 """
 
 from __future__ import annotations
@@ -155,6 +157,9 @@ class BagReader:
         self._channels: list[dict[int, str]] = []  # per file: channel id -> topic
         self._decoders: dict[str, _TopicDecoder] = {}
         self._build_topics()
+        self._lost: dict[str, tuple[int, int]] = {}
+        """Topic -> (declared, readable) where metadata.yaml declares more messages than are readable."""
+        self._check_declared_counts()
 
     # -- opening ---------------------------------------------------------------------------------
 
@@ -251,6 +256,50 @@ class BagReader:
             self.topics[name] = replace(info, message_count=counts.get(name, 0))
             where = f"{self.path} topic {name}"
             self._decoders[name] = _TopicDecoder(self._resolver, self.topics[name], where)
+
+    def _check_declared_counts(self) -> None:
+        """Compare what is readable with what the recorder declared in metadata.yaml.
+
+        A file cut at a record boundary, or one whose whole data section is gone, is indistinguishable
+        from a recording that was stopped there: only the recorder's own count tells. A folder is
+        compared topic by topic; a single ``.mcap`` file with the folder's metadata.yaml beside it,
+        with that file's entry. Each shortfall is a :class:`BagError` reported like any other damage.
+        """
+        meta, where = self.metadata, self._metadata_path
+        if meta is None and self.path.is_file():
+            try:
+                meta = read_metadata(self.path.parent)
+            except BagError:
+                return
+            names = [Path(name).name for name in meta.relative_file_paths] if meta is not None else []
+            if meta is None or self.path.name not in names:
+                return  # not this file's folder
+            declared = {Path(f.path).name: f.message_count for f in meta.files}
+            if len(names) > 1:  # one file of several: its own entry, when the metadata has one
+                expected = declared.get(self.path.name)
+                if expected is not None and expected > self.message_count:
+                    self._lost[""] = (expected, self.message_count)
+                    self._record(self._shortfall(where))
+                return
+        if meta is None:
+            return
+        for record in meta.topics:
+            readable = self.topics[record.name].message_count if record.name in self.topics else 0
+            if record.message_count > readable:
+                self._lost[record.name] = (record.message_count, readable)
+        if self._lost:
+            self._record(self._shortfall(where))
+
+    @property
+    def _metadata_path(self) -> Path:
+        return (self.path.parent if self.path.is_file() else self.path) / "metadata.yaml"
+
+    def _shortfall(self, where: Path, topics: Iterable[str] | None = None) -> BagError:
+        selected = [t for t in self._lost if topics is None or t == "" or t in topics]
+        lost = sum(self._lost[t][0] - self._lost[t][1] for t in selected)
+        shown = "; ".join(f"{t or 'this file'}: {self._lost[t][1]} of {self._lost[t][0]}" for t in selected)
+        return BagError(where, f"the storage files hold fewer messages than it declares ({shown} readable): "
+                               f"{lost} are lost (the bag is truncated or damaged)")
 
     # -- summary ---------------------------------------------------------------------------------
 
@@ -383,6 +432,9 @@ class BagReader:
         yield from self._iterate(names, start, end, on_error)
         for file in self._files:
             problems.extend(file.errors)
+        asked = None if topics is None else names  # all: the declared topics without a channel too
+        if any(topic == "" or asked is None or topic in asked for topic in self._lost):
+            problems.append(self._shortfall(self._metadata_path, asked))
         if not problems:
             return
         if self._on_error is not None:

@@ -35,6 +35,14 @@ class Converter(Generic[M, V]):
     def to_coco(self, msg: M) -> V:
         raise NotImplementedError
 
+    def from_cdr(self, data: bytes) -> V:
+        """The CoCo value of a message given as its CDR bytes (a recorded message): deserialised with
+        rclpy, then :meth:`to_coco`. A converter that can read the bytes directly overrides this, so
+        that a replay skips building the rclpy message."""
+        from rclpy.serialization import deserialize_message
+
+        return self.to_coco(deserialize_message(data, self.message_type))
+
     def to_ros(self, value: V) -> M:
         raise NotImplementedError
 

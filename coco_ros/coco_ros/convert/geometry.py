@@ -15,6 +15,7 @@ floating-point rounding (about 1e-16).
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Iterable
 from typing import Any
 
@@ -24,6 +25,7 @@ from coco_core.transforms.samples import FramePose, TransformSample
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
 
 from .base import Converter, header_stamp, make_header, message_class
+from .stamps import RosTime
 
 
 def matrix_of(translation: Any, rotation: Any) -> np.ndarray:
@@ -98,6 +100,55 @@ def transform_sample(msg: TransformStamped) -> TransformSample:
                            matrix_of(transform.translation, transform.rotation), header_stamp(msg.header))
 
 
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
+_POSE = struct.Struct("<7d")
+
+
+def _tf_samples_from_cdr(data: bytes, static: bool) -> list[TransformSample]:
+    """XCDR1 little-endian tf2_msgs/TFMessage: a sequence of TransformStamped (header stamp and
+    frame_id, child_frame_id, translation x y z and rotation x y z w as doubles aligned to 8 from
+    byte 4)."""
+
+    def string_at(position: int) -> tuple[str, int]:
+        position += -(position - 4) % 4
+        length = _U32.unpack_from(data, position)[0]
+        start = position + 4
+        if start + length > len(data) or length == 0:
+            raise struct.error(f"a string of {length} bytes at byte {position}")
+        return data[start:start + length - 1].decode("utf-8"), start + length
+
+    count = _U32.unpack_from(data, 4)[0]
+    position = 8
+    samples = []
+    for _ in range(count):
+        position += -(position - 4) % 4
+        sec, nanosec = _STAMP.unpack_from(data, position)
+        parent, position = string_at(position + 8)
+        child, position = string_at(position)
+        position += -(position - 4) % 8
+        tx, ty, tz, qx, qy, qz, qw = _POSE.unpack_from(data, position)
+        position += _POSE.size
+        if qx * qx + qy * qy + qz * qz + qw * qw < 1e-12:
+            raise ValueError(f"quaternion {(qx, qy, qz, qw)} is zero: not a rotation")
+        matrix = se3.from_pose((tx, ty, tz), (qx, qy, qz, qw))
+        if static:
+            samples.append(TransformSample(parent, child, matrix, RosTime(sec, nanosec), static=True))
+        else:
+            stamp = None if sec == 0 and nanosec == 0 else RosTime(sec, nanosec)
+            samples.append(TransformSample(parent, child, matrix, stamp))
+    return samples
+
+
+def static_sample(msg: TransformStamped) -> TransformSample:
+    """A /tf_static transform: a static sample, its stamp kept as given (0 included)."""
+    transform = msg.transform
+    stamp = msg.header.stamp
+    return TransformSample(msg.header.frame_id, msg.child_frame_id,
+                           matrix_of(transform.translation, transform.rotation),
+                           RosTime(stamp.sec, stamp.nanosec), static=True)
+
+
 def transform_stamped(value: TransformSample | FramePose) -> TransformStamped:
     parent, child = _frames(value)
     return TransformStamped(header=make_header(value.stamp, parent), child_frame_id=child,
@@ -112,12 +163,17 @@ class TFMessageConverter(Converter[Any, list]):
     converter is made: no PyPI wheel carries it, the workspace builds it (``vendor/tf2_msgs``), so a
     shell that did not source the workspace's ``install/setup.bash`` gets an error saying so, while
     the other geometry converters still work.
+
+    ``static``: the messages come from /tf_static (or another latched TF topic): their samples are
+    marked ``static`` and become static edges of the graph, like TFBridge makes them, whatever their
+    stamp (a static broadcaster's stamp is often 0, which is no "unset" here).
     """
 
     type_name = "tf2_msgs/msg/TFMessage"
     coco_type = list
 
-    def __init__(self) -> None:
+    def __init__(self, static: bool = False) -> None:
+        self.static = static
         try:
             self._message = message_class(self.type_name)
         except ImportError as error:
@@ -129,8 +185,21 @@ class TFMessageConverter(Converter[Any, list]):
     def message_type(self) -> type:
         return self._message
 
+    def from_cdr(self, data: bytes) -> list[TransformSample]:
+        """Read a TFMessage's CDR bytes directly (a recorded /tf): the same samples as
+        :meth:`to_coco` without building rclpy's TransformStamped, Header, Vector3 and Quaternion
+        objects. A big-endian message goes through rclpy."""
+        if len(data) < 4 or data[1] != 1:  # encapsulation: CDR little-endian is 00 01
+            return super().from_cdr(data)
+        try:
+            return _tf_samples_from_cdr(data, self.static)
+        except (struct.error, UnicodeDecodeError) as error:
+            raise ValueError(f"malformed TFMessage CDR ({len(data)} bytes): {error}") from None
+
     def to_coco(self, msg: Any) -> list[TransformSample]:
         self._check_message(msg)
+        if self.static:
+            return [static_sample(transform) for transform in msg.transforms]
         return [transform_sample(transform) for transform in msg.transforms]
 
     def to_ros(self, value: TransformSample | FramePose | Iterable[TransformSample | FramePose]) -> Any:

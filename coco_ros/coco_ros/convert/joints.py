@@ -9,6 +9,8 @@ velocities or efforts is refused, since a sample without positions would move no
 
 from __future__ import annotations
 
+import functools
+import struct
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,6 +18,10 @@ from coco_core.transforms.samples import JointSample
 from sensor_msgs.msg import JointState
 
 from .base import Converter, header_stamp, make_header, typed_array
+from .stamps import RosTime
+
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,6 +46,20 @@ class JointStateConverter(Converter[JointState, JointSample]):
         return JointStateSample(names, positions, header_stamp(msg.header),
                                 _values(msg.velocity, "velocity", names), _values(msg.effort, "effort", names))
 
+    def from_cdr(self, data: bytes) -> JointStateSample:
+        """Read a JointState's CDR bytes directly: the positions, velocities and efforts are numpy
+        views of the bytes (no copy, no rclpy message, no list of floats), so a recorded joint state
+        stays an array from the bag to Pinocchio. Same result and same refusals as :meth:`to_coco`;
+        a big-endian message (never written by rosbag2 on the usual machines) goes through rclpy."""
+        if len(data) < 4 or data[1] != 1:  # encapsulation: CDR little-endian is 00 01
+            return super().from_cdr(data)
+        try:
+            return _joint_state_from_cdr(data)
+        except (struct.error, ValueError, UnicodeDecodeError) as error:
+            if isinstance(error, ValueError) and "JointState has" in str(error):
+                raise
+            raise ValueError(f"malformed JointState CDR ({len(data)} bytes): {error}") from None
+
     def to_ros(self, value: JointSample) -> JointState:
         self._check_value(value)
         msg = JointState(header=make_header(value.stamp, ""), name=list(value.names))
@@ -60,6 +80,69 @@ def _values(field: object, label: str, names: tuple[str, ...], required: bool = 
         return None
     raise ValueError(f"JointState has {len(names)} names but {len(values)} {label} values"
                      + (" (positions are required)" if required and not len(values) else ""))
+
+
+def _joint_state_from_cdr(data: bytes) -> JointStateSample:
+    """XCDR1 little-endian layout of sensor_msgs/JointState: positions are aligned from byte 4 (after
+    the encapsulation header); a double sequence aligns its first element to 8 bytes."""
+    position = 4
+    sec, nanosec = _STAMP.unpack_from(data, position)
+    position += 8
+    length = _U32.unpack_from(data, position)[0]
+    position += 4 + length  # header.frame_id (not kept by JointStateSample)
+
+    def count_at(position: int) -> tuple[int, int]:
+        position += -(position - 4) % 4
+        return _U32.unpack_from(data, position)[0], position + 4
+
+    start = position
+    count, position = count_at(position)
+    for _ in range(count):  # walk the names; they are decoded once per distinct list (_names)
+        length, position = count_at(position)
+        position += length
+    if position > len(data):
+        raise ValueError("the joint names run past the end")
+    names_tuple = _names(data[start:position], (start - 4) % 4)
+    arrays = []
+    for _ in range(3):  # position, velocity, effort
+        count, position = count_at(position)
+        if count:
+            position += -(position - 4) % 8
+        if position + 8 * count > len(data):
+            raise ValueError(f"a sequence of {count} doubles runs past the end")
+        arrays.append(np.frombuffer(data, "<f8", count, position))
+        position += 8 * count
+    positions, velocities, efforts = (_sized(values, label, names_tuple, required)
+                                      for values, label, required in zip(arrays, ("position", "velocity", "effort"),
+                                                                         (True, False, False)))
+    stamp = None if sec == 0 and nanosec == 0 else RosTime(sec, nanosec)
+    return JointStateSample(names_tuple, positions, stamp, velocities, efforts)
+
+
+@functools.lru_cache(maxsize=256)
+def _names(section: bytes, misalignment: int) -> tuple[str, ...]:
+    """The joint names of a JointState's name section (its count, then each length-prefixed string):
+    a robot sends the same list every time, so the strings are decoded once, and every sample of
+    that robot carries the same tuple (which the kinematic models' plans are keyed by)."""
+    padded = bytes(misalignment) + section  # re-create the alignment the section had in its message
+    position = misalignment + (-misalignment % 4)  # offsets in ``padded`` align as in the message
+    count = _U32.unpack_from(padded, position)[0]
+    position += 4
+    names = []
+    for _ in range(count):
+        position += -position % 4
+        length = _U32.unpack_from(padded, position)[0]
+        names.append(padded[position + 4:position + 3 + length].decode("utf-8"))
+        position += 4 + length
+    return tuple(names)
+
+
+def _sized(values: np.ndarray, label: str, names: tuple[str, ...], required: bool) -> np.ndarray | None:
+    """``values`` when there is one per name; None for an empty optional field; else the refusal
+    :func:`_values` gives."""
+    if len(values) == len(names) and (len(values) or required):
+        return values
+    return _values(values, label, names, required)
 
 
 def _checked(values: np.ndarray, label: str, names: tuple[str, ...]):

@@ -1,8 +1,11 @@
 """``coco-replay``: republish a rosbag2 MCAP bag on ROS topics (as ``ros2 bag play``), with rclpy.
 
 The CDR bytes of the bag are published as they are (``publisher.publish(bytes)``), nothing is
-deserialized; each topic is offered the QoS its recorded publishers offered
-(:func:`coco_ros.bag.qos.for_replay`). ``/tf`` and ``/tf_static`` are published like any other
+deserialized; each topic is offered the QoS its recorded publishers offered, history depth included
+(:func:`coco_ros.bag.qos.for_replay`; ``--depth`` overrides the depth). ``--fast`` offers volatile
+topics with KEEP_ALL history, so the publisher overwrites nothing before every reliable subscriber
+has it, and topics whose messages a reliable subscriber did not acknowledge by the end are reported
+(:mod:`coco_ros.replay.flow`). ``/tf`` and ``/tf_static`` are published like any other
 topic (tf2_msgs is built in the workspace, ``vendor/tf2_msgs``). Exit status: 0, or 1 with the
 error (file and byte offset) when the bag is damaged, after replaying what was readable; Ctrl-C
 stops within a fraction of a second.
@@ -17,6 +20,7 @@ from collections.abc import Sequence
 
 from ..bag import BagError, BagReader
 from ..bag.qos import for_replay
+from .flow import ACK_TIMEOUT, as_fast_as_possible, unacknowledged
 from .player import Player, parse_remaps
 
 
@@ -36,7 +40,8 @@ def _parser() -> argparse.ArgumentParser:
                         help="seconds to wait after creating the publishers, for discovery (default 1)")
     parser.add_argument("--wait-subscribers", type=int, default=0, metavar="N",
                         help="wait (up to 10 s) until N subscriptions are matched in total, instead of --delay")
-    parser.add_argument("--depth", type=int, default=100, help="publisher history depth (default 100)")
+    parser.add_argument("--depth", type=int, default=None,
+                        help="publisher history depth (default: the recorded one of each topic)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
@@ -72,7 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         reader.close()
 
 
-def _publishers(reader: BagReader, player: Player, node, depth: int) -> dict:
+def _publishers(reader: BagReader, player: Player, node, depth: int | None, fast: bool) -> dict:
     publishers, skipped = {}, []
     for topic in player.topics:
         info = reader.topics[topic]
@@ -81,15 +86,17 @@ def _publishers(reader: BagReader, player: Player, node, depth: int) -> dict:
         except BagError as error:
             skipped.append(f"{topic} ({error.detail})")
             continue
-        qos = for_replay(info.offered_qos_profiles, depth=depth).to_rclpy()
-        publishers[topic] = node.create_publisher(cls, player.out_topic(topic), qos)
+        offered = for_replay(info.offered_qos_profiles, depth=depth)
+        if fast and depth is None:
+            offered = as_fast_as_possible(offered)
+        publishers[topic] = node.create_publisher(cls, player.out_topic(topic), offered.to_rclpy())
     if skipped:
         print("coco-replay: warning: not replaying " + "; ".join(skipped), file=sys.stderr)
     return publishers
 
 
 def _replay(args, reader: BagReader, player: Player, node) -> int:
-    publishers = _publishers(reader, player, node, args.depth)
+    publishers = _publishers(reader, player, node, args.depth, args.fast)
     if not publishers:
         print(f"coco-replay: error: {reader.path}: no topic can be published", file=sys.stderr)
         return 1
@@ -118,11 +125,12 @@ def _replay(args, reader: BagReader, player: Player, node) -> int:
     if progress is not None:
         progress.n = round(player.progress()[0], 3)
         progress.close()
-    from rclpy.duration import Duration
-
-    for publisher in publishers.values():
-        publisher.wait_for_all_acked(Duration(seconds=2))
+    late = unacknowledged(publishers)
     print(f"coco-replay: {count} messages published from {reader.path}", file=sys.stderr)
+    if late:
+        print(f"coco-replay: warning: a reliable subscriber of {', '.join(late)} did not acknowledge every "
+              f"message within {ACK_TIMEOUT:g} s after the end (gone or stuck): the last messages may be lost "
+              "to it", file=sys.stderr)
     if player.errors:
         for error in player.errors:
             print(f"coco-replay: error: {error}", file=sys.stderr)

@@ -18,7 +18,9 @@ Attributes (all settable from the application XML):
 - ``output``: what the ports carry. ``coco`` (default): the converter's CoCo value
   (:func:`coco_ros.convert.converter_for`, port type ``converter.coco_type``), and for a type without
   converter the deserialized rclpy message (port type ``object``); ``/tf`` and ``/tf_static``
-  become lists of ``TransformSample`` (tf2_msgs' converter). ``ros``: always the
+  become lists of ``TransformSample`` (tf2_msgs' converter), those of ``/tf_static`` (any latched
+  TFMessage topic) marked ``static``: a TransformationInterface makes them static edges, as TFBridge
+  does, whatever their stamp (0 is usual). ``ros``: always the
   deserialized rclpy message. ``bag``: the :class:`~coco_ros.bag.BagMessage` itself (CDR bytes,
   log time, topic), nothing decoded.
 - ``stop_at_end``: request the application stop once the bag is replayed (not with ``loop``) and the
@@ -45,8 +47,10 @@ Operations: ``pause()``, ``resume()``, ``step(n=1)`` (deliver the next n message
 ``progress()`` -> ``(time, end)`` in seconds after the bag start.
 
 An ``clock`` output port carries the replayed (simulated) time in seconds after each update that
-delivered messages. A damaged bag is replayed as far as it is readable, then its error (file and
-byte offset) is logged once.
+delivered messages. A damaged bag (cut, corrupt, or holding fewer messages than its metadata.yaml
+declares) is replayed as far as it is readable, then its error (file and byte offset, or what is
+lost) is logged once and reported to the application (:meth:`Application.report_damage`): the
+launcher exits with 1 and a summary that reads ``app.damage`` shows it.
 """
 
 from __future__ import annotations
@@ -66,6 +70,7 @@ from coco_core.ports import OutputPort
 from coco_core.stamps import Stamp, Stamped
 
 from ..bag import BagError, BagMessage, BagReader
+from ..bag.message_types import TF_MESSAGE
 from ..interface.topic import converter_options, parse_options
 from .player import Played, Player, parse_remaps
 
@@ -141,6 +146,8 @@ class BagReplay(Component):
             type_name = self._reader.topics[topic].type
             out_topic = self._remaps.get(topic, topic)
             given = options.pop(out_topic, None) or options.pop(topic, {})
+            if type_name == TF_MESSAGE and self._reader.topics[topic].latched and "static" not in given:
+                given = {**given, "static": "true"}  # /tf_static: static edges, as TFBridge makes them
             try:
                 converter = _converter(type_name, given) if self.output == "coco" else None
             except (ValueError, ImportError) as error:
@@ -201,6 +208,8 @@ class BagReplay(Component):
 
     def _on_bag_error(self, error: BagError) -> None:
         log.error("component %s: bag damaged, replayed what was readable: %s", self.name, error)
+        if self.app is not None:  # the launcher's exit status and the summaries carry it
+            self.app.report_damage(f"{self.name}: {error}")
 
     def on_update(self) -> None:
         player = self._player
@@ -236,8 +245,8 @@ class BagReplay(Component):
         port, converter = self._routes[played.message.topic]
         if self.output == "bag":
             value = played.message
-        elif converter is not None:
-            value = converter.to_coco(played.message.message)
+        elif converter is not None:  # from the CDR bytes: a converter may skip the rclpy message
+            value = converter.from_cdr(played.message.data)
         else:
             value = played.message.message
         if self.stamped:

@@ -16,7 +16,9 @@ JSON (``json`` attribute, at ``on_stop``, after the last rows are flushed): ``sa
 ``min_distance``, ``min_distance_time``, ``final_distance``, ``grasp_time`` (first time the
 distance is below ``near``, or null), ``near``, ``time_origin``, ``final_bowl_target_distance``
 (null without ``bowl``/``target``), ``latency_ms`` (mean, max), ``display_latency_ms`` (``frames``,
-``mean``, ``median``, ``p90``, ``max``: sensor-to-display latency; nulls without a display).
+``mean``, ``median``, ``p90``, ``max``: sensor-to-display latency; nulls without a display),
+``input_damage`` (the application's :attr:`~coco_core.application.Application.damage`: e.g. a
+truncated bag; empty when the inputs were whole).
 
 :func:`describe` puts a JSON summary in a few lines: ``python -m coco_ros.teleop summary.json`` (what
 ``scripts/run_app.sh`` shows after the run).
@@ -154,6 +156,7 @@ class TeleopSummary(Component):
                            "max": max(lat) * 1e3 if lat else None},
             "display_latency_ms": _milliseconds(self._display),
             "csv": str(self.csv),
+            "input_damage": list(self.app.damage) if self.app is not None else [],
         }
 
     def on_stop(self) -> None:
@@ -178,6 +181,8 @@ def describe(summary: dict[str, Any]) -> str:
              f"final gripper-to-bowl distance {metres(summary['final_distance'])}"
              + (f"; bowl left {metres(summary['final_bowl_target_distance'])} from its target"
                 if summary["final_bowl_target_distance"] is not None else "")]
+    for damage in summary.get("input_damage") or ():
+        lines.append(f"DAMAGED INPUT (the run used what was readable): {damage}")
     latency = summary["latency_ms"]
     if latency["mean"] is not None:
         lines.append(f"latency, replay emission -> CSV row: mean {latency['mean']:.2f} ms, max {latency['max']:.2f} ms")

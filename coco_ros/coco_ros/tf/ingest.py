@@ -22,8 +22,6 @@ import logging
 import threading
 from collections.abc import Callable, Iterable
 
-import numpy as np
-from coco_core.transforms.edges import StaticEdge
 from coco_core.transforms.graph import TransformGraph
 from coco_core.transforms.samples import TransformSample
 
@@ -66,7 +64,7 @@ class TFIngest:
         for sample in samples:
             pair = self._accept(sample)
             if pair is not None:
-                self._write(pair, lambda: self._set_static(pair, sample.transform))
+                self._write(pair, lambda: self.graph.place_static(*pair, sample.transform))
 
     def _accept(self, sample: TransformSample) -> Pair | None:
         pair = self._names(sample)
@@ -88,21 +86,6 @@ class TFIngest:
         except LookupError:
             return False
         return True
-
-    def _set_static(self, pair: Pair, transform: np.ndarray) -> None:
-        graph = self.graph
-        try:
-            edge = graph.edge(*pair)
-        except LookupError:
-            graph.add_static(*pair, transform)
-            return
-        if isinstance(edge, StaticEdge) and (edge.parent, edge.child) == pair \
-                and np.array_equal(edge.transform(), transform):
-            return  # the broadcaster re-sent its set: nothing changed
-        if not isinstance(edge, StaticEdge):
-            raise ValueError(f"edge {edge.name} is a {edge.kind.value} edge of the graph, "
-                             "not a static one: /tf_static cannot set it")
-        graph.set_static(*pair, transform)
 
     def _write(self, pair: Pair, write: Callable[[], None]) -> None:
         try:
