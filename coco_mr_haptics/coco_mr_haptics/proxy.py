@@ -45,10 +45,26 @@ class Material:
         return out
 
 
+def warm_up() -> None:
+    """Load the compiled kernel now (about a second the first time in a process, from numba's cache;
+    longer after a change of the kernel), so that the first haptic cycle is not the one that pays."""
+    global _warm
+    if not _warm:
+        from .implicit import Sphere
+
+        GodObject(Scene(Sphere(1.0)), warm=False).step(0.0, 0.0, 0.5)
+        _warm = True
+
+
+_warm = False
+
+
 class GodObject:
     """The proxy on ``scene``: :meth:`step` with the device position (and velocity) each cycle."""
 
-    def __init__(self, scene: Scene, material: Material | None = None) -> None:
+    def __init__(self, scene: Scene, material: Material | None = None, *, warm: bool = True) -> None:
+        if warm:
+            warm_up()
         self.scene = scene
         self.material = material or Material()
         self.state = kernel.new_state()
