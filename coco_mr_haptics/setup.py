@@ -17,6 +17,8 @@ setup(
             "HapticImplicitSurf = coco_mr_haptics.implicit_surf:HapticImplicitSurf",
             "SimulatedDevice = coco_mr_haptics.simulated_device:SimulatedDevice",
             "HapticRecorder = coco_mr_haptics.recorder:HapticRecorder",
+            "KDTreeBuilder = coco_mr_haptics.cloud:KDTreeBuilder",
+            "HapticCloud = coco_mr_haptics.cloud:HapticCloud",
         ],
     },
     zip_safe=True,

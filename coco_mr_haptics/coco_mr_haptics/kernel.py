@@ -255,6 +255,11 @@ def _move(ops, prm, stack, state, material, x, y, z):
         state[PX], state[PY], state[PZ] = project(ops, prm, stack, x, y, z)
         state[CONTACT] = 1.0
     px, py, pz = state[PX], state[PY], state[PZ]
+    if state[CONTACT] != 0.0:
+        # The surface may have moved since the last cycle (a frame, a new cloud structure): the
+        # proxy is put back on it from where it was, never re-found from scratch.
+        px, py, pz = project(ops, prm, stack, px, py, pz)
+        state[PX], state[PY], state[PZ] = px, py, pz
     if state[CONTACT] == 0.0:
         travelled, length, hit = _trace(ops, prm, stack, px, py, pz, x, y, z)
         if not hit:

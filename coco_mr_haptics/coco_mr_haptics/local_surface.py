@@ -1,0 +1,103 @@
+"""The implicit surface of a point cloud near one point: a moving-least-squares plane.
+
+HapticCloud renders a cloud with the same proxy as an implicit surface, over the surface the points
+near the proxy describe. The choice is the MLS plane (Alexa et al.'s first-order moving least
+squares): the neighbours within ``support`` of the query point, weighted by a Gaussian of their
+distance to it (sigma = support / 2), give a weighted centroid ``c`` and covariance whose smallest
+eigenvector is the normal ``n``; the surface is ``f(p) = n . (p - c)``. Why a plane and not a
+higher-order MLS surface: a proxy only needs the surface over the millimetres it moves in one cycle,
+refitting at every cycle makes the plane follow curvature, and a plane is the one local model whose
+fit cannot fold over itself on noisy depth data. The normal is oriented towards the viewpoint (the
+camera saw the surface from the free side).
+
+Two ways to find the neighbours, measured in bench/bench_haptics.py:
+
+- *projective*: an organised cloud from a depth camera is its own search structure. The query point
+  is projected into the image and the pixels of a window around it are the candidates: nothing to
+  build, a few microseconds per query;
+- *kd-tree* (SciPy's cKDTree) for clouds without a grid (mesh vertices, merged clouds).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+MIN_NEIGHBOURS = 6
+MAX_WINDOW = 15
+"""Largest half-width (pixels) of a projective window."""
+
+
+@njit(cache=True, nogil=True)
+def _add(moments, px, py, pz, qx, qy, qz, support):
+    """Add one candidate to the weighted moments (count, w, w p, w p p^T) if it lies within support."""
+    d2 = (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
+    if not d2 <= support * support:
+        return
+    w = math.exp(-d2 / (0.25 * support * support))
+    moments[0] += 1.0
+    moments[1] += w
+    moments[2] += w * px
+    moments[3] += w * py
+    moments[4] += w * pz
+    moments[5] += w * px * px
+    moments[6] += w * px * py
+    moments[7] += w * px * pz
+    moments[8] += w * py * py
+    moments[9] += w * py * pz
+    moments[10] += w * pz * pz
+
+
+@njit(cache=True, nogil=True)
+def _plane(moments, vx, vy, vz, out):
+    """Weighted centroid and smallest-eigenvector normal from the moments; the neighbour count."""
+    count = int(moments[0])
+    if count < MIN_NEIGHBOURS:
+        return 0
+    sw = moments[1]
+    cx, cy, cz = moments[2] / sw, moments[3] / sw, moments[4] / sw
+    cov = np.empty((3, 3))
+    cov[0, 0] = moments[5] / sw - cx * cx
+    cov[0, 1] = cov[1, 0] = moments[6] / sw - cx * cy
+    cov[0, 2] = cov[2, 0] = moments[7] / sw - cx * cz
+    cov[1, 1] = moments[8] / sw - cy * cy
+    cov[1, 2] = cov[2, 1] = moments[9] / sw - cy * cz
+    cov[2, 2] = moments[10] / sw - cz * cz
+    values, vectors = np.linalg.eigh(cov)
+    nx, ny, nz = vectors[0, 0], vectors[1, 0], vectors[2, 0]
+    if nx * (vx - cx) + ny * (vy - cy) + nz * (vz - cz) < 0.0:
+        nx, ny, nz = -nx, -ny, -nz
+    out[0], out[1], out[2] = nx, ny, nz
+    out[3] = nx * cx + ny * cy + nz * cz
+    out[4], out[5], out[6] = cx, cy, cz
+    return count
+
+
+@njit(cache=True, nogil=True)
+def fit_projective(grid, fx, fy, cx, cy, qx, qy, qz, support, vx, vy, vz, moments, out):
+    """MLS plane at ``q`` from an organised cloud ``grid`` (H x W x 3, NaN or z <= 0 where unknown);
+    returns the number of neighbours used (0: no surface near ``q``). ``out`` gets nx ny nz offset
+    and the centroid; ``moments`` is scratch (11)."""
+    moments[:] = 0.0
+    if qz <= 1e-6:
+        return 0
+    height, width = grid.shape[0], grid.shape[1]
+    u = int(round(fx * qx / qz + cx))
+    v = int(round(fy * qy / qz + cy))
+    half = min(MAX_WINDOW, int(support * fx / qz) + 1)
+    for row in range(max(0, v - half), min(height, v + half + 1)):
+        for col in range(max(0, u - half), min(width, u + half + 1)):
+            if grid[row, col, 2] > 0.0:
+                _add(moments, grid[row, col, 0], grid[row, col, 1], grid[row, col, 2], qx, qy, qz, support)
+    return _plane(moments, vx, vy, vz, out)
+
+
+@njit(cache=True, nogil=True)
+def fit_points(points, qx, qy, qz, support, vx, vy, vz, moments, out):
+    """MLS plane at ``q`` from candidate neighbours (K x 3, e.g. from a kd-tree); as fit_projective."""
+    moments[:] = 0.0
+    for i in range(points.shape[0]):
+        _add(moments, points[i, 0], points[i, 1], points[i, 2], qx, qy, qz, support)
+    return _plane(moments, vx, vy, vz, out)
