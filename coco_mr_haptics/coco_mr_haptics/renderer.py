@@ -58,6 +58,15 @@ class Workspace:
         return (r00 * x + r01 * y + r02 * z + tx, r10 * x + r11 * y + r12 * z + ty,
                 r20 * x + r21 * y + r22 * z + tz)
 
+    def read(self, port: InputPort) -> tuple[HapticDeviceState, Vector, Vector] | None:
+        """The newest device state on ``port`` with its position and velocity in the render frame;
+        None before the first."""
+        status, state = port.read()
+        if status is NO_DATA:
+            return None
+        self.refresh()
+        return state, self.to_render(state.position, True), self.to_render(state.velocity, False)
+
     def to_device(self, v: Vector) -> Vector:
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = self.r
         x, y, z = v
@@ -129,15 +138,12 @@ class SurfaceRenderer(Component):
         self.prepare()
         if isinstance(self.owner, HapticRenderer):
             return
-        status, state = self.device.read()
-        if status is NO_DATA:
+        reading = self._workspace.read(self.device)
+        if reading is None:
             return
-        workspace = self._workspace
-        workspace.refresh()
-        x, y, z = workspace.to_render(state.position, True)
-        vx, vy, vz = workspace.to_render(state.velocity, False)
+        state, (x, y, z), (vx, vy, vz) = reading
         force = self.proxy_object.force if self.render(x, y, z, vx, vy, vz) else _ZERO
-        self.force.write(HapticForce(workspace.to_device(force), state.stamp))
+        self.force.write(HapticForce(self._workspace.to_device(force), state.stamp))
 
 
 COMBINE = ("sum", "first")
@@ -171,13 +177,11 @@ class HapticRenderer(Component):
         self._workspace = Workspace(self, self.frame, self.device_frame)
 
     def on_update(self) -> None:
-        status, state = self.device.read()
-        if status is NO_DATA:
-            return
         workspace = self._workspace
-        workspace.refresh()
-        x, y, z = workspace.to_render(state.position, True)
-        vx, vy, vz = workspace.to_render(state.velocity, False)
+        reading = workspace.read(self.device)
+        if reading is None:
+            return
+        state, (x, y, z), (vx, vy, vz) = reading
         fx = fy = fz = depth = 0.0
         proxy = (x, y, z)
         touching = ""

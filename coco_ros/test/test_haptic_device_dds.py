@@ -12,14 +12,11 @@ import time
 from pathlib import Path
 
 import pytest
-import rclpy
 from geometry_msgs.msg import PoseStamped, WrenchStamped
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from coco_core.interrupt import interrupt
+from conftest import rclpy_peer
 
 WORKSPACE = Path(__file__).resolve().parents[2]
 LAUNCHER = WORKSPACE / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
@@ -60,17 +57,7 @@ APP = f"""<package name="ros_haptic_device">
 
 @pytest.fixture
 def ros(monkeypatch: pytest.MonkeyPatch):
-    monkeypatch.setenv("ROS_DOMAIN_ID", DOMAIN)
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    context = Context()
-    rclpy.init(context=context)
-    node = Node("haptic_device_driver", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    yield node, executor
-    executor.shutdown()
-    node.destroy_node()
-    context.try_shutdown()
+    yield from rclpy_peer(monkeypatch, DOMAIN, "haptic_device_driver")
 
 
 @pytest.mark.skipif(not LAUNCHER.exists(), reason="workspace not built (source scripts/setup.sh)")
