@@ -2,7 +2,8 @@
 
 There is no haptic hardware on this machine, so a simulated 3-DoF handle takes its place with the
 same ports a real device driver has (state out, force in). It is not a replay of positions: a hand
-(a trajectory from a CSV file, or targets on the ``hand`` port, e.g. from a bag through BagReplay)
+(a trajectory from a CSV file, or targets on the ``hand`` port: points, or poses such as a bag's
+PoseStamped through BagReplay)
 pulls the handle through a spring-damper *virtual coupling*, and the rendered force pushes back, so
 a stiff surface stops the handle while the hand goes on (the coupling stretches), as a user's hand
 holding a real device would.
@@ -28,6 +29,7 @@ from coco_core.component import Component
 from coco_core.policy import NEW_DATA, NO_DATA
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamped, unstamped
+from coco_core.transforms.samples import FramePose, TransformSample
 
 from .types import HapticDeviceState, HapticForce
 
@@ -97,7 +99,9 @@ class SimulatedDevice(Component):
     stop_at_end = Attribute(bool, False, "stop the application once the trajectory is over")
 
     force = InputPort(HapticForce, doc="the rendered force (workspace frame)")
-    hand = InputPort(tuple | Stamped, doc="hand target x y z (workspace frame), when no trajectory file")
+    hand = InputPort(tuple | Stamped | FramePose | TransformSample,
+                     doc="hand target (workspace frame), when no trajectory file: x y z, or the translation "
+                         "of a pose (a PoseStamped from a bag through BagReplay, a tracked frame)")
     state = OutputPort(HapticDeviceState, doc="the handle: position, velocity, buttons")
 
     def on_config(self) -> None:
@@ -141,6 +145,9 @@ class SimulatedDevice(Component):
             status, value = self.hand.read()
             if status is NEW_DATA:
                 target, _ = unstamped(value)
+                transform = getattr(target, "transform", None)  # a FramePose / TransformSample
+                if transform is not None:
+                    target = transform[:3, 3]
                 self._hand = (float(target[0]), float(target[1]), float(target[2]))
         if dt > 0.0:
             self._hand_velocity = ((self._hand[0] - previous[0]) / dt, (self._hand[1] - previous[1]) / dt,

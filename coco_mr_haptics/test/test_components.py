@@ -12,6 +12,7 @@ from coco_core.component import Component
 from coco_core.policy import BufferPolicy, ConnectionPolicy
 from coco_core.ports import InputPort, OutputPort
 from coco_core.transforms import se3
+from coco_core.transforms.samples import FramePose
 from coco_mr_haptics.implicit_surf import HapticImplicitSurf
 from coco_mr_haptics.recorder import HapticRecorder
 from coco_mr_haptics.renderer import HapticRenderer
@@ -160,3 +161,26 @@ def test_recorder_summary_file(tmp_path):
     assert summary["energy_out_j"] <= summary["energy_in_j"]
     header, *rows = (tmp_path / "h.csv").read_text().splitlines()
     assert header.startswith("time,device_x") and len(rows) == 1000
+
+
+class Hand(Component):
+    """What drives the hand port: here poses, as BagReplay makes them of a bag's PoseStamped."""
+
+    pose = OutputPort(FramePose)
+
+
+def test_hand_port_takes_poses():
+    app = Application("hand")
+    device = SimulatedDevice("device", time_step=1e-3, coupling_stiffness=300.0)
+    hand = Hand("hand")
+    app.add(device)
+    app.add(hand)
+    app.connect("hand.pose", "device.hand")
+    device.configure()
+    target = np.eye(4)
+    target[:3, 3] = (0.02, -0.01, 0.03)
+    for _ in range(3000):
+        hand.pose.write(FramePose("haptic_workspace", "hand", target))
+        device.step()
+    # No force: the coupling pulls the handle onto the hand.
+    assert (device.x, device.y, device.z) == pytest.approx((0.02, -0.01, 0.03), abs=1e-6)
