@@ -8,6 +8,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from coco_core.application import Application
+from coco_core.component import Component
+from coco_core.policy import BufferPolicy, ConnectionPolicy
+from coco_core.ports import OutputPort
 from coco_mr_haptics.cloud import HapticCloud, KDTreeBuilder, StructureError
 from coco_mr_haptics.implicit_surf import HapticImplicitSurf
 from coco_mr_vision.image import CameraIntrinsics
@@ -50,7 +53,6 @@ def renderers(surface, cloud, kind, **material):
     app.connect("builder.structure", "cloud.structure")
     for component in (builder, cloud_renderer, implicit):
         component.configure()
-    builder.cloud.connections  # noqa: B018  (the builder is driven directly below)
     builder.structure.write(builder.build(cloud))
     cloud_renderer.prepare()
     return builder, cloud_renderer, implicit
@@ -144,21 +146,18 @@ def test_builder_filters_and_structures():
         projective.build(vertices)
 
 
+class Camera(Component):
+    cloud = OutputPort(PointCloud)
+
+
 def test_builder_offers_the_newest_structure():
     app = Application("builder")
     builder = KDTreeBuilder("builder")
     cloud_renderer = HapticCloud("cloud")
     app.add(builder)
     app.add(cloud_renderer)
-    from coco_core.component import Component
-    from coco_core.ports import OutputPort
-
-    class Camera(Component):
-        cloud = OutputPort(PointCloud)
-
     camera = Camera("camera")
     app.add(camera)
-    from coco_core.policy import BufferPolicy, ConnectionPolicy
     app.connect("camera.cloud", "builder.cloud", ConnectionPolicy(BufferPolicy.BUFFER, size=4))
     app.connect("builder.structure", "cloud.structure")
     builder.configure()
