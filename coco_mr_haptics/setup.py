@@ -12,6 +12,7 @@ setup(
     ],
     install_requires=["setuptools"],
     entry_points={
+        "console_scripts": ["haptic-plot = coco_mr_haptics.plot:main"],
         "coco.components": [
             "HapticRenderer = coco_mr_haptics.renderer:HapticRenderer",
             "HapticImplicitSurf = coco_mr_haptics.implicit_surf:HapticImplicitSurf",

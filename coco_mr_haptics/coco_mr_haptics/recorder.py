@@ -109,3 +109,4 @@ class HapticRecorder(Component):
         if self.summary:
             Path(self.summary).parent.mkdir(parents=True, exist_ok=True)
             Path(self.summary).write_text(json.dumps(report, indent=2) + "\n")
+
