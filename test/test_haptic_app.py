@@ -37,9 +37,10 @@ def test_haptic_app_runs_the_device_against_the_scene(coco_launch: Path, tmp_pat
     proxies = np.array([[float(r[f"proxy_{a}"]) for a in "xyz"] for r in rows if r["renderer"] == "scene"])
     assert len(proxies) > 1000
     assert scene.distance(proxies).min() > -1e-6
-    # The thin wall was pushed (force along -x at the wall's face) and the proxy stayed on its side.
-    wall = [r for r in rows if r["renderer"] == "scene" and abs(float(r["proxy_x"]) + 0.061) < 1e-6]
-    assert wall and all(float(r["force_x"]) < 0 for r in wall)
+    # The thin wall was pushed: on its face the force points away from it (-x) or is zero (a surface
+    # never pulls: damping of a withdrawing hand cannot make it attractive).
+    wall = [float(r["force_x"]) for r in rows if r["renderer"] == "scene" and abs(float(r["proxy_x"]) + 0.061) < 1e-6]
+    assert len(wall) > 50 and max(wall) <= 0.0 and min(wall) < -0.3
 
 
 def test_surface_typo_is_reported_at_its_line_and_column() -> None:
