@@ -265,3 +265,37 @@ def test_stroke_over_real_rgbd_frames_follows_the_next_frame():
     assert abs((after - before) @ normal - shift) < 1.5e-3
     # Continuous force: under 0.3 N per cycle (the shift x 500 N/m is spread over 30 cycles).
     assert np.abs(np.diff(forces[70:], axis=0)).max() < 0.3
+
+
+def test_cloud_in_a_camera_frame_renders_in_the_world():
+    """The cloud arrives in the camera's frame; the renderer works in the world, where the camera is
+    placed by the transformation graph: the force is the one of the same plane written in the world."""
+    from dataclasses import replace
+
+    from coco_core.transforms import se3
+
+    camera_pose = se3.make(se3.rpy_to_matrix(-np.pi / 2, 0.0, 0.3), (0.1, -0.8, 0.5))
+    normal_c, point_c = np.array([0.0, -0.3, -1.0]) / np.linalg.norm([0.0, -0.3, -1.0]), np.array([0.0, 0.0, 1.0])
+    normal_w = camera_pose[:3, :3] @ normal_c
+    point_w = camera_pose[:3, :3] @ point_c + camera_pose[:3, 3]
+    app = Application("frames")
+    app.transforms.add_static("world", "camera", camera_pose)
+    builder = KDTreeBuilder("builder")
+    cloud_renderer = HapticCloud("cloud", frame="world", stiffness=800.0, damping=0.0)
+    implicit = HapticImplicitSurf("implicit", stiffness=800.0, damping=0.0,
+                                  surface=f"plane(normal=[{normal_w[0]}, {normal_w[1]}, {normal_w[2]}], "
+                                          f"offset={normal_w @ point_w})")
+    for component in (builder, cloud_renderer, implicit):
+        app.add(component)
+    app.connect("builder.structure", "cloud.structure")
+    for component in (builder, cloud_renderer, implicit):
+        component.configure()
+    builder.structure.write(builder.build(replace(plane_cloud(normal_c, point_c), frame_id="camera")))
+    cloud_renderer.prepare()
+    tangent = np.cross(normal_w, [0.0, 0.0, 1.0])
+    path = stroke(point_w + 0.02 * normal_w, -normal_w, tangent / np.linalg.norm(tangent), 0.003, 0.02)
+    proxies, forces = compare(cloud_renderer, implicit, path)
+    contact = [i for i, (_, _, a, b) in enumerate(proxies) if a and b]
+    assert len(contact) > 250
+    assert np.abs(forces[contact, 0] - forces[contact, 1]).max() < 800.0 * 1e-5
+    assert np.linalg.norm(forces[contact[-1], 0]) == pytest.approx(800.0 * 0.003, rel=1e-3)
