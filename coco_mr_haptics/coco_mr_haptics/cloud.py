@@ -28,7 +28,7 @@ from coco_mr_vision.pointcloud import PointCloud
 
 from . import kernel
 from .implicit import Plane
-from .local_surface import fit_points, fit_projective
+from .local_surface import fit_points, fit_projective, warm_up
 from .proxy import GodObject
 from .renderer import SurfaceRenderer, Workspace
 from .scene import Scene
@@ -244,6 +244,7 @@ class HapticCloud(SurfaceRenderer):
         super().on_config()
         if len(self.viewpoint) != 3:
             raise ValueError(f"{self.name}: viewpoint needs 3 numbers, got {self.viewpoint}")
+        warm_up()
         self.scene = Scene(Plane((0.0, 0.0, 1.0), -1e3))
         self.proxy_object = GodObject(self.scene, self.material())
         self._material_changed = False

@@ -101,3 +101,13 @@ def fit_points(points, qx, qy, qz, support, vx, vy, vz, moments, out):
     for i in range(points.shape[0]):
         _add(moments, points[i, 0], points[i, 1], points[i, 2], qx, qy, qz, support)
     return _plane(moments, vx, vy, vz, out)
+
+
+def warm_up() -> None:
+    """Load both fits now (from numba's cache; compiled on the first run after a change), so that
+    the first haptic cycle on a cloud does not pay for it. The argument types are those of
+    KDTreeBuilder's structures: float32 pixel grids, float64 kd-tree points."""
+    out, moments = np.zeros(7), np.zeros(11)
+    fit_projective(np.zeros((2, 2, 3), np.float32), 1.0, 1.0, 0.5, 0.5, 0.0, 0.0, 1.0, 0.01, 0.0, 0.0, 0.0,
+                   moments, out)
+    fit_points(np.zeros((1, 3)), 0.0, 0.0, 1.0, 0.01, 0.0, 0.0, 0.0, moments, out)
