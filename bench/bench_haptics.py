@@ -99,9 +99,7 @@ def redwood_cloud():
 def cloud_renderer(structure, refit_distance: float) -> HapticCloud:
     renderer = HapticCloud("cloud", support=0.015, stiffness=500.0, refit_distance=refit_distance)
     renderer.configure()
-    renderer.current = structure
-    from coco_mr_haptics.renderer import Workspace
-    renderer._cloud_frame = Workspace(renderer, "world", "")
+    renderer.use(structure)
     return renderer
 
 

@@ -30,7 +30,7 @@ from . import kernel
 from .implicit import Plane
 from .local_surface import fit_points, fit_projective, warm_up
 from .proxy import GodObject
-from .renderer import SurfaceRenderer, Workspace
+from .renderer import FrameLink, SurfaceRenderer
 from .scene import Scene
 
 STRUCTURES = ("auto", "projective", "kdtree")
@@ -255,7 +255,7 @@ class HapticCloud(SurfaceRenderer):
         self._fit = np.zeros(7)
         self._old_fit = np.zeros(7)
         self._moments = np.zeros(11)
-        self._cloud_frame: Workspace | None = None
+        self._cloud_frame: FrameLink | None = None
         self._fitted_at: tuple[float, float, float] | None = None
         """Where the current fit was made (cloud frame); None: refit at the next cycle."""
         self.fits = 0
@@ -266,14 +266,19 @@ class HapticCloud(SurfaceRenderer):
     def prepare(self) -> None:
         status, structure = self.structure.read()
         if status is NEW_DATA and structure is not self.current:
-            if self.current is not None:
-                self.swaps += 1
-                self.previous, self._blended = (self.current, 0) if self.blend else (None, 0)
-            self.current = structure
-            self._fitted_at = None
-            frame = structure.frame_id
-            if self._cloud_frame is None or self._cloud_frame.device_frame != frame:
-                self._cloud_frame = Workspace(self, self.render_frame, frame)
+            self.use(structure)
+
+    def use(self, structure: CloudStructure) -> None:
+        """Render on ``structure`` from the next cycle (what a new one on the port does): the old one
+        is blended out over ``blend`` cycles."""
+        if self.current is not None:
+            self.swaps += 1
+            self.previous, self._blended = (self.current, 0) if self.blend else (None, 0)
+        self.current = structure
+        self._fitted_at = None
+        frame = structure.frame_id
+        if self._cloud_frame is None or self._cloud_frame.frame != frame:
+            self._cloud_frame = FrameLink(self, self.render_frame, frame)
 
     def render(self, x: float, y: float, z: float, vx: float, vy: float, vz: float) -> bool:
         structure, god = self.current, self.proxy_object
@@ -285,7 +290,7 @@ class HapticCloud(SurfaceRenderer):
         # The local surface is fitted where the proxy is (in contact) or where the device is.
         qx, qy, qz = god.proxy if god.contact else (x, y, z)
         tx, ty, tz = frame.t
-        cx, cy, cz = frame.to_device((qx - tx, qy - ty, qz - tz))
+        cx, cy, cz = frame.to_frame((qx - tx, qy - ty, qz - tz))
         fit = self._fit
         last = self._fitted_at
         if (last is not None and self.previous is None

@@ -29,23 +29,24 @@ from .types import HapticDeviceState, HapticForce, HapticSample, Vector
 _ZERO = (0.0, 0.0, 0.0)
 
 
-class Workspace:
-    """The device's workspace frame seen from the render frame, through the transformation graph.
+class FrameLink:
+    """A frame of the transformation graph (the device's workspace, a cloud's camera) seen from the
+    render frame: points and vectors mapped both ways.
 
     A cached graph lookup costs ~0.1 us; the rotation is unpacked into floats only when the graph
     returns a new array (the graph caches its result until an edge on the path changes)."""
 
-    def __init__(self, component: Component, render_frame: str, device_frame: str) -> None:
+    def __init__(self, component: Component, render_frame: str, frame: str) -> None:
         self.component = component
-        self.render_frame, self.device_frame = render_frame, device_frame
+        self.render_frame, self.frame = render_frame, frame
         self._seen: np.ndarray | None = None
         self.r = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
         self.t = _ZERO
 
     def refresh(self) -> None:
-        if not self.device_frame or self.device_frame == self.render_frame:
+        if not self.frame or self.frame == self.render_frame:
             return
-        pose = self.component.transform_graph.lookup(self.render_frame, self.device_frame)
+        pose = self.component.transform_graph.lookup(self.render_frame, self.frame)
         if pose is not self._seen:
             self._seen = pose
             self.r = tuple(float(v) for v in pose[:3, :3].reshape(-1))
@@ -67,7 +68,7 @@ class Workspace:
         self.refresh()
         return state, self.to_render(state.position, True), self.to_render(state.velocity, False)
 
-    def to_device(self, v: Vector) -> Vector:
+    def to_frame(self, v: Vector) -> Vector:
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = self.r
         x, y, z = v
         return (r00 * x + r10 * y + r20 * z, r01 * x + r11 * y + r21 * z, r02 * x + r12 * y + r22 * z)
@@ -114,7 +115,7 @@ class SurfaceRenderer(Component):
         return owner.frame if isinstance(owner, HapticRenderer) else self.frame
 
     def on_config(self) -> None:
-        self._workspace = Workspace(self, self.frame, self.device_frame)
+        self._workspace = FrameLink(self, self.frame, self.device_frame)
         self.proxy_object: GodObject | None = None
 
     def refresh_material(self) -> None:
@@ -143,7 +144,7 @@ class SurfaceRenderer(Component):
             return
         state, (x, y, z), (vx, vy, vz) = reading
         force = self.proxy_object.force if self.render(x, y, z, vx, vy, vz) else _ZERO
-        self.force.write(HapticForce(self._workspace.to_device(force), state.stamp))
+        self.force.write(HapticForce(self._workspace.to_frame(force), state.stamp))
 
 
 COMBINE = ("sum", "first")
@@ -174,7 +175,7 @@ class HapticRenderer(Component):
         if others:
             raise ValueError(f"{self.name}: peers {', '.join(others)} are not surface renderers "
                              "(HapticImplicitSurf, HapticCloud)")
-        self._workspace = Workspace(self, self.frame, self.device_frame)
+        self._workspace = FrameLink(self, self.frame, self.device_frame)
 
     def on_update(self) -> None:
         workspace = self._workspace
@@ -202,6 +203,6 @@ class HapticRenderer(Component):
         if magnitude > self.max_force:
             scale = self.max_force / magnitude
             fx, fy, fz = fx * scale, fy * scale, fz * scale
-        self.force.write(HapticForce(workspace.to_device((fx, fy, fz)), state.stamp))
+        self.force.write(HapticForce(workspace.to_frame((fx, fy, fz)), state.stamp))
         self.sample.write(HapticSample(time.perf_counter(), (x, y, z), proxy, (fx, fy, fz), bool(touching),
                                        touching, depth))
