@@ -116,6 +116,20 @@ def test_box_corner_sweep_keeps_the_proxy_on_the_entry_faces():
     assert np.all(np.einsum("ij,ij->i", force_direction, proxies[inside] - 0.0) > 0)
 
 
+def test_through_a_box_edge_and_out_of_the_opposite_one():
+    scene, god = proxy_on("box(size=[0.1, 0.1, 0.1])", stiffness=1000)
+    # In through the edge x = z = 0.05 at 1 m/s, through the centre, out at the edge x = z = -0.05.
+    path = [(0.07, 0.01, 0.07), (-0.07, 0.01, -0.07)]
+    god.step(*path[0])
+    devices, proxies = sweep(scene, god, path)
+    inside = scene.distance(devices) < 0.0
+    assert inside.sum() > 120
+    # Held on the entry faces (top z = 0.05 or side x = 0.05), even when the device is nearer the
+    # opposite ones, until the device is out again.
+    on_entry = (proxies[:, 2] > 0.05 - 1e-6) | (proxies[:, 0] > 0.05 - 1e-6)
+    assert np.all(on_entry[inside])
+
+
 def test_hole_walls_hold_the_proxy():
     scene, god = proxy_on("difference(box(size=[0.1, 0.1, 0.02]), cylinder(radius=0.01, height=0.05))",
                           stiffness=1000)
