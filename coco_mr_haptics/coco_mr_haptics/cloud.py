@@ -15,6 +15,7 @@ cKDTree, and a haptic loop pays the slow ones.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,6 +33,8 @@ from .local_surface import fit_points, fit_projective, warm_up
 from .proxy import GodObject
 from .renderer import FrameLink, SurfaceRenderer
 from .scene import Scene
+
+log = logging.getLogger("coco")
 
 STRUCTURES = ("auto", "projective", "kdtree")
 KDTREE_NEIGHBOURS = 32
@@ -145,6 +148,10 @@ class KDTreeBuilder(Component):
         self.skipped += len(clouds) - 1
         self.structure.write(self.build(clouds[-1]))
         self.built += 1
+
+    def on_stop(self) -> None:
+        log.info("%s: %d structures built, %d clouds skipped (a newer one was waiting)", self.name,
+                 self.built, self.skipped)
 
     def build(self, cloud: PointCloud | np.ndarray) -> CloudStructure:
         """The structure of one cloud after the filters."""
@@ -262,6 +269,9 @@ class HapticCloud(SurfaceRenderer):
         self.previous: CloudStructure | None = None
         """The structure being blended out after a swap (None once the blend is over)."""
         self._blended = 0
+
+    def on_stop(self) -> None:
+        log.info("%s: %d local fits, %d structure swaps", self.name, self.fits, self.swaps)
 
     def prepare(self) -> None:
         status, structure = self.structure.read()
