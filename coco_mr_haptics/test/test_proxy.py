@@ -211,3 +211,19 @@ def test_passivity_with_damping(text, normal, surface_point):
     # Without damping the held spring returns more than it took: what the test must catch.
     scene, god = proxy_on(text, stiffness=k, damping=0.0)
     assert work_on_device(god, positions) > 0.0
+
+
+def test_friction_only_dissipates():
+    """Pressing in and out while stroking sideways, with friction: the friction force opposes the
+    sliding, so the contact absorbs more energy than without friction and still returns none."""
+    t = np.arange(0.0, 2.0, DT)
+    depth = 0.004 * np.sin(2 * math.pi * t) ** 2 - 0.0005
+    positions = np.stack([0.03 * np.sin(2 * math.pi * 1.5 * t), 0.0 * t, -depth], axis=1)
+    k = 2000.0
+    absorbed = {}
+    for mu in (0.0, 0.5):
+        scene, god = proxy_on("plane()", stiffness=k, damping=k * DT / 2 * 1.2, static_friction=mu,
+                              dynamic_friction=0.8 * mu)
+        absorbed[mu] = -work_on_device(god, positions)
+    assert absorbed[0.0] > 0.0
+    assert absorbed[0.5] > absorbed[0.0] * 1.5
