@@ -2,10 +2,11 @@
 
 1. One proxy step (goal <= 50 us, i.e. >= 20x headroom at 1 kHz): HapticImplicitSurf on a CSG scene
    of 10 primitives with the device stroking it in contact, HapticCloud on the 640x480 Redwood frame
-   (projective structure, and cKDTree), the whole HapticRenderer cycle around a step; floors: one
+   (projective structure, uniform grid, cKDTree), the whole HapticRenderer cycle around a step; floors: one
    scene evaluation and one local-surface fit.
 2. Structure build for 307,200 points (goal <= 15 ms for the chosen one): pykdtree, SciPy cKDTree
-   (balanced, and unbalanced as KDTreeBuilder builds it), KDTreeBuilder's projective structure,
+   (balanced, and unbalanced as KDTreeBuilder builds it), KDTreeBuilder's projective structure (for
+   organised clouds) and uniform grid (for any cloud),
    Open3D's KDTreeFlann when it can be imported (its 0.20 wheel imports plotly and dash, which the
    workspace does not install).
 3. The 1 kHz haptic activity (SimulatedDevice + HapticRenderer on the CSG scene) alone and with a
@@ -179,14 +180,17 @@ def proxy_steps() -> tuple[Table, dict[str, Any]]:
         builder.configure()
         structure = builder.build(cloud)
         path_cloud = floor_path(cloud)
-        tree_builder = KDTreeBuilder("tree", structure_kind="kdtree")
-        tree_builder.configure()
-        tree_structure = tree_builder.build(cloud)
+        others = {}
+        for kind, label in (("grid", "uniform grid"), ("kdtree", "cKDTree")):
+            other = KDTreeBuilder(kind, structure_kind=kind, cell=0.015)
+            other.configure()
+            others[label] = other.build(cloud)
         for label, refit in (("refit after 0.5 mm", 5e-4), ("refit every cycle", 0.0)):
             projective = cloud_renderer(structure, refit)
             variants[f"cloud: proxy step, 640x480 Redwood, projective, {label}"] = cloud_loop(projective, path_cloud)
-            tree = cloud_renderer(tree_structure, refit)
-            variants[f"cloud: proxy step, 640x480 Redwood, cKDTree, {label}"] = cloud_loop(tree, path_cloud)
+            for name, other_structure in others.items():
+                variants[f"cloud: proxy step, 640x480 Redwood, {name}, {label}"] = cloud_loop(
+                    cloud_renderer(other_structure, refit), path_cloud)
         grid = projective.current.grid
         fit, moments = np.zeros(7), np.zeros(11)
         q = tuple(float(v) for v in path_cloud[0])
@@ -234,8 +238,11 @@ def builds() -> tuple[Table, dict[str, Any]]:
     builder = KDTreeBuilder("builder")
     builder.configure()
     builder.build(cloud)  # the stream's first cloud: intrinsics estimated once
+    grid_builder = KDTreeBuilder("grid", structure_kind="grid")
+    grid_builder.configure()
     candidates: dict[str, Any] = {
         "projective (KDTreeBuilder, organised cloud)": lambda: builder.build(cloud),
+        "uniform grid (KDTreeBuilder, any cloud)": lambda: grid_builder.build(points),
         "cKDTree, unbalanced (KDTreeBuilder kdtree)": lambda: cKDTree(points, leafsize=16, balanced_tree=False,
                                                                       compact_nodes=False),
         "cKDTree, default (balanced)": lambda: cKDTree(points),
@@ -263,7 +270,7 @@ def builds() -> tuple[Table, dict[str, Any]]:
     results = {}
     for name, values in times.items():
         median = statistics.median(values)
-        chosen = name.startswith("projective")
+        chosen = name.startswith(("projective", "uniform grid"))
         table.add(name, fmt_time_ns(median), fmt_ratio(anchor / median), verdict(median <= GOAL_BUILD_NS if chosen else None))
         results[name] = {"median_ns": median, "ns": values}
     table.notes.append("The projective structure reuses the organised cloud (no copy without a distance filter); "

@@ -29,14 +29,14 @@ from coco_mr_vision.pointcloud import PointCloud
 
 from . import kernel
 from .implicit import Plane
-from .local_surface import fit_points, fit_projective, warm_up
+from .local_surface import bounds, fit_grid, fit_points, fit_projective, kept_points, sort_into_cells, warm_up
 from .proxy import GodObject
 from .renderer import FrameLink, SurfaceRenderer
 from .scene import Scene
 
 log = logging.getLogger("coco")
 
-STRUCTURES = ("auto", "projective", "kdtree")
+STRUCTURES = ("auto", "projective", "grid", "kdtree")
 KDTREE_NEIGHBOURS = 32
 """Candidates a kd-tree query returns for one local fit."""
 
@@ -46,11 +46,39 @@ class StructureError(ValueError):
 
 
 @dataclass(frozen=True, eq=False)
+class UniformGrid:
+    """The cells of a uniform 3-D grid that hold points (the points themselves are sorted by cell):
+    ``keys`` the occupied cells' linear indices in increasing order, ``starts``/``ends`` their points."""
+
+    keys: np.ndarray
+    starts: np.ndarray
+    ends: np.ndarray
+    origin: np.ndarray
+    cell: float
+    dims: np.ndarray
+
+    @classmethod
+    def of(cls, points: np.ndarray, cell: float) -> tuple[UniformGrid, np.ndarray]:
+        """The grid of ``points`` (N x 3, float64) and the points in cell order (a compiled counting
+        sort: O(N + cells))."""
+        if len(points) == 0:
+            raise StructureError("no point of the cloud passed the filters: nothing to build a grid of")
+        origin, upper = bounds(points)
+        dims = (np.floor((upper - origin) / cell) + 1).astype(np.int64)
+        cells = float(dims[0]) * float(dims[1]) * float(dims[2])
+        if cells > max(8.0 * len(points), 1e6):
+            raise StructureError(f"a grid of {cell} m cells over this cloud's extent has {cells:.3g} cells for "
+                                 f"{len(points)} points; use a larger cell, a max_distance filter, or kdtree")
+        ordered, keys, starts, ends = sort_into_cells(points, origin, float(cell), dims)
+        return cls(keys, starts, ends, origin, float(cell), dims), ordered
+
+
+@dataclass(frozen=True, eq=False)
 class CloudStructure:
     """A finished search structure over one cloud, in the cloud's frame; never changed once written.
 
-    ``kind`` is ``projective`` (``grid`` is the H x W x 3 organised cloud, ``intrinsics`` fx fy cx cy)
-    or ``kdtree`` (``points`` N x 3 and ``tree``)."""
+    ``kind`` is ``projective`` (``grid`` is the H x W x 3 organised cloud, ``intrinsics`` fx fy cx cy),
+    ``grid`` (``points`` N x 3 sorted by cell, ``cells``) or ``kdtree`` (``points`` N x 3 and ``tree``)."""
 
     kind: str
     points: np.ndarray
@@ -59,6 +87,7 @@ class CloudStructure:
     grid: np.ndarray | None = None
     intrinsics: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     tree: Any = None
+    cells: UniformGrid | None = None
     build_seconds: float = 0.0
     valid: int = 0
     """Points that survived the filters."""
@@ -70,6 +99,10 @@ class CloudStructure:
         if self.kind == "projective":
             fx, fy, cx, cy = self.intrinsics
             return fit_projective(self.grid, fx, fy, cx, cy, qx, qy, qz, support, vx, vy, vz, moments, out)
+        if self.kind == "grid":
+            g = self.cells
+            return fit_grid(self.points, g.keys, g.starts, g.ends, g.origin, g.cell, g.dims, qx, qy, qz, support,
+                            vx, vy, vz, moments, out)
         distances, index = self.tree.query((qx, qy, qz), k=KDTREE_NEIGHBOURS, distance_upper_bound=support)
         found = index[index < len(self.points)]
         if len(found) == 0:
@@ -129,6 +162,7 @@ class KDTreeBuilder(Component):
     voxel = Attribute(float, 0.0, "m: one point per voxel of this size (makes the cloud unorganised); "
                       "0: off", min=0.0)
     intrinsics = Attribute(list[float], [], "fx fy cx cy of an organised cloud; empty: estimated from it")
+    cell = Attribute(float, 0.01, "m: cell of the uniform grid (about HapticCloud's support)", min=1e-4)
 
     cloud = InputPort(PointCloud | np.ndarray, event=True, doc="PointCloud, or an N x 3 array (mesh vertices)")
     structure = OutputPort(CloudStructure, doc="the newest finished search structure")
@@ -166,11 +200,15 @@ class KDTreeBuilder(Component):
             points, organized, frame_id, stamp = cloud.points, cloud.organized, cloud.frame_id, cloud.stamp
         kind = self.structure_kind
         if kind == "auto":
-            kind = "projective" if organized is not None and not self.voxel else "kdtree"
+            kind = "projective" if organized is not None and not self.voxel else "grid"
         if kind == "projective":
             structure = self._projective(points, organized)
+        elif kind == "grid":
+            points = self._unorganised(points)
+            cells, points = UniformGrid.of(points, self.cell)
+            structure = {"kind": "grid", "points": points, "cells": cells, "valid": len(points)}
         else:
-            structure = self._kdtree(points)
+            structure = self._kdtree(self._unorganised(points))
         return CloudStructure(**structure, frame_id=frame_id, stamp=stamp,
                               build_seconds=time.perf_counter() - start)
 
@@ -213,18 +251,19 @@ class KDTreeBuilder(Component):
         self._known = (grid.shape, estimate)
         return estimate
 
-    def _kdtree(self, points: np.ndarray) -> dict[str, Any]:
-        from scipy.spatial import cKDTree
-
-        z = points[:, 2]
-        keep = np.isfinite(points).all(axis=1) & (z > self.min_distance)
-        if self.max_distance:
-            keep &= z <= self.max_distance
-        points = points[keep][:: self.stride].astype(np.float64)
+    def _unorganised(self, points: np.ndarray) -> np.ndarray:
+        """The finite points that pass the filters, as float64 (what the compiled fits read)."""
+        points = kept_points(np.ascontiguousarray(points), float(self.min_distance), float(self.max_distance),
+                             int(self.stride))
         if self.voxel:
             keys = np.floor(points / self.voxel).astype(np.int64)
             _, first = np.unique(keys, axis=0, return_index=True)
             points = points[np.sort(first)]
+        return points
+
+    def _kdtree(self, points: np.ndarray) -> dict[str, Any]:
+        from scipy.spatial import cKDTree
+
         tree = cKDTree(points, leafsize=16, balanced_tree=False, compact_nodes=False)
         return {"kind": "kdtree", "points": points, "tree": tree, "valid": len(points)}
 

@@ -78,7 +78,7 @@ def compare(cloud_renderer, implicit, path):
     return proxies, np.array(forces)
 
 
-@pytest.mark.parametrize("kind", ["projective", "kdtree"])
+@pytest.mark.parametrize("kind", ["projective", "grid", "kdtree"])
 def test_cloud_of_a_plane_renders_like_the_plane(kind):
     normal = np.array([0.0, -0.3, -1.0])
     normal /= np.linalg.norm(normal)  # facing the camera
@@ -98,7 +98,7 @@ def test_cloud_of_a_plane_renders_like_the_plane(kind):
     assert np.linalg.norm(forces[contact[-1], 1]) == pytest.approx(800.0 * 0.004, rel=1e-3)
 
 
-@pytest.mark.parametrize("kind", ["projective", "kdtree"])
+@pytest.mark.parametrize("kind", ["projective", "grid", "kdtree"])
 def test_cloud_of_a_sphere_renders_like_the_sphere(kind):
     centre, radius = np.array([0.02, -0.01, 0.8]), 0.1
     builder, cloud_renderer, implicit = renderers(
@@ -134,12 +134,18 @@ def test_builder_filters_and_structures():
     far = KDTreeBuilder("far", max_distance=0.99)
     far.configure()
     assert far.build(cloud).valid == 0
-    # An array (mesh vertices) gets a kd-tree; voxel decimation keeps one point per voxel.
+    # An array (mesh vertices) gets a uniform grid; voxel decimation keeps one point per voxel.
     vertices = np.random.default_rng(1).uniform(0, 0.1, size=(20000, 3)).astype(np.float32) + [0, 0, 1]
     voxel = KDTreeBuilder("voxel", voxel=0.01)
     voxel.configure()
     decimated = voxel.build(vertices)
-    assert decimated.kind == "kdtree" and decimated.valid == 1000
+    assert decimated.kind == "grid" and decimated.valid == 1000
+    # The grid holds every point once, sorted by cell, each cell's points inside it.
+    cells = decimated.cells
+    assert cells.ends[-1] == 1000 and np.all(np.diff(cells.keys) > 0)
+    index = np.floor((decimated.points - cells.origin) / cells.cell).astype(np.int64)
+    keys = index[:, 0] + cells.dims[0] * (index[:, 1] + cells.dims[1] * index[:, 2])
+    assert np.array_equal(np.repeat(cells.keys, cells.ends - cells.starts), keys)
     projective = KDTreeBuilder("p", structure_kind="projective")
     projective.configure()
     with pytest.raises(StructureError, match="needs an organised cloud"):
