@@ -270,7 +270,7 @@ class KDTreeBuilder(Component):
 
 
 class HapticCloud(SurfaceRenderer):
-    """The proxy of HapticImplicitSurf over the MLS plane of the cloud near it, refitted every cycle.
+    """The proxy of HapticImplicitSurf over the MLS plane of the cloud near it, refitted as it moves.
 
     A new structure replaces the old between two cycles; a proxy in contact is put back on the new
     local surface from where it was (the kernel projects it), so it does not jump."""
