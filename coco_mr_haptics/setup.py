@@ -11,6 +11,17 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
     ],
     install_requires=["setuptools"],
+    entry_points={
+        "console_scripts": ["haptic-plot = coco_mr_haptics.plot:main"],
+        "coco.components": [
+            "HapticRenderer = coco_mr_haptics.renderer:HapticRenderer",
+            "HapticImplicitSurf = coco_mr_haptics.implicit_surf:HapticImplicitSurf",
+            "SimulatedDevice = coco_mr_haptics.simulated_device:SimulatedDevice",
+            "HapticRecorder = coco_mr_haptics.recorder:HapticRecorder",
+            "KDTreeBuilder = coco_mr_haptics.cloud:KDTreeBuilder",
+            "HapticCloud = coco_mr_haptics.cloud:HapticCloud",
+        ],
+    },
     zip_safe=True,
     maintainer="CoCo for ROS 2 developers",
     maintainer_email="coco-ros2@example.org",

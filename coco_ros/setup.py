@@ -34,6 +34,7 @@ setup(
             "TFBridge = coco_ros.tf.bridge:TFBridge",
             "EndEffectorDistance = coco_ros.teleop.distance:EndEffectorDistance",
             "TeleopSummary = coco_ros.teleop.summary:TeleopSummary",
+            "ROSHapticDevice = coco_ros.haptics.device:ROSHapticDevice",
         ],
     },
 )

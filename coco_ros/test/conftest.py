@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import importlib.util
 import sys
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 from pathlib import Path
 
 _WORKSPACE = Path(__file__).resolve().parents[2]
@@ -55,3 +55,24 @@ def python_lines(call: Callable[[], Any]) -> tuple[Any, int]:
     finally:
         sys.settrace(None)
     return result, count
+
+
+def rclpy_peer(monkeypatch: pytest.MonkeyPatch, domain: str, name: str) -> Iterator[tuple[Any, Any]]:
+    """For a fixture: this test's own rclpy node (and its executor) on DDS ``domain``, localhost
+    only, as the other side of an application run by the ROS launcher in a subprocess."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    monkeypatch.setenv("ROS_DOMAIN_ID", domain)
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    context = Context()
+    rclpy.init(context=context)
+    node = Node(name, context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    yield node, executor
+    executor.shutdown()
+    node.destroy_node()
+    context.try_shutdown()

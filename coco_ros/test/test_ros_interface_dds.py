@@ -17,15 +17,12 @@ import time
 from pathlib import Path
 
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from coco_core.interrupt import interrupt
+from conftest import rclpy_peer
 
 WORKSPACE = Path(__file__).resolve().parents[2]
 LAUNCHER = WORKSPACE / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
@@ -114,17 +111,7 @@ APP = """<package name="rosif_dds">
 
 @pytest.fixture
 def ros(monkeypatch: pytest.MonkeyPatch):
-    monkeypatch.setenv("ROS_DOMAIN_ID", DOMAIN)
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    context = Context()
-    rclpy.init(context=context)
-    node = Node("rosif_test_peer", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    yield node, executor
-    executor.shutdown()
-    node.destroy_node()
-    context.try_shutdown()
+    yield from rclpy_peer(monkeypatch, DOMAIN, "rosif_test_peer")
 
 
 @pytest.mark.skipif(not LAUNCHER.exists(), reason="workspace not built (source scripts/setup.sh)")

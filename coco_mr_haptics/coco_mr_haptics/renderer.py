@@ -1,0 +1,208 @@
+"""HapticRenderer and the renderers it owns: one 1 kHz activity, forces combined.
+
+A *surface renderer* (HapticImplicitSurf, HapticCloud) turns a device position into a force through
+its own proxy. It is normally a peer of a :class:`HapticRenderer`, which reads the device once per
+cycle, brings its position into the renderer's frame of the transformation graph (the device's
+workspace is a frame: calibrating a device is a registration), asks every peer for its force,
+combines them and sends the result back in the workspace frame. A surface renderer scheduled on its
+own (no owner) does the same for itself, with its own ``device``/``force`` ports.
+
+The stiffness, damping, friction and force limit of each renderer are attributes: ``set_attribute``
+changes them between two haptic cycles.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from coco_core.attributes import Attribute
+from coco_core.component import Component
+from coco_core.policy import NO_DATA
+from coco_core.ports import InputPort, OutputPort
+
+from .proxy import GodObject, Material
+from .types import HapticDeviceState, HapticForce, HapticSample, Vector
+
+_ZERO = (0.0, 0.0, 0.0)
+
+
+class FrameLink:
+    """A frame of the transformation graph (the device's workspace, a cloud's camera) seen from the
+    render frame: points and vectors mapped both ways.
+
+    A cached graph lookup costs ~0.1 us; the rotation is unpacked into floats only when the graph
+    returns a new array (the graph caches its result until an edge on the path changes)."""
+
+    def __init__(self, component: Component, render_frame: str, frame: str) -> None:
+        self.component = component
+        self.render_frame, self.frame = render_frame, frame
+        self._seen: np.ndarray | None = None
+        self.r = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+        self.t = _ZERO
+
+    def refresh(self) -> None:
+        if not self.frame or self.frame == self.render_frame:
+            return
+        pose = self.component.transform_graph.lookup(self.render_frame, self.frame)
+        if pose is not self._seen:
+            self._seen = pose
+            self.r = tuple(float(v) for v in pose[:3, :3].reshape(-1))
+            self.t = (float(pose[0, 3]), float(pose[1, 3]), float(pose[2, 3]))
+
+    def to_render(self, v: Vector, point: bool) -> Vector:
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = self.r
+        x, y, z = v
+        tx, ty, tz = self.t if point else _ZERO
+        return (r00 * x + r01 * y + r02 * z + tx, r10 * x + r11 * y + r12 * z + ty,
+                r20 * x + r21 * y + r22 * z + tz)
+
+    def read(self, port: InputPort) -> tuple[HapticDeviceState, Vector, Vector] | None:
+        """The newest device state on ``port`` with its position and velocity in the render frame;
+        None before the first."""
+        status, state = port.read()
+        if status is NO_DATA:
+            return None
+        self.refresh()
+        return state, self.to_render(state.position, True), self.to_render(state.velocity, False)
+
+    def to_frame(self, v: Vector) -> Vector:
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = self.r
+        x, y, z = v
+        return (r00 * x + r10 * y + r20 * z, r01 * x + r11 * y + r21 * z, r02 * x + r12 * y + r22 * z)
+
+
+class SurfaceRenderer(Component):
+    """Base of the renderers a HapticRenderer owns: a proxy, a material, one force per cycle."""
+
+    stiffness = Attribute(float, 800.0, "N/m between device and proxy", min=0.0)
+    damping = Attribute(float, 1.0, "N s/m along the contact normal (>= stiffness x period / 2 keeps "
+                        "the contact passive)", min=0.0)
+    static_friction = Attribute(float, 0.0, "static friction coefficient (the cone the proxy sticks in)",
+                                min=0.0)
+    dynamic_friction = Attribute(float, 0.0, "dynamic friction coefficient (the cone a sliding proxy "
+                                 "trails on); at most static_friction", min=0.0)
+    max_force = Attribute(float, 8.0, "N: this renderer's force is clamped to it", min=0.0)
+    max_slide = Attribute(float, 4e-4, "m per sliding sub-step of the proxy: below half the thinnest "
+                          "wall", min=1e-6)
+    frame = Attribute(str, "world", "frame of the transformation graph the surface is described in "
+                      "(alone; as a peer, the owner's frame)")
+    device_frame = Attribute(str, "", "the device's workspace frame (alone; \"\": the same as frame)")
+
+    device = InputPort(HapticDeviceState, doc="device state, when scheduled alone")
+    force = OutputPort(HapticForce, doc="force on the device, when scheduled alone")
+
+    def __init__(self, name: str | None = None, **attributes: object) -> None:
+        self._material_changed = True
+        super().__init__(name, **attributes)
+
+    def set_attribute_now(self, name: str, value: object) -> None:
+        super().set_attribute_now(name, value)
+        self._material_changed = True
+
+    def material(self) -> Material:
+        if self.dynamic_friction > self.static_friction:
+            raise ValueError(f"{self.name}: dynamic_friction ({self.dynamic_friction}) must not exceed "
+                             f"static_friction ({self.static_friction})")
+        return Material(self.stiffness, self.damping, self.static_friction, self.dynamic_friction,
+                        self.max_force, self.max_slide)
+
+    @property
+    def render_frame(self) -> str:
+        owner = self.owner
+        return owner.frame if isinstance(owner, HapticRenderer) else self.frame
+
+    def on_config(self) -> None:
+        self._workspace = FrameLink(self, self.frame, self.device_frame)
+        self.proxy_object: GodObject | None = None
+
+    def refresh_material(self) -> None:
+        """Apply changed attributes to the proxy (between two cycles)."""
+        if self._material_changed and self.proxy_object is not None:
+            self.proxy_object.set_material(self.material())
+            self._material_changed = False
+
+    def render(self, x: float, y: float, z: float, vx: float, vy: float, vz: float) -> bool:
+        """One haptic step for the device at ``(x, y, z)`` in the render frame; True in contact.
+        The force, proxy and depth are then on :attr:`proxy_object`."""
+        raise NotImplementedError
+
+    def prepare(self) -> None:
+        """Read this renderer's own inputs before a cycle (a new structure, a moved frame)."""
+
+    def on_update(self) -> None:
+        """Apply changed attributes and read own inputs; alone, also read the device, render and
+        write the force (as a peer, the owner calls ``render`` next)."""
+        self.refresh_material()
+        self.prepare()
+        if isinstance(self.owner, HapticRenderer):
+            return
+        reading = self._workspace.read(self.device)
+        if reading is None:
+            return
+        state, (x, y, z), (vx, vy, vz) = reading
+        force = self.proxy_object.force if self.render(x, y, z, vx, vy, vz) else _ZERO
+        self.force.write(HapticForce(self._workspace.to_frame(force), state.stamp))
+
+
+COMBINE = ("sum", "first")
+
+
+class HapticRenderer(Component):
+    """Owns surface renderers (peers) in one haptic activity and combines their forces.
+
+    ``combine``: ``sum`` adds every renderer's force (several objects touched at once); ``first``
+    takes the first renderer in contact in peer order (layered materials: a coating over a body).
+    The sum is clamped to ``max_force`` (the device's limit).
+    """
+
+    manages_peers = True
+
+    frame = Attribute(str, "world", "frame of the transformation graph the peers' surfaces are in")
+    device_frame = Attribute(str, "", "the device's workspace frame (\"\": the same as frame)")
+    combine = Attribute(str, "sum", "how peers' forces combine: sum or first (layered)", choices=COMBINE)
+    max_force = Attribute(float, 8.0, "N: the combined force is clamped to it", min=0.0)
+
+    device = InputPort(HapticDeviceState, doc="the device's state (workspace frame)")
+    force = OutputPort(HapticForce, doc="the force on the device (workspace frame)")
+    sample = OutputPort(HapticSample, doc="one record per cycle, in the render frame (for HapticRecorder)")
+
+    def on_config(self) -> None:
+        self.renderers = [peer for peer in self.peers if isinstance(peer, SurfaceRenderer)]
+        others = [peer.name for peer in self.peers if not isinstance(peer, SurfaceRenderer)]
+        if others:
+            raise ValueError(f"{self.name}: peers {', '.join(others)} are not surface renderers "
+                             "(HapticImplicitSurf, HapticCloud)")
+        self._workspace = FrameLink(self, self.frame, self.device_frame)
+
+    def on_update(self) -> None:
+        workspace = self._workspace
+        reading = workspace.read(self.device)
+        if reading is None:
+            return
+        state, (x, y, z), (vx, vy, vz) = reading
+        fx = fy = fz = depth = 0.0
+        proxy = (x, y, z)
+        touching = ""
+        first = self.combine == "first"
+        for renderer in self.renderers:
+            renderer.step()  # its own inputs (a new cloud structure, a moved frame) and attributes
+            if not renderer.enabled or not renderer.render(x, y, z, vx, vy, vz):
+                continue
+            god = renderer.proxy_object
+            gx, gy, gz = god.force
+            fx, fy, fz = fx + gx, fy + gy, fz + gz
+            depth = max(depth, god.depth)
+            if not touching:
+                touching, proxy = renderer.name, god.proxy
+                if first:
+                    break
+        magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if magnitude > self.max_force:
+            scale = self.max_force / magnitude
+            fx, fy, fz = fx * scale, fy * scale, fz * scale
+        self.force.write(HapticForce(workspace.to_frame((fx, fy, fz)), state.stamp))
+        self.sample.write(HapticSample(time.perf_counter(), (x, y, z), proxy, (fx, fy, fz), bool(touching),
+                                       touching, depth))

@@ -1,0 +1,48 @@
+"""What flows on the haptic ports: device state in, force out, one sample per haptic cycle.
+
+Small frozen records of plain floats: a haptic cycle makes a few of them every millisecond, so they
+are slotted dataclasses and a named tuple, not numpy arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+Vector = tuple[float, float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class HapticDeviceState:
+    """A device's handle: position (m) and velocity (m/s) in the device's workspace frame, buttons as
+    a bit mask (bit i = button i pressed), ``stamp`` in ``time.perf_counter`` seconds."""
+
+    position: Vector
+    velocity: Vector = (0.0, 0.0, 0.0)
+    buttons: int = 0
+    stamp: float = 0.0
+
+    def pressed(self, button: int) -> bool:
+        return bool(self.buttons >> button & 1)
+
+
+@dataclass(frozen=True, slots=True)
+class HapticForce:
+    """The force (N) to apply to the handle, in the device's workspace frame."""
+
+    force: Vector
+    stamp: float = 0.0
+
+
+class HapticSample(NamedTuple):
+    """One haptic cycle as the renderer saw it, in the renderer's frame (the CSV's row)."""
+
+    time: float
+    device: Vector
+    proxy: Vector
+    force: Vector
+    contact: bool
+    renderer: str
+    """Name of the renderer in contact ("" when none; the first one when several)."""
+    depth: float
+    """Penetration along the normal (m), the deepest among the renderers in contact."""

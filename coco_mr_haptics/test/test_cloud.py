@@ -1,0 +1,307 @@
+"""KDTreeBuilder and HapticCloud: structures and filters, agreement with HapticImplicitSurf on clouds
+sampled from the same shapes, and strokes over real RGB-D frames through a structure swap."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from coco_core.application import Application
+from coco_core.component import Component
+from coco_core.policy import BufferPolicy, ConnectionPolicy
+from coco_core.ports import OutputPort
+from coco_mr_haptics.cloud import HapticCloud, KDTreeBuilder, StructureError
+from coco_mr_haptics.implicit_surf import HapticImplicitSurf
+from coco_mr_vision.image import CameraIntrinsics
+from coco_mr_vision.pointcloud import PointCloud
+
+FX = FY = 525.0
+CX, CY = 319.5, 239.5
+RGBD = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "rgbd"
+
+
+def rays(width=640, height=480):
+    u, v = np.meshgrid(np.arange(width), np.arange(height))
+    return np.stack([(u - CX) / FX, (v - CY) / FY, np.ones(u.shape)], axis=-1).reshape(-1, 3)
+
+
+def plane_cloud(normal, point):
+    """The organised cloud a pinhole camera at the origin sees of the plane through ``point``."""
+    d = rays()
+    t = (normal @ point) / (d @ normal)
+    return PointCloud((d * t[:, None]).astype(np.float32), organized=(480, 640))
+
+
+def sphere_cloud(centre, radius):
+    d = rays()
+    a = (d * d).sum(axis=1)
+    b = -2 * d @ centre
+    c = centre @ centre - radius * radius
+    disc = b * b - 4 * a * c
+    t = np.where(disc >= 0, (-b - np.sqrt(np.maximum(disc, 0))) / (2 * a), np.nan)
+    return PointCloud((d * t[:, None]).astype(np.float32), organized=(480, 640))
+
+
+def renderers(surface, cloud, kind, **material):
+    app = Application("cloud_test")
+    builder = KDTreeBuilder("builder", structure_kind=kind)
+    cloud_renderer = HapticCloud("cloud", support=0.01, **material)
+    implicit = HapticImplicitSurf("implicit", surface=surface, **material)
+    for component in (builder, cloud_renderer, implicit):
+        app.add(component)
+    app.connect("builder.structure", "cloud.structure")
+    for component in (builder, cloud_renderer, implicit):
+        component.configure()
+    builder.structure.write(builder.build(cloud))
+    cloud_renderer.prepare()
+    return builder, cloud_renderer, implicit
+
+
+def stroke(start, inward, tangent, depth, length, steps_in=60, steps_along=300):
+    """Approach along ``inward`` from ``start`` (on the free side), press ``depth`` past the surface
+    point ``start + 0.02 inward``, then slide along ``tangent``."""
+    surface_point = start + 0.02 * inward
+    path = [start + (surface_point + depth * inward - start) * s for s in np.linspace(0, 1, steps_in)]
+    pressed = path[-1]
+    path += [pressed + tangent * length * s for s in np.linspace(0, 1, steps_along)]
+    return np.array(path)
+
+
+def compare(cloud_renderer, implicit, path):
+    proxies, forces = [], []
+    for p in path:
+        a = cloud_renderer.render(*p, 0.0, 0.0, 0.0)
+        b = implicit.render(*p, 0.0, 0.0, 0.0)
+        proxies.append((cloud_renderer.proxy_object.proxy, implicit.proxy_object.proxy, a, b))
+        forces.append((cloud_renderer.proxy_object.force, implicit.proxy_object.force))
+    return proxies, np.array(forces)
+
+
+@pytest.mark.parametrize("kind", ["projective", "grid", "kdtree"])
+def test_cloud_of_a_plane_renders_like_the_plane(kind):
+    normal = np.array([0.0, -0.3, -1.0])
+    normal /= np.linalg.norm(normal)  # facing the camera
+    point = np.array([0.0, 0.0, 1.0])
+    builder, cloud_renderer, implicit = renderers(
+        f"plane(normal=[{normal[0]}, {normal[1]}, {normal[2]}], offset={normal @ point})",
+        plane_cloud(normal, point), kind, stiffness=800.0, damping=0.0)
+    tangent = np.cross(normal, [1.0, 0.0, 0.0])
+    path = stroke(point + 0.02 * normal + [0.01, 0.0, 0.0], -normal, tangent, 0.004, 0.03)
+    proxies, forces = compare(cloud_renderer, implicit, path)
+    contact = [i for i, (_, _, a, b) in enumerate(proxies) if b]
+    assert len(contact) > 250 and all(proxies[i][2] for i in contact)
+    # Tolerance: the float32 points of the cloud (1e-7 m at 1 m).
+    for i in contact:
+        assert np.allclose(proxies[i][0], proxies[i][1], atol=1e-5)
+    assert np.abs(forces[contact, 0] - forces[contact, 1]).max() < 800.0 * 1e-5
+    assert np.linalg.norm(forces[contact[-1], 1]) == pytest.approx(800.0 * 0.004, rel=1e-3)
+
+
+@pytest.mark.parametrize("kind", ["projective", "grid", "kdtree"])
+def test_cloud_of_a_sphere_renders_like_the_sphere(kind):
+    centre, radius = np.array([0.02, -0.01, 0.8]), 0.1
+    builder, cloud_renderer, implicit = renderers(
+        f"translate([{centre[0]}, {centre[1]}, {centre[2]}], sphere({radius}))", sphere_cloud(centre, radius), kind,
+        stiffness=800.0, damping=0.0)
+    # Pressed at the point facing the camera, then stroked 3 cm across the sphere.
+    out = np.array([0.3, 0.2, -1.0])
+    out /= np.linalg.norm(out)
+    top = centre + radius * out
+    path = stroke(top + 0.02 * out, -out, np.cross(out, [0.0, 1.0, 0.0]), 0.003, 0.03)
+    proxies, forces = compare(cloud_renderer, implicit, path)
+    contact = [i for i, (_, _, a, b) in enumerate(proxies) if b and a]
+    assert len(contact) > 250
+    # Tolerance: the MLS plane through neighbours within 1 cm sits about r_s^2 / (2R) = 0.25 mm
+    # inside a sphere of R = 0.1 m; we allow 0.4 mm on the proxy and 0.4 mm x k on the force.
+    gaps = [np.linalg.norm(np.subtract(proxies[i][0], proxies[i][1])) for i in contact]
+    assert max(gaps) < 4e-4
+    assert np.abs(np.linalg.norm(forces[contact, 0], axis=1)
+                  - np.linalg.norm(forces[contact, 1], axis=1)).max() < 800.0 * 4e-4
+
+
+def test_builder_filters_and_structures():
+    normal, point = np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, 1.0])
+    cloud = plane_cloud(normal, point)
+    builder = KDTreeBuilder("b", stride=2, max_distance=1.05)
+    builder.configure()
+    structure = builder.build(cloud)
+    assert structure.kind == "projective" and structure.grid.shape == (240, 320, 3)
+    fx, fy, cx, cy = structure.intrinsics
+    assert fx == pytest.approx(FX / 2, rel=1e-6) and cx == pytest.approx(CX / 2, abs=1e-4)
+    # Pixels whose depth is beyond 1.05 m are gone: the plane z = 1 is all nearer, all kept.
+    assert structure.valid == 240 * 320
+    far = KDTreeBuilder("far", max_distance=0.99)
+    far.configure()
+    assert far.build(cloud).valid == 0
+    # An array (mesh vertices) gets a uniform grid; voxel decimation keeps one point per voxel.
+    vertices = np.random.default_rng(1).uniform(0, 0.1, size=(20000, 3)).astype(np.float32) + [0, 0, 1]
+    voxel = KDTreeBuilder("voxel", voxel=0.01)
+    voxel.configure()
+    decimated = voxel.build(vertices)
+    assert decimated.kind == "grid" and decimated.valid == 1000
+    # The grid holds every point once, sorted by cell, each cell's points inside it.
+    cells = decimated.cells
+    assert cells.ends[-1] == 1000 and np.all(np.diff(cells.keys) > 0)
+    index = np.floor((decimated.points - cells.origin) / cells.cell).astype(np.int64)
+    keys = index[:, 0] + cells.dims[0] * (index[:, 1] + cells.dims[1] * index[:, 2])
+    assert np.array_equal(np.repeat(cells.keys, cells.ends - cells.starts), keys)
+    projective = KDTreeBuilder("p", structure_kind="projective")
+    projective.configure()
+    with pytest.raises(StructureError, match="needs an organised cloud"):
+        projective.build(vertices)
+
+
+class Camera(Component):
+    cloud = OutputPort(PointCloud)
+
+
+def test_builder_offers_the_newest_structure():
+    app = Application("builder")
+    builder = KDTreeBuilder("builder")
+    cloud_renderer = HapticCloud("cloud")
+    app.add(builder)
+    app.add(cloud_renderer)
+    camera = Camera("camera")
+    app.add(camera)
+    app.connect("camera.cloud", "builder.cloud", ConnectionPolicy(BufferPolicy.BUFFER, size=4))
+    app.connect("builder.structure", "cloud.structure")
+    builder.configure()
+    cloud_renderer.configure()
+    clouds = [plane_cloud(np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, z])) for z in (1.0, 1.1, 1.2)]
+    for cloud in clouds:
+        camera.cloud.write(cloud)
+    builder.step()  # three clouds waited: the newest is built, two are counted as skipped
+    cloud_renderer.prepare()
+    assert builder.built == 1 and builder.skipped == 2
+    assert cloud_renderer.current.grid[240, 320, 2] == pytest.approx(1.2)
+
+
+def load_cloud(index):
+    from coco_mr_vision.rgbd import RGBDFrame
+
+    folder = RGBD / "redwood"
+    if not folder.is_dir():
+        pytest.skip(f"the RGB-D test data is not at {folder}")
+    intrinsics = CameraIntrinsics(640, 480, FX, FY, CX, CY)
+    frame = RGBDFrame.load(folder / "color" / f"{index:05d}.jpg", folder / "depth" / f"{index:05d}.png",
+                           intrinsics)
+    return PointCloud.from_depth(frame.depth, intrinsics, organized=True)
+
+
+def floor_stroke(cloud, depth):
+    """A stroke over the floor the Redwood camera sees at 1.1 m (lower image rows): approach along
+    the floor's normal (fitted here with an SVD), press ``depth``, slide 4 cm sideways at 0.1 m/s."""
+    grid = cloud.points.reshape(480, 640, 3)
+    target = grid[420, 240].astype(float)
+    normal = patch_plane(cloud, target)[0]
+    along = np.array([1.0, 0.0, 0.0]) - normal[0] * normal
+    return normal, stroke(target + 0.02 * normal, -normal, along / np.linalg.norm(along), depth, 0.04,
+                          steps_in=60, steps_along=400)
+
+
+def patch_plane(cloud, point, radius=0.03):
+    """Normal (towards the camera) and centroid of the cloud's points within ``radius`` of ``point``."""
+    points = cloud.points[np.isfinite(cloud.points).all(axis=1)].astype(float)
+    patch = points[np.linalg.norm(points - point, axis=1) < radius]
+    centroid = patch.mean(axis=0)
+    normal = np.linalg.svd(patch - centroid)[2][2]
+    return normal * -np.sign(normal @ centroid), centroid
+
+
+def stroke_through_swap(first, second, depth, stride_after=1):
+    app = Application("rgbd")
+    builder = KDTreeBuilder("builder")
+    renderer = HapticCloud("cloud", support=0.015, stiffness=500.0, damping=0.0)
+    app.add(builder)
+    app.add(renderer)
+    app.connect("builder.structure", "cloud.structure")
+    builder.configure()
+    renderer.configure()
+    builder.structure.write(builder.build(first))
+    renderer.prepare()
+    normal, path = floor_stroke(first, depth)
+    trees = [cKDTree(c.points[np.isfinite(c.points).all(axis=1)]) for c in (first, second)]
+    swap_at = 60 + 200
+    forces, proxies, tree = [], [], trees[0]
+    for i, p in enumerate(path):
+        if i == swap_at:
+            builder.stride = stride_after
+            builder.structure.write(builder.build(second))
+            renderer.step()
+            tree = trees[1]
+            assert renderer.swaps == 1
+        in_contact = renderer.render(*p, 0.0, 0.0, 0.0)
+        forces.append(renderer.proxy_object.force)
+        proxies.append(renderer.proxy_object.proxy)
+        if i >= 70:
+            assert in_contact, f"lost contact at step {i}"
+            if swap_at <= i < swap_at + renderer.blend:
+                continue  # on the surface blended from the old fit to the new
+            # On the surface: the proxy is within 1.5 pixel spacings of the cloud (2.1 mm per pixel
+            # at 1.1 m, 4.2 mm after a stride of 2; the depth is quantised to millimetres).
+            proxy = renderer.proxy_object.proxy
+            assert tree.query(proxy)[0] < 1.5 * (stride_after if i >= swap_at else 1) * proxy[2] / FX
+    return normal, path, np.array(forces), np.array(proxies), swap_at
+
+
+def test_stroke_over_a_real_rgbd_frame_through_a_rebuilt_structure():
+    frame = load_cloud(0)
+    # The same frame rebuilt with a stride of 2 (a quarter of the points) replaces the structure.
+    normal, path, forces, proxies, swap_at = stroke_through_swap(frame, frame, 0.004, stride_after=2)
+    magnitude = np.linalg.norm(forces, axis=1)
+    assert magnitude[70:].min() > 1.0  # pressed all along (4 mm x 500 N/m = 2 N)
+    # Continuous: no step changes the force by more than 0.25 N (0.5 mm x k), the swap included.
+    assert np.abs(np.diff(forces[70:], axis=0)).max() < 0.25
+    assert np.linalg.norm(proxies[swap_at] - proxies[swap_at - 1]) < 5e-4
+
+
+def test_stroke_over_real_rgbd_frames_follows_the_next_frame():
+    first, second = load_cloud(0), load_cloud(1)
+    # The camera moved between the two frames: the floor moved by a few millimetres along its normal
+    # in the camera's frame. Pressed 15 mm, the proxy stays in contact and moves with the surface,
+    # along the normal only: no tangential jump.
+    normal, path, forces, proxies, swap_at = stroke_through_swap(first, second, 0.015)
+    # No jump: the proxy moves less than 0.5 mm per cycle (the hand moves 0.1 mm per cycle).
+    assert np.linalg.norm(np.diff(proxies[70:], axis=0), axis=1).max() < 5e-4
+    # Over the blend (30 cycles), it moves with the surface along the normal.
+    before, after = proxies[swap_at - 1], proxies[swap_at + 30]
+    plane_before = patch_plane(first, before)
+    shift = (patch_plane(second, before)[1] - plane_before[1]) @ plane_before[0]
+    assert abs((after - before) @ normal - shift) < 1.5e-3
+    # Continuous force: under 0.3 N per cycle (the shift x 500 N/m is spread over 30 cycles).
+    assert np.abs(np.diff(forces[70:], axis=0)).max() < 0.3
+
+
+def test_cloud_in_a_camera_frame_renders_in_the_world():
+    """The cloud arrives in the camera's frame; the renderer works in the world, where the camera is
+    placed by the transformation graph: the force is the one of the same plane written in the world."""
+    from dataclasses import replace
+
+    from coco_core.transforms import se3
+
+    camera_pose = se3.make(se3.rpy_to_matrix(-np.pi / 2, 0.0, 0.3), (0.1, -0.8, 0.5))
+    normal_c, point_c = np.array([0.0, -0.3, -1.0]) / np.linalg.norm([0.0, -0.3, -1.0]), np.array([0.0, 0.0, 1.0])
+    normal_w = camera_pose[:3, :3] @ normal_c
+    point_w = camera_pose[:3, :3] @ point_c + camera_pose[:3, 3]
+    app = Application("frames")
+    app.transforms.add_static("world", "camera", camera_pose)
+    builder = KDTreeBuilder("builder")
+    cloud_renderer = HapticCloud("cloud", frame="world", stiffness=800.0, damping=0.0)
+    implicit = HapticImplicitSurf("implicit", stiffness=800.0, damping=0.0,
+                                  surface=f"plane(normal=[{normal_w[0]}, {normal_w[1]}, {normal_w[2]}], "
+                                          f"offset={normal_w @ point_w})")
+    for component in (builder, cloud_renderer, implicit):
+        app.add(component)
+    app.connect("builder.structure", "cloud.structure")
+    for component in (builder, cloud_renderer, implicit):
+        component.configure()
+    builder.structure.write(builder.build(replace(plane_cloud(normal_c, point_c), frame_id="camera")))
+    cloud_renderer.prepare()
+    tangent = np.cross(normal_w, [0.0, 0.0, 1.0])
+    path = stroke(point_w + 0.02 * normal_w, -normal_w, tangent / np.linalg.norm(tangent), 0.003, 0.02)
+    proxies, forces = compare(cloud_renderer, implicit, path)
+    contact = [i for i, (_, _, a, b) in enumerate(proxies) if a and b]
+    assert len(contact) > 250
+    assert np.abs(forces[contact, 0] - forces[contact, 1]).max() < 800.0 * 1e-5
+    assert np.linalg.norm(forces[contact[-1], 0]) == pytest.approx(800.0 * 0.003, rel=1e-3)

@@ -1,0 +1,186 @@
+"""HapticRenderer, HapticImplicitSurf, SimulatedDevice and HapticRecorder: the closed loop against
+its analytic equilibrium, forces combined, frames, attributes at run time, the recorder's summary."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from coco_core.application import Application
+from coco_core.component import Component
+from coco_core.policy import BufferPolicy, ConnectionPolicy
+from coco_core.ports import InputPort, OutputPort
+from coco_core.transforms import se3
+from coco_core.transforms.samples import FramePose
+from coco_mr_haptics.implicit_surf import HapticImplicitSurf
+from coco_mr_haptics.recorder import HapticRecorder
+from coco_mr_haptics.renderer import HapticRenderer
+from coco_mr_haptics.simulated_device import SimulatedDevice
+from coco_mr_haptics.types import HapticDeviceState, HapticForce
+
+
+def hand_csv(tmp_path, rows):
+    path = tmp_path / "hand.csv"
+    path.write_text("time,x,y,z\n" + "".join(f"{t},{x},{y},{z}\n" for t, x, y, z in rows))
+    return str(path)
+
+
+def loop(tmp_path, hand_rows, peers, renderer_attributes=None, device_attributes=None, transforms=None):
+    """Device and renderer wired in one application, stepped by hand at 1 kHz of simulated time."""
+    app = Application("haptic_test")
+    if transforms:
+        transforms(app.transforms)
+    device = SimulatedDevice("device", trajectory=hand_csv(tmp_path, hand_rows), time_step=1e-3,
+                             **(device_attributes or {}))
+    renderer = HapticRenderer("renderer", **(renderer_attributes or {}))
+    for peer in peers:
+        renderer.add_peer(peer)
+    recorder = HapticRecorder("recorder", path=str(tmp_path / "h.csv"), summary=str(tmp_path / "s.json"))
+    for component in (device, renderer, recorder):
+        app.add(component)
+    app.connect("device.state", "renderer.device")
+    app.connect("renderer.force", "device.force")
+    app.connect("renderer.sample", "recorder.samples", ConnectionPolicy(BufferPolicy.BUFFER, size=100000))
+    for component in (device, renderer, recorder):
+        component.configure()
+
+    def run(seconds):
+        for _ in range(int(round(seconds * 1000))):
+            device.step()
+            renderer.step()
+        recorder.step()
+
+    return device, renderer, recorder, run
+
+
+def test_closed_loop_settles_at_the_coupling_equilibrium(tmp_path):
+    k, kc, push = 800.0, 300.0, 0.02
+    plane = HapticImplicitSurf("plane", surface="plane()", stiffness=k, damping=1.0)
+    device, renderer, recorder, run = loop(tmp_path, [(0, 0, 0, 0.05), (0.3, 0, 0, -push), (5, 0, 0, -push)],
+                                           [plane], device_attributes={"coupling_stiffness": kc})
+    run(2.0)
+    # The hand is 2 cm under the surface; the handle stops where the surface's spring balances the
+    # stretched coupling: k d = kc (push - d).
+    depth = kc * push / (k + kc)
+    assert -device.z == pytest.approx(depth, abs=2e-5)
+    summary = recorder.report()
+    assert summary["samples"] == 2000
+    assert summary["energy_in_j"] > 0 and summary["passive"], summary
+    assert summary["max_penetration_m"] == pytest.approx(depth, rel=0.3)
+    assert plane.proxy_object.force[2] == pytest.approx(k * depth, rel=2e-3)
+    assert plane.proxy_object.proxy[2] == pytest.approx(0.0, abs=1e-9)
+    # At run time, a stiffer surface: a new equilibrium.
+    plane.set_attribute_now("stiffness", 2000.0)
+    run(1.0)
+    assert -device.z == pytest.approx(kc * push / (2000.0 + kc), abs=2e-5)
+
+
+def test_device_limits_force_and_workspace(tmp_path):
+    plane = HapticImplicitSurf("plane", surface="plane()", stiffness=3000.0, max_force=100.0)
+    device, renderer, recorder, run = loop(
+        tmp_path, [(0, 0, 0, 0.05), (0.3, 0.5, 0, -0.05), (5, 0.5, 0, -0.05)], [plane],
+        renderer_attributes={"max_force": 2.0},
+        device_attributes={"coupling_stiffness": 100.0, "workspace_max": [0.08, 0.1, 0.1]})
+    run(2.0)
+    assert device.x == pytest.approx(0.08)  # held at the workspace's edge
+    # The renderer's clamp (2 N) balances the coupling: 100 N/m * (0.05 - d) = 2 N.
+    assert -device.z == pytest.approx(0.05 - 2.0 / 100.0, abs=1e-4)
+    assert max(float(row.split(",")[9]) for row in open(tmp_path / "h.csv").readlines()[1:]) <= 2.0 + 1e-9
+
+
+@pytest.mark.parametrize("combine,expected", [("sum", 800.0 + 400.0), ("first", 800.0)])
+def test_renderers_combine(tmp_path, combine, expected):
+    a = HapticImplicitSurf("a", surface="plane()", stiffness=800.0)
+    b = HapticImplicitSurf("b", surface="plane()", stiffness=400.0)
+    device, renderer, recorder, run = loop(tmp_path, [(0, 0, 0, 0.05), (0.3, 0, 0, -0.02), (5, 0, 0, -0.02)],
+                                           [a, b], renderer_attributes={"combine": combine})
+    run(2.0)
+    kc = device.coupling_stiffness
+    assert -device.z == pytest.approx(kc * 0.02 / (expected + kc), abs=2e-5)
+    rows = open(tmp_path / "h.csv").readlines()
+    assert rows[-1].split(",")[11] == "a"
+
+
+def test_workspace_is_a_frame_and_surfaces_follow_frames(tmp_path):
+    # The device's workspace is turned 90 degrees about z and lifted 0.1 m; the sphere sits on frame
+    # 'ball' at (0.2, 0, 0) in the world. The hand pushes along the workspace's -y, i.e. the world's +x.
+    def frames(graph):
+        graph.add_static("world", "ws", se3.make(se3.rpy_to_matrix(0.0, 0.0, math.pi / 2), (0.0, 0.0, 0.1)))
+        graph.add_static("world", "ball", se3.make(None, (0.2, 0.0, 0.0)))
+
+    ball = HapticImplicitSurf("ball", surface="frame('ball', sphere(0.05))", stiffness=500.0)
+    device, renderer, recorder, run = loop(
+        tmp_path, [(0, 0, 0, -0.1), (0.5, 0, -0.16, -0.1), (5, 0, -0.16, -0.1)], [ball],
+        renderer_attributes={"device_frame": "ws"},
+        device_attributes={"workspace_min": [-0.3, -0.3, -0.3], "workspace_max": [0.3, 0.3, 0.3]},
+        transforms=frames)
+    run(2.0)
+    kc = device.coupling_stiffness
+    depth = kc * (0.16 - 0.15) / (500.0 + kc)
+    # Handle in the workspace: (0, -(0.15 + d), -0.1) -> world (0.15 + d, 0, 0): against the ball.
+    assert device.y == pytest.approx(-(0.15 + depth), abs=2e-5)
+    assert ball.proxy_object.proxy[0] == pytest.approx(0.15, abs=1e-9)
+    # The force comes back in the workspace frame: along +y there.
+    force = device._rendered
+    assert force[1] == pytest.approx(500.0 * depth, rel=2e-3) and abs(force[0]) < 1e-9
+
+
+class Handle(Component):
+    """A device driver's ports, for a renderer scheduled alone."""
+
+    state = OutputPort(HapticDeviceState)
+    force = InputPort(HapticForce)
+
+
+def test_implicit_surf_alone():
+    app = Application("alone")
+    surf = HapticImplicitSurf("surf", surface="sphere(0.1)", stiffness=1000.0, damping=0.0)
+    handle = Handle("handle")
+    app.add(surf)
+    app.add(handle)
+    app.connect("handle.state", "surf.device")
+    app.connect("surf.force", "handle.force")
+    surf.configure()
+    for z in (0.2, 0.15, 0.11, 0.1, 0.097):
+        handle.state.write(HapticDeviceState((0.0, 0.0, z)))
+        surf.step()
+    status, value = handle.force.read()
+    assert value.force[2] == pytest.approx(1000.0 * 0.003, rel=1e-6)
+
+
+def test_recorder_summary_file(tmp_path):
+    plane = HapticImplicitSurf("plane", surface="plane()", stiffness=800.0)
+    device, renderer, recorder, run = loop(tmp_path, [(0, 0, 0, 0.05), (0.3, 0, 0, -0.01), (0.6, 0, 0, 0.05)],
+                                           [plane])
+    run(1.0)
+    recorder.stop()
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["samples"] == 1000
+    assert summary["contact_samples"] > 50 and summary["contacts_by_renderer"] == {"plane": summary["contact_samples"]}
+    assert summary["energy_out_j"] <= summary["energy_in_j"]
+    header, *rows = (tmp_path / "h.csv").read_text().splitlines()
+    assert header.startswith("time,device_x") and len(rows) == 1000
+
+
+class Hand(Component):
+    """What drives the hand port: here poses, as BagReplay makes them of a bag's PoseStamped."""
+
+    pose = OutputPort(FramePose)
+
+
+def test_hand_port_takes_poses():
+    app = Application("hand")
+    device = SimulatedDevice("device", time_step=1e-3, coupling_stiffness=300.0)
+    hand = Hand("hand")
+    app.add(device)
+    app.add(hand)
+    app.connect("hand.pose", "device.hand")
+    device.configure()
+    target = np.eye(4)
+    target[:3, 3] = (0.02, -0.01, 0.03)
+    for _ in range(3000):
+        hand.pose.write(FramePose("haptic_workspace", "hand", target))
+        device.step()
+    # No force: the coupling pulls the handle onto the hand.
+    assert (device.x, device.y, device.z) == pytest.approx((0.02, -0.01, 0.03), abs=1e-6)

@@ -1,0 +1,57 @@
+"""The haptic application file (config/haptic_implicit.xml) run through the installed ``coco-launch``:
+a simulated device strokes a CSG scene at 1 kHz, and what it writes is checked against the scene."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+
+from conftest import read_rows, run_launcher
+
+from coco_core.builder import build_application
+from coco_core.errors import ConfigErrors
+from coco_core.xml.loader import parse_application_string
+from coco_mr_haptics.expression import parse_surface
+from coco_mr_haptics.scene import Scene
+
+APP = "config/haptic_implicit.xml"
+
+
+def test_haptic_app_runs_the_device_against_the_scene(coco_launch: Path, tmp_path: Path) -> None:
+    result = run_launcher(coco_launch, APP, f"out:={tmp_path}", "--profile", "100")
+    assert result.returncode == 0, result.stderr
+    assert "the hand trajectory is over" in result.stderr
+    summary = json.loads((tmp_path / "haptic_implicit_summary.json").read_text())
+    rows = read_rows(tmp_path / "haptic_implicit.csv")
+    assert summary["samples"] == len(rows) > 5000  # a 7 s trajectory at (nearly) 1 kHz
+    assert summary["rate_hz"] > 500
+    assert summary["passive"] and summary["energy_in_j"] > 0
+    assert set(summary["contacts_by_renderer"]) == {"scene", "ball"}
+    assert 0.001 < summary["max_penetration_m"] < 0.02
+    # Every proxy of the scene's renderer is on or outside the scene, never inside it.
+    text = re.search(r'name="surface" value="(union\(difference.*?)"/>', Path(APP).read_text()).group(1)
+    scene = Scene(parse_surface(text))
+    proxies = np.array([[float(r[f"proxy_{a}"]) for a in "xyz"] for r in rows if r["renderer"] == "scene"])
+    assert len(proxies) > 1000
+    assert scene.distance(proxies).min() > -1e-6
+    # The thin wall was pushed: on its face the force points away from it (-x) or is zero (a surface
+    # never pulls: damping of a withdrawing hand cannot make it attractive).
+    wall = [float(r["force_x"]) for r in rows if r["renderer"] == "scene" and abs(float(r["proxy_x"]) + 0.061) < 1e-6]
+    assert len(wall) > 50 and max(wall) <= 0.0 and min(wall) < -0.3
+
+
+def test_surface_typo_is_reported_at_its_line_and_column() -> None:
+    text = Path(APP).read_text().replace("sphere(0.02)", "sphre(0.02)")
+    line = next(i for i, row in enumerate(text.splitlines(), start=1) if "sphre(0.02)" in row)
+    try:
+        build_application(parse_application_string(text, "haptic.xml"))
+    except ConfigErrors as error:
+        message = str(error)
+    else:
+        raise AssertionError("a typo in the surface was accepted")
+    assert f"haptic.xml:{line}" in message
+    assert "unknown surface function 'sphre'; did you mean 'sphere'?" in message
+    assert "column 15" in message  # frame('ball', sphre(...): the 15th character
