@@ -25,15 +25,24 @@ _URDF_NAMES = ("UrdfError", "UrdfModel", "load_urdf")
 __all__ += list(_URDF_NAMES)
 
 
+# The diagnostics server (REST, WebSocket, web page) imports http.server and socketserver, about a
+# fifth of the runtime's import time: it is loaded only when it is served.
+_SERVER_NAMES = ("TransformServer",)
+__all__ += list(_SERVER_NAMES)
+
+
 def __getattr__(name: str):
     if name in _URDF_NAMES:
         from . import urdf
 
         return getattr(urdf, name)
+    if name in _SERVER_NAMES:
+        from . import server
+
+        return getattr(server, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
-# Diagnostics: JSON / DOT exports and the REST + WebSocket server with its web page.
+# Diagnostics: JSON / DOT exports.
 from .export import graph_dict, to_dot, to_json, write_dot  # noqa: E402
-from .server import TransformServer  # noqa: E402
 
-__all__ += ["TransformServer", "graph_dict", "to_dot", "to_json", "write_dot"]
+__all__ += ["graph_dict", "to_dot", "to_json", "write_dot"]
