@@ -15,7 +15,7 @@ from typing import Callable, Union, get_args, get_origin
 from .activity import Activity, PeriodicActivity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
-from .errors import CocoError, did_you_mean
+from .errors import CocoError, WiringError, did_you_mean
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from .operations import Operation
 from .ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
@@ -27,10 +27,6 @@ log = logging.getLogger("coco")
 
 STOP_TIMEOUT = 1.0
 """Seconds every activity gets, together, to finish its cycle and run ``on_stop``."""
-
-
-class WiringError(CocoError):
-    """A connection that cannot be made: wrong direction, incompatible types, wrong policy."""
 
 
 def types_compatible(source: object, sink: object) -> bool:

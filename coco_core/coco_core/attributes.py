@@ -10,6 +10,7 @@ from __future__ import annotations
 import enum
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Generic, Sequence, TypeVar, get_args, get_origin
+from .errors import AttributeValueError
 
 if TYPE_CHECKING:
     from .component import Component
@@ -18,10 +19,6 @@ T = TypeVar("T")
 
 _TRUE = {"true", "1", "yes", "on"}
 _FALSE = {"false", "0", "no", "off"}
-
-
-class AttributeValueError(ValueError):
-    """A value that does not fit the attribute's declaration."""
 
 
 def _parse_bool(text: str) -> bool:

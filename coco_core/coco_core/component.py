@@ -26,7 +26,7 @@ from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 from .attributes import Attribute
-from .errors import CocoError, did_you_mean
+from .errors import CocoError, UnknownNameError, did_you_mean
 from . import operations as ops
 from .operations import Operation
 from .ports import InputPort, OutputPort, Port
@@ -51,13 +51,6 @@ class ErrorPolicy(enum.Enum):
     """Report and stop calling this component (its activity goes on with the others)."""
     STOP_APP = "stop_app"
     """Report and stop the whole application cleanly."""
-
-
-class UnknownNameError(CocoError, KeyError):
-    """An unknown port, attribute or operation name; the message lists the valid ones."""
-
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 _TRACEBACKS_SHOWN = 3

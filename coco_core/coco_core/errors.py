@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 from dataclasses import dataclass
 
 
@@ -70,3 +71,72 @@ class RemoteError(CocoError):
         self.message = message
         self.remote_traceback = remote_traceback
         super().__init__(f"{target} in process {process or 'launcher'} raised {type_name}: {message}")
+
+
+class AttributeValueError(CocoError, ValueError):
+    """A value that does not fit the attribute's declaration."""
+
+
+class UnknownNameError(CocoError, KeyError):
+    """An unknown port, attribute or operation name; the message lists the valid ones."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+class UnknownComponentError(CocoError):
+    """A task name that no installed package registers; the message lists the known ones."""
+
+
+class WiringError(CocoError):
+    """A connection that cannot be made: wrong direction, incompatible types, wrong policy."""
+
+
+class FileReadError(CocoError, OSError):
+    """A file that is not a regular file, is larger than its limit, or cannot be read."""
+
+
+class Interrupted(CocoError):
+    """The launch was interrupted before the application ran."""
+
+    def __init__(self, signum: int) -> None:
+        self.status = 128 + signum
+        super().__init__(f"interrupted by {signal.Signals(signum).name} before the application started")
+
+
+class SubstitutionError(CocoError, ValueError):
+    """A substitution that cannot be expanded; the message says which one and why."""
+
+
+class ExpressionError(CocoError, ValueError):
+    """An expression that is not allowed or cannot be evaluated; the text says why."""
+
+
+class TransformError(CocoError, LookupError):
+    """An unknown frame, no path, or a write the declared structure forbids."""
+
+
+class ExtrapolationError(CocoError, LookupError):
+    """A time outside an edge's history; names the edge and the time range it holds."""
+
+
+class RegistrationError(TransformError, ValueError):
+    """A registration that cannot proceed: frames already joined, a temporary path that does not join
+    them, too few samples, or samples without a meaningful mean. Both a :class:`TransformError` and a
+    :class:`ValueError`, so callers of the graph and of the plain averaging functions catch it alike."""
+
+
+class ResourceNotFoundError(CocoError, FileNotFoundError):
+    """A ``package://`` URL or a file that cannot be found; the message lists where it was looked for."""
+
+
+class UrdfError(CocoError, ValueError):
+    """A URDF that cannot be read or used; names the file and what is wrong with it."""
+
+
+class WebSocketError(CocoError):
+    """A handshake the server cannot accept, or a frame that breaks the protocol."""
+
+
+class ChannelError(CocoError):
+    """A value that cannot cross the channel (it cannot be pickled)."""

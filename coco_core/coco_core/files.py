@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 import stat
 
-from .errors import CocoError
+from .errors import FileReadError
 
 MiB = 1024 * 1024
 APPLICATION_FILE_LIMIT = 16 * MiB
@@ -21,10 +21,6 @@ URDF_LIMIT = 64 * MiB
 """Largest URDF read: robot descriptions with inline geometry reach a few MB."""
 MESH_LIMIT = 512 * MiB
 """Largest mesh file read: the Baxter meshes total about 30 MB."""
-
-
-class FileReadError(CocoError, OSError):
-    """A file that is not a regular file, is larger than its limit, or cannot be read."""
 
 
 def read_regular_file(path: str | os.PathLike[str], limit: int, what: str = "file") -> bytes:

@@ -16,17 +16,13 @@ from importlib.metadata import entry_points
 from typing import Callable, TypeVar
 
 from .component import Component
-from .errors import CocoError, did_you_mean
+from .errors import CocoError, did_you_mean, UnknownComponentError
 
 GROUP = "coco.components"
 
 C = TypeVar("C", bound=type[Component])
 
 _in_process: dict[str, type[Component]] = {}
-
-
-class UnknownComponentError(CocoError):
-    """A task name that no installed package registers; the message lists the known ones."""
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ import signal
 import sys
 from typing import TYPE_CHECKING
 
-from .errors import CocoError
+from .errors import Interrupted
 
 if TYPE_CHECKING:
     from .application import Application
@@ -32,14 +32,6 @@ log = logging.getLogger("coco")
 
 INTERRUPTED = 128 + signal.SIGINT
 """The exit status of a launch ended by Ctrl-C before it ran, or left at once by a second Ctrl-C."""
-
-
-class Interrupted(CocoError):
-    """The launch was interrupted before the application ran."""
-
-    def __init__(self, signum: int) -> None:
-        self.status = 128 + signum
-        super().__init__(f"interrupted by {signal.Signals(signum).name} before the application started")
 
 
 class LaunchSignals:

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from ..connections import EMPTY, Connection
-from ..errors import CocoError
+from ..errors import ChannelError, CocoError
 from ..policy import BufferPolicy, ConnectionPolicy
 from .segment import Segment, unlink
 
@@ -54,10 +54,6 @@ RETRIES = 10_000
 half-way through a slot would otherwise keep it spinning)."""
 DEFAULT_CAPACITY = 4 * 1024
 """Bytes of one slot (larger values go to the slot's overflow segment)."""
-
-
-class ChannelError(CocoError):
-    """A value that cannot cross the channel (it cannot be pickled)."""
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from . import se3
+from ..errors import ExtrapolationError
 
 if TYPE_CHECKING:
     from ..stamps import Stamp
@@ -35,10 +36,6 @@ class JointType(enum.Enum):
     REVOLUTE = "revolute"
     CONTINUOUS = "continuous"
     PRISMATIC = "prismatic"
-
-
-class ExtrapolationError(LookupError):
-    """A time outside an edge's history; names the edge and the time range it holds."""
 
 
 class Dependency:

@@ -21,7 +21,7 @@ from typing import Any, Callable, ContextManager, Iterable, Mapping
 
 import numpy as np
 
-from ..errors import did_you_mean
+from ..errors import TransformError, did_you_mean
 from ..stamps import Stamp
 from . import se3
 from .edges import AxisEdge, Dependency, DynamicEdge, Edge, EdgeKind, StaticEdge
@@ -30,10 +30,6 @@ from .rwlock import ReadWriteLock
 log = logging.getLogger("coco.transforms")
 
 Callback = Callable[[np.ndarray], None]
-
-
-class TransformError(LookupError):
-    """An unknown frame, no path, or a write the declared structure forbids."""
 
 
 def _finite_time(value: Any, what: str) -> float:

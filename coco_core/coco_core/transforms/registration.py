@@ -36,17 +36,12 @@ import numpy as np
 from . import se3
 from .edges import Edge, ExtrapolationError, StaticEdge
 from .graph import TransformError, TransformGraph
+from ..errors import RegistrationError
 
 log = logging.getLogger("coco.transforms")
 
 EdgeSpec = Union[Edge, Sequence[str]]
 """An edge of a temporary path: an :class:`Edge` or a ``(parent, child)`` pair."""
-
-
-class RegistrationError(TransformError, ValueError):
-    """A registration that cannot proceed: frames already joined, a temporary path that does not join
-    them, too few samples, or samples without a meaningful mean. Both a :class:`TransformError` and a
-    :class:`ValueError`, so callers of the graph and of the plain averaging functions catch it alike."""
 
 
 # --- averaging on SE(3) ---------------------------------------------------------------------------

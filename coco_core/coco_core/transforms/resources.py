@@ -21,14 +21,10 @@ import sysconfig
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 
-from ..errors import CocoError
+from ..errors import ResourceNotFoundError
 
 PACKAGE_SCHEME = "package://"
 FILE_SCHEME = "file://"
-
-
-class ResourceNotFoundError(CocoError, FileNotFoundError):
-    """A ``package://`` URL or a file that cannot be found; the message lists where it was looked for."""
 
 
 def share_directories() -> list[Path]:

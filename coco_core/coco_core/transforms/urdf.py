@@ -33,12 +33,12 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import CocoError
 from ..files import URDF_LIMIT, FileReadError, read_regular_file
 from . import se3
 from .edges import EdgeKind
 from .graph import KinematicModel, ModelEdge, TransformError, TransformGraph
 from .resources import ResourceNotFoundError, resolve
+from ..errors import UrdfError
 
 try:
     import pinocchio
@@ -53,10 +53,6 @@ FIXED_TYPES = ("fixed", "floating", "planar")
 """URDF joint types that become ``static`` edges (floating and planar stay at their origin)."""
 
 __all__ = ["MOVING_TYPES", "ResourceNotFoundError", "UrdfError", "UrdfJoint", "UrdfModel", "load_urdf"]
-
-
-class UrdfError(CocoError, ValueError):
-    """A URDF that cannot be read or used; names the file and what is wrong with it."""
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ import hashlib
 import struct
 import threading
 from typing import BinaryIO, Callable, Mapping
+from ..errors import WebSocketError
 
 GUID = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
 
@@ -23,10 +24,6 @@ CLOSE_NORMAL, CLOSE_GOING_AWAY, CLOSE_PROTOCOL_ERROR, CLOSE_TOO_BIG = 1000, 1001
 
 MAX_MESSAGE = 1 << 20
 """Largest client message accepted (1 MiB); clients of a diagnostics stream send little."""
-
-
-class WebSocketError(Exception):
-    """A handshake the server cannot accept, or a frame that breaks the protocol."""
 
 
 def accept_key(key: str) -> str:

@@ -17,6 +17,7 @@ import operator
 import os
 from collections.abc import Callable, Mapping
 from typing import Any
+from ..errors import ExpressionError
 
 MAX_LENGTH = 2000
 """Longest expression text, in characters."""
@@ -58,10 +59,6 @@ _BUILTINS: dict[str, Callable[..., Any]] = {
 STRING_METHODS = frozenset({
     "endswith", "find", "lower", "lstrip", "replace", "rstrip", "split", "startswith", "strip", "upper",
 })
-
-
-class ExpressionError(ValueError):
-    """An expression that is not allowed or cannot be evaluated; the text says why."""
 
 
 def evaluate(text: str, args: Mapping[str, str]) -> str:

@@ -14,7 +14,7 @@ import itertools
 import os
 from collections.abc import Callable, Mapping
 
-from ..errors import did_you_mean
+from ..errors import SubstitutionError, did_you_mean
 from .expression import ExpressionError, evaluate
 
 FUNCTIONS = ("anon", "arg", "dirname", "env", "eval", "find-pkg-share", "optenv")
@@ -26,10 +26,6 @@ MAX_EXPANSION = 1_000_000
 
 _anonymous_serial = itertools.count(1)
 """Shared by every load in this process, so that two loads never produce the same anonymous name."""
-
-
-class SubstitutionError(ValueError):
-    """A substitution that cannot be expanded; the message says which one and why."""
 
 
 class Substitutions:
