@@ -21,7 +21,7 @@ from . import registry
 from .application import Application
 from .builder import build_application, configure_logging
 from .connections import Connection
-from .errors import CocoError, ConfigError, ConfigErrors, ProcessError
+from .errors import CocoError, ConfigError, ConfigErrors, Interrupted
 from .model import AppSpec
 from .policy import ConnectionPolicy
 from .ports import InputPort
@@ -29,7 +29,7 @@ from .processes.level import process_level
 from .processes.placement import LAUNCHER, Placement
 from .processes.supervisor import ProcessSupervisor
 from .report import profile_report
-from .signals import INTERRUPTED, Interrupted, LaunchSignals, leave
+from .signals import INTERRUPTED, LaunchSignals, leave
 from .xml import load_application
 
 log = logging.getLogger("coco")
@@ -183,6 +183,13 @@ def launcher_services(app: Application, options: argparse.Namespace,
             print(report(), flush=True)
 
 
+def failure(prog: str, error: CocoError) -> int:
+    """Say why a launch ended before or while it started, and the exit status for it: 128 + the
+    signal number when a signal interrupted it, else 1 (a wrong file, a child that could not start)."""
+    print(f"{prog}: {error}", file=sys.stderr)
+    return error.status if isinstance(error, Interrupted) else 1
+
+
 def stopped_by_a_failure(app: Application) -> bool:
     """Whether a component's error stopped the application (its ``on_error`` policy), or damaged
     input was found (:attr:`Application.damage`, e.g. a truncated bag): the launcher then exits with
@@ -219,19 +226,11 @@ def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> in
     try:
         spec, app = load_and_build(options)
         signals.check()
-    except Interrupted as interrupted:
-        print(f"coco-launch: {interrupted}", file=sys.stderr)
-        return interrupted.status
-    except CocoError as error:
-        print(f"coco-launch: {error}", file=sys.stderr)
-        return 1
-    if options.check:
-        try:
+        if options.check:
             print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
-        except CocoError as error:
-            print(f"coco-launch: {error}", file=sys.stderr)
-            return 1
-        return 0
+            return 0
+    except CocoError as error:
+        return failure("coco-launch", error)
     configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
     try:
         with process_level(spec, app, logging.getLevelName(options.log_level)) as processes:
@@ -239,12 +238,8 @@ def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> in
             with launcher_services(app, options, processes):
                 app.run(options.duration)
             clean = app.stop()
-    except Interrupted as interrupted:
-        print(f"coco-launch: {interrupted}", file=sys.stderr)
-        return interrupted.status
-    except ProcessError as error:
-        print(f"coco-launch: {error}", file=sys.stderr)
-        return 1
+    except CocoError as error:  # interrupted while the children started, or a child could not be built
+        return failure("coco-launch", error)
     failed = stopped_by_a_failure(app) or (processes is not None and processes.failed)
     status = 0 if clean and not failed else 1
     if signals.forced or not clean:  # a second Ctrl-C, or an activity that did not stop: leave now

@@ -27,10 +27,10 @@ from typing import Sequence
 
 from coco_core import Application, CocoError
 from coco_core.builder import configure_logging
-from coco_core.errors import ProcessError
 from coco_core.launcher import (
     describe,
     describe_processes,
+    failure,
     launcher_services,
     list_components,
     load_and_build,
@@ -39,7 +39,7 @@ from coco_core.launcher import (
 )
 from coco_core.processes.level import process_level
 from coco_core.processes.supervisor import ProcessSupervisor
-from coco_core.signals import INTERRUPTED, Interrupted, LaunchSignals, leave
+from coco_core.signals import INTERRUPTED, LaunchSignals, leave
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
 
@@ -127,21 +127,13 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         spec, app = load_and_build(options)
         plan = plan_hosting(app, _threads(options.threads), options.all_threads)
         signals.check()
-    except Interrupted as interrupted:
-        print(f"{_NAME}: {interrupted}", file=sys.stderr)
-        return interrupted.status
-    except CocoError as error:
-        print(f"{_NAME}: {error}", file=sys.stderr)
-        return 1
-    if options.check:
-        try:
+        if options.check:
             print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
-        except CocoError as error:
-            print(f"{_NAME}: {error}", file=sys.stderr)
-            return 1
-        print("hosting in the ROS launcher (the launcher's process):")
-        print(describe_hosting(app, plan))
-        return 0
+            print("hosting in the ROS launcher (the launcher's process):")
+            print(describe_hosting(app, plan))
+            return 0
+    except CocoError as error:
+        return failure(_NAME, error)
     configure_logging(spec.log, logging.getLevelName(options.log_level))
 
     import rclpy
@@ -167,12 +159,8 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
             signals.attach(app)
             code = _run_hosted(app, host, executor, options, processes)
             return INTERRUPTED if signals.forced else code
-    except Interrupted as interrupted:
-        print(f"{_NAME}: {interrupted}", file=sys.stderr)
-        return interrupted.status
-    except ProcessError as error:
-        print(f"{_NAME}: {error}", file=sys.stderr)
-        return 1
+    except CocoError as error:  # interrupted while the children started, or a child could not be built
+        return failure(_NAME, error)
     finally:
         if node is not None:
             node.destroy_node()
@@ -220,7 +208,7 @@ def run_hosted(app: Application, host: ExecutorHost, executor: object, duration:
 
 
 def main(argv: Sequence[str] | None = None, signals: LaunchSignals | None = None) -> int:
-    """Entry point (``lib/coco_ros/launcher``, through ``coco_ros.entry``): ``argv`` without the
+    """Entry point (``lib/coco_ros/launcher``, through ``coco_core.entry``): ``argv`` without the
     program name; ``signals``: the launcher's signal handling when the entry point installed it."""
     argv = list(sys.argv[1:] if argv is None else argv)
     own, ros_args = split_ros_args(argv)
