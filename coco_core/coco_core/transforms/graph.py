@@ -67,6 +67,21 @@ class KinematicModel(Dependency):
         array as it is overrides it."""
         return tuple(self.set_positions(dict(zip(names, positions.tolist()))))
 
+    def _changed_by(self, changed: list[Dependency], cause: Stamp | None) -> None:
+        """Joint values changed ``changed`` (under the write lock): they keep the stamp of the input
+        that caused it (for latency), and the graph's version moves on."""
+        if changed:
+            for dependency in changed:
+                dependency.cause = cause
+            self.version += 1
+
+    def _report_unknown_joints(self, names: Iterable[str]) -> None:
+        """Log once each joint name that nothing in the graph drives, as robot_state_publisher does."""
+        new = [name for name in names if name not in self._reported_unknown_joints]
+        if new:
+            self._reported_unknown_joints.update(new)
+            log.warning("ignoring joint(s) that no edge or model has: %s", ", ".join(sorted(new)))
+
     @property
     def joint_names(self) -> list[str]:
         raise NotImplementedError
@@ -441,14 +456,8 @@ class TransformGraph:
                     if edge.value != value:
                         edge.assign(value)
                         changed.append(edge)
-            if changed:
-                for dependency in changed:
-                    dependency.cause = cause
-                self.version += 1
-        new = [name for name in remaining if name not in self._reported_unknown_joints]
-        if new:
-            self._reported_unknown_joints.update(new)
-            log.warning("ignoring joint(s) that no edge or model has: %s", ", ".join(sorted(new)))
+            self._changed_by(changed, cause)
+        self._report_unknown_joints(remaining)
         self._notify(changed)
         return list(remaining)
 
@@ -488,14 +497,9 @@ class TransformGraph:
                     if edge.value != value:
                         edge.assign(value)
                         changed.append(edge)
-            if changed:
-                for dependency in changed:
-                    dependency.cause = cause
-                self.version += 1
-        if left and not self._reported_unknown_joints.issuperset(left):
-            new = [name for name in left if name not in self._reported_unknown_joints]
-            self._reported_unknown_joints.update(new)
-            log.warning("ignoring joint(s) that no edge or model has: %s", ", ".join(sorted(new)))
+            self._changed_by(changed, cause)
+        if left:
+            self._report_unknown_joints(left)
         if changed:
             self._notify(changed)
         return left
