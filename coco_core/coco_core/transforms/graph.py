@@ -67,21 +67,6 @@ class KinematicModel(Dependency):
         array as it is overrides it."""
         return tuple(self.set_positions(dict(zip(names, positions.tolist()))))
 
-    def _changed_by(self, changed: list[Dependency], cause: Stamp | None) -> None:
-        """Joint values changed ``changed`` (under the write lock): they keep the stamp of the input
-        that caused it (for latency), and the graph's version moves on."""
-        if changed:
-            for dependency in changed:
-                dependency.cause = cause
-            self.version += 1
-
-    def _report_unknown_joints(self, names: Iterable[str]) -> None:
-        """Log once each joint name that nothing in the graph drives, as robot_state_publisher does."""
-        new = [name for name in names if name not in self._reported_unknown_joints]
-        if new:
-            self._reported_unknown_joints.update(new)
-            log.warning("ignoring joint(s) that no edge or model has: %s", ", ".join(sorted(new)))
-
     @property
     def joint_names(self) -> list[str]:
         raise NotImplementedError
@@ -503,6 +488,21 @@ class TransformGraph:
         if changed:
             self._notify(changed)
         return left
+
+    def _changed_by(self, changed: list[Dependency], cause: Stamp | None) -> None:
+        """Joint values changed ``changed`` (under the write lock): they keep the stamp of the input
+        that caused it (for latency), and the graph's version moves on."""
+        if changed:
+            for dependency in changed:
+                dependency.cause = cause
+            self.version += 1
+
+    def _report_unknown_joints(self, names: Iterable[str]) -> None:
+        """Log once each joint name that nothing in the graph drives, as robot_state_publisher does."""
+        new = [name for name in names if name not in self._reported_unknown_joints]
+        if new:
+            self._reported_unknown_joints.update(new)
+            log.warning("ignoring joint(s) that no edge or model has: %s", ", ".join(sorted(new)))
 
     @property
     def joint_names(self) -> list[str]:
