@@ -11,6 +11,11 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
     ],
     install_requires=["setuptools"],
+    entry_points={
+        "coco.components": [
+            "ImageConverter = coco_mr_vision.converter:ImageConverter",
+        ],
+    },
     zip_safe=True,
     maintainer="CoCo for ROS 2 developers",
     maintainer_email="coco-ros2@example.org",
