@@ -14,6 +14,12 @@ setup(
     entry_points={
         "coco.components": [
             "ImageConverter = coco_mr_vision.converter:ImageConverter",
+            "CameraReader = coco_mr_vision.camera_reader:CameraReader",
+            "RgbdCameraReader = coco_mr_vision.rgbd_reader:RgbdCameraReader",
+            "TumRgbdPeer = coco_mr_vision.rgbd_peers:TumRgbdPeer",
+            "RedwoodRgbdPeer = coco_mr_vision.rgbd_peers:RedwoodRgbdPeer",
+            "BagRgbdPeer = coco_mr_vision.rgbd_peers:BagRgbdPeer",
+            "RealSenseRgbdPeer = coco_mr_vision.rgbd_peers:RealSenseRgbdPeer",
         ],
     },
     zip_safe=True,
