@@ -20,6 +20,7 @@ setup(
             "RedwoodRgbdPeer = coco_mr_vision.rgbd_peers:RedwoodRgbdPeer",
             "BagRgbdPeer = coco_mr_vision.rgbd_peers:BagRgbdPeer",
             "RealSenseRgbdPeer = coco_mr_vision.rgbd_peers:RealSenseRgbdPeer",
+            "MarkerTracker = coco_mr_vision.marker_tracker:MarkerTracker",
         ],
     },
     zip_safe=True,
