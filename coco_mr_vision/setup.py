@@ -21,6 +21,7 @@ setup(
             "BagRgbdPeer = coco_mr_vision.rgbd_peers:BagRgbdPeer",
             "RealSenseRgbdPeer = coco_mr_vision.rgbd_peers:RealSenseRgbdPeer",
             "MarkerTracker = coco_mr_vision.marker_tracker:MarkerTracker",
+            "MeshReconstructor = coco_mr_vision.mesh_reconstructor:MeshReconstructor",
         ],
     },
     zip_safe=True,
