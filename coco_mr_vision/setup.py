@@ -22,6 +22,8 @@ setup(
             "RealSenseRgbdPeer = coco_mr_vision.rgbd_peers:RealSenseRgbdPeer",
             "MarkerTracker = coco_mr_vision.marker_tracker:MarkerTracker",
             "MeshReconstructor = coco_mr_vision.mesh_reconstructor:MeshReconstructor",
+            "StreamingServer = coco_mr_vision.streaming:StreamingServer",
+            "StreamingReceiver = coco_mr_vision.streaming:StreamingReceiver",
         ],
     },
     zip_safe=True,
