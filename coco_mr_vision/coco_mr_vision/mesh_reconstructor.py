@@ -60,15 +60,29 @@ def fill_small_holes(depth: np.ndarray, hole_size: int) -> np.ndarray:
     return filled
 
 
-def _grid_difference(points: np.ndarray, axis: int) -> np.ndarray:
-    """Difference of neighbouring grid points along ``axis``: central, else forward, else backward."""
-    step = np.diff(points, axis=axis)  # step[i] = p[i+1] - p[i]
-    nan = np.full_like(np.take(points, [0], axis=axis), np.nan)
-    forward = np.concatenate([step, nan], axis=axis)
-    backward = np.concatenate([nan, step], axis=axis)
-    central = 0.5 * (forward + backward)
-    result = np.where(np.isfinite(central), central, forward)
-    return np.where(np.isfinite(result), result, backward)
+def _grid_differences(planes: tuple[np.ndarray, ...], known: np.ndarray, axis: int) -> list[np.ndarray]:
+    """Differences of neighbouring grid points along ``axis`` for each coordinate plane: central where
+    both neighbours are known, else forward, else backward (NaN when neither is)."""
+    ahead = np.zeros_like(known)
+    behind = np.zeros_like(known)
+    inner = (slice(None), slice(1, -1)) if axis == 1 else (slice(1, -1), slice(None))
+    after = (slice(None), slice(2, None)) if axis == 1 else (slice(2, None), slice(None))
+    before = (slice(None), slice(None, -2)) if axis == 1 else (slice(None, -2), slice(None))
+    head = (slice(None), slice(0, 1)) if axis == 1 else (slice(0, 1), slice(None))
+    head_next = (slice(None), slice(1, 2)) if axis == 1 else (slice(1, 2), slice(None))
+    tail = (slice(None), slice(-1, None)) if axis == 1 else (slice(-1, None), slice(None))
+    tail_prev = (slice(None), slice(-2, -1)) if axis == 1 else (slice(-2, -1), slice(None))
+    ahead[inner], ahead[head] = known[after], known[head_next]
+    behind[inner], behind[tail] = known[before], known[tail_prev]
+    both, only_ahead = ahead & behind, ahead & ~behind
+    out = []
+    for plane in planes:
+        step = np.diff(plane, axis=axis)  # step[i] = p[i+1] - p[i]
+        pad = np.zeros_like(np.take(plane, [0], axis=axis))
+        forward = np.concatenate([step, pad], axis=axis)
+        backward = np.concatenate([pad, step], axis=axis)
+        out.append(np.where(both, 0.5 * (forward + backward), np.where(only_ahead, forward, backward)))
+    return out
 
 
 class MeshReconstructor(Component):
@@ -133,13 +147,15 @@ class MeshReconstructor(Component):
         depth = fill_small_holes(depth, max(self.hole_size // s, 0) if s > 1 else self.hole_size)
         rows, cols = depth.shape
         ray_x, ray_y = self._ray_grid(frame, rows, cols)
-        points = np.stack([ray_x * depth, ray_y * depth, depth], axis=-1)
+        x, y = ray_x * depth, ray_y * depth
         valid = np.isfinite(depth)
         index = np.cumsum(valid.ravel(), dtype=np.int32).reshape(rows, cols) - 1
         vertices, normals, colors, triangles = TriangleMesh.writable(buffer, layout)
         count = int(index[-1, -1] + 1) if valid.size else 0
-        vertices[:count] = points[valid]
-        normals[:count] = self._normals(points)[valid]
+        for column, plane in enumerate((x, y, depth)):
+            vertices[:count, column] = plane[valid]
+        for column, plane in enumerate(self._normals(x, y, depth, valid)):
+            normals[:count, column] = plane[valid]
         rgb = frame.color.to(ImageFormat.RGB8).data[::s, ::s]
         colors[:count] = rgb[valid]
         faces = self._triangles(depth, valid, index)
@@ -147,21 +163,26 @@ class MeshReconstructor(Component):
         return count, len(faces)
 
     @staticmethod
-    def _normals(points: np.ndarray) -> np.ndarray:
-        """Unit normals from differences on the grid (central where both neighbours exist, else
-        one-sided), turned towards the camera; with no neighbour at all, the direction back to it."""
-        dx = _grid_difference(points, axis=1)
-        dy = _grid_difference(points, axis=0)
-        normal = np.cross(dx, dy)
-        length = np.linalg.norm(normal, axis=-1, keepdims=True)
+    def _normals(x: np.ndarray, y: np.ndarray, z: np.ndarray, known: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unit normal planes from grid differences (central where both neighbours exist, else
+        one-sided), turned towards the camera; with no neighbour at all, the direction back to it.
+        Works plane by plane in float32: a third of the memory traffic of Nx3 rows."""
+        dx = _grid_differences((x, y, z), known, axis=1)
+        dy = _grid_differences((x, y, z), known, axis=0)
+        nx = dx[1] * dy[2] - dx[2] * dy[1]
+        ny = dx[2] * dy[0] - dx[0] * dy[2]
+        nz = dx[0] * dy[1] - dx[1] * dy[0]
+        length = np.sqrt(nx * nx + ny * ny + nz * nz)
         with np.errstate(invalid="ignore", divide="ignore"):
-            normal /= length
-            towards = -points / np.linalg.norm(points, axis=-1, keepdims=True)
-        bad = ~np.isfinite(normal).all(axis=-1) | (length[..., 0] == 0)
-        normal[bad] = towards[bad]
-        flip = np.einsum("...i,...i->...", normal, points) > 0
-        normal[flip] *= -1
-        return normal.astype(np.float32)
+            # Facing the camera: the normal and the point (the ray from the camera) point opposite ways.
+            sign = np.where(nx * x + ny * y + nz * z > 0, -1.0, 1.0).astype(np.float32) / length
+            bad = ~np.isfinite(sign)
+            distance = np.sqrt(x * x + y * y + z * z)
+            nx, ny, nz = nx * sign, ny * sign, nz * sign
+            for normal, coordinate in ((nx, x), (ny, y), (nz, z)):
+                normal[bad] = -coordinate[bad] / distance[bad]
+        return nx, ny, nz
 
     def _triangles(self, depth: np.ndarray, valid: np.ndarray, index: np.ndarray) -> np.ndarray:
         a, b = index[:-1, :-1], index[:-1, 1:]
