@@ -25,7 +25,7 @@ from _report import BENCH_DIR, IMG_DIR, REPO
 from _table import Table
 
 BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms", "bench_replay", "bench_latency",
-              "bench_display"]
+              "bench_display", "bench_vision"]
 
 
 def markdown(results: Path) -> str:
