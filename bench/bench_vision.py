@@ -8,7 +8,7 @@
    Open3D's cloud + normals (``estimate_normals``). Goal: faster than Open3D.
 4. Streaming packets for 640x480 RGB-D: bytes per frame and encode + decode time for JPEG / raw
    colour and PNG / raw depth; a 30 Hz run over ZeroMQ TCP loopback between two threads with the
-   receiver's latency. (rclpy Image / CompressedImage over DDS is not measured here yet.)
+   receiver's latency, and the same frames as rclpy Image / CompressedImage over DDS.
 
 Run: ``python bench/bench_vision.py --json bench/results/bench_vision.json`` (about a minute).
 """
@@ -278,10 +278,73 @@ def bench_streaming() -> tuple[Table, Table, dict]:
         live.add(f"{ce} + {de}", counters["frames"], counters["dropped"], fmt_time_ns(float(np.median(lat))),
                  fmt_time_ns(float(lat.max())), f"{cpu * 100:.0f}% of a core")
         results[f"live {ce}+{de}"] = {"counters": counters, "latency_ns": lat.tolist(), "cpu_cores": cpu}
+    results.update(bench_dds(frame, live))
     live.notes.append("latency: from the frame's acquisition stamp to its delivery on the receiver's port "
-                      "(encode, TCP, decode, newest-frame selection)")
-    live.notes.append("not measured yet: rclpy sensor_msgs/Image and CompressedImage over DDS for the same frames")
+                      "(encode, TCP, decode, newest-frame selection); the rclpy rows: from before the "
+                      "conversion to messages to both messages decoded in the subscriber (publish + spin "
+                      "in one thread, Fast DDS in the same process, shared-memory transport allowed)")
     return packets, live, results
+
+
+def bench_dds(frame: RGBDFrame, live: Table) -> dict:
+    """The same 150 frames at 30 Hz as rclpy sensor_msgs/Image (raw) and CompressedImage (JPEG colour,
+    PNG depth), colour and depth on two topics, publisher and subscriber nodes in this process."""
+    try:
+        from _ros import Loopback, RosContext
+        from sensor_msgs.msg import CompressedImage
+        from sensor_msgs.msg import Image as ImageMsg
+        from coco_ros.convert.images import ImageConverter as RosImages
+    except ImportError as error:
+        live.notes.append(f"rclpy rows missing: {error}")
+        return {}
+    images = RosImages()
+    results = {}
+
+    def raw(color: Image, depth: Image):
+        return images.to_ros(color), images.to_ros(depth)
+
+    def compressed(color: Image, depth: Image):
+        return (CompressedImage(format="jpeg", data=cv2.imencode(".jpg", color.data,
+                                                                 [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()),
+                CompressedImage(format="png", data=cv2.imencode(".png", depth.data,
+                                                                [cv2.IMWRITE_PNG_COMPRESSION, 1])[1].tobytes()))
+
+    def decode_raw(msg):
+        return images.to_coco(msg)
+
+    def decode_compressed(msg):
+        return cv2.imdecode(np.frombuffer(msg.data, np.uint8), cv2.IMREAD_UNCHANGED)
+
+    with RosContext() as context:
+        for name, msg_type, make, unpack in (("rclpy Image (raw)", ImageMsg, raw, decode_raw),
+                                             ("rclpy CompressedImage (JPEG + PNG)", CompressedImage, compressed,
+                                              decode_compressed)):
+            tag = "raw" if msg_type is ImageMsg else "compressed"
+            color_link = Loopback(context, msg_type, f"vision_color_{tag}")
+            depth_link = Loopback(context, msg_type, f"vision_depth_{tag}")
+            first = make(frame.color, frame.depth)
+            color_link.wait_matched(first[0])
+            depth_link.wait_matched(first[1])
+            latencies, sizes = [], []
+            cpu0, wall0 = time.process_time(), time.perf_counter()
+            for seq in range(1, 151):
+                start = time.perf_counter()
+                color_msg, depth_msg = make(frame.color, frame.depth)
+                color_link.rounds(color_msg, 1)
+                depth_link.rounds(depth_msg, 1)
+                unpack(color_link.last)
+                unpack(depth_link.last)
+                latencies.append((time.perf_counter() - start) * 1e9)
+                sizes.append(len(color_msg.data) + len(depth_msg.data))
+                time.sleep(max(0.0, wall0 + seq / 30 - time.perf_counter()))
+            cpu = (time.process_time() - cpu0) / (time.perf_counter() - wall0)
+            color_link.destroy()
+            depth_link.destroy()
+            lat = np.array(latencies)
+            live.add(name, 150, 0, fmt_time_ns(float(np.median(lat))), fmt_time_ns(float(lat.max())),
+                     f"{cpu * 100:.0f}% of a core")
+            results[name] = {"latency_ns": latencies, "bytes": int(np.mean(sizes)), "cpu_cores": cpu}
+    return results
 
 
 def main() -> None:
