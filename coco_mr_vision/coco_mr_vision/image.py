@@ -234,6 +234,10 @@ class Image:
     stamp: float | None = None
     frame_id: str = ""
     intrinsics: CameraIntrinsics | None = field(default=None)
+    _conversions: dict[tuple[ImageFormat, float], Image] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
+    """Conversions of this image already made by :meth:`to`: several readers of one image that want
+    the same format pay for one conversion."""
 
     def __post_init__(self) -> None:
         image_format = _as_format(self.format)
@@ -273,6 +277,21 @@ class Image:
     def size(self) -> tuple[int, int]:
         """``(width, height)`` in pixels, OpenCV's order."""
         return self.width, self.height
+
+    def to(self, target: ImageFormat | str, depth_scale: float = 1000.0) -> Image:
+        """This image in ``target`` format, converted by OpenCV once and remembered (see ``convert``).
+
+        The image itself when it is already in that format. ``depth_scale`` (DEPTH16 units per
+        metre) matters only between the two depth formats."""
+        key = (_as_format(target), float(depth_scale))
+        if key[0] is self.format:
+            return self
+        done = self._conversions.get(key)
+        if done is None:
+            from .convert import convert  # OpenCV is imported by conversions only
+
+            done = self._conversions[key] = convert(self, key[0], depth_scale)
+        return done
 
     def to_rgb(self, depth_range: tuple[float, float] | None = None) -> np.ndarray:
         """An HxWx3 uint8 RGB rendering for display; a view of ``data`` when the format allows.

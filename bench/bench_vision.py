@@ -1,0 +1,391 @@
+"""Vision module costs against their anchors, measured side by side in one run.
+
+1. Format conversions through the ImageConverter component (port in, convert, port out) vs a bare
+   ``cv2.cvtColor``: the framework's overhead per frame.
+2. MarkerTracker (detect, sub-pixel, IPPE pose, edge into the transformation graph) on the real
+   1280x960 ArUco image vs bare ``cv2.aruco`` detection + ``solvePnP``.
+3. MeshReconstructor on a real 640x480 Redwood RGB-D frame vs Open3D's RGB-D -> point cloud, and
+   Open3D's cloud + normals (``estimate_normals``). Goal: faster than Open3D.
+4. Streaming packets for 640x480 RGB-D: bytes per frame and encode + decode time for JPEG / raw
+   colour and PNG / raw depth; a 30 Hz run over ZeroMQ TCP loopback between two threads with the
+   receiver's latency, and the same frames as rclpy Image / CompressedImage over DDS.
+
+Run: ``python bench/bench_vision.py --json bench/results/bench_vision.json`` (about a minute).
+"""
+
+from __future__ import annotations
+
+import glob
+import importlib.util
+import json
+import sys
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from _report import LoadMeter, emit, parser, save_plot
+from _table import Table, fmt_ratio, fmt_time_ns, verdict
+from _timing import measure
+
+REPO = Path(__file__).resolve().parents[1]
+for package in ("coco_core", "coco_mr_vision"):
+    if str(REPO / package) not in sys.path:
+        sys.path.insert(0, str(REPO / package))
+
+from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort  # noqa: E402
+from coco_core.stamps import Stamp, Stamped  # noqa: E402
+from coco_mr_vision.converter import ImageConverter  # noqa: E402
+from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat  # noqa: E402
+from coco_mr_vision.marker_tracker import MarkerTracker, marker_pose  # noqa: E402
+from coco_mr_vision.mesh import TriangleMesh  # noqa: E402
+from coco_mr_vision.mesh_reconstructor import MeshReconstructor  # noqa: E402
+from coco_mr_vision.rgbd import RGBDFrame  # noqa: E402
+from coco_mr_vision.stream_codec import decode, encode  # noqa: E402
+
+DATA = REPO.parent / "shared" / "data"
+REDWOOD = DATA / "rgbd" / "redwood"
+ARUCO = DATA / "aruco"
+
+
+class Source(Component):
+    out = OutputPort(object)
+
+
+class Sink(Component):
+    inp = InputPort(object)
+
+
+def open3d_core():
+    """Open3D's compiled core (``open3d.pybind``), loaded without the package's ``__init__``, which
+    imports the web visualiser (plotly, dash, flask): those are not needed for geometry."""
+    spec = importlib.util.find_spec("open3d")
+    if spec is None or spec.origin is None:
+        return None
+    found = glob.glob(str(Path(spec.origin).parent / "pybind*.so"))
+    if not found:
+        return None
+    module_spec = importlib.util.spec_from_file_location("pybind", found[0])
+    module = importlib.util.module_from_spec(module_spec)
+    module_spec.loader.exec_module(module)
+    return module
+
+
+def bench_conversions(photo: np.ndarray) -> tuple[Table, dict]:
+    table = Table("Format conversion 640x480: ImageConverter component vs bare cv2.cvtColor",
+                  ["conversion", "cv2.cvtColor", "component", "overhead", "ratio"])
+    results = {}
+    cases = [("YUYV", "BGR8", cv2.COLOR_YUV2BGR_YUYV), ("I420", "RGB8", cv2.COLOR_YUV2RGB_I420),
+             ("BGR8", "GRAY8", cv2.COLOR_BGR2GRAY), ("RGB8", "YUYV", cv2.COLOR_RGB2YUV_YUYV)]
+    for source, target, code in cases:
+        data = Image(photo, ImageFormat.BGR8).to(source).data
+        app = Application("convert")
+        src = app.add(Source("src"))
+        converter = app.add(ImageConverter("conv", format=target))
+        sink = app.add(Sink("sink"))
+        app.connect(src.out, converter.image, ConnectionPolicy(BufferPolicy.BUFFER, size=2))
+        app.connect(converter.converted, sink.inp)
+        stamp = Stamp.now(0, "camera")
+
+        def component(n: int) -> None:
+            for _ in range(n):
+                src.out.write(Stamped(Image(data, source), stamp))  # a new image per frame, as a camera
+                converter.on_update()
+                sink.inp.read()
+
+        def bare(n: int) -> None:
+            for _ in range(n):
+                cv2.cvtColor(data, code)
+
+        samples = measure({"bare": bare, "component": component}, repeats=5, target_s=0.1)
+        b, c = samples["bare"], samples["component"]
+        table.add(f"{source} -> {target}", fmt_time_ns(b.median), fmt_time_ns(c.median),
+                  fmt_time_ns(c.median - b.median), fmt_ratio(c.ratio_to(b)))
+        results[f"{source}->{target}"] = {"bare": b.to_json(), "component": c.to_json()}
+    table.notes.append("ratio: bare / component time (1.00x = no overhead); overhead: the difference per frame")
+    return table, results
+
+
+def bench_markers() -> tuple[Table, dict]:
+    document = json.loads((ARUCO / "tag_01_d7_14cm.json").read_text())
+    intrinsics = CameraIntrinsics.from_json(document)
+    bgr = cv2.imread(str(ARUCO / "tag_01_d7_14cm.png"), cv2.IMREAD_COLOR)
+    app = Application("markers")
+    src = app.add(Source("src"))
+    tracker = app.add(MarkerTracker("tracker", dictionary=document["dictionary"], marker_length=0.145))
+    sink = app.add(Sink("sink"))
+    app.connect(src.out, tracker.image, ConnectionPolicy(BufferPolicy.BUFFER, size=2))
+    app.connect(tracker.markers, sink.inp)
+    tracker.on_config()
+    parameters = cv2.aruco.DetectorParameters()
+    parameters.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_5X5_1000), parameters)
+
+    def component(n: int) -> None:
+        for _ in range(n):
+            src.out.write(Image(bgr, ImageFormat.BGR8, 1.0, "camera", intrinsics))
+            tracker.on_update()
+            sink.inp.read()
+
+    def bare(n: int) -> None:
+        for _ in range(n):
+            grey = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+            corners, ids, _ = detector.detectMarkers(grey)
+            for c in corners:
+                marker_pose(c.reshape(4, 2), 0.145, intrinsics)
+
+    samples = measure({"bare": bare, "component": component}, repeats=5, target_s=0.3)
+    b, c = samples["bare"], samples["component"]
+    table = Table("MarkerTracker per frame (1280x960, one marker) vs bare cv2.aruco + solvePnP",
+                  ["variant", "per frame", "ratio"])
+    table.add("bare cv2.aruco + IPPE solvePnP", fmt_time_ns(b.median), "-")
+    table.add("MarkerTracker (port, pose, graph edge)", fmt_time_ns(c.median), fmt_ratio(c.ratio_to(b)))
+    return table, {"bare": b.to_json(), "component": c.to_json()}
+
+
+def bench_mesh(o3d) -> tuple[Table, dict]:
+    intrinsics = CameraIntrinsics.from_json(REDWOOD / "camera_primesense.json")
+    frame = RGBDFrame.load(REDWOOD / "color" / "00000.jpg", REDWOOD / "depth" / "00000.png", intrinsics)
+    variants = {}
+    for stride in (1, 2):
+        app = Application("mesh")
+        src = app.add(Source("src"))
+        mesher = app.add(MeshReconstructor(f"mesher{stride}", stride=stride))
+        sink = app.add(Sink("sink"))
+        app.connect(src.out, mesher.rgbd, ConnectionPolicy(BufferPolicy.BUFFER, size=2))
+        app.connect(mesher.mesh, sink.inp)
+
+        def run(n: int, src=src, mesher=mesher, sink=sink) -> None:
+            for _ in range(n):
+                src.out.write(frame)
+                mesher.on_update()
+                _, slot = sink.inp.read()
+                slot.release()
+        variants[f"MeshReconstructor stride {stride}"] = run
+    counts = {}
+    if o3d is not None:
+        color = o3d.geometry.Image(np.ascontiguousarray(frame.color.to("RGB8").data))
+        depth = o3d.geometry.Image(frame.depth.data)
+        k = o3d.camera.PinholeCameraIntrinsic(640, 480, 525.0, 525.0, 319.5, 239.5)
+
+        def cloud(n: int) -> None:
+            for _ in range(n):
+                rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(color, depth, depth_trunc=10.0,
+                                                                          convert_rgb_to_intensity=False)
+                counts["open3d points"] = len(o3d.geometry.PointCloud.create_from_rgbd_image(rgbd, k).points)
+
+        def cloud_normals(n: int) -> None:
+            for _ in range(n):
+                rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(color, depth, depth_trunc=10.0,
+                                                                          convert_rgb_to_intensity=False)
+                pc = o3d.geometry.PointCloud.create_from_rgbd_image(rgbd, k)
+                pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.02, max_nn=16))
+        variants["Open3D RGB-D -> cloud"] = cloud
+        variants["Open3D RGB-D -> cloud + normals"] = cloud_normals
+    samples = measure(variants, repeats=5, target_s=0.5)
+    anchor = samples.get("Open3D RGB-D -> cloud")
+    anchor_n = samples.get("Open3D RGB-D -> cloud + normals")
+    table = Table("MeshReconstructor 640x480 (Redwood frame) vs Open3D",
+                  ["variant", "per frame", "vs O3D cloud", "vs O3D cloud+normals", "goal: faster"])
+    for name, s in samples.items():
+        ours = name.startswith("MeshReconstructor")
+        table.add(name, fmt_time_ns(s.median), fmt_ratio(s.ratio_to(anchor)) if anchor and ours else "-",
+                  fmt_ratio(s.ratio_to(anchor_n)) if anchor_n and ours else "-",
+                  verdict(s.median < anchor.median) if anchor and ours else "-")
+    mesh_app = Application("count")
+    src = mesh_app.add(Source("src"))
+    mesher = mesh_app.add(MeshReconstructor("m"))
+    sink = mesh_app.add(Sink("sink"))
+    mesh_app.connect(src.out, mesher.rgbd)
+    mesh_app.connect(mesher.mesh, sink.inp)
+    src.out.write(frame)
+    mesher.on_update()
+    mesh = TriangleMesh.from_slot(sink.inp.read()[1])
+    table.notes.append(f"ours: {len(mesh.vertices)} vertices, {len(mesh.triangles)} triangles, normals and colours; "
+                       f"Open3D: {counts.get('open3d points', 'n/a')} points (no triangles; normals by a KD-tree "
+                       "search, radius 2 cm, 16 neighbours)")
+    if o3d is None:
+        table.notes.append("open3d is not installed: the anchor rows are missing")
+    return table, {name: s.to_json() for name, s in samples.items()}
+
+
+def bench_streaming() -> tuple[Table, Table, dict]:
+    intrinsics = CameraIntrinsics.from_json(REDWOOD / "camera_primesense.json")
+    frame = RGBDFrame.load(REDWOOD / "color" / "00000.jpg", REDWOOD / "depth" / "00000.png", intrinsics)
+    packets = Table("Stream packet for one 640x480 RGB-D frame: size and encode + decode time",
+                    ["colour", "depth", "bytes", "Mbit/s at 30 Hz", "encode", "decode"])
+    results: dict = {}
+    for color_encoding, depth_encoding in (("jpeg", "png"), ("jpeg", "raw"), ("raw", "png"), ("raw", "raw")):
+        packet = encode(1, 0.0, 0.0, frame.color, frame.depth, color_encoding=color_encoding,
+                        depth_encoding=depth_encoding)
+
+        def enc(n: int, ce=color_encoding, de=depth_encoding) -> None:
+            for _ in range(n):
+                encode(1, 0.0, 0.0, frame.color, frame.depth, color_encoding=ce, depth_encoding=de)
+
+        def dec(n: int, packet=packet) -> None:
+            for _ in range(n):
+                decode(packet)
+        samples = measure({"encode": enc, "decode": dec}, repeats=3, target_s=0.2)
+        packets.add(color_encoding + (" q90" if color_encoding == "jpeg" else ""), depth_encoding, f"{len(packet):,}",
+                    f"{len(packet) * 8 * 30 / 1e6:.1f}", fmt_time_ns(samples["encode"].median),
+                    fmt_time_ns(samples["decode"].median))
+        results[f"{color_encoding}+{depth_encoding}"] = {"bytes": len(packet), "encode": samples["encode"].to_json(),
+                                                        "decode": samples["decode"].to_json()}
+    live = Table("Streaming 640x480 RGB-D at 30 Hz over ZeroMQ TCP loopback (server and receiver threads)",
+                 ["encoding", "frames", "dropped", "latency p50", "latency max", "CPU (process)"])
+    from coco_mr_vision.streaming import StreamingReceiver, StreamingServer
+    for port, (ce, de) in enumerate((("jpeg", "png"), ("raw", "raw")), start=5701):
+        app = Application("stream")
+        src = app.add(Source("src"))
+        server = app.add(StreamingServer("server", address=f"tcp://127.0.0.1:{port}", color_encoding=ce,
+                                         depth_encoding=de))
+        receiver = app.add(StreamingReceiver("receiver", address=f"tcp://127.0.0.1:{port}"))
+        sink = app.add(Sink("sink"))
+        app.connect(src.out, server.rgbd)
+        app.connect(receiver.rgbd, sink.inp)
+        server.on_config()
+        receiver.on_config()
+        latencies: list[float] = []
+        stop = threading.Event()
+
+        def receive(receiver=receiver, sink=sink) -> None:
+            while not stop.is_set():
+                receiver.on_update()
+                status, value = sink.inp.read()
+                if value is not None and status.name == "NEW_DATA":
+                    latencies.append(receiver.latency_last)
+                time.sleep(0.002)
+        thread = threading.Thread(target=receive)
+        thread.start()
+        time.sleep(0.3)  # the subscription is up before the measured frames
+        cpu0 = time.process_time()
+        wall0 = time.perf_counter()
+        for seq in range(1, 151):
+            src.out.write(Stamped(frame, Stamp.now(seq, "camera")))
+            server.on_update()
+            time.sleep(max(0.0, wall0 + seq / 30 - time.perf_counter()))
+        time.sleep(0.2)
+        stop.set()
+        thread.join()
+        cpu = (time.process_time() - cpu0) / (time.perf_counter() - wall0)
+        server.on_stop()
+        receiver.on_stop()
+        counters = receiver.counters()
+        lat = np.array(latencies) * 1e9
+        live.add(f"{ce} + {de}", counters["frames"], counters["dropped"], fmt_time_ns(float(np.median(lat))),
+                 fmt_time_ns(float(lat.max())), f"{cpu * 100:.0f}% of a core")
+        results[f"live {ce}+{de}"] = {"counters": counters, "latency_ns": lat.tolist(), "cpu_cores": cpu}
+    results.update(bench_dds(frame, live))
+    live.notes.append("latency: from the frame's acquisition stamp to its delivery on the receiver's port "
+                      "(encode, TCP, decode, newest-frame selection); the rclpy rows: from before the "
+                      "conversion to messages to both messages decoded in the subscriber (publish + spin "
+                      "in one thread, Fast DDS in the same process, shared-memory transport allowed)")
+    return packets, live, results
+
+
+def bench_dds(frame: RGBDFrame, live: Table) -> dict:
+    """The same 150 frames at 30 Hz as rclpy sensor_msgs/Image (raw) and CompressedImage (JPEG colour,
+    PNG depth), colour and depth on two topics, publisher and subscriber nodes in this process."""
+    try:
+        from _ros import Loopback, RosContext
+        from sensor_msgs.msg import CompressedImage
+        from sensor_msgs.msg import Image as ImageMsg
+        from coco_ros.convert.images import ImageConverter as RosImages
+    except ImportError as error:
+        live.notes.append(f"rclpy rows missing: {error}")
+        return {}
+    images = RosImages()
+    results = {}
+
+    def raw(color: Image, depth: Image):
+        return images.to_ros(color), images.to_ros(depth)
+
+    def compressed(color: Image, depth: Image):
+        return (CompressedImage(format="jpeg", data=cv2.imencode(".jpg", color.data,
+                                                                 [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()),
+                CompressedImage(format="png", data=cv2.imencode(".png", depth.data,
+                                                                [cv2.IMWRITE_PNG_COMPRESSION, 1])[1].tobytes()))
+
+    def decode_raw(msg):
+        return images.to_coco(msg)
+
+    def decode_compressed(msg):
+        return cv2.imdecode(np.frombuffer(msg.data, np.uint8), cv2.IMREAD_UNCHANGED)
+
+    with RosContext() as context:
+        for name, msg_type, make, unpack in (("rclpy Image (raw)", ImageMsg, raw, decode_raw),
+                                             ("rclpy CompressedImage (JPEG + PNG)", CompressedImage, compressed,
+                                              decode_compressed)):
+            tag = "raw" if msg_type is ImageMsg else "compressed"
+            color_link = Loopback(context, msg_type, f"vision_color_{tag}")
+            depth_link = Loopback(context, msg_type, f"vision_depth_{tag}")
+            first = make(frame.color, frame.depth)
+            color_link.wait_matched(first[0])
+            depth_link.wait_matched(first[1])
+            latencies, sizes = [], []
+            cpu0, wall0 = time.process_time(), time.perf_counter()
+            for seq in range(1, 151):
+                start = time.perf_counter()
+                color_msg, depth_msg = make(frame.color, frame.depth)
+                color_link.rounds(color_msg, 1)
+                depth_link.rounds(depth_msg, 1)
+                unpack(color_link.last)
+                unpack(depth_link.last)
+                latencies.append((time.perf_counter() - start) * 1e9)
+                sizes.append(len(color_msg.data) + len(depth_msg.data))
+                time.sleep(max(0.0, wall0 + seq / 30 - time.perf_counter()))
+            cpu = (time.process_time() - cpu0) / (time.perf_counter() - wall0)
+            color_link.destroy()
+            depth_link.destroy()
+            lat = np.array(latencies)
+            live.add(name, 150, 0, fmt_time_ns(float(np.median(lat))), fmt_time_ns(float(lat.max())),
+                     f"{cpu * 100:.0f}% of a core")
+            results[name] = {"latency_ns": latencies, "bytes": int(np.mean(sizes)), "cpu_cores": cpu}
+    return results
+
+
+def main() -> None:
+    args = parser("bench_vision", __doc__.splitlines()[0]).parse_args()
+    photo = cv2.imread(str(REDWOOD / "color" / "00000.jpg"), cv2.IMREAD_COLOR)
+    o3d = open3d_core()
+    with LoadMeter() as load:
+        conversions, conv_results = bench_conversions(photo)
+        print(conversions.text(), flush=True)
+        markers, marker_results = bench_markers()
+        print(markers.text(), flush=True)
+        mesh, mesh_results = bench_mesh(o3d)
+        print(mesh.text(), flush=True)
+        packets, live, stream_results = bench_streaming()
+    conversions.notes.append(f"other processes used {load.others * 100:.0f}% of the machine during the whole run"
+                             if load.others is not None else "machine load unknown")
+    results = {"conversions": conv_results, "markers": marker_results, "mesh": mesh_results,
+               "streaming": stream_results}
+    emit("bench_vision", args, [conversions, markers, mesh, packets, live], results)
+
+    def draw(plt):
+        figure, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+        names = list(mesh_results)
+        axes[0].barh(names, [mesh_results[n]["median_ns"] / 1e6 for n in names],
+                     color=["tab:blue" if n.startswith("Mesh") else "tab:gray" for n in names])
+        axes[0].set_xlabel("ms per 640x480 frame")
+        axes[0].set_title("RGB-D -> geometry")
+        names = list(conv_results)
+        x = np.arange(len(names))
+        axes[1].bar(x - 0.2, [conv_results[n]["bare"]["median_ns"] / 1e3 for n in names], 0.4, label="cv2.cvtColor",
+                    color="tab:gray")
+        axes[1].bar(x + 0.2, [conv_results[n]["component"]["median_ns"] / 1e3 for n in names], 0.4,
+                    label="ImageConverter", color="tab:blue")
+        axes[1].set_xticks(x, names, rotation=20)
+        axes[1].set_ylabel("us per frame")
+        axes[1].set_title("Format conversion 640x480")
+        axes[1].legend()
+        figure.tight_layout()
+        return figure
+    save_plot(args, draw)
+
+
+if __name__ == "__main__":
+    main()

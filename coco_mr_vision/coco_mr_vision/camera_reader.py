@@ -1,0 +1,188 @@
+"""CameraReader: a periodic source of images from anything OpenCV's ``VideoCapture`` opens.
+
+``source`` says what to open, the way an OpenCV user writes it:
+
+- ``"0"``, ``"2"``: a camera device index (V4L2 ``/dev/video<N>`` on Linux);
+- a path with ``*``, ``?`` or ``[``: an image sequence, the files the glob matches in name order;
+- a string with ``!``: a GStreamer pipeline ending in ``appsink`` (needs an OpenCV built with
+  GStreamer: the pip wheels are not, and the error says so);
+- anything else: a video file (or a URL OpenCV's FFmpeg back-end reads).
+
+Each activation delivers at most one frame: at the activity's rate (``timing="rate"``), or when the
+file's own clock says the next frame is due (``timing="file"``: the video's timestamps, or ``fps``
+for an image sequence) so that a 25 Hz video plays at 25 Hz whatever the activity's period. Frames
+come out in ``format``, converted once by OpenCV, stamped with acquisition time, sequence and
+source, with the intrinsics of ``intrinsics`` (a JSON file) attached when given.
+"""
+
+from __future__ import annotations
+
+import glob
+import logging
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from coco_core.attributes import Attribute
+from coco_core.component import Component
+from coco_core.errors import CocoError
+from coco_core.ports import OutputPort
+from coco_core.stamps import Stamp, Stamped
+
+from .image import CameraIntrinsics, Image, ImageFormat
+
+log = logging.getLogger("coco.vision")
+
+
+class CameraError(CocoError):
+    """A camera or a recording that cannot be opened or read."""
+
+
+def has_gstreamer() -> bool:
+    """Whether this OpenCV build has its GStreamer video back-end."""
+    for line in cv2.getBuildInformation().splitlines():
+        if line.strip().startswith("GStreamer:"):
+            return line.split(":", 1)[1].strip().upper().startswith("YES")
+    return False
+
+
+class _Frames:
+    """What a source delivers: BGR frames, each with its media time (seconds) or None."""
+
+    def read(self) -> tuple[np.ndarray | None, float | None]:
+        raise NotImplementedError
+
+    def rewind(self) -> bool:
+        """Back to the first frame; False when the source cannot (a live camera)."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Release the device or file."""
+
+
+class _Capture(_Frames):
+    def __init__(self, capture: cv2.VideoCapture, live: bool) -> None:
+        self.capture, self.live = capture, live
+
+    def read(self) -> tuple[np.ndarray | None, float | None]:
+        ok, frame = self.capture.read()
+        if not ok:
+            return None, None
+        return frame, None if self.live else self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
+
+    def rewind(self) -> bool:
+        return not self.live and bool(self.capture.set(cv2.CAP_PROP_POS_FRAMES, 0))
+
+    def close(self) -> None:
+        self.capture.release()
+
+
+class _Sequence(_Frames):
+    def __init__(self, files: list[str], fps: float) -> None:
+        self.files, self.period, self.index = files, 1.0 / fps, 0
+
+    def read(self) -> tuple[np.ndarray | None, float | None]:
+        if self.index >= len(self.files):
+            return None, None
+        path = self.files[self.index]
+        frame = cv2.imread(path, cv2.IMREAD_COLOR)
+        if frame is None:
+            raise CameraError(f"image sequence: cannot read {path} as an image")
+        self.index += 1
+        return frame, (self.index - 1) * self.period
+
+    def rewind(self) -> bool:
+        self.index = 0
+        return True
+
+
+def open_source(source: str, fps: float = 30.0) -> tuple[_Frames, str]:
+    """The frames of ``source`` and what kind of source it is (device, sequence, gstreamer, file)."""
+    text = source.strip()
+    if text.isdigit():
+        capture = cv2.VideoCapture(int(text))
+        if not capture.isOpened():
+            raise CameraError(f"cannot open camera device {text} (is /dev/video{text} present and free?)")
+        return _Capture(capture, live=True), "device"
+    if "!" in text:
+        if not has_gstreamer():
+            raise CameraError(f"source {text!r} is a GStreamer pipeline, but this OpenCV "
+                              f"({cv2.__version__}) was built without GStreamer; use a build with it, "
+                              "or a device index, video file or image glob")
+        capture = cv2.VideoCapture(text, cv2.CAP_GSTREAMER)
+        if not capture.isOpened():
+            raise CameraError(f"GStreamer could not start the pipeline {text!r} (it must end in appsink)")
+        return _Capture(capture, live=True), "gstreamer"
+    if any(c in text for c in "*?["):
+        files = sorted(glob.glob(text))
+        if not files:
+            raise CameraError(f"image sequence {text!r} matches no file")
+        return _Sequence(files, fps), "sequence"
+    if not Path(text).exists() and "://" not in text:
+        raise CameraError(f"video file {text!r} does not exist (a source is a device index, a video file, "
+                          "an image glob or a GStreamer pipeline)")
+    capture = cv2.VideoCapture(text)
+    if not capture.isOpened():
+        raise CameraError(f"OpenCV cannot open {text!r} as a video")
+    return _Capture(capture, live=False), "file"
+
+
+class CameraReader(Component):
+    """Reads one frame per activation from a camera, a video, an image sequence or a GStreamer pipeline."""
+
+    source = Attribute(str, "0", "device index, video file, image glob or GStreamer pipeline")
+    format = Attribute(ImageFormat, ImageFormat.BGR8, "format of the output images")
+    timing = Attribute(str, "rate", "rate: one frame per activation; file: at the recording's own timing",
+                       choices=("rate", "file"))
+    fps = Attribute(float, 30.0, "frame rate of an image sequence under timing=file", min=1e-3)
+    loop = Attribute(bool, False, "start a video or image sequence again at its end")
+    frame_id = Attribute(str, "camera", "frame of the camera in the transformation graph")
+    intrinsics = Attribute(str, "", "JSON file with the camera's intrinsics (empty: none attached)")
+
+    image = OutputPort(Stamped, "Stamped(Image): each frame in `format`, stamped at acquisition")
+
+    def init(self) -> None:
+        self._camera: CameraIntrinsics | None = None
+        if self.intrinsics:
+            self._camera = CameraIntrinsics.from_json(self.intrinsics, frame_id=self.frame_id)
+        self.frames = 0
+        """Frames delivered."""
+        self.ended = False
+        """True once a recording ran out (and ``loop`` is off)."""
+
+    def on_config(self) -> None:
+        self._frames, self.kind = open_source(self.source, self.fps)
+        self._start: float | None = None
+        self._pending: tuple[np.ndarray, float | None] | None = None
+        self._seq = 0
+
+    def on_update(self) -> None:
+        if self.ended:
+            return
+        if self._pending is None:
+            frame, media_time = self._frames.read()
+            if frame is None and self.loop and self._frames.rewind():
+                self._start = None
+                frame, media_time = self._frames.read()
+            if frame is None:
+                self.ended = True
+                log.info("%s: %s %r ended after %d frames", self.name, self.kind, self.source, self.frames)
+                return
+            self._pending = (frame, media_time)
+        frame, media_time = self._pending
+        now = time.perf_counter()
+        if self.timing == "file" and media_time is not None:
+            if self._start is None:
+                self._start = now - media_time
+            elif now < self._start + media_time:
+                return  # not due yet: the frame waits for its time
+        self._pending = None
+        self._seq += 1
+        self.frames += 1
+        image = Image(frame, ImageFormat.BGR8, time.time(), self.frame_id, self._camera).to(self.format)
+        self.image.write(Stamped(image, Stamp(now, self._seq, self.name)))
+
+    def on_stop(self) -> None:
+        self._frames.close()

@@ -1,0 +1,106 @@
+"""CameraReader on a real video file and image sequence made from the shared RGB-D photos; clear
+errors for a missing device, a GStreamer pipeline this OpenCV cannot run, and missing files."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+cv2 = pytest.importorskip("cv2")
+
+from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort  # noqa: E402
+from coco_mr_vision.camera_reader import CameraError, CameraReader, has_gstreamer, open_source  # noqa: E402
+from coco_mr_vision.image import ImageFormat  # noqa: E402
+
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
+REDWOOD = DATA / "rgbd" / "redwood"
+
+
+@pytest.fixture(scope="module")
+def photos() -> list[np.ndarray]:
+    files = sorted((REDWOOD / "color").glob("*.jpg"))
+    if not files:
+        pytest.skip(f"{REDWOOD} is absent (the shared data sets are not beside this checkout)")
+    return [cv2.imread(str(f), cv2.IMREAD_COLOR) for f in files]
+
+
+class Sink(Component):
+    image = InputPort(object)
+
+
+def rig(reader: CameraReader):
+    app = Application("camera")
+    app.add(reader)
+    sink = app.add(Sink("sink"))
+    app.connect(reader.image, sink.image, ConnectionPolicy(BufferPolicy.BUFFER, size=100))
+    reader.on_config()
+    return sink
+
+
+def drain(reader: CameraReader, sink: Sink, updates: int) -> list:
+    for _ in range(updates):
+        reader.on_update()
+    return sink.image.read_all()
+
+
+def test_image_sequence_in_order_converted_stamped_and_looped(tmp_path, photos):
+    for index, photo in enumerate(photos):
+        cv2.imwrite(str(tmp_path / f"frame_{index:03d}.png"), photo)
+    reader = CameraReader("cam", source=str(tmp_path / "frame_*.png"), format="GRAY8", loop=True,
+                          frame_id="head_camera", intrinsics=str(REDWOOD / "camera_primesense.json"))
+    sink = rig(reader)
+    got = drain(reader, sink, 5)
+    assert [v.stamp.seq for v in got] == [1, 2, 3, 4, 5]
+    assert {v.stamp.source for v in got} == {"cam"}
+    first = got[0].value
+    assert first.format is ImageFormat.GRAY8 and first.frame_id == "head_camera"
+    assert first.intrinsics.fx == 525.0 and first.stamp == pytest.approx(time.time(), abs=60)
+    for value, photo in zip(got, photos * 3):
+        assert np.array_equal(value.value.data, cv2.cvtColor(photo, cv2.COLOR_BGR2GRAY))
+
+
+def test_video_file_plays_once_then_ends(tmp_path, photos):
+    path = tmp_path / "clip.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (640, 480))
+    assert writer.isOpened()
+    for photo in photos * 3:
+        writer.write(photo)
+    writer.release()
+    reader = CameraReader("video", source=str(path), format="RGB8")
+    sink = rig(reader)
+    got = drain(reader, sink, 10)
+    assert len(got) == 3 * len(photos) and reader.ended and reader.frames == len(got)
+    decoded = got[0].value.data
+    # MJPG is lossy: the first frame is the first photo within JPEG error.
+    assert np.abs(decoded.astype(int) - photos[0][..., ::-1].astype(int)).mean() < 4
+
+
+def test_file_timing_holds_a_frame_until_it_is_due(tmp_path, photos):
+    for index in range(3):
+        cv2.imwrite(str(tmp_path / f"{index}.png"), photos[0])
+    reader = CameraReader("seq", source=str(tmp_path / "*.png"), timing="file", fps=2.0)
+    sink = rig(reader)
+    assert len(drain(reader, sink, 3)) == 1, "frames 2 and 3 are due 0.5 s and 1 s after the first"
+    time.sleep(0.55)
+    assert len(drain(reader, sink, 3)) == 1
+
+
+def test_bad_sources_say_what_is_wrong(tmp_path):
+    with pytest.raises(CameraError, match="cannot open camera device 57"):
+        open_source("57")
+    with pytest.raises(CameraError, match="matches no file"):
+        open_source(str(tmp_path / "*.png"))
+    with pytest.raises(CameraError, match="does not exist.*device index, a video file, an image glob"):
+        open_source(str(tmp_path / "missing.mp4"))
+    (tmp_path / "not_a_video.mp4").write_bytes(b"garbage" * 100)
+    with pytest.raises(CameraError, match="cannot open .* as a video"):
+        open_source(str(tmp_path / "not_a_video.mp4"))
+
+
+@pytest.mark.skipif(has_gstreamer(), reason="this OpenCV has GStreamer: the error path does not apply")
+def test_gstreamer_pipeline_without_gstreamer_is_a_clear_error():
+    with pytest.raises(CameraError, match="built without GStreamer"):
+        open_source("videotestsrc ! videoconvert ! appsink")

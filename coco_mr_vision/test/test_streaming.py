@@ -1,0 +1,176 @@
+"""Streaming over ZeroMQ on TCP loopback: a server in another process sending real RGB-D frames,
+newest-frame-only delivery with its counters, and garbage / truncated / out-of-order packets
+counted, never a crash."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import textwrap
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+cv2 = pytest.importorskip("cv2")
+zmq = pytest.importorskip("zmq")
+
+from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort  # noqa: E402
+from coco_mr_vision.image import CameraIntrinsics  # noqa: E402
+from coco_mr_vision.rgbd import RGBDFrame  # noqa: E402
+from coco_mr_vision.stream_codec import PacketError, decode, encode  # noqa: E402
+from coco_mr_vision.streaming import StreamingReceiver  # noqa: E402
+
+REDWOOD = Path(__file__).resolve().parents[3] / "shared" / "data" / "rgbd" / "redwood"
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def redwood(index: int = 0) -> RGBDFrame:
+    if not REDWOOD.exists():
+        pytest.skip(f"{REDWOOD} is absent")
+    intrinsics = replace(CameraIntrinsics.from_json(REDWOOD / "camera_primesense.json"),
+                         distortion=(0.1, -0.05, 0, 0, 0))
+    return RGBDFrame.load(REDWOOD / "color" / f"{index:05d}.jpg", REDWOOD / "depth" / f"{index:05d}.png",
+                          intrinsics, stamp=17.5, frame_id="camera")
+
+
+class Sink(Component):
+    rgbd = InputPort(object)
+    image = InputPort(object)
+
+
+def receiver_rig(address: str):
+    app = Application("receive")
+    receiver = app.add(StreamingReceiver("receiver", address=address))
+    sink = app.add(Sink("sink"))
+    app.connect(receiver.rgbd, sink.rgbd, ConnectionPolicy(BufferPolicy.BUFFER, size=1000))
+    app.connect(receiver.image, sink.image, ConnectionPolicy(BufferPolicy.BUFFER, size=1000))
+    receiver.on_config()
+    return receiver, sink
+
+
+def test_codec_round_trip_lossless_depth_and_raw_colour():
+    frame = redwood()
+    packet = encode(3, 1.0, 2.0, frame.color, frame.depth, color_encoding="raw", depth_encoding="png")
+    got = decode(packet)
+    assert got.seq == 3 and np.array_equal(got.color.data, frame.color.data)
+    assert np.array_equal(got.depth.data, frame.depth.data)
+    assert got.depth.intrinsics.fx == 525.0 and got.depth.intrinsics.distortion[:2] == (0.1, -0.05)
+    assert got.color.stamp == 17.5 and got.color.frame_id == "camera"
+    jpeg = decode(encode(4, 1.0, 2.0, frame.color, None, quality=80))
+    assert jpeg.depth is None and np.abs(jpeg.color.data.astype(int) - frame.color.data).mean() < 4
+    assert len(encode(4, 1.0, 2.0, frame.color, None, quality=80)) < len(packet) / 5
+
+
+@pytest.mark.parametrize("packet, kind", [
+    (b"", "truncated"), (b"HTTP/1.1 200 OK\r\n\r\n", "garbage"), (b"CCV1\xff\xff\x00\x00{", "truncated"),
+    (b"CCV1\x02\x00\x00\x00{]", "garbage"), (os.urandom(5000), "garbage"),
+])
+def test_bad_packets_raise_packet_errors_by_kind(packet, kind):
+    with pytest.raises(PacketError) as caught:
+        decode(packet)
+    assert caught.value.kind == kind
+
+
+def test_server_in_another_process_to_receiver(tmp_path):
+    redwood()
+    port = free_port()
+    script = textwrap.dedent(f"""
+        import sys, time
+        from coco_core import Application, Component, OutputPort
+        from coco_core.stamps import Stamp, Stamped
+        from coco_mr_vision.image import CameraIntrinsics
+        from coco_mr_vision.rgbd import RGBDFrame
+        from coco_mr_vision.streaming import StreamingServer
+        class Camera(Component):
+            rgbd = OutputPort(object)
+        root = {str(REDWOOD)!r}
+        k = CameraIntrinsics.from_json(root + "/camera_primesense.json")
+        frames = [RGBDFrame.load(f"{{root}}/color/0000{{i}}.jpg", f"{{root}}/depth/0000{{i}}.png", k, stamp=float(i),
+                                 frame_id="camera") for i in (0, 1)]
+        app = Application("send")
+        camera = app.add(Camera("camera"))
+        server = app.add(StreamingServer("server", address="tcp://127.0.0.1:{port}", quality=85))
+        app.connect(camera.rgbd, server.rgbd)
+        server.on_config()
+        for seq in range(1, 121):
+            camera.rgbd.write(Stamped(frames[seq % 2], Stamp.now(seq, "camera")))
+            server.on_update()
+            time.sleep(1 / 30)
+        print(server.sent, server.bytes, flush=True)
+    """)
+    sender = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    receiver, sink = receiver_rig(f"tcp://127.0.0.1:{port}")
+    frames = []
+    deadline = time.monotonic() + 30
+    try:
+        while sender.poll() is None and time.monotonic() < deadline:
+            receiver.on_update()
+            frames += sink.rgbd.read_all()
+            time.sleep(0.01)
+        time.sleep(0.05)
+        receiver.on_update()
+        frames += sink.rgbd.read_all()
+        sent, sent_bytes = (int(n) for n in sender.communicate(timeout=10)[0].split())
+    finally:
+        if sender.poll() is None:
+            sender.kill()
+    assert sender.returncode == 0
+    counters = receiver.counters()
+    assert counters["frames"] >= 60, counters  # 4 s at 30 Hz; the first packets go before the connection
+    assert counters["garbage"] == counters["truncated"] == counters["out_of_order"] == 0
+    # Every frame sent is delivered or counted as dropped (those before the subscription too).
+    assert counters["frames"] + counters["dropped"] == 120
+    assert 0 < counters["latency_mean"] < 0.5 and counters["bytes"] <= sent_bytes and sent == 120
+    last = frames[-1]
+    original = redwood(int(last.value.stamp))  # the sender stamps frame i with i
+    assert np.array_equal(last.value.depth.data, original.depth.data), "depth is lossless"
+    assert np.abs(last.value.color.data.astype(int) - original.color.data).mean() < 5
+    assert last.value.intrinsics.fx == 525.0 and last.stamp.source == "camera"
+
+
+def test_garbage_truncated_out_of_order_and_gaps_are_counted():
+    frame = redwood()
+    port = free_port()
+    publisher = zmq.Context.instance().socket(zmq.PUB)
+    publisher.setsockopt(zmq.LINGER, 0)
+    publisher.bind(f"tcp://127.0.0.1:{port}")
+    receiver, sink = receiver_rig(f"tcp://127.0.0.1:{port}")
+    try:
+        packet = encode(1, time.perf_counter(), time.perf_counter(), frame.color, frame.depth)
+        deadline = time.monotonic() + 10
+        while receiver.frames == 0 and time.monotonic() < deadline:  # until the subscription is up
+            publisher.send(packet)
+            time.sleep(0.02)
+            receiver.on_update()
+        time.sleep(0.1)
+        receiver.on_update()
+        before = receiver.counters()
+
+        def packet_of(seq: int) -> bytes:
+            return encode(seq, time.perf_counter(), time.perf_counter(), frame.color, frame.depth)
+
+        for bad in (b"not a packet", packet_of(2)[:-100], packet_of(1), os.urandom(300), packet_of(5),
+                    packet_of(6), packet_of(4)):
+            publisher.send(bad)
+        time.sleep(0.3)
+        receiver.on_update()
+        after = receiver.counters()
+    finally:
+        publisher.close(0)
+        receiver.on_stop()
+    assert after["garbage"] - before["garbage"] == 2
+    assert after["truncated"] - before["truncated"] == 1
+    assert after["out_of_order"] - before["out_of_order"] == 2, "seq 1 again, and 4 after 6"
+    assert after["frames"] - before["frames"] == 1, "newest frame only: seq 6"
+    assert after["dropped"] - before["dropped"] == 3 + 1, "2, 3, 4 never came in order; 5 was superseded by 6"
+    assert sink.rgbd.read_all()[-1].stamp.seq == 6
