@@ -7,7 +7,8 @@ a receiver process:
 - *throughput*: as many as the receiver takes, for a fixed count (a full shared-memory BUFFER makes
   the sender wait for room, as a full ZeroMQ queue blocks it).
 Transports: the CoCo shared-memory channel (BUFFER ring, the receiver woken through an eventfd, as the
-process level wires an event port), ``multiprocessing.Queue``, ZeroMQ PUSH/PULL over ``ipc://``, and
+process level wires an event port; and with a receiver that spins on the ring instead, which shows
+the channel's own cost without the kernel's wake-up of a sleeping process), ``multiprocessing.Queue``, ZeroMQ PUSH/PULL over ``ipc://``, and
 an rclpy topic (sensor_msgs/JointState, reliable, SingleThreadedExecutor in the receiver).
 Goals: p50 latency >= 20x lower than rclpy and >= 3x lower than multiprocessing.Queue.
 
@@ -66,6 +67,25 @@ def summary(latencies: list[float]) -> dict[str, float]:
 
 
 # --- receivers (each in its own process) ------------------------------------------------------------
+def receive_shm_polling(spec_hex: str, count: int) -> dict[str, Any]:
+    """The receiver spins on the ring instead of sleeping until woken: the channel's own cost, without
+    the kernel's wake-up of a sleeping process (it burns a core: not how an activity waits)."""
+    from coco_core.connections import EMPTY
+    from coco_core.shm import ShmReader
+
+    reader = ShmReader(pickle.loads(bytes.fromhex(spec_hex)))
+    latencies: list[float] = []
+    first = last = 0.0
+    while len(latencies) < count:
+        value = reader.pop()
+        if value is EMPTY:
+            continue
+        now = time.perf_counter()
+        latencies.append(now - value[0])
+        first, last = first or now, now
+    return {**summary(latencies), "received": len(latencies), "seconds": last - first}
+
+
 def receive_shm(spec_hex: str, fd: int, count: int, frames: bool) -> dict[str, Any]:
     from coco_core.connections import EMPTY
     from coco_core.shm import ShmPoolReader, ShmReader
@@ -170,6 +190,28 @@ def spawn(*args: str) -> subprocess.Popen[str]:
 def result_of(process: subprocess.Popen[str]) -> dict[str, Any]:
     out, _ = process.communicate(timeout=300)
     return json.loads(out.strip().splitlines()[-1])
+
+
+def run_shm_polling(count: int, rate: float | None) -> dict[str, Any]:
+    from coco_core.policy import BufferPolicy, ConnectionPolicy
+    from coco_core.shm import Arena, ShmWriter
+
+    arena = Arena(f"benchpoll{os.getpid()}")
+    try:
+        spec = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, size=1024), "bench.out->bench.in")
+        writer = ShmWriter(spec)
+        receiver = spawn("shm-poll", pickle.dumps(spec).hex(), str(count))
+        time.sleep(1.0)
+
+        def send(now: float) -> None:
+            while writer.pending >= 1000:
+                pass
+            writer.push(sample(now))
+
+        drive(count, rate, send)
+        return result_of(receiver)
+    finally:
+        arena.close()
 
 
 def run_shm(count: int, rate: float | None, frames: tuple[int, int] | None = None) -> dict[str, Any]:
@@ -294,6 +336,8 @@ def receiver_main(args: list[str]) -> None:
     kind = args[0]
     if kind == "shm":
         result = receive_shm(args[1], int(args[2][3:]), int(args[3]), args[4] == "frames")
+    elif kind == "shm-poll":
+        result = receive_shm_polling(args[1], int(args[2]))
     elif kind == "zmq":
         result = receive_zmq(args[1], int(args[2]), args[3] == "frames")
     else:
@@ -309,7 +353,8 @@ def main() -> None:
     count = args.messages
     small: dict[str, dict[str, Any]] = {}
     runners: dict[str, Callable[[int, float | None], dict[str, Any]]] = {
-        "CoCo shared-memory channel": run_shm, "multiprocessing.Queue": run_queue,
+        "CoCo shared-memory channel": run_shm, "CoCo channel, receiver polling (no wake-up)": run_shm_polling,
+        "multiprocessing.Queue": run_queue,
         "ZeroMQ ipc:// PUSH/PULL": run_zmq, "rclpy topic (JointState)": run_rclpy}
     for name, runner in runners.items():
         small[name] = {"latency": runner(count, 1000.0), "throughput": runner(count * 5, None)}

@@ -136,15 +136,25 @@ def main() -> None:
     _report.emit("bench_processes", args, [table, wake_table], results)
 
     def draw(plt: Any) -> Any:
-        figure, axis = plt.subplots(figsize=(7, 3.2))
-        names = list(results)
-        axis.bar(names, [results[n]["p99_ns"] / 1e3 for n in names], color=["#4c72b0", "#c44e52", "#55a868"])
-        axis.set_yscale("log")
-        axis.set_ylabel("p99 period error (us, log)")
-        axis.set_title("1 kHz activity: p99 period error")
+        figure, (left, right) = plt.subplots(1, 2, figsize=(11, 3.4))
+        names = list(CONDITIONS)
+        left.bar(range(len(names)), [results[n]["p99_ns"] / 1e3 for n in names], color=["#4c72b0", "#c44e52", "#55a868"])
+        left.set_xticks(range(len(names)), [n.replace(", ", ",\n") for n in names], fontsize=8)
+        left.set_yscale("log")
+        left.set_ylabel("p99 period error (us, log)")
+        left.set_title("1 kHz activity beside a busy one")
         for index, name in enumerate(names):
-            axis.text(index, results[name]["p99_ns"] / 1e3, fmt_time_ns(results[name]["p99_ns"]),
-                      ha="center", va="bottom")
+            left.text(index, results[name]["p99_ns"] / 1e3, fmt_time_ns(results[name]["p99_ns"]), ha="center",
+                      va="bottom", fontsize=8)
+        readers = list(wake)
+        for key, offset, label in (("p50_ns", -0.2, "p50"), ("p99_ns", 0.2, "p99")):
+            right.bar([i + offset for i in range(len(readers))], [wake[r][key] / 1e3 for r in readers], width=0.4,
+                      label=label)
+        right.set_xticks(range(len(readers)), [r.replace(" (", "\n(") for r in readers], fontsize=8)
+        right.set_ylabel("us")
+        right.set_title("wake-up: event-port write -> on_update")
+        right.legend()
+        figure.tight_layout()
         return figure
 
     _report.save_plot(args, draw)
