@@ -61,9 +61,6 @@ class Segment:
             os.close(self.fd)
             self.fd = -1
 
-    def unlink(self) -> None:
-        unlink(self.name)
-
 
 def unlink(name: str) -> None:
     """Remove a segment's name (mappings stay valid until unmapped); a missing one is fine."""
