@@ -5,6 +5,7 @@ coco-launch as a user runs it, and recorded as a video, PNGs and a contact sheet
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -89,6 +90,11 @@ def test_view_renders_the_session(coco_launch: Path, session, tmp_path: Path) ->
     # The bowl stands at its initial pose until the gripper has closed on it: there its colour goes
     # from red (the gripper at home, far) to green (within `near` = 2 cm, from grasp_time of the summary).
     summary = json.loads((output / "summary.json").read_text())
+    # Sensor-to-display latency of the frames that showed a new joint state or colour, measured in the
+    # view's own process and recorded by the summary in the launcher's (process level).
+    shown = summary["display_latency_ms"]
+    assert shown["frames"] > 0 and 0 < shown["median"] <= shown["max"], shown
+    assert re.search(r"^view\s+display\s+display\s.*\s[0-9.]+ / [0-9.]+\s*$", result.stdout, re.M), result.stdout
     pixel = camera_pixel(info.bowl @ np.array(BOWL_CENTRE))
     assert 0 <= pixel[0] < HEIGHT and 0 <= pixel[1] < WIDTH, pixel
 
