@@ -166,6 +166,11 @@ class MainThreadDriver(ThreadDriver):
         self._activity = activity
 
 
+def eventfd_pending(fd: int) -> bool:
+    """Whether an eventfd holds a wake-up not taken yet (its counter is non-zero), without taking it."""
+    return bool(select.select([fd], [], [], 0)[0])
+
+
 class EventfdDriver(ThreadDriver):
     """A thread driver woken through a Linux ``eventfd``: a kernel counter that any process holding
     the descriptor can increment. A triggered activity that reads a connection from another process
@@ -182,7 +187,7 @@ class EventfdDriver(ThreadDriver):
 
     @property
     def wake_pending(self) -> bool:
-        return bool(select.select([self.fd], [], [], 0)[0])
+        return eventfd_pending(self.fd)
 
     def stop(self) -> None:
         super().stop()

@@ -21,12 +21,12 @@ import signal
 import sys
 import threading
 from concurrent.futures import Future
-from typing import Any, Callable
+from typing import Any
 
 from ..application import Application
 from ..builder import build_application
 from ..drivers import EventfdDriver
-from ..errors import CocoError, ProcessError
+from ..errors import CocoError
 from ..launcher import stopped_by_a_failure
 from ..report import snapshot
 from .channels import attach
@@ -71,10 +71,6 @@ class ChildProcess:
         self.parent = parent
         self.app: Application | None = None
         self.launch = ""
-        self._lock = threading.Lock()
-        self._next = 0
-        self._pending: dict[int, Callable[[dict[str, Any]], None]] = {}
-        """What to do with the ``result`` of each call this process sent, by call id."""
 
     def run(self) -> int:
         config = self.link.receive()
@@ -125,15 +121,8 @@ class ChildProcess:
         launcher runs it or passes it to the process that runs it."""
         future: Future[Any] = Future()
         target = f"{component}.{operation}"
-        with self._lock:
-            self._next += 1
-            ident = self._next
-            self._pending[ident] = lambda message: settle(future, message, process, target)
-        if not self.link.send("call", id=ident, process=process, component=component, operation=operation,
-                              args=args, kwargs=kwargs):
-            with self._lock:
-                self._pending.pop(ident, None)
-            future.set_exception(ProcessError("the launcher is gone"))
+        self.link.request("call", lambda message: settle(future, message, process, target), process=process,
+                          component=component, operation=operation, args=args, kwargs=kwargs)
         return future
 
     def run_app(self, app: Application, config: dict[str, Any]) -> bool:
@@ -154,6 +143,7 @@ class ChildProcess:
             try:
                 message = self.link.receive()
             except EOFError:  # the launcher is gone
+                self.link.abandon("the launcher is gone")
                 app.request_stop("launcher: gone")
                 return
             if message is not None:
@@ -168,10 +158,7 @@ class ChildProcess:
         elif kind == "call":
             serve_call(app, message, lambda result: self.link.send("result", id=message["id"], **result))
         elif kind == "result":
-            with self._lock:
-                done = self._pending.pop(message["id"], None)
-            if done is not None:
-                done(message)
+            self.link.answered(message)
         elif kind == "set_period":
             try:
                 app.set_period(message["activity"], message["period"])
@@ -184,7 +171,7 @@ def main(argv: list[str] | None = None, kind: type[ChildProcess] = ChildProcess)
     fd, parent = (int(word) for word in (argv or sys.argv[1:])[:2])
     die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher handles Ctrl-C for the whole group
-    child = kind(ControlLink(fd), parent)
+    child = kind(ControlLink(fd, "the launcher"), parent)
 
     def terminate(_signum: int, _frame: object) -> None:
         if child.app is None:

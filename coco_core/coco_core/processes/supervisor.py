@@ -25,15 +25,15 @@ import time
 from dataclasses import dataclass, field
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 from ..activity import Activity
 from ..application import Application
-from ..drivers import EventfdDriver
+from ..drivers import EventfdDriver, eventfd_pending
 from ..errors import ProcessError
 from ..model import AppSpec
 from ..report import ProfileSnapshot, render, snapshot
-from .control import ControlLink
+from .control import ControlLink, failed
 from .channels import ChannelPlan, attach, plan_channels, wake_targets
 from .placement import LAUNCHER, Placement
 from .remote import serve_call, settle
@@ -77,8 +77,7 @@ class Child:
     """A component of the child stopped the application by its error policy."""
     last: ProfileSnapshot | None = None
     """The child's final profile, sent when it stopped."""
-    pending: dict[int, Callable[[dict[str, Any]], None]] = field(default_factory=dict)
-    """What to do with the ``result`` of each request sent to the child, by request id."""
+    stop_sent: bool = False
 
 
 class ProcessDriver:
@@ -104,11 +103,7 @@ class ProcessDriver:
 
     @property
     def wake_pending(self) -> bool:
-        if self.wake_fd is None:
-            return False
-        import select
-
-        return bool(select.select([self.wake_fd], [], [], 0)[0])
+        return self.wake_fd is not None and eventfd_pending(self.wake_fd)
 
     def stop(self) -> None:
         self.supervisor.stop_child(self.child, self.supervisor.app.stop_reason or "stop requested")
@@ -142,11 +137,9 @@ class ProcessSupervisor:
         self.arena: Arena | None = None
         """The launch's shared-memory segments (when a connection crosses processes)."""
         self.plans: list[ChannelPlan] = []
-        self._stopping = False
         self._lock = threading.Lock()
         self.failure = ""
         """Why the application failed because of a child (its death), for the exit status."""
-        self._next_request = 0
 
     # --- start ----------------------------------------------------------------------------------
     def launch(self) -> None:
@@ -177,11 +170,10 @@ class ProcessSupervisor:
             for name in child.activities:
                 ProcessDriver(self, child, self.app.activities[name], self._wakes.get(name))
             threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True).start()
-        self.app.add_stop_listener(self._stop_all)
         self.app.router = self
 
     def _spawn(self, name: str) -> Child:
-        link, theirs = ControlLink.pair()
+        link, theirs = ControlLink.pair(f"process {name}")
         activities = [a for a, process in self.placement.of_activity.items() if process == name]
         try:  # every child gets every wake-up eventfd: it may write to any process's reader
             popen = subprocess.Popen(
@@ -237,19 +229,12 @@ class ProcessSupervisor:
             elif kind == "stop_request":
                 self.app.request_stop(f"process {child.name}: {message['reason']}")
             elif kind == "result":
-                with self._lock:
-                    done = child.pending.pop(message["id"], None)
-                if done is not None:
-                    done(message)
+                child.link.answered(message)
             elif kind == "call":
                 self._route(child, message)
         code = child.popen.wait()
         child.stopped.set()
-        with self._lock:
-            orphans, child.pending = list(child.pending.values()), {}
-        for done in orphans:
-            done({"ok": False, "type": "ProcessError", "message": f"process {child.name} ended "
-                  f"({exit_description(code)}) before it answered", "traceback": ""})
+        child.link.abandon(f"process {child.name} ended ({exit_description(code)}) before it answered")
         if child.last is not None and code == 0:
             return  # it stopped as asked
         what = exit_description(code)
@@ -258,32 +243,22 @@ class ProcessSupervisor:
             self.failure = self.failure or f"process {child.name} died: {what}"
         self.app.request_stop(f"process {child.name} died ({what})")
 
-    def _stop_all(self, reason: str) -> None:
-        for child in self.children.values():
-            self.stop_child(child, reason)
-
     def stop_child(self, child: Child, reason: str) -> None:
-        self._stopping = True
-        child.link.send("stop", reason=reason)
-
-    def send_request(self, child: Child, kind: str, done: Callable[[dict[str, Any]], None], **fields: Any) -> None:
-        """Send a request to ``child``; ``done(result message)`` runs when it answers (or ends)."""
+        """Tell ``child`` to stop, once (every stand-in of its activities asks, when the application
+        stops them)."""
         with self._lock:
-            self._next_request += 1
-            ident = self._next_request
-            child.pending[ident] = done
-        if not child.link.send(kind, id=ident, **fields):
-            with self._lock:
-                child.pending.pop(ident, None)
-            done({"ok": False, "type": "ProcessError", "message": f"process {child.name} is gone", "traceback": ""})
+            if child.stop_sent:
+                return
+            child.stop_sent = True
+        child.link.send("stop", reason=reason)
 
     def call(self, process: str, component: str, operation: str, args: tuple[Any, ...],
              kwargs: dict[str, Any]) -> Future[Any]:
         """An operation of a component that child ``process`` runs (the :class:`Router` protocol)."""
         future: Future[Any] = Future()
         target = f"{component}.{operation}"
-        self.send_request(self.children[process], "call", lambda message: settle(future, message, process, target),
-                          component=component, operation=operation, args=args, kwargs=kwargs)
+        self.children[process].link.request("call", lambda message: settle(future, message, process, target),
+                                             component=component, operation=operation, args=args, kwargs=kwargs)
         return future
 
     def _route(self, caller: Child, message: dict[str, Any]) -> None:
@@ -297,10 +272,10 @@ class ProcessSupervisor:
         if process == LAUNCHER:
             serve_call(self.app, message, reply)
         elif process in self.children:
-            self.send_request(self.children[process], "call", reply, component=message["component"],
+            self.children[process].link.request("call", reply, component=message["component"],
                               operation=message["operation"], args=message["args"], kwargs=message["kwargs"])
         else:
-            reply({"ok": False, "type": "ProcessError", "message": f"no process {process!r}", "traceback": ""})
+            reply(failed("ProcessError", f"no process {process!r}"))
 
     def snapshots(self) -> list[ProfileSnapshot]:
         """The launcher's profile and every child's (its last one once it stopped)."""
@@ -309,7 +284,7 @@ class ProcessSupervisor:
         for child in self.children.values():
             future: Future[Any] = Future()
             if not child.stopped.is_set():
-                self.send_request(child, "profile", lambda message, future=future: future.set_result(
+                child.link.request("profile", lambda message, future=future: future.set_result(
                     message.get("value")))
             waiting.append((child, future))
         deadline = time.monotonic() + PROFILE_TIMEOUT
