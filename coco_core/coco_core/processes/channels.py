@@ -73,8 +73,7 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
             raise ConfigError(f"{connection.src} is a pooled output: connect it with data=POOL (latest frame, "
                               f"no copy), not {connection.data.value}", connection.location)
         event = connection.event if connection.event is not None else bool(isinstance(into, InputPort) and into.event)
-        reader = _top(components, connection.dest.component)
-        activity = activity_of.get(reader)
+        activity = activity_of.get(placement.top_of.get(connection.dest.component, connection.dest.component))
         wakes = activity.name if event and activity is not None and activity.schedule.type == "triggered" else ""
         policy = ConnectionPolicy(BufferPolicy.POOL if frames else connection.data, connection.policy,
                                   max(1, connection.buffersize))
@@ -84,18 +83,6 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
                                  placement.process_of(connection.dest.component), channel, frames,
                                  connection.event, wakes))
     return plans
-
-
-def _top(components: dict[str, ComponentSpec], name: str) -> str:
-    """The top-level component that owns ``name`` (itself when it is not a peer)."""
-    for top in components.values():
-        stack = [top]
-        while stack:
-            current = stack.pop()
-            if current.name == name:
-                return top.name
-            stack.extend(current.peers)
-    return name
 
 
 def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) -> None:

@@ -28,6 +28,8 @@ class Placement:
     of_activity: dict[str, str] = field(default_factory=dict)
     of_component: dict[str, str] = field(default_factory=dict)
     """Every component (peers too) -> its process."""
+    top_of: dict[str, str] = field(default_factory=dict)
+    """Every component (peers too) -> the top-level component that owns it (itself for a top one)."""
 
     @classmethod
     def of(cls, spec: AppSpec) -> Placement:
@@ -41,6 +43,7 @@ class Placement:
             while stack:
                 component = stack.pop()
                 placement.of_component[component.name] = process
+                placement.top_of[component.name] = top.name
                 stack.extend(component.peers)
         return placement
 

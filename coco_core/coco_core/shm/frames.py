@@ -59,12 +59,6 @@ class _Locked:
         self.lock.release()
 
 
-class ShmSlot(Slot):
-    """A slot of a shared-memory pool, as one process holds it (its array maps the slot's segment)."""
-
-    __slots__ = ()
-
-
 class ShmFramePool:
     """A frame pool whose slots live in shared memory: the writer's process puts it on its pooled
     output port (``port.pool``); every reader process attaches one to read from it."""
@@ -97,7 +91,7 @@ class ShmFramePool:
         index = int(self.header[NEWEST])
         if index < 0:
             return None
-        slot = ShmSlot(self, index)  # type: ignore[arg-type]
+        slot = Slot(self, index)  # type: ignore[arg-type]
         slot.seq = int(self._record(index)[SEQ])
         return slot
 
@@ -137,7 +131,7 @@ class ShmFramePool:
             if not same or record[NBYTES] < nbytes or record[GENERATION] == 0:
                 self._reallocate(index, record, shape, dtype, nbytes)
             generation = int(record[GENERATION])
-        slot = ShmSlot(self, index)  # type: ignore[arg-type]
+        slot = Slot(self, index)  # type: ignore[arg-type]
         slot.state = SlotState.WRITING
         slot.array = self._array(index, generation, shape, dtype)
         return slot
@@ -220,7 +214,7 @@ class ShmFramePool:
             stamp_bytes = self._bytes(index, STAMP_AT, STAMP_SIZE)
             size = int.from_bytes(stamp_bytes[:8], "little")
             stamp = bytes(stamp_bytes[8:8 + size])
-        slot = ShmSlot(self, index)  # type: ignore[arg-type]
+        slot = Slot(self, index)  # type: ignore[arg-type]
         slot.state, slot.seq, slot.readers = SlotState.READING, seq, 1
         slot.stamp = pickle.loads(stamp) if size else None
         slot.array = self._array(index, generation, shape, dtype)
