@@ -95,7 +95,6 @@ class _Ring:
         self.slots = spec.slots
         self.capacity = spec.capacity
         self.stride = SLOT_HEADER + spec.capacity
-        self.view = self.segment.view
         self.map = self.segment.map
         self.words = self.segment.view[HEADER:].cast("q")
         """The ring as 64-bit words: slot ``i``'s header starts at word ``i * stride // 8``, so headers
