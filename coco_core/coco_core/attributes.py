@@ -88,7 +88,7 @@ class Attribute(Generic[T]):
         if origin in (list, tuple):
             inner = get_args(self.type)[0]
             items = [self._parse_scalar(inner, item) for item in _split_list(text)]
-            return origin(items)  # type: ignore[return-value]
+            return origin(items)
         return self._parse_scalar(self.type, text)
 
     def _parse_scalar(self, tp: Any, text: str) -> Any:

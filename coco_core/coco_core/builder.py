@@ -118,8 +118,9 @@ class _Builder:
                 elif edge.kind == "dynamic":
                     graph.add_dynamic(edge.parent, edge.child, edge.history)
                 elif edge.dh is not None:
+                    d, theta, r, alpha = edge.dh  # four numbers: the parser checked
                     graph.add_edge(AxisEdge.from_dh(edge.parent, edge.child, edge.joint, edge.joint_type,
-                                                    *edge.dh, value=edge.value))
+                                                    d, theta, r, alpha, value=edge.value))
                 else:
                     graph.add_axis(edge.parent, edge.child, edge.joint, edge.joint_type,
                                    np.array(edge.origin), edge.axis, edge.value)

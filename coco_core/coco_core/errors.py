@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 import signal
 from dataclasses import dataclass
 
@@ -40,7 +41,7 @@ class ConfigErrors(CocoError):
         super().__init__(f"{len(self.errors)} {noun} in the application:\n{lines}")
 
 
-def did_you_mean(name: str, valid: "list[str] | set[str] | dict[str, object]") -> str:
+def did_you_mean(name: str, valid: "Iterable[str]") -> str:
     """Phrase the list of valid names for an unknown-name error, closest match first."""
     import difflib
 

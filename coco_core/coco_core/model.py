@@ -154,11 +154,11 @@ class EdgeSpec:
     """Axis edges: the joint name that drives the edge (``set_joint``, JointState names)."""
     joint_type: str = ""
     """Axis edges: ``revolute``, ``continuous`` or ``prismatic``."""
-    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    axis: tuple[float, ...] = (0.0, 0.0, 1.0)
     """Axis edges: the joint axis in the child frame (not normalised; the graph normalises it)."""
     value: float = 0.0
     """Axis edges: the initial joint value (radians or metres)."""
-    dh: tuple[float, float, float, float] | None = None
+    dh: tuple[float, ...] | None = None
     """Axis edges given by classic Denavit-Hartenberg parameters ``(d, theta, r, alpha)`` instead of
     ``origin`` and ``axis``."""
     history: int | None = None

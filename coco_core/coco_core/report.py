@@ -66,8 +66,8 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
         error = f"{_us(summary.p50)} / {_us(summary.p99)} / {_us(summary.max)}" if summary else "-"
         shot.activities.append([activity.name + (" (main)" if activity.main else ""), activity.describe(),
                                 str(activity.stats.cycles), str(activity.stats.overruns), error])
-    for activity, components in app.schedule_tree():
-        if activity is not None and activity.process != app.process:
+    for owner, components in app.schedule_tree():
+        if owner is not None and owner.process != app.process:
             continue
         for top in components:
             for component in top.walk():
@@ -75,7 +75,7 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
                 latency = stats.latency
                 shot.components.append([
                     component.name if component.owner is None else f"  {component.name} (peer)",
-                    activity.name if activity else "-",
+                    owner.name if owner else "-",
                     str(stats.executions), _ms(stats.compute.total),
                     _us(stats.compute.mean), _us(stats.compute.std),
                     _ms(stats.service.mean), _ms(stats.service.std),

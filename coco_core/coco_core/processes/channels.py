@@ -105,10 +105,10 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
                 if not isinstance(out, PooledOutputPort):
                     raise ConfigError(f"{plan.src} is not a pooled output: a POOL connection needs one")
                 if not isinstance(out.pool, ShmFramePool):  # one shared pool for every reader process
-                    out.pool = ShmFramePool(plan.channel)  # type: ignore[assignment]
+                    out.pool = ShmFramePool(plan.channel)  # type: ignore[assignment]  # FramePool's interface, in shared memory
                     for local in out.connections:  # readers in this process read the shared pool too
                         if isinstance(local, PoolConnection):
-                            local.pool = out.pool  # type: ignore[assignment]
+                            local.pool = out.pool
                 writer = ShmFrameNotifier(plan.channel)
             else:
                 writer = ShmWriter(plan.channel)

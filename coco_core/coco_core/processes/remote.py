@@ -78,7 +78,7 @@ def settle(future: Future[Any], message: dict[str, Any], process: str, target: s
         future.set_exception(RemoteError(process, target, message["type"], message["message"], message["traceback"]))
 
 
-def serve_call(app: Application, message: dict[str, Any], reply: Callable[[dict[str, Any]], None]) -> None:
+def serve_call(app: Application, message: dict[str, Any], reply: Callable[[dict[str, Any]], object]) -> None:
     """Run a call that arrived from another process on a component of this one; ``reply`` gets the
     outcome once the component's activity ran it."""
     try:

@@ -23,6 +23,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
 from typing import TYPE_CHECKING, Any
@@ -59,6 +60,11 @@ def exit_description(code: int | None) -> str:
         except ValueError:
             return f"killed by signal {-code}"
     return f"exit status {code}"
+
+
+def _deliver(future: Future[Any], message: dict[str, Any]) -> None:
+    """A child's answer to a request, into the future the launcher waits on."""
+    future.set_result(message.get("value"))
 
 
 @dataclass
@@ -284,8 +290,7 @@ class ProcessSupervisor:
         for child in self.children.values():
             future: Future[Any] = Future()
             if not child.stopped.is_set():
-                child.link.request("profile", lambda message, future=future: future.set_result(
-                    message.get("value")))
+                child.link.request("profile", partial(_deliver, future))
             waiting.append((child, future))
         deadline = time.monotonic() + PROFILE_TIMEOUT
         for child, future in waiting:

@@ -120,12 +120,12 @@ class ShmConnection(Connection):
         self.ring = _Ring(spec)
         self.mode = spec.policy.data
 
-    @property  # type: ignore[override]
-    def written(self) -> int:
+    @property
+    def written(self) -> int:  # type: ignore[override]  # the counter lives in shared memory
         return int(self.ring.counters[OFFERED])
 
-    @property  # type: ignore[override]
-    def read(self) -> int:
+    @property
+    def read(self) -> int:  # type: ignore[override]  # the counter lives in shared memory
         return int(self.ring.counters[READ])
 
     @property
@@ -296,7 +296,8 @@ def _reduce_array(array: np.ndarray) -> Any:
     """A contiguous array as its raw memory (out of band), its dtype's code and shape: numpy's own
     reduction pickles the dtype object, which costs most of a small sample's encoding."""
     if array.flags.c_contiguous and not array.dtype.hasobject:
-        return _array, (pickle.PickleBuffer(array), array.dtype.str, array.shape)
+        return _array, (pickle.PickleBuffer(array),  # type: ignore[arg-type]  # an ndarray is a buffer
+                        array.dtype.str, array.shape)
     return array.__reduce_ex__(5)
 
 

@@ -182,7 +182,7 @@ class ShmFramePool:
                             f"{STAMP_SIZE - 8}")
         with self._locked:
             record = self._record(slot.index)
-            if slot.pool is not self or record[STATE] != CODE[SlotState.WRITING]:  # type: ignore[comparison-overlap]
+            if slot.pool is not self or record[STATE] != CODE[SlotState.WRITING]:
                 raise ValueError(f"publish() needs a slot acquired from this pool, got {slot!r}")
             self.header[PUBLISHED] += 1
             slot.seq = record[SEQ] = int(self.header[PUBLISHED])
@@ -261,8 +261,8 @@ class ShmPoolReader(Connection):
         self._seen = 0
         self._read = 0
 
-    @property  # type: ignore[override]
-    def written(self) -> int:
+    @property
+    def written(self) -> int:  # type: ignore[override]  # the counter lives in shared memory
         return self.pool.published
 
     @property
@@ -270,8 +270,8 @@ class ShmPoolReader(Connection):
         source, _, sink = self.pool.spec.label.partition("->")
         return f"{source} -> {sink}"
 
-    @property  # type: ignore[override]
-    def read(self) -> int:
+    @property
+    def read(self) -> int:  # type: ignore[override]  # the counter lives in shared memory
         return self._read
 
     def push(self, value: Any) -> None:

@@ -183,7 +183,7 @@ class DynamicEdge(Edge):
                                           (time - before) / (after - before)))
 
     def describe(self) -> dict[str, Any]:
-        described = super().describe() if self._values else {
+        described: dict[str, Any] = super().describe() if self._values else {
             "parent": self.parent, "child": self.child, "kind": self.kind.value, "version": self.version,
             "transform": None}
         described.update(stamp=self._stamps[-1] if self._stamps else None, samples=len(self._stamps),

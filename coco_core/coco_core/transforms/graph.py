@@ -37,7 +37,7 @@ def _finite_time(value: Any, what: str) -> float:
     they would silently break the order of a history or return a NaN pose)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value):
         raise ValueError(f"{what} must be a finite number of seconds, got {value!r}")
-    return value
+    return float(value)
 
 
 class KinematicModel(Dependency):
@@ -156,7 +156,7 @@ class Query:
         self.source = source
         self.steps: list[_Step] = []
         self.dependencies: tuple[Dependency, ...] = ()
-        self.versions: tuple[int, ...] = ()
+        self.versions: tuple[int, ...] | None = ()
         self.graph_version = -1
         self.structure_version = -1
         self.value: np.ndarray = se3.IDENTITY
@@ -569,6 +569,7 @@ class TransformGraph:
             if (last_version == version and query.graph_version == version - 1 and query.step_versions
                     and query.structure_version == self.structure_version):
                 # Exactly one write since this query's value: one edge changed, known without scanning.
+                assert last_edge is not None  # a version after the first write names its edge
                 index = query.positions.get(last_edge)
                 if index is None and last_edge not in query.dependencies:
                     query.graph_version = version  # off the path: the value stands
@@ -617,6 +618,7 @@ class TransformGraph:
                 for k in range(low, high + 1):
                     value = steps[k].value(None)
                     result = value if result is None else result @ value
+                assert result is not None  # the loop ran at least once (low <= high)
                 if high + 1 < count:
                     result = result @ query.suffix[high + 1]
                 query.prefix_valid, query.suffix_valid = low, high + 1

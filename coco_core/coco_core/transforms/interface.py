@@ -16,6 +16,8 @@ first joint state (its zero-joint pose is no data), as robot_state_publisher; st
 from __future__ import annotations
 
 import logging
+from functools import partial
+
 import numpy as np
 
 from ..attributes import Attribute
@@ -52,7 +54,7 @@ class TransformationInterface(Component):
 
     urdf = Attribute(str, "", "URDF file or package:// URL to load into the graph; empty for none")
     prefix = Attribute(str, "", "prefix added to the URDF's frame names (several robots in one graph)")
-    publish = Attribute(list[str], [], "lookups to publish on output ports, each 'port=target:source' "
+    publish: Attribute[list[str]] = Attribute(list[str], [], "lookups to publish on output ports, each 'port=target:source' "
                         "(T_target_source)", check=_check_outputs)
     stamped = Attribute(bool, False, "publish Stamped(FramePose) with the stamp of the input that caused "
                         "the change (end-to-end latency), instead of plain FramePose")
@@ -78,7 +80,7 @@ class TransformationInterface(Component):
             port = self.add_output(port_name, Stamped if self.stamped else FramePose, f"T_{target}_{source}")
             query = self.transform_graph.query(target, source)
             # The path may not exist yet: the callback runs once it does, whoever completes it.
-            query.on_change(lambda value, port=port, query=query: self._publish(port, query, value))
+            query.on_change(partial(self._publish, port, query))
             self._lookups.append((port, query))
 
     def on_config(self) -> None:
@@ -151,6 +153,7 @@ class TransformationInterface(Component):
         if own:
             port.write(out)
         else:
+            assert activity is not None  # `own` when there is none
             activity.enqueue(lambda: port.write(out))
 
     @operation

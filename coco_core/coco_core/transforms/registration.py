@@ -294,6 +294,7 @@ def robust_average(samples: Sequence[np.ndarray] | np.ndarray,
         inliers = kept
         estimate = _average(stack[kept], quaternions[kept], weight[kept])
         iterations += 1
+    assert inliers is not None  # the first pass always sets it (max_iterations >= 1)
     translation.flags.writeable = rotation.flags.writeable = inliers.flags.writeable = False
     return AverageResult(se3.frozen(estimate), inliers, translation, rotation, translation_limit, rotation_limit,
                          iterations)
@@ -317,8 +318,8 @@ def _path_specs(via: EdgeSpec | Sequence[EdgeSpec]) -> list[EdgeSpec]:
     """One edge, or a sequence of edges: ``("camera", "marker")`` vs ``[("camera", "x"), ("x", "marker")]``."""
     if isinstance(via, Edge) or (not isinstance(via, str) and len(via) == 2
                                  and all(isinstance(frame, str) for frame in via)):
-        return [via]  # type: ignore[list-item]
-    return list(via)  # type: ignore[arg-type]
+        return [via]  # type: ignore[list-item]  # mypy does not narrow a pair of str through all()
+    return list(via)
 
 
 @dataclass
@@ -483,7 +484,8 @@ class Registration:
             for path in self.paths:
                 route = self._resolve(path)
                 keys = path.keys
-                versions = tuple(edge.version for _, edge in route[1:] if _key(edge.parent, edge.child) in keys)
+                versions = tuple(edge.version for _, edge in route[1:]
+                                 if edge is not None and _key(edge.parent, edge.child) in keys)
                 if only_new and versions == path.last_versions:
                     continue
                 try:

@@ -22,7 +22,7 @@ def frozen(matrix: np.ndarray) -> np.ndarray:
     return matrix
 
 
-def make(rotation: np.ndarray | None = None, translation: Sequence[float] | None = None) -> np.ndarray:
+def make(rotation: np.ndarray | None = None, translation: Sequence[float] | np.ndarray | None = None) -> np.ndarray:
     """A 4x4 transform from a 3x3 rotation and a translation (either may be omitted)."""
     transform = np.eye(4)
     if rotation is not None:
@@ -41,13 +41,13 @@ def inverse(transform: np.ndarray) -> np.ndarray:
     return result
 
 
-def quaternion_to_matrix(q: Sequence[float]) -> np.ndarray:
+def quaternion_to_matrix(q: Sequence[float] | np.ndarray) -> np.ndarray:
     """3x3 rotation of a quaternion ``(x, y, z, w)``; normalised first (on Python floats: every
     received pose goes through here, and four numbers are cheaper outside numpy)."""
     return np.array(_rotation_rows(q))
 
 
-def _rotation_rows(q: Sequence[float]) -> list[list[float]]:
+def _rotation_rows(q: Sequence[float] | np.ndarray) -> list[list[float]]:
     x, y, z, w = (float(c) for c in q)
     norm = math.sqrt(x * x + y * y + z * z + w * w)
     if not norm > 0.0:

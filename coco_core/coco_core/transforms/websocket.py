@@ -12,7 +12,7 @@ import base64
 import hashlib
 import struct
 import threading
-from typing import BinaryIO, Callable, Mapping
+from typing import Callable, Protocol
 from ..errors import WebSocketError
 
 GUID = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
@@ -31,7 +31,19 @@ def accept_key(key: str) -> str:
     return base64.b64encode(hashlib.sha1((key.strip() + GUID).encode("ascii")).digest()).decode("ascii")
 
 
-def handshake_headers(headers: Mapping[str, str]) -> dict[str, str]:
+class Headers(Protocol):
+    """What the handshake reads of a request's headers: a dict in tests, http.server's Message when served."""
+
+    def get(self, name: str, default: str, /) -> str: ...
+
+
+class ByteReader(Protocol):
+    """The socket's buffered reader (``rfile`` of http.server), or any stream of bytes in tests."""
+
+    def read(self, size: int, /) -> bytes: ...
+
+
+def handshake_headers(headers: Headers) -> dict[str, str]:
     """Check an upgrade request's headers; return the response headers of the 101 answer.
 
     Raises :class:`WebSocketError` naming what is missing.
@@ -41,7 +53,7 @@ def handshake_headers(headers: Mapping[str, str]) -> dict[str, str]:
     if "upgrade" not in headers.get("Connection", "").lower():
         raise WebSocketError("expected header 'Connection: Upgrade'")
     if headers.get("Sec-WebSocket-Version", "").strip() != "13":
-        raise WebSocketError(f"unsupported Sec-WebSocket-Version {headers.get('Sec-WebSocket-Version')!r}; "
+        raise WebSocketError(f"unsupported Sec-WebSocket-Version {headers.get('Sec-WebSocket-Version', '')!r}; "
                              "supported: 13")
     key = headers.get("Sec-WebSocket-Key", "").strip()
     try:
@@ -120,7 +132,7 @@ class WebSocket:
     ``write`` writes all bytes it is given.
     """
 
-    def __init__(self, reader: BinaryIO, write: Callable[[bytes], object]) -> None:
+    def __init__(self, reader: ByteReader, write: Callable[[bytes], object]) -> None:
         self._read = reader.read
         self._write = write
         self._write_lock = threading.Lock()
