@@ -57,7 +57,7 @@ class GLCameraManager(Component):
                         check=_vector3)
     up = Attribute(list[float], [0.0, 0.0, 1.0], "world direction shown upwards (look_at and the controllers)",
                    check=_vector3)
-    orientation = Attribute(list[float], [], "initial orientation as a quaternion x y z w of the GL camera "
+    orientation: Attribute[list[float]] = Attribute(list[float], [], "initial orientation as a quaternion x y z w of the GL camera "
                             "(-Z forward, +Y up) in the world; empty: from look_at", check=_quaternion)
     follow_frame = Attribute(str, "", "transformation-graph frame whose pose is the camera pose every frame")
     frame_convention = Attribute(str, "optical", "axes of follow_frame and of the pose port: optical (ROS "

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from types import ModuleType
 
 import moderngl
 
@@ -73,7 +74,9 @@ class HeadlessSurface(Surface):
     """An EGL context without any window (Mesa's llvmpipe on a machine without GPU or display)."""
 
     def __init__(self, width: int, height: int) -> None:
-        super().__init__(moderngl.create_standalone_context(backend="egl", require=GL_VERSION), width, height)
+        # moderngl's stub types each keyword as a dict; the function takes these plain values
+        context = moderngl.create_standalone_context(backend="egl", require=GL_VERSION)  # type: ignore[arg-type]
+        super().__init__(context, width, height)
 
 
 class _Glfw:
@@ -83,7 +86,7 @@ class _Glfw:
     windows = 0
 
     @classmethod
-    def acquire(cls) -> object:
+    def acquire(cls) -> ModuleType:
         import glfw  # only windowed managers need GLFW (and a display)
 
         with cls.lock:
@@ -135,7 +138,8 @@ class WindowSurface(Surface):
         super().__init__(moderngl.create_context(require=GL_VERSION), *glfw.get_framebuffer_size(window))
 
     def _window_size(self) -> tuple[int, int]:
-        return tuple(self._glfw.get_window_size(self.window))  # type: ignore[return-value]
+        width, height = self._glfw.get_window_size(self.window)
+        return width, height
 
     def _install_callbacks(self) -> None:
         glfw, window, push = self._glfw, self.window, self._events.append

@@ -140,7 +140,7 @@ class FPSCamera(CameraController):
 class ArcBallCamera(CameraController):
     """Orbit, pan and zoom around a target point."""
 
-    target = Attribute(list[float], [], "point orbited around (world frame); empty: the camera's look_at",
+    target: Attribute[list[float]] = Attribute(list[float], [], "point orbited around (world frame); empty: the camera's look_at",
                        check=lambda v: None if len(v) in (0, 3) else f"expected 3 numbers or nothing, got {len(v)}")
     rotate_button = Attribute(str, "left", "mouse button that rotates", choices=tuple(_BUTTONS))
     pan_button = Attribute(str, "right", "mouse button that pans", choices=tuple(_BUTTONS))

@@ -70,14 +70,14 @@ class GLEntity(PhongPeer):
 
     mesh = Attribute(str, "box", "mesh file or package:// URL (OBJ, STL, PLY, DAE, GLB ...), or a primitive: "
                      + ", ".join(PRIMITIVES))
-    size = Attribute(list[float], [], "primitive size: box x y z, sphere radius, cylinder radius length "
+    size: Attribute[list[float]] = Attribute(list[float], [], "primitive size: box x y z, sphere radius, cylinder radius length "
                      "(empty: unit box, sphere of radius 0.5, cylinder 0.5 x 1)")
     color = Attribute(list[float], [0.7, 0.7, 0.7], "r g b [a] in 0..1 for meshes without colour",
                       check=color_problem)
     position = Attribute(list[float], [0.0, 0.0, 0.0], "x y z offset in the reference frame",
                          check=_length_check(3))
     rpy = Attribute(list[float], [0.0, 0.0, 0.0], "roll pitch yaw (rad, URDF's fixed axes)", check=_length_check(3))
-    quaternion = Attribute(list[float], [], "x y z w, instead of rpy", check=_length_check(0, 4))
+    quaternion: Attribute[list[float]] = Attribute(list[float], [], "x y z w, instead of rpy", check=_length_check(0, 4))
     scale = Attribute(list[float], [1.0], "uniform or x y z scale", check=_length_check(1, 3))
     frame = Attribute(str, "", "transformation-graph frame the entity is attached to (empty: the world frame)")
     subdivide = Attribute(int, 0, "times each triangle is split in four at load", min=0, max=6)
@@ -131,7 +131,7 @@ class GLEntity(PhongPeer):
             pose = received @ pose
         color = tuple(self.color) + ((1.0,) if len(self.color) == 3 else ())
         scale = np.broadcast_to(np.asarray(self.scale, dtype=float), 3).copy()
-        return DrawState(color, pose, scale, list(self.parts), reference)  # type: ignore[arg-type]
+        return DrawState(color, pose, scale, list(self.parts), reference)
 
     def render(self, ctx: moderngl.Context, view: RenderView) -> None:
         state = self._state or self.base_state()

@@ -90,14 +90,15 @@ class FrameWriter(Component):
     def _video_frame(self, bgr: np.ndarray) -> None:
         size = (bgr.shape[1], bgr.shape[0])
         if self._video is None:
-            self._video = cv2.VideoWriter(str(self.video_path), cv2.VideoWriter_fourcc(*"mp4v"), self.fps, size)
+            self._video = cv2.VideoWriter(str(self.video_path), cv2.VideoWriter.fourcc(*"mp4v"), self.fps, size)
             if not self._video.isOpened():
                 self._video = None
                 raise OSError(f"FrameWriter {self.name}: OpenCV cannot open {self.video_path} for 'mp4v' video")
             self._video_size = size
         elif size != self._video_size:
+            width, height = self._video_size or (0, 0)
             raise ValueError(f"FrameWriter {self.name}: frame {self.written} is {size[0]}x{size[1]}, the video is "
-                             f"{self._video_size[0]}x{self._video_size[1]}: a video keeps one size (use png)")
+                             f"{width}x{height}: a video keeps one size (use png)")
         self._video.write(bgr)
 
     def on_stop(self) -> None:

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import time
+from functools import partial
 
 import moderngl
 import numpy as np
@@ -109,7 +110,7 @@ class GLManager(Component):
         # it draw).
         self._drawing = [peer for peer in self.walk()[1:]
                          if isinstance(peer, GLPeer) and peer.enabled
-                         and peer.run_guarded("gl_init", lambda peer=peer: peer.gl_init(ctx))]
+                         and peer.run_guarded("gl_init", partial(peer.gl_init, ctx))]
 
     def on_update(self) -> None:
         surface = self.surface
@@ -157,7 +158,8 @@ class GLManager(Component):
         views = self.views()
         fbo.use()
         ctx.viewport = (0, 0, *surface.size)
-        fbo.clear(*self.background[:3], self.background[3] if len(self.background) == 4 else 1.0, depth=1.0)
+        red, green, blue = self.background[:3]
+        fbo.clear(red, green, blue, self.background[3] if len(self.background) == 4 else 1.0, depth=1.0)
         for view in views:
             for peer in self._drawing:
                 if not peer.enabled:  # stopped by its error policy (or the application)

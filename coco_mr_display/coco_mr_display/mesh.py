@@ -147,10 +147,14 @@ def parts_of(geometry: Any, transform: np.ndarray | None = None, scale: Sequence
 def _part(mesh: trimesh.Trimesh, matrix: np.ndarray, fallback: Sequence[float] | None, keep: float) -> MeshPart:
     positions = mesh.vertices @ matrix[:3, :3].T + matrix[:3, 3]
     count = len(positions)
-    colors = uvs = texture = None
+    from trimesh.visual import ColorVisuals, TextureVisuals
+
+    colors: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+    texture: np.ndarray | None = None
     visual = mesh.visual
-    faces = mesh.faces
-    if visual.kind == "texture":
+    faces: np.ndarray = np.asarray(mesh.faces)
+    if isinstance(visual, TextureVisuals):
         material = visual.material
         image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
         if image is not None and visual.uv is not None and len(visual.uv) == count:
@@ -158,9 +162,9 @@ def _part(mesh: trimesh.Trimesh, matrix: np.ndarray, fallback: Sequence[float] |
             texture = np.ascontiguousarray(np.asarray(image.convert("RGBA"))[::-1])
         else:
             colors = np.tile(np.asarray(material.main_color, dtype="u1"), (count, 1))
-    elif visual.kind == "vertex":
+    elif isinstance(visual, ColorVisuals) and visual.kind == "vertex":
         colors = np.ascontiguousarray(visual.vertex_colors, dtype="u1")
-    elif visual.kind == "face":  # one vertex per face corner, so that no colour is averaged across faces
+    elif isinstance(visual, ColorVisuals) and visual.kind == "face":  # one vertex per face corner, so that no colour is averaged across faces
         positions, faces = positions[faces].reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3)
         colors = np.repeat(np.asarray(visual.face_colors, dtype="u1"), 3, axis=0)
     if np.linalg.det(matrix[:3, :3]) < 0.0:  # mirrored: keep the triangles wound outwards (for culling)

@@ -20,6 +20,7 @@ from coco_core.attributes import Attribute
 
 from .mesh import GpuMesh
 from .peer import GLPeer
+from .uniforms import uniform
 
 if TYPE_CHECKING:
     import moderngl
@@ -92,10 +93,10 @@ class PhongPeer(GLPeer):
     def gl_init(self, ctx: moderngl.Context) -> None:
         self._ctx = ctx
         self.program = ctx.program(vertex_shader=VERTEX_SHADER, fragment_shader=FRAGMENT_SHADER)
-        self.program["u_texture"].value = 0
-        self._model_view = self.program["u_model_view"]
-        self._color = self.program["u_color"]
-        self._source = self.program["u_source"]
+        self.program["u_texture"] = 0
+        self._model_view = uniform(self.program, "u_model_view")
+        self._color = uniform(self.program, "u_color")
+        self._source = uniform(self.program, "u_source")
 
     def begin(self, ctx: moderngl.Context, view: RenderView) -> None:
         """Per-view state: viewport, depth test, face culling, projection and light."""
@@ -108,10 +109,10 @@ class PhongPeer(GLPeer):
             ctx.enable(moderngl.CULL_FACE)
         else:
             ctx.disable(moderngl.CULL_FACE)
-        self.program["u_projection"].write(np.asarray(view.projection, dtype="f4").T.tobytes())
+        uniform(self.program, "u_projection").write(np.asarray(view.projection, dtype="f4").T.tobytes())
         light = np.asarray(self.light, dtype=float)
-        self.program["u_light"].value = tuple(light / np.linalg.norm(light))
-        self.program["u_weights"].value = (self.ambient, self.diffuse, self.specular, self.shininess)
+        self.program["u_light"] = tuple(light / np.linalg.norm(light))
+        self.program["u_weights"] = (self.ambient, self.diffuse, self.specular, self.shininess)
 
     def draw(self, mesh: GpuMesh, model_view: np.ndarray, color: Sequence[float], override: bool = False) -> None:
         """Draw one part at ``model_view`` (4x4, mesh -> eye); ``color`` (RGBA in 0..1) is used when
@@ -127,7 +128,7 @@ class PhongPeer(GLPeer):
         mesh.draw()
 
     def gl_release(self) -> None:
-        program = getattr(self, "program", None)
+        program: moderngl.Program | None = getattr(self, "program", None)
         if program is not None:
             program.release()
-            self.program = None
+            del self.program

@@ -75,7 +75,7 @@ def screen_basis(lower_left: Sequence[float], lower_right: Sequence[float],
 
 
 def off_axis(lower_left: Sequence[float], lower_right: Sequence[float], upper_left: Sequence[float],
-             eye: Sequence[float], near: float, far: float) -> tuple[np.ndarray, np.ndarray]:
+             eye: Sequence[float] | np.ndarray, near: float, far: float) -> tuple[np.ndarray, np.ndarray]:
     """(view, projection) for ``eye`` looking through the screen with these corners (world coordinates).
 
     The view's axes are the screen's (so "up" is the screen's up, whatever the head does); the

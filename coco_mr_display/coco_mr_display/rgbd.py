@@ -53,6 +53,7 @@ from coco_mr_vision.rgbd import RGBDFrame
 from .image_texture import ImageTexture
 from .peer import GLPeer
 from .shown import ShownInputs
+from .uniforms import uniform
 
 if TYPE_CHECKING:
     from .view import RenderView
@@ -382,7 +383,7 @@ class GLRGBDImage(GLPeer):
             self.upload(ctx)
         if not self._ready or self._pinhole is None:
             return
-        assert self._colors is not None and self._depths is not None
+        assert self._colors is not None and self._depths is not None and self._depths.texture is not None
         model_view = view.view @ self.camera_pose(view.frame)
         stride = self.stride or automatic_stride(self._samples, view.projection @ model_view, view.viewport,
                                                  self.vertex_spacing)
@@ -392,8 +393,8 @@ class GLRGBDImage(GLPeer):
         program["depth_unit"] = self._depths.depth_unit
         program["intrinsics"] = self._pinhole
         program["max_edge"] = self.max_edge
-        program["model_view"].write(model_view.T.astype("f4").tobytes())
-        program["projection"].write(view.projection.T.astype("f4").tobytes())
+        uniform(program, "model_view").write(model_view.T.astype("f4").tobytes())
+        uniform(program, "projection").write(view.projection.T.astype("f4").tobytes())
         self._depths.texture.use(0)
         self._colors.use(1)
         self._grid(ctx, stride).render(moderngl.TRIANGLES)

@@ -106,7 +106,7 @@ def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     ])
 
 
-def axis_angle(axis: Sequence[float], angle: float) -> np.ndarray:
+def axis_angle(axis: Sequence[float] | np.ndarray, angle: float) -> np.ndarray:
     """3x3 rotation of ``angle`` radians about the unit ``axis`` (Rodrigues)."""
     x, y, z = axis
     c, s = math.cos(angle), math.sin(angle)
