@@ -102,6 +102,7 @@ class CloudStructure:
             return fit_projective(self.grid, fx, fy, cx, cy, qx, qy, qz, support, vx, vy, vz, moments, out)
         if self.kind == "grid":
             g = self.cells
+            assert g is not None  # built with the structure of kind "grid"
             return fit_grid(self.points, g.keys, g.starts, g.ends, g.origin, g.cell, g.dims, qx, qy, qz, support,
                             vx, vy, vz, moments, out)
         distances, index = self.tree.query((qx, qy, qz), k=KDTREE_NEIGHBOURS, distance_upper_bound=support)
@@ -162,7 +163,7 @@ class KDTreeBuilder(Component):
     stride = Attribute(int, 1, "keep every stride-th row and column (organised) or point", min=1)
     voxel = Attribute(float, 0.0, "m: one point per voxel of this size (makes the cloud unorganised); "
                       "0: off", min=0.0)
-    intrinsics = Attribute(list[float], [], "fx fy cx cy of an organised cloud; empty: estimated from it")
+    intrinsics: Attribute[list[float]] = Attribute(list[float], [], "fx fy cx cy of an organised cloud; empty: estimated from it")
     cell = Attribute(float, 0.01, "m: cell of the uniform grid (about HapticCloud's support)", min=1e-4)
 
     cloud = InputPort(PointCloud | np.ndarray, event=True, doc="PointCloud, or an N x 3 array (mesh vertices)")
@@ -332,10 +333,12 @@ class HapticCloud(SurfaceRenderer):
 
     def render(self, x: float, y: float, z: float, vx: float, vy: float, vz: float) -> bool:
         structure, god = self.current, self.proxy_object
+        assert god is not None  # made in on_config, before the device's loop calls render
         if structure is None:
             god.reset()
             return False
         frame = self._cloud_frame
+        assert frame is not None  # set with the first structure
         frame.refresh()
         # The local surface is fitted where the proxy is (in contact) or where the device is.
         qx, qy, qz = god.proxy if god.contact else (x, y, z)
@@ -371,6 +374,7 @@ class HapticCloud(SurfaceRenderer):
         force step of stiffness x 1 mm; spread over ``blend`` cycles it is a ramp."""
         self._blended += 1
         old = self._old_fit
+        assert self.previous is not None  # render blends only while there is one
         found = self.previous.fit(cx, cy, cz, self.support, self.viewpoint, old, self._moments)
         if self._blended >= self.blend or not found or not self.neighbours:
             self.previous = None

@@ -216,7 +216,7 @@ class Placed(Surface):
     def children(self) -> Sequence[Surface]:
         return (self.child,)
 
-    def set_pose(self, pose: Sequence[Sequence[float]]) -> None:
+    def set_pose(self, pose: Sequence[Sequence[float]] | np.ndarray) -> None:
         matrix = np.eye(4)
         matrix[:3, :4] = np.asarray(pose, dtype=float)[:3, :4]
         self.matrix = matrix

@@ -43,6 +43,7 @@ class HapticImplicitSurf(SurfaceRenderer):
             self.scene = Scene(parse_surface(self.surface))
             self._built = self.surface
             self._frames = {frame: None for frame in self.scene.frames}
+            assert self.proxy_object is not None  # made in on_config
             self.proxy_object.scene = self.scene
         if self._frames:
             graph, render_frame = self.transform_graph, self.render_frame
@@ -53,4 +54,5 @@ class HapticImplicitSurf(SurfaceRenderer):
                     self._frames[frame] = pose
 
     def render(self, x: float, y: float, z: float, vx: float, vy: float, vz: float) -> bool:
+        assert self.proxy_object is not None  # made in on_config
         return self.proxy_object.step(x, y, z, vx, vy, vz)

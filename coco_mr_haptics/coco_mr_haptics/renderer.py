@@ -40,7 +40,7 @@ class FrameLink:
         self.component = component
         self.render_frame, self.frame = render_frame, frame
         self._seen: np.ndarray | None = None
-        self.r = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+        self.r: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
         self.t = _ZERO
 
     def refresh(self) -> None:
@@ -143,7 +143,8 @@ class SurfaceRenderer(Component):
         if reading is None:
             return
         state, (x, y, z), (vx, vy, vz) = reading
-        force = self.proxy_object.force if self.render(x, y, z, vx, vy, vz) else _ZERO
+        touching = self.render(x, y, z, vx, vy, vz)
+        force = self.proxy_object.force if touching and self.proxy_object is not None else _ZERO
         self.force.write(HapticForce(self._workspace.to_frame(force), state.stamp))
 
 
@@ -192,6 +193,7 @@ class HapticRenderer(Component):
             if not renderer.enabled or not renderer.render(x, y, z, vx, vy, vz):
                 continue
             god = renderer.proxy_object
+            assert god is not None  # render() returned True: it has one
             gx, gy, gz = god.force
             fx, fy, fz = fx + gx, fy + gy, fz + gz
             depth = max(depth, god.depth)
