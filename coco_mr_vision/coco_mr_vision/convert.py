@@ -46,7 +46,8 @@ def _gray16_to_gray8(data: np.ndarray) -> np.ndarray:
 
 
 def _gray8_to_gray16(data: np.ndarray) -> np.ndarray:
-    return cv2.multiply(data.astype(np.uint16), 257, dtype=cv2.CV_16U)
+    # OpenCV takes a scalar second operand; its stubs list arrays only
+    return cv2.multiply(data.astype(np.uint16), 257, dtype=cv2.CV_16U)  # type: ignore[call-overload]
 
 
 def _direct_steps() -> dict[tuple[ImageFormat, ImageFormat], Step]:

@@ -81,7 +81,7 @@ class MarkerTracker(Component):
 
     dictionary = Attribute(str, "DICT_5X5_1000", "cv2.aruco predefined dictionary", check=_check_dictionary)
     marker_length = Attribute(float, 0.1, "side of the markers' black square, in metres", min=1e-6)
-    ids = Attribute(list[int], [], "marker ids to report (empty: every id)")
+    ids: Attribute[list[int]] = Attribute(list[int], [], "marker ids to report (empty: every id)")
     subpixel = Attribute(bool, True, "refine corners to sub-pixel accuracy (cornerSubPix)")
     publish = Attribute(bool, True, "write each pose into the transformation graph as camera -> marker")
     camera_frame = Attribute(str, "", "camera frame of the published edges (empty: the image's frame_id, "

@@ -28,6 +28,7 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.operations import operation
+from coco_core.pool import Slot
 from coco_core.ports import InputPort, PooledOutputPort
 from coco_core.stamps import Stamped, unstamped
 
@@ -105,7 +106,7 @@ class MeshReconstructor(Component):
         self.stalls = 0
         """Frames skipped because every slot of the pool was held by readers."""
         self._rays: tuple[tuple, np.ndarray, np.ndarray] | None = None
-        self._newest = None
+        self._newest: Slot | None = None
         """The slot published last: only this component writes slots, in its own thread, and an
         operation runs in that thread too, so the slot is intact when ``export_ply`` reads it."""
 
@@ -131,6 +132,7 @@ class MeshReconstructor(Component):
 
     def _ray_grid(self, frame: RGBDFrame, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
         k = frame.intrinsics
+        assert k is not None  # on_update refuses frames without
         key = (k.fx, k.fy, k.cx, k.cy, k.skew, rows, cols, self.stride)
         if self._rays is None or self._rays[0] != key:
             v, u = np.mgrid[0:rows, 0:cols].astype(np.float32) * self.stride

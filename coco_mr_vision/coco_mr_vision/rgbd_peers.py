@@ -64,6 +64,8 @@ def _intrinsics_file(path: str, default: CameraIntrinsics | None, frame_id: str)
 class _FilePairs(RgbdPeer):
     """A list of (colour file, depth file, time) read in order with OpenCV."""
 
+    path: Attribute[str]  # each dataset peer declares it, with its own description
+
     def _open(self) -> tuple[list[tuple[Path, Path, float | None]], CameraIntrinsics, float]:
         raise NotImplementedError
 
@@ -107,7 +109,7 @@ class TumRgbdPeer(_FilePairs):
         folder = _folder(self.path, "TUM RGB-D sequence")
         association = folder / (self.association or "associations.txt")
         if association.exists():
-            pairs = [(folder / row[1], folder / row[3], float(row[0]))
+            pairs: list[tuple[Path, Path, float | None]] = [(folder / row[1], folder / row[3], float(row[0]))
                      for row in _rows(association, 4)]
         elif self.association:
             raise CameraError(f"TUM association file {association} does not exist")
@@ -142,7 +144,7 @@ def associate(rgb: list[list[str]], depth: list[list[str]], max_difference: floa
     """Pairs colour and depth rows by nearest time, each row used once (TUM's ``associate.py``)."""
     depth_times = np.array([float(row[0]) for row in depth])
     used = np.zeros(len(depth), bool)
-    pairs = []
+    pairs: list[tuple[Path, Path, float | None]] = []
     for row in rgb:
         t = float(row[0])
         if not len(depth_times):

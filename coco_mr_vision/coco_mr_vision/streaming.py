@@ -52,7 +52,7 @@ class StreamingServer(Component):
         self.bytes = 0
 
     def on_config(self) -> None:
-        self._context = zmq.Context.instance()
+        self._context: zmq.Context[zmq.Socket[bytes]] = zmq.Context.instance()
         self._socket = self._context.socket(zmq.PUB)
         self._socket.setsockopt(zmq.SNDHWM, self.high_water_mark)
         self._socket.setsockopt(zmq.LINGER, 0)
@@ -111,7 +111,7 @@ class StreamingReceiver(Component):
                 "latency_mean": self.latency_sum / self.frames if self.frames else float("nan")}
 
     def on_config(self) -> None:
-        self._socket = zmq.Context.instance().socket(zmq.SUB)
+        self._socket: zmq.Socket[bytes] = zmq.Context.instance().socket(zmq.SUB)
         self._socket.setsockopt(zmq.SUBSCRIBE, b"")
         self._socket.setsockopt(zmq.LINGER, 0)
         self._socket.setsockopt(zmq.RCVHWM, 4)
