@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite: set up and build the workspace, run every package's tests with colcon and the
-# workspace-level tests in test/, print `colcon test-result --verbose`, and fail when any test failed
-# or when no test ran.
+# workspace-level tests in test/, print `colcon test-result --verbose`, type-check the packages with
+# mypy, and fail when any test failed, when no test ran or when mypy reports an error.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=setup.sh
@@ -17,5 +17,7 @@ mkdir -p build/workspace_tests
 python -m pytest test -o cache_dir=build/workspace_tests/.pytest_cache \
     --junit-xml=build/workspace_tests/pytest.xml --junit-prefix=workspace || status=$?
 colcon test-result --test-result-base build --verbose || status=$?
+# The type checker (mypy.ini): the five packages must stay clean, and every `type: ignore` needed.
+python -m mypy || status=$?
 python scripts/check_test_results.py build || status=$?
 exit "$status"

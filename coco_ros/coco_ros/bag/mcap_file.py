@@ -27,7 +27,7 @@ import zlib
 from dataclasses import dataclass
 from io import BytesIO
 from pathlib import Path
-from typing import Callable, Iterator, NamedTuple
+from typing import Any, Callable, Iterator, NamedTuple
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile
@@ -103,7 +103,7 @@ class _StrictStream(ReadDataStream):
         return data
 
 
-def _parse(record_class: type, body: bytes | memoryview):
+def _parse(record_class: Any, body: bytes | memoryview) -> Any:
     """Parse a record body with the mcap library; a body that ends early raises ValueError."""
     try:
         return record_class.read(_StrictStream(BytesIO(body)))
@@ -170,6 +170,7 @@ def _chunk(body: bytes | memoryview) -> _ChunkView:
 
 def _chunk_payload(chunk: _ChunkView) -> bytes | memoryview:
     """The decompressed records of a chunk, checked against its size and CRC."""
+    data: bytes | memoryview
     if chunk.compression == "":
         data = chunk.data
     elif chunk.compression == "zstd":
@@ -441,7 +442,7 @@ class McapFile:
                         run = Block(position, 0, message.log_time, message.log_time, frozenset(), False)
                     run.start = min(run.start, message.log_time)
                     run.end = max(run.end, message.log_time)
-                    run.channels = run.channels | {message.channel_id}
+                    run.channels = (run.channels or frozenset()) | {message.channel_id}
                 if run is not None:
                     run.length = next_position - run.offset
             elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):

@@ -65,7 +65,7 @@ def _store() -> Any:
 
 def _rosbags_message(message: Any, store: Any) -> Any:
     """The rosbags object of an rclpy message, field by field (nested messages recursively)."""
-    values = {}
+    values: dict[str, Any] = {}
     for name, kind in message.get_fields_and_field_types().items():
         value = getattr(message, name)
         base = kind.split("<", 1)[1].rstrip(">") if kind.startswith("sequence<") else kind.split("[", 1)[0]

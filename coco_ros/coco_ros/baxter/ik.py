@@ -68,14 +68,14 @@ class ArmIk:
         self.damping = damping
         self.null_gain = null_gain
 
-    def forward(self, q_arm: Sequence[float]) -> "pin.SE3":
+    def forward(self, q_arm: Sequence[float] | np.ndarray) -> "pin.SE3":
         """The frame's pose in the model root (``base``) for the arm joint values."""
         q = self.q_full.copy()
         q[self.q_index] = q_arm
         pin.framesForwardKinematics(self.model, self.data, q)
         return self.data.oMf[self.frame_id].copy()
 
-    def solve(self, target: "pin.SE3", q_start: Sequence[float], max_iterations: int = 100,
+    def solve(self, target: "pin.SE3", q_start: Sequence[float] | np.ndarray, max_iterations: int = 100,
               tolerance: float = 1e-6) -> IkResult:
         """Arm joints placing the frame at ``target`` (base frame), starting from ``q_start``."""
         model, data = self.model, self.data

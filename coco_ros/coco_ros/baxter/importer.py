@@ -90,8 +90,8 @@ def read_recording(csv_path: str | Path) -> Recording:
         if side is None:
             targets.append((index[column], -1, False))
         else:
-            driven, mimic = FINGER_JOINTS[side]
-            targets.append((index[driven], index[mimic], True))
+            driven_joint, mimic_joint = FINGER_JOINTS[side]
+            targets.append((index[driven_joint], index[mimic_joint], True))
 
     times: list[float] = []
     positions: list[list[float]] = []

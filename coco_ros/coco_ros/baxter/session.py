@@ -36,6 +36,7 @@ import argparse
 import math
 import sys
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -331,35 +332,38 @@ def generate_session(
         fingers = np.array([gripper_to_fingers(g) for g in grippers])
         rows[:, [index[n] for n in FINGER_JOINTS["left"]]] = fingers
         rows[:, [index[n] for n in FINGER_JOINTS["right"]]] = gripper_to_fingers(100.0)
-        rows = rows.tolist()
-        velocities = finite_difference_velocities(times.tolist(), rows)
+        positions = rows.tolist()
+        velocities = finite_difference_velocities(times.tolist(), positions)
 
         # 3. Every message with its log time, written in time order (ties: joint states first).
         def ns(t: float) -> int:
             return start_stamp + int(round(t * 1e9))
 
+        def tracked_wrist(t: float, noise_p: np.ndarray, noise_r: np.ndarray) -> object:
+            """The operator's wrist as the tracker reports it: the arm's pose with the tracker's noise."""
+            wrist = T_OPERATOR_BASE_ROBOT_BASE * ik.forward(arm_at(t)) * T_GRIPPER_WRIST
+            noisy = pin.SE3(wrist.rotation @ pin.exp3(noise_r), wrist.translation + noise_p)
+            return _pose_stamped(ns(t), "operator_base", noisy)
+
         events: list[tuple[int, int, int, str, Callable[[], object]]] = []
         for i, t in enumerate(times):
             events.append((ns(t), 0, i, "/robot/joint_states",
-                           lambda i=i, t=t: joint_state(ns(t), BAXTER_JOINT_NAMES, rows[i], velocities[i])))
+                           partial(joint_state, ns(t), BAXTER_JOINT_NAMES, positions[i], velocities[i])))
         order = {topic: k + 1 for k, topic in enumerate(POSE_RATES)}
         for topic, sample_times in topic_times.items():
             for i, t in enumerate(sample_times):
                 t = float(t)
+                make: Callable[[], object]
                 if topic == "/bowl/pose":
-                    make = lambda t=t: _pose_stamped(ns(t), "base", bowl_at(t))  # noqa: E731
+                    make = partial(_pose_stamped, ns(t), "base", bowl_at(t))
                 elif topic == "/target/pose":
-                    make = lambda t=t: _pose_stamped(ns(t), "base", target)  # noqa: E731
+                    make = partial(_pose_stamped, ns(t), "base", target)
                 elif topic == "/head_camera/camera_info":
-                    make = lambda t=t: _camera_info(ns(t))  # noqa: E731
+                    make = partial(_camera_info, ns(t))
                 else:
                     noise_p = noise_rng.normal(0.0, TRACKER_NOISE[0], 3)
                     noise_r = noise_rng.normal(0.0, TRACKER_NOISE[1], 3)
-
-                    def make(t=t, noise_p=noise_p, noise_r=noise_r):
-                        wrist = T_OPERATOR_BASE_ROBOT_BASE * ik.forward(arm_at(t)) * T_GRIPPER_WRIST
-                        noisy = pin.SE3(wrist.rotation @ pin.exp3(noise_r), wrist.translation + noise_p)
-                        return _pose_stamped(ns(t), "operator_base", noisy)
+                    make = partial(tracked_wrist, t, noise_p, noise_r)
                 events.append((ns(t), order[topic], i, topic, make))
         events.sort(key=lambda e: e[:3])
 

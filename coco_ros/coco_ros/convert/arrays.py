@@ -48,7 +48,7 @@ class MultiArrayConverter(Converter[object, np.ndarray]):
         name = type_name.rsplit("/", 1)[-1]
         if type_name not in TYPE_NAMES:
             raise ValueError(f"no multi-array converter for {type_name!r}; supported: {', '.join(TYPE_NAMES)}")
-        self.type_name = type_name  # type: ignore[misc] - one class serves every element type
+        self.type_name = type_name  # type: ignore[misc]  # one class serves every element type
         self.dtype, self.typecode = ELEMENT_TYPES[name]
         self.labels = tuple(str(label) for label in labels)
 

@@ -83,7 +83,7 @@ def typed_array(values: np.ndarray, typecode: str) -> array.array:
     contiguous = np.ascontiguousarray(values)
     if contiguous.dtype.itemsize != result.itemsize and typecode != "B":
         raise ValueError(f"cannot store {contiguous.dtype} values in an array of {typecode!r}")
-    result.frombytes(contiguous.reshape(-1).view(np.uint8))
+    result.frombytes(contiguous.reshape(-1).view(np.uint8))  # type: ignore[arg-type]  # an ndarray is a buffer
     return result
 
 

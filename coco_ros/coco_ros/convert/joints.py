@@ -43,6 +43,7 @@ class JointStateConverter(Converter[JointState, JointSample]):
         self._check_message(msg)
         names = tuple(msg.name)
         positions = _values(msg.position, "position", names, required=True)
+        assert positions is not None  # required: refused rather than None
         return JointStateSample(names, positions, header_stamp(msg.header),
                                 _values(msg.velocity, "velocity", names), _values(msg.effort, "effort", names))
 
@@ -52,7 +53,9 @@ class JointStateConverter(Converter[JointState, JointSample]):
         stays an array from the bag to Pinocchio. Same result and same refusals as :meth:`to_coco`;
         a big-endian message (never written by rosbag2 on the usual machines) goes through rclpy."""
         if len(data) < 4 or data[1] != 1:  # encapsulation: CDR little-endian is 00 01
-            return super().from_cdr(data)
+            sample = super().from_cdr(data)  # through to_coco
+            assert isinstance(sample, JointStateSample)
+            return sample
         try:
             return _joint_state_from_cdr(data)
         except (struct.error, ValueError, UnicodeDecodeError) as error:
@@ -115,6 +118,7 @@ def _joint_state_from_cdr(data: bytes) -> JointStateSample:
     positions, velocities, efforts = (_sized(values, label, names_tuple, required)
                                       for values, label, required in zip(arrays, ("position", "velocity", "effort"),
                                                                          (True, False, False)))
+    assert positions is not None  # required: refused rather than None
     stamp = None if sec == 0 and nanosec == 0 else RosTime(sec, nanosec)
     return JointStateSample(names_tuple, positions, stamp, velocities, efforts)
 

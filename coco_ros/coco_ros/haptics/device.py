@@ -105,7 +105,8 @@ class ROSHapticDevice(Component):
             previous = self._previous
             if previous is not None and stamp > previous[0]:
                 dt = stamp - previous[0]
-                self._velocity = tuple((a - b) / dt for a, b in zip(position, previous[1]))  # type: ignore[assignment]
+                x0, y0, z0 = previous[1]
+                self._velocity = ((p.x - x0) / dt, (p.y - y0) / dt, (p.z - z0) / dt)
             self._previous = (stamp, position)
             if not self._frame:
                 self._frame = pose.header.frame_id

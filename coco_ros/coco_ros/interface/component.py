@@ -99,8 +99,8 @@ class _Route:
 class ROSInterface(Component):
     """Subscribes ROS topics into output ports and publishes input ports to ROS topics."""
 
-    subscribe = Attribute(list[str], [], f"topics received into output ports: {SYNTAX}", check=check_specs)
-    publish = Attribute(list[str], [], f"input (event) ports published to topics: {SYNTAX}", check=check_specs)
+    subscribe: Attribute[list[str]] = Attribute(list[str], [], f"topics received into output ports: {SYNTAX}", check=check_specs)
+    publish: Attribute[list[str]] = Attribute(list[str], [], f"input (event) ports published to topics: {SYNTAX}", check=check_specs)
 
     def init(self) -> None:
         subscribed, published = parse_specs(self.subscribe), parse_specs(self.publish)
@@ -112,8 +112,8 @@ class ROSInterface(Component):
         self._publications: list[_Route] = []
         for spec in subscribed:
             converter = spec.converter()
-            port = self.add_output(spec.port, converter.coco_type, doc=f"from {spec.topic} ({spec.type_name})")
-            self._subscriptions.append(_Route(spec, converter, port))
+            output = self.add_output(spec.port, converter.coco_type, doc=f"from {spec.topic} ({spec.type_name})")
+            self._subscriptions.append(_Route(spec, converter, output))
         for spec in published:
             converter = spec.converter()
             accepted = converter.coco_type if isinstance(converter.coco_type, tuple) else (converter.coco_type,)

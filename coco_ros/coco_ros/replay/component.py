@@ -116,15 +116,15 @@ class BagReplay(Component):
     start_offset = Attribute(float, 0.0, "seconds after the bag start where replay begins", min=0.0)
     duration = Attribute(float, 0.0, "seconds replayed per pass; 0: to the end", min=0.0)
     loop = Attribute(bool, False, "replay again after the end")
-    topics = Attribute(list[str], [], "bag topics to replay; empty: all")
-    remap = Attribute(list[str], [], "'/from:=/to' topic remappings")
-    ports = Attribute(list[str], [], "'/topic=port' port names; others derived from the topic")
+    topics: Attribute[list[str]] = Attribute(list[str], [], "bag topics to replay; empty: all")
+    remap: Attribute[list[str]] = Attribute(list[str], [], "'/from:=/to' topic remappings")
+    ports: Attribute[list[str]] = Attribute(list[str], [], "'/topic=port' port names; others derived from the topic")
     output = Attribute(str, "coco", "port values: coco (converted), ros (rclpy messages), bag (BagMessage)",
                        choices=("coco", "ros", "bag"))
     stop_at_end = Attribute(bool, False, "request the application stop when the bag is replayed and "
                             "processed downstream")
     max_per_update = Attribute(int, 256, "messages written per update at most", min=1)
-    options = Attribute(list[str], [], "'/topic;key=value[;key=value]' converter options of a topic")
+    options: Attribute[list[str]] = Attribute(list[str], [], "'/topic;key=value[;key=value]' converter options of a topic")
     stamped = Attribute(bool, False, "write Stamped(value, emission stamp) instead of plain values")
 
     clock = OutputPort(float, "replayed bag time in seconds since the epoch (simulated time)")
@@ -238,11 +238,13 @@ class BagReplay(Component):
         """Whether the messages replayed have been processed downstream: nothing in flight in the
         application (:meth:`~coco_core.application.Application.in_flight`) at two checks in a row
         (a consumer may be between reading and writing on), or ``DRAIN_TIMEOUT`` passed."""
+        assert self.app is not None  # replaying: the component is in a running application
         self._idle_checks = 0 if self.app.in_flight(besides=self.activity) else self._idle_checks + 1
         return self._idle_checks >= 2 or time.monotonic() - self._ended_at > DRAIN_TIMEOUT
 
     def _deliver(self, played: Played) -> None:
         port, converter = self._routes[played.message.topic]
+        value: Any
         if self.output == "bag":
             value = played.message
         elif converter is not None:  # from the CDR bytes: a converter may skip the rclpy message

@@ -52,7 +52,7 @@ class BagRecorder(Component):
     """Records its input ports into a rosbag2 bag; see the module docstring."""
 
     folder = Attribute(Path, Path(""), "new bag folder")
-    topics = Attribute(list[str], [], "'port=/topic:pkg/msg/Type' items, one input port each")
+    topics: Attribute[list[str]] = Attribute(list[str], [], "'port=/topic:pkg/msg/Type' items, one input port each")
     time = Attribute(str, "receive", "log time: receive, stamp or bag", choices=("receive", "stamp", "bag"))
     compression = Attribute(str, "none", "chunk compression", choices=("none", "zstd", "lz4"))
 

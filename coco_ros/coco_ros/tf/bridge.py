@@ -58,7 +58,7 @@ _SHOWN = 12
 class TFBridge(Component):
     """Broadcasts graph frames on /tf and /tf_static and ingests ROS frames into the graph."""
 
-    publish = Attribute(list[str], [], "graph lookups broadcast on /tf, each 'parent:child' (T_parent_child)",
+    publish: Attribute[list[str]] = Attribute(list[str], [], "graph lookups broadcast on /tf, each 'parent:child' (T_parent_child)",
                         check=check_pairs)
     root = Attribute(str, "", "broadcast every dynamic, axis and moving URDF edge reachable from this frame on "
                      "/tf (and only the static edges reachable from it on /tf_static); empty: none")

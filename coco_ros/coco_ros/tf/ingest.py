@@ -87,7 +87,7 @@ class TFIngest:
             return False
         return True
 
-    def _write(self, pair: Pair, write: Callable[[], None]) -> None:
+    def _write(self, pair: Pair, write: Callable[[], object]) -> None:
         try:
             write()
         except (LookupError, ValueError) as error:
