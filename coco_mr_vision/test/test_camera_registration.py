@@ -25,7 +25,8 @@ from PIL import Image as PILImage  # noqa: E402
 
 from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort  # noqa: E402
 from coco_core.transforms.interface import TransformationInterface  # noqa: E402
-from coco_core.transforms.registration import Registration, transform_residuals  # noqa: E402
+from coco_core.transforms.averaging import transform_residuals  # noqa: E402
+from coco_core.transforms.registration import Registration  # noqa: E402
 from coco_mr_vision.image import CameraIntrinsics, Image  # noqa: E402
 from coco_mr_vision.marker_tracker import MarkerTracker  # noqa: E402
 

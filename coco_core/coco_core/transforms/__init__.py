@@ -11,9 +11,8 @@ __all__ = [
     "AxisEdge", "DynamicEdge", "Edge", "EdgeKind", "ExtrapolationError", "JointType", "KinematicModel",
     "ModelEdge", "Query", "StaticEdge", "TransformError", "TransformGraph",
 ]
-from .registration import (AverageResult, MeasurementPath, PathStatistics, Registration, RegistrationError,
-                           RegistrationResult, average_quaternions, average_transforms, robust_average,
-                           transform_residuals)
+from .averaging import AverageResult, average_quaternions, average_transforms, robust_average, transform_residuals
+from .registration import MeasurementPath, PathStatistics, Registration, RegistrationError, RegistrationResult
 
 __all__ += [
     "AverageResult", "MeasurementPath", "PathStatistics", "Registration", "RegistrationError", "RegistrationResult",
