@@ -9,7 +9,8 @@
 
 from .errors import BagError, MessageTypeError
 from .qos import TF_STATIC, Qos
-from .reader import BagMessage, BagReader, TopicInfo
+from .reader import BagMessage, BagReader
+from .topic import TopicInfo
 from .writer import BagWriter
 
 __all__ = [

@@ -16,23 +16,12 @@ from typing import Any
 import yaml
 
 from .errors import BagError
-from .qos import Qos, dump_profiles, parse_profiles
+from .qos import dump_profiles, parse_profiles
+from .topic import TopicInfo
 
 FILE_NAME = "metadata.yaml"
 VERSION = 9
 ROS_DISTRO = "jazzy"
-
-
-@dataclass(frozen=True)
-class TopicRecord:
-    """What metadata.yaml says about one topic."""
-
-    name: str
-    type: str
-    serialization_format: str
-    offered_qos_profiles: tuple[Qos, ...]
-    type_description_hash: str
-    message_count: int
 
 
 @dataclass(frozen=True)
@@ -55,7 +44,7 @@ class BagMetadata:
     starting_time: int
     duration: int
     message_count: int
-    topics: tuple[TopicRecord, ...]
+    topics: tuple[TopicInfo, ...]
     compression_format: str
     compression_mode: str
     ros_distro: str
@@ -86,7 +75,7 @@ def read_metadata(folder: str | Path) -> BagMetadata | None:
             except ValueError:
                 profiles = ()  # the channel metadata in the .mcap file has them too
             topics.append(
-                TopicRecord(
+                TopicInfo(
                     name=str(topic["name"]),
                     type=str(topic["type"]),
                     serialization_format=str(topic.get("serialization_format", "cdr")),
@@ -123,7 +112,7 @@ def read_metadata(folder: str | Path) -> BagMetadata | None:
 
 def metadata_document(
     files: list[FileRecord],
-    topics: list[TopicRecord],
+    topics: list[TopicInfo],
     custom_data: dict[str, str] | None = None,
 ) -> dict[str, Any]:
     """The version 9 ``metadata.yaml`` document of a bag made of these files and topics."""

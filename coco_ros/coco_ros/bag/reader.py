@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import heapq
 import re
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
@@ -26,40 +26,11 @@ from coco_core.errors import did_you_mean
 from .errors import BagError, MessageTypeError
 from .mcap_file import McapFile, RawMessage
 from .message_types import TF_MESSAGE, TypeResolver
-from .metadata import BagMetadata, TopicRecord, read_metadata
+from .metadata import BagMetadata, read_metadata
 from .qos import Qos, parse_profiles
+from .topic import TopicInfo
 
 _UNSET: Any = object()
-
-
-@dataclass(frozen=True)
-class TopicInfo:
-    """One topic of a bag."""
-
-    name: str
-    type: str
-    """``pkg/msg/Name``."""
-    serialization_format: str
-    """``cdr`` for every ROS 2 bag."""
-    offered_qos_profiles: tuple[Qos, ...]
-    """The QoS the recorded publishers offered (from the channel, else from metadata.yaml)."""
-    message_count: int
-    """Readable messages (in a damaged bag, fewer than metadata.yaml may say)."""
-    definition: str = ""
-    """The complete message definition stored in the bag's schema."""
-    definition_encoding: str = ""
-    type_description_hash: str = ""
-
-    @property
-    def latched(self) -> bool:
-        """Whether a late subscriber would have received this topic's last messages.
-
-        True when every recorded publisher offered TRANSIENT_LOCAL durability, as rosbag2 decides
-        its playback QoS; a ``/tf_static`` recorded without QoS information (old bags) counts too.
-        """
-        if not self.offered_qos_profiles:
-            return self.name == "/tf_static" or self.name.endswith("/tf_static")
-        return all(profile.transient_local for profile in self.offered_qos_profiles)
 
 
 class _TopicDecoder:
@@ -207,7 +178,7 @@ class BagReader:
         return files
 
     def _build_topics(self) -> None:
-        declared: dict[str, TopicRecord] = {}
+        declared: dict[str, TopicInfo] = {}
         if self.metadata is not None:
             declared = {t.name: t for t in self.metadata.topics}
         counts: dict[str, int] = {}

@@ -37,7 +37,8 @@ from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
 
 from .errors import BagError
 from .message_types import normalize_type, type_name_of
-from .metadata import FileRecord, TopicRecord, dump_metadata, metadata_document, write_metadata
+from .metadata import FileRecord, dump_metadata, metadata_document, write_metadata
+from .topic import TopicInfo
 from .qos import TF_STATIC, Qos, dump_profiles_string
 from .schema import ENCODING, DefinitionSource
 
@@ -140,7 +141,8 @@ class _State:
         duration = (self.end - start) if self.end is not None else 0
         files = [FileRecord(self.file_path.name, start, duration, self.count)]
         topics = [
-            TopicRecord(t.name, t.type, "cdr", t.profiles, t.type_hash, t.count) for t in self.topics.values()
+            TopicInfo(name=t.name, type=t.type, serialization_format="cdr", offered_qos_profiles=t.profiles,
+                      message_count=t.count, type_description_hash=t.type_hash) for t in self.topics.values()
         ]
         return metadata_document(files, topics, self.custom_data)
 
