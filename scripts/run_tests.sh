@@ -11,7 +11,10 @@ cd "$ROOT"
 export PYTEST_ADDOPTS="--timeout=300 ${PYTEST_ADDOPTS:-}"
 rm -rf build/*/pytest.xml build/workspace_tests
 status=0
-colcon --log-base log test --build-base build --install-base install \
+# A test that hangs where pytest's --timeout cannot reach it (blocked in C code with the Python lock
+# held) must fail the run, not outlast the CI's limit: the package tests together get 40 minutes (about
+# 10 on a 2-core machine), then timeout ends colcon and every process it started.
+timeout --kill-after=30 2400 colcon --log-base log test --build-base build --install-base install \
     --event-handlers console_direct+ summary+ || status=$?
 mkdir -p build/workspace_tests
 python -m pytest test -o cache_dir=build/workspace_tests/.pytest_cache \

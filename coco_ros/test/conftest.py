@@ -76,3 +76,4 @@ def rclpy_peer(monkeypatch: pytest.MonkeyPatch, domain: str, name: str) -> Itera
     executor.shutdown()
     node.destroy_node()
     context.try_shutdown()
+    context.destroy()  # its DDS participant ends here, not whenever the garbage collector gets to it

@@ -159,6 +159,7 @@ class Hosting:
         finally:
             self.node.destroy_node()
             self.context.try_shutdown()
+            self.context.destroy()
 
 
 @pytest.fixture

@@ -31,10 +31,17 @@ def own_domain(monkeypatch) -> None:
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 
-def cli(*args: str, timeout: float = 20.0) -> subprocess.CompletedProcess:
+UDP_ONLY = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
+"""Fast DDS without its shared-memory transport, for the test whose subscriber stops itself (SIGSTOP):
+a process stopped at an arbitrary point may hold a lock of a shared-memory port that the replay's
+participant then waits on (with the Python lock held, out of reach of pytest's timeout); a stopped
+process holds nothing of a UDP socket but its own buffer."""
+
+
+def cli(*args: str, timeout: float = 20.0, transports: dict[str, str] | None = None) -> subprocess.CompletedProcess:
     env = dict(os.environ, ROS_DOMAIN_ID=DOMAIN, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                PYTHONPATH=os.pathsep.join([str(PACKAGE), str(PACKAGE.parent / "coco_core"),
-                                           os.environ.get("PYTHONPATH", "")]))
+                                           os.environ.get("PYTHONPATH", "")]), **(transports or {}))
     return subprocess.run([sys.executable, "-m", "coco_ros.replay.cli", *args, "--no-progress"],
                           capture_output=True, text=True, timeout=timeout, env=env)
 
@@ -75,8 +82,10 @@ def test_fast_replay_reaches_a_ros_subscriber(chatter_bag):
             time.sleep(0.05)
     finally:
         executor.shutdown()
+        spinner.join(timeout=5)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+        context.destroy()  # its DDS participant ends here, before the stuck-subscriber test
     assert result.returncode == 0, result.stderr
     assert "not replaying" not in result.stderr, result.stderr  # /tf_static too: tf2_msgs is built here
     assert [g.strip() for g in got] == [f"hello {i}" for i in range(COUNT)]
@@ -157,8 +166,8 @@ print(counts["/tf"], counts["/odom"], counts["/amcl_pose"], flush=True)
 """
 
 
-def start_subscriber(mode: str, seconds: float) -> subprocess.Popen:
-    env = dict(os.environ, ROS_DOMAIN_ID=DOMAIN, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+def start_subscriber(mode: str, seconds: float, transports: dict[str, str] | None = None) -> subprocess.Popen:
+    env = dict(os.environ, ROS_DOMAIN_ID=DOMAIN, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **(transports or {}))
     return subprocess.Popen([sys.executable, "-c", SUBSCRIBER, mode, str(seconds)], stdout=subprocess.PIPE,
                             text=True, env=env)
 
@@ -191,10 +200,12 @@ def robot_bag(tmp_path_factory) -> Path:
 
 def replay_to_subscriber(bag: Path, mode: str) -> tuple[subprocess.CompletedProcess, list[str]]:
     """``coco-replay --fast`` of /tf and /odom to a subscriber process in ``mode``: (result, its counts)."""
-    subscriber = start_subscriber(mode, 25.0)
+    transports = UDP_ONLY if mode == "stuck" else None
+    subscriber = start_subscriber(mode, 25.0, transports)
     try:
         assert subscriber.stdout.readline().strip() == "ready"
-        result = cli(str(bag), "--fast", "--wait-subscribers", "2", "--topics", "/tf", "/odom", timeout=60)
+        result = cli(str(bag), "--fast", "--wait-subscribers", "2", "--topics", "/tf", "/odom", timeout=60,
+                     transports=transports)
         if mode == "stuck":
             return result, []
         return result, subscriber.communicate(timeout=30)[0].split()

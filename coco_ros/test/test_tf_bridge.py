@@ -70,6 +70,7 @@ def ros(monkeypatch: pytest.MonkeyPatch):
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()
+        context.destroy()
 
 
 def test_in_one_process_tf_in_and_tf_static_out(ros) -> None:
