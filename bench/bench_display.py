@@ -52,12 +52,11 @@ from coco_core.application import Application
 from coco_core.component import Component
 from coco_core.ports import InputPort, OutputPort
 from coco_core.transforms import se3
-from coco_core.transforms.resources import resolve
-from coco_core.transforms.urdf import load_urdf
+from coco_core.transforms.urdf import UrdfModel, load_urdf
 from coco_mr_display.camera import GLCameraManager
 from coco_mr_display.manager import GLManager
 from coco_mr_display.rgbd import GLRGBDImage, grid_indices
-from coco_mr_display.urdf import GLUrdf, load_links, read_visuals
+from coco_mr_display.urdf import GLUrdf, load_links, mesh_paths
 from coco_mr_vision.image import CameraIntrinsics, Image
 from coco_mr_vision.rgbd import RGBDFrame
 
@@ -140,7 +139,7 @@ class CocoScene:
         scene_graph(self.app)
         self.manager = GLManager("display", width=SIZE[0], height=SIZE[1], visualization="mono")
         self.manager.add_peer(GLCameraManager("camera", **VIEWER))
-        self.urdf = self.manager.add_peer(GLUrdf("baxter", urdf=BAXTER_URDF, simplify=simplify)) if baxter else None
+        self.urdf = self.manager.add_peer(GLUrdf("baxter", simplify=simplify)) if baxter else None
         self.surface = self.manager.add_peer(GLRGBDImage("surface", frame="rgbd_camera", max_edge=MAX_EDGE,
                                                          stride=stride, vertex_spacing=spacing)) if rgbd else None
         self.sensor, self.screen = Sensor("sensor"), Screen("screen")
@@ -256,8 +255,10 @@ class PyrenderScene:
         self.links: list[tuple[str, Any]] = []
         self.triangles = 0
         if baxter:
-            _, visuals = read_visuals(resolve(BAXTER_URDF))
-            links = load_links(visuals, (0.6, 0.6, 0.6, 1.0), keep=simplify, cancelled=threading.Event())
+            model = self.app.transforms.models["baxter"]
+            assert isinstance(model, UrdfModel)
+            links = load_links(model.visuals, mesh_paths(model), (0.6, 0.6, 0.6, 1.0), keep=simplify,
+                               cancelled=threading.Event())
             for link, parts in links.items():
                 meshes = [trimesh.Trimesh(part.positions, part.indices, process=False,
                                           vertex_colors=part.colors if part.colors is not None else None)

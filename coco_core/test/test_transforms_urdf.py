@@ -514,3 +514,59 @@ def test_mimic_chains_and_cycles():
                                '<limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="grip"/>')
     with pytest.raises(UrdfError, match="cycle: slide -> grip -> slide"):
         UrdfModel.load(cycle)
+
+
+# --- visuals: read in the same parse as the kinematics ---------------------------------------------
+
+def test_baxter_visuals_match_yourdfpy(baxter, references):
+    """Every visual of the real Baxter, as yourdfpy (an independent loader) reads it: link, origin,
+    geometry, mesh file and scale, and the material's colour (its own or the robot-level one it names)."""
+    _, model = baxter
+    robot = references[2].robot
+    named = {material.name: material.color.rgba for material in robot.materials if material.color is not None}
+    expected = []
+    for link in robot.links:
+        for visual in link.visuals:
+            material = visual.material
+            rgba = None if material is None else (material.color.rgba if material.color is not None
+                                                  else named.get(material.name))
+            geometry = visual.geometry
+            mesh = geometry.mesh
+            expected.append((link.name, np.eye(4) if visual.origin is None else visual.origin,
+                             mesh.filename if mesh is not None else "",
+                             None if mesh is None or mesh.scale is None else tuple(np.broadcast_to(mesh.scale, 3)),
+                             None if rgba is None else tuple(rgba)))
+    assert len(model.visuals) == len(expected) > 30
+    for visual, (link, origin, filename, scale, color) in zip(model.visuals, expected):
+        assert (visual.link, visual.filename, visual.scale, visual.color) == (link, filename, scale, color)
+        np.testing.assert_allclose(visual.origin, origin, atol=TOLERANCE)
+
+
+def test_visual_shapes_materials_and_errors():
+    urdf = """<robot name="shapes">
+      <material name="blue"><color rgba="0 0 1 1"/></material>
+      <link name="a">
+        <visual><origin xyz="1 2 3" rpy="0 0 1.5707963267948966"/><geometry><box size="1 2 3"/></geometry>
+          <material name="blue"/></visual>
+        <visual><geometry><sphere radius="0.5"/></geometry><material name="x"><color rgba="1 0 0 0.5"/></material>
+        </visual>
+        <visual><geometry><cylinder radius="0.1" length="2"/></geometry></visual>
+        <visual><geometry><mesh filename="meshes/part.stl" scale="0.001"/></geometry></visual>
+      </link>
+    </robot>"""
+    graph = TransformGraph()
+    model = load_urdf(graph, urdf)
+    box, sphere, cylinder, mesh = model.visuals
+    assert (box.shape, box.size, box.color) == ("box", (1.0, 2.0, 3.0), (0.0, 0.0, 1.0, 1.0))
+    np.testing.assert_allclose(box.origin, se3.make(se3.rpy_to_matrix(0, 0, math.pi / 2), [1, 2, 3]))
+    assert (sphere.shape, sphere.size, sphere.color) == ("sphere", (0.5,), (1.0, 0.0, 0.0, 0.5))
+    assert (cylinder.shape, cylinder.size, cylinder.color) == ("cylinder", (0.1, 2.0), None)
+    assert (mesh.filename, mesh.scale) == ("meshes/part.stl", (0.001, 0.001, 0.001))
+    assert graph.models == {"shapes": model}, "a robot of one link is a model of the graph too"
+    for bad, message in [('<box size="1 2"/>', r"size='1 2' must be 3 number\(s\)"),
+                         ('<mesh/>', "<mesh> has no filename"),
+                         ('<cone/>', "has no <geometry> with one of mesh, box, sphere, cylinder"),
+                         ('<cylinder radius="1"/>', "<cylinder> has no length")]:
+        with pytest.raises(UrdfError, match=message):
+            load_urdf(TransformGraph(), f'<robot name="r"><link name="a"><visual><geometry>{bad}</geometry>'
+                                        "</visual></link></robot>")

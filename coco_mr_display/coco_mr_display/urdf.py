@@ -1,14 +1,17 @@
 """GLUrdf: a robot drawn from its URDF's visual meshes, every link posed from the transformation graph.
 
-The kinematics are not computed here: a TransformationInterface (or anything else) loads the same
-URDF into the application's graph with the same ``prefix`` and writes the joint values; GLUrdf looks
-up ``T_world_link`` of each link once per view (the graph caches paths and values, and Pinocchio
-computes all placements in one pass per joint update).
+The kinematics are not computed here, nor is the URDF read again: a TransformationInterface of the
+same process loads the robot into the application's graph (Pinocchio for the kinematics, the visuals
+from the same parse: :class:`~coco_core.transforms.urdf.UrdfModel`) and writes the joint values;
+GLUrdf draws that model's visuals and looks up ``T_world_link`` of each link once per view (the graph
+caches paths and values, and Pinocchio computes all placements in one pass per joint update). The
+application names the robot's file once, and what is drawn cannot disagree with what is computed.
 
 Loading is split so that errors are immediate and the render loop never waits:
 
-- ``on_config`` (fast, synchronous): parse the URDF, resolve every mesh file (a missing one fails
-  here, named), check the ``colors`` link names against the URDF's links;
+- ``on_config`` (fast, synchronous): find the model in the graph (an unknown name lists the ones
+  there are), resolve every mesh file (a missing one fails here, named), check the ``colors`` link
+  names against the model's links;
 - a loader thread started there reads the meshes (DAE, STL, OBJ ... through trimesh; each file
   once, even when several links use it), applies visual origins and scales and bakes colours, and
   merges all visuals of a link into as few buffers as possible (one for Baxter's links);
@@ -26,7 +29,6 @@ triangles 27 fps unculled, 41 fps culled; ``simplify=0.25`` 103k triangles, 129 
 
 from __future__ import annotations
 
-import io
 import logging
 import threading
 from concurrent.futures import Future
@@ -38,10 +40,10 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import UnknownNameError
-from coco_core.errors import CocoError, did_you_mean
-from coco_core.files import URDF_LIMIT, FileReadError, read_regular_file
-from coco_core.transforms.graph import KinematicModel
+from coco_core.errors import did_you_mean
+from coco_core.transforms.graph import KinematicModel, TransformGraph
 from coco_core.transforms.resources import resolve
+from coco_core.transforms.urdf import UrdfModel, UrdfVisual
 
 from .mesh import GpuMesh, MeshPart, color_problem, load_geometry, merge_parts, parts_of, primitive
 from .phong import PhongPeer
@@ -81,63 +83,30 @@ def _colors_check(text: str) -> str | None:
     return None
 
 
-@dataclass(frozen=True)
-class Visual:
-    """One ``<visual>`` of a link, its mesh file resolved (or a primitive)."""
-
-    link: str
-    origin: np.ndarray
-    shape: str
-    """``mesh``, ``box``, ``sphere`` or ``cylinder``."""
-    path: Path | None = None
-    size: tuple[float, ...] = ()
-    scale: tuple[float, ...] | None = None
-    color: tuple[float, ...] | None = None
-    """The URDF material's RGBA, when it gives one."""
+def robot_model(graph: TransformGraph, name: str, component: str) -> UrdfModel:
+    """The URDF model ``name`` of ``graph`` (any name: the only one); an error lists the ones there are."""
+    models = {key: model for key, model in graph.models.items() if isinstance(model, UrdfModel)}
+    if name in models:
+        return models[name]
+    if not name and len(models) == 1:
+        return next(iter(models.values()))
+    hint = ("load it with a TransformationInterface (its urdf attribute) in this process" if not models
+            else f"name one with the robot attribute; {did_you_mean(name, models)}")
+    raise UnknownNameError(f"{component}: the transformation graph has "
+                           f"{'no URDF model ' + repr(name) if name else str(len(models)) + ' URDF models'}: {hint}")
 
 
-def read_visuals(path: Path) -> tuple[list[str], list[Visual]]:
-    """(every link name, every visual) of a URDF file, mesh files resolved relative to it."""
-    import yourdfpy
-
-    try:
-        data = read_regular_file(path, URDF_LIMIT, "URDF")
-    except FileReadError as error:
-        raise CocoError(str(error)) from None
-    try:
-        robot = yourdfpy.URDF.load(io.BytesIO(data), load_meshes=False, build_scene_graph=False,
-                                   build_collision_scene_graph=False, load_collision_meshes=False).robot
-    except Exception as error:  # yourdfpy raises lxml and ValueError/AttributeError on bad files
-        raise CocoError(f"cannot read URDF {path}: {type(error).__name__}: {error}") from None
-    named = {material.name: material.color.rgba for material in robot.materials if material.color is not None}
-    visuals = []
-    for link in robot.links:
-        for visual in link.visuals:
-            origin = np.eye(4) if visual.origin is None else np.asarray(visual.origin, dtype=float)
-            material = visual.material
-            color = None
-            if material is not None:
-                rgba = material.color.rgba if material.color is not None else named.get(material.name)
-                color = tuple(float(x) for x in rgba) if rgba is not None else None
-            geometry = visual.geometry
-            if geometry.mesh is not None:
-                scale = geometry.mesh.scale
-                visuals.append(Visual(link.name, origin, "mesh", resolve(geometry.mesh.filename, path.parent),
-                                      scale=None if scale is None else tuple(np.broadcast_to(scale, 3).tolist()),
-                                      color=color))
-            elif geometry.box is not None:
-                visuals.append(Visual(link.name, origin, "box", size=tuple(geometry.box.size), color=color))
-            elif geometry.sphere is not None:
-                visuals.append(Visual(link.name, origin, "sphere", size=(geometry.sphere.radius,), color=color))
-            elif geometry.cylinder is not None:
-                visuals.append(Visual(link.name, origin, "cylinder", color=color,
-                                      size=(geometry.cylinder.radius, geometry.cylinder.length)))
-    return [link.name for link in robot.links], visuals
+def mesh_paths(model: UrdfModel) -> dict[str, Path]:
+    """Each mesh file name of the model's visuals -> the file (relative names from the URDF's folder);
+    a missing file fails here, named."""
+    folder = model.source.parent if model.source is not None else None
+    return {visual.filename: resolve(visual.filename, folder) for visual in model.visuals if visual.shape == "mesh"}
 
 
-def load_links(visuals: list[Visual], default_color: tuple[float, ...], keep: float,
+def load_links(visuals: list[UrdfVisual], paths: dict[str, Path], default_color: tuple[float, ...], keep: float,
                cancelled: threading.Event) -> dict[str, list[MeshPart]]:
-    """The merged parts of every link with visuals (the loader thread's work)."""
+    """The merged parts of every link with visuals (the loader thread's work); ``paths`` from
+    :func:`mesh_paths`."""
     files: dict[Path, Any] = {}
     parts: dict[str, list[MeshPart]] = {}
     for visual in visuals:
@@ -145,10 +114,10 @@ def load_links(visuals: list[Visual], default_color: tuple[float, ...], keep: fl
             break
         color = visual.color or default_color
         if visual.shape == "mesh":
-            assert visual.path is not None
-            if visual.path not in files:
-                files[visual.path] = load_geometry(visual.path)
-            new = parts_of(files[visual.path], visual.origin, visual.scale, color, keep=keep, label=str(visual.path))
+            path = paths[visual.filename]
+            if path not in files:
+                files[path] = load_geometry(path)
+            new = parts_of(files[path], visual.origin, visual.scale, color, keep=keep, label=str(path))
         else:
             new = parts_of(primitive(visual.shape, visual.size), visual.origin, color=color, keep=keep,
                            label=visual.shape)
@@ -165,10 +134,11 @@ class _Link:
 
 
 class GLUrdf(PhongPeer):
-    """A URDF robot's visual meshes, each link at its transformation-graph pose."""
+    """A URDF robot's visual meshes, each link at its transformation-graph pose: the robot model that a
+    TransformationInterface of this process loaded into the graph, so the file is named and parsed once."""
 
-    urdf = Attribute(str, "", "URDF file or package:// URL")
-    prefix = Attribute(str, "", "frame prefix of the robot's links in the graph (as TransformationInterface's)")
+    robot = Attribute(str, "", "name of the URDF model in the transformation graph (a TransformationInterface's: "
+                      "the robot's name, after its prefix); empty: the graph's only one")
     color = Attribute(list[float], [0.6, 0.6, 0.6], "r g b [a] for visuals with no colour in mesh or URDF",
                       check=color_problem)
     colors = Attribute(str, "", "per-link colour overrides: 'link=r g b [a], other=r g b'", check=_colors_check)
@@ -180,43 +150,39 @@ class GLUrdf(PhongPeer):
     wait_for_joints = Attribute(bool, False, "draw no link that a robot model places before that model's first "
                                 "joint state (the all-zero pose loaded at start is not the robot's), as "
                                 "TransformationInterface's attribute of that name publishes nothing then")
-    preload = Attribute(bool, False, "read the meshes while the application is built (init), so that the first "
+    preload = Attribute(bool, False, "read the meshes while the application is configured, so that the first "
                         "frame shows the robot; the start waits for them (about 2 s for Baxter)")
 
     def init(self) -> None:
         self.shown = ShownInputs()
         """The origins of the joint states the next frame shows first (the graph's ``origin`` on the robot)."""
         self._links: list[_Link] | None = None
+        self._prefix = ""
+        self._overrides: dict[str, tuple[float, float, float, float]] = {}
         self._missing: set[str] = set()
         self._cancel = threading.Event()
         self._loading: Future = Future()
-        if self.preload:
-            self._load(*self._visuals())
-            self._loading.result()  # a bad mesh fails the application's construction, with its message
 
     def on_config(self) -> None:
-        if not self.preload:
-            threading.Thread(target=self._load, args=self._visuals(), name=f"{self.name}-loader",
-                             daemon=True).start()
-
-    def _visuals(self) -> tuple[list[Visual], tuple[float, ...], float]:
-        """The URDF's visuals, checked, with the default colour and the fraction kept: what _load needs."""
-        if not self.urdf:
-            raise CocoError(f"{self.name}: the urdf attribute is empty; give a URDF file or package:// URL")
-        path = resolve(self.urdf)
-        links, visuals = read_visuals(path)
+        model = robot_model(self.transform_graph, self.robot, self.name)
         overrides = parse_link_colors(self.colors)
         for link in overrides:
-            if link not in links:
-                raise UnknownNameError(f"{self.name}: colors names link {link!r}, which {path.name} does not "
-                                       f"have; {did_you_mean(link, links)}")
-        self._overrides = overrides
+            if link not in model.link_names:
+                raise UnknownNameError(f"{self.name}: colors names link {link!r}, which robot {model.name} does not "
+                                       f"have; {did_you_mean(link, model.link_names)}")
+        self._prefix, self._overrides = model.prefix, overrides
         default = tuple(self.color) + ((1.0,) if len(self.color) == 3 else ())
-        return visuals, default, self.simplify
+        work = (model.visuals, mesh_paths(model), default, self.simplify)
+        if self.preload:
+            self._load(*work)
+            self._loading.result()  # a bad mesh fails the configuration, with its message
+        else:
+            threading.Thread(target=self._load, args=work, name=f"{self.name}-loader", daemon=True).start()
 
-    def _load(self, visuals: list[Visual], default: tuple[float, ...], keep: float) -> None:
+    def _load(self, visuals: list[UrdfVisual], paths: dict[str, Path], default: tuple[float, ...],
+              keep: float) -> None:
         try:
-            self._loading.set_result(load_links(visuals, default, keep, self._cancel))
+            self._loading.set_result(load_links(visuals, paths, default, keep, self._cancel))
         except BaseException as error:  # delivered to render(), which reports it once
             self._loading.set_exception(error)
 
@@ -234,7 +200,7 @@ class GLUrdf(PhongPeer):
             if not self._loading.done():
                 return
             self._links = []  # a loading error is raised once, then nothing is drawn
-            self._links = [_Link(self.prefix + link, [GpuMesh(ctx, self.program, part) for part in parts],
+            self._links = [_Link(self._prefix + link, [GpuMesh(ctx, self.program, part) for part in parts],
                                  self._overrides.get(link))
                            for link, parts in self._loading.result().items()]
         self.begin(ctx, view)
@@ -259,9 +225,8 @@ class GLUrdf(PhongPeer):
             for mesh in link.meshes:
                 self.draw(mesh, model_view, link.color or (1.0, 1.0, 1.0, 1.0), link.color is not None)
         if missing:  # once per link: the graph may get the robot later (its TransformationInterface)
-            log.warning("%s: links not drawn until the transformation graph can place them in %s (load the "
-                        "URDF with a TransformationInterface, prefix %r): %s (first error: %.300s)", self.name,
-                        world, self.prefix, ", ".join(missing), first_error)
+            log.warning("%s: links not drawn until the transformation graph can place them in %s: %s "
+                        "(first error: %.300s)", self.name, world, ", ".join(missing), first_error)
 
     def on_stop(self) -> None:
         self._cancel.set()

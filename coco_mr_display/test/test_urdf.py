@@ -58,7 +58,7 @@ def robot(baxter_path, gl_context, framebuffer):
 
     def make(**attributes) -> tuple[GLUrdf, Application, Callable[[], tuple[np.ndarray, np.ndarray]]]:
         """The peer, its application, and ``frame()``: draw one frame, return (RGB image, silhouette)."""
-        peer = GLUrdf(f"baxter{len(made)}", **{"urdf": BAXTER, **attributes})
+        peer = GLUrdf(f"baxter{len(made)}", **attributes)
         app.add(peer)
         assert peer.configure(), "GLUrdf failed to configure (see the log)"
         peer.gl_init(gl_context)
@@ -66,6 +66,7 @@ def robot(baxter_path, gl_context, framebuffer):
         return peer, app, lambda: (draw(gl_context, fbo, view, peer), drawn_mask(fbo))
 
     make.view = view
+    make.app = app
     yield make
     for peer in made:
         peer.on_stop()
@@ -134,7 +135,10 @@ def test_simplified_baxter_keeps_its_silhouette(robot):
 
 
 def test_frames_missing_from_the_graph_are_reported_once(robot, caplog):
-    peer, _, frame = robot(prefix="other/")
+    """A second Baxter, loaded with a frame prefix and joined to nothing, is named by the robot
+    attribute: its links cannot be placed in the view's frame."""
+    robot.app.add(TransformationInterface("tf2", urdf=BAXTER, prefix="other/"))
+    peer, _, frame = robot(robot="other/baxter")
     peer.wait_loaded(timeout=120)
     with caplog.at_level(logging.WARNING, logger="coco.display"):
         assert not frame()[1].any()
@@ -147,37 +151,54 @@ def test_frames_missing_from_the_graph_are_reported_once(robot, caplog):
 
 def test_bad_input_gives_clear_errors(baxter_path, tmp_path):
     app = Application("urdf-errors")
-    unknown = app.add(GLUrdf("unknown", urdf=BAXTER, colors="left_upper_shouldr=1 0 0"))
-    with pytest.raises(UnknownNameError, match=r"colors names link 'left_upper_shouldr', which baxter.urdf does "
+    with pytest.raises(UnknownNameError, match=r"has no URDF model 'baxter': load it with a TransformationInterface"):
+        app.add(GLUrdf("alone", robot="baxter")).on_config()
+    app.add(TransformationInterface("tf", urdf=BAXTER))
+    app.add(TransformationInterface("tf2", urdf=BAXTER, prefix="other/"))
+    with pytest.raises(UnknownNameError, match=r"has 2 URDF models: name one with the robot attribute; "
+                                               r"valid: baxter, other/baxter"):
+        app.add(GLUrdf("which")).on_config()
+    with pytest.raises(UnknownNameError, match=r"no URDF model 'baxtr'.*did you mean 'baxter'\?"):
+        app.add(GLUrdf("typo", robot="baxtr")).on_config()
+    unknown = app.add(GLUrdf("unknown", robot="baxter", colors="left_upper_shouldr=1 0 0"))
+    with pytest.raises(UnknownNameError, match=r"colors names link 'left_upper_shouldr', which robot baxter does "
                                                r"not have; did you mean 'left_upper_shoulder'\? valid: .*torso"):
         unknown.on_config()
     with pytest.raises(ValueError, match=r"must look like link=r g b \[a\]"):
         GLUrdf("syntax", colors="left_upper_shoulder=red")
-    with pytest.raises(ResourceNotFoundError, match=r"nowhere\.urdf does not exist"):
-        app.add(GLUrdf("missing", urdf=str(tmp_path / "nowhere.urdf"))).on_config()
-    broken = tmp_path / "broken.urdf"
-    broken.write_text('<robot name="r"><link name="a"><visual><geometry><mesh filename="meshes/gone.stl"/>'
-                      "</geometry></visual></link></robot>")
+
+
+def broken_robot(tmp_path, mesh: str) -> str:
+    """A one-link URDF whose visual is ``meshes/<mesh>``, relative to the URDF."""
+    path = tmp_path / "broken.urdf"
+    path.write_text(f'<robot name="broken"><link name="a"><visual><geometry><mesh filename="meshes/{mesh}"/>'
+                    "</geometry></visual></link></robot>")
+    return str(path)
+
+
+def test_a_missing_mesh_file_is_named_at_configuration(tmp_path):
+    app = Application("urdf-missing-mesh")
+    app.add(TransformationInterface("tf", urdf=broken_robot(tmp_path, "gone.stl")))
     with pytest.raises(ResourceNotFoundError, match=r"meshes/gone\.stl does not exist"):
-        app.add(GLUrdf("broken", urdf=str(broken))).on_config()
-    with pytest.raises(Exception, match=r"urdf attribute is empty"):
-        app.add(GLUrdf("empty")).on_config()
+        app.add(GLUrdf("broken")).on_config()
 
 
-def test_preload_reads_the_meshes_while_the_application_is_built(robot):
-    """With preload the meshes are read in init(): the first frame after configuration shows the robot."""
+def test_preload_reads_the_meshes_while_the_application_is_configured(robot):
+    """With preload the meshes are read in on_config: the first frame after configuration shows the robot."""
     peer, _, frame = robot(preload=True, simplify=0.25)
     assert peer.loaded, "preload must have read the meshes before the application starts"
     _, mask = frame()
     assert mask.sum() > 5000, "the first frame after a preload shows the robot"
 
 
-def test_preload_reports_a_bad_mesh_when_the_application_is_built(tmp_path):
-    broken = tmp_path / "broken.urdf"
-    broken.write_text('<robot name="r"><link name="a"><visual><geometry><mesh filename="meshes/gone.stl"/>'
-                      "</geometry></visual></link></robot>")
-    with pytest.raises(ResourceNotFoundError, match=r"meshes/gone\.stl does not exist"):
-        Application("urdf-preload").add(GLUrdf("broken", urdf=str(broken), preload=True))
+def test_preload_reports_a_bad_mesh_at_configuration(tmp_path):
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "bad.stl").write_bytes(b"solid nothing but words")
+    app = Application("urdf-preload")
+    app.add(TransformationInterface("tf", urdf=broken_robot(tmp_path, "bad.stl")))
+    peer = app.add(GLUrdf("broken", preload=True))
+    with pytest.raises(Exception, match=r"bad\.stl"):
+        peer.on_config()
 
 
 def test_wait_for_joints_draws_nothing_before_the_first_joint_state(robot):

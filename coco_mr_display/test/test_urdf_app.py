@@ -42,7 +42,6 @@ APP = f"""<package>
         <component>
           <name>baxter</name><task>GLUrdf</task><library>coco_mr_display</library>
           <attributes>
-            <attribute name="urdf" value="{BAXTER}"/>
             <attribute name="colors" value="left_upper_shoulder=0 1 0, right_upper_shoulder=0 1 0"/>
             <attribute name="simplify" value="0.25"/>
           </attributes>

@@ -87,7 +87,7 @@ def test_rendered_marker_registers_the_head_camera(tmp_path):
     app.add(TransformationInterface("tf", urdf=BAXTER))
     display = GLManager("display", width=W, height=H, world="base", background=[0.5, 0.5, 0.5, 1.0])
     display.add_peer(GLCameraManager("camera", follow_frame="truth_camera", fov_y=FOV, near=0.05, far=10.0))
-    display.add_peer(GLUrdf("baxter", urdf=BAXTER, preload=True))
+    display.add_peer(GLUrdf("baxter", preload=True))
     display.add_peer(GLEntity("marker", mesh=str(marker_mesh(tmp_path / "marker.glb")), frame=f"marker_{ID}"))
     app.add(display)
     frames = app.add(Frames("frames"))

@@ -281,6 +281,16 @@ class TransformGraph:
         self._notify([], structure_changed=True)
         return edge
 
+    def add_single_link_model(self, model: KinematicModel, frame: str) -> None:
+        """A model with one link and no joint (no edge names it): its frame, and the model by name, so
+        that what looks the model up (a display drawing it) finds it as it finds the others."""
+        with self._lock.write():
+            if model.name in self._models:
+                raise TransformError(f"the graph already has a model named {model.name!r}")
+            self._add_frame(frame)
+            self._models[model.name] = model
+        self._notify([], structure_changed=True)
+
     def add_static(self, parent: str, child: str, transform: np.ndarray = se3.IDENTITY) -> StaticEdge:
         edge = self.add_edge(StaticEdge(parent, child, transform))
         assert isinstance(edge, StaticEdge)

@@ -38,6 +38,7 @@ from . import se3
 from .edges import EdgeKind
 from .graph import KinematicModel, ModelEdge, TransformError, TransformGraph
 from .resources import ResourceNotFoundError, resolve
+from .urdf_visuals import UrdfVisual, parse_visuals
 from ..errors import UrdfError
 
 try:
@@ -52,7 +53,7 @@ MOVING_TYPES = ("revolute", "continuous", "prismatic")
 FIXED_TYPES = ("fixed", "floating", "planar")
 """URDF joint types that become ``static`` edges (floating and planar stay at their origin)."""
 
-__all__ = ["MOVING_TYPES", "ResourceNotFoundError", "UrdfError", "UrdfJoint", "UrdfModel", "load_urdf"]
+__all__ = ["MOVING_TYPES", "ResourceNotFoundError", "UrdfError", "UrdfJoint", "UrdfModel", "UrdfVisual", "load_urdf"]
 
 
 @dataclass(frozen=True)
@@ -82,6 +83,8 @@ class UrdfDescription:
     links: list[str]
     joints: list[UrdfJoint]
     root: str
+    visuals: list[UrdfVisual]
+    """What the links look like (for a display), from the same parse."""
 
 
 def parse_urdf(text: str, label: str) -> UrdfDescription:
@@ -135,7 +138,7 @@ def parse_urdf(text: str, label: str) -> UrdfDescription:
     if len(reached) != len(links):
         cut = sorted(known - reached)
         raise UrdfError(f"{label}: links not connected to the root {roots[0]} (a cycle?): {', '.join(cut)}")
-    return UrdfDescription(robot.get("name") or "robot", links, joints, roots[0])
+    return UrdfDescription(robot.get("name") or "robot", links, joints, roots[0], parse_visuals(robot, label))
 
 
 def _parse_joint(element: ET.Element, label: str, links: set[str], parents: dict[str, str]) -> UrdfJoint:
@@ -229,12 +232,12 @@ class UrdfModel(KinematicModel):
     own: the graph serialises writes against lookups.
     """
 
-    __slots__ = ("model", "data", "prefix", "joint_prefix", "source", "xml", "root_link", "joints", "_links",
+    __slots__ = ("model", "data", "prefix", "joint_prefix", "source", "visuals", "root_link", "joints", "_links",
                  "_frames", "_root_ids", "_slots", "_followers", "_derived", "_nq", "_values", "_q", "_state",
                  "_unset", "_updated", "_lock", "_plans")
 
     def __init__(self, description: UrdfDescription, model: Any, name: str | None = None, prefix: str = "",
-                 source: Path | None = None, xml: str = "", joint_prefix: str = "") -> None:
+                 source: Path | None = None, joint_prefix: str = "") -> None:
         super().__init__(name or prefix + description.robot)
         label = str(source) if source is not None else f"URDF of {description.robot}"
         self.model = model
@@ -245,8 +248,8 @@ class UrdfModel(KinematicModel):
         """Prepended to every URDF joint name to make the name its value arrives under."""
         self.source = source
         """The URDF file (None when loaded from text)."""
-        self.xml = xml
-        """The URDF text (e.g. to read the visual meshes)."""
+        self.visuals = description.visuals
+        """The links' visuals (mesh file names as written, relative to ``source``'s folder)."""
         self.root_link = description.root
         self.joints: dict[str, UrdfJoint] = {joint.name: joint for joint in description.joints}
         """Every URDF joint by its URDF name, as declared (unprefixed)."""
@@ -512,6 +515,8 @@ class UrdfModel(KinematicModel):
                                      f"{edge.child}, already joined by {existing!r}; use a frame prefix")
         for edge in edges:
             graph.add_edge(edge)
+        if not edges:
+            graph.add_single_link_model(self, self.prefix + self.root_link)
 
     # --- loading --------------------------------------------------------------------------------
     @classmethod
@@ -532,7 +537,7 @@ class UrdfModel(KinematicModel):
                 raise UrdfError(f"cannot read URDF {path}: {error}") from None
         description = parse_urdf(text, label)
         model = _build_pinocchio(text, label)
-        return cls(description, model, name=name, prefix=prefix, source=path, xml=text, joint_prefix=joint_prefix)
+        return cls(description, model, name=name, prefix=prefix, source=path, joint_prefix=joint_prefix)
 
     def __repr__(self) -> str:
         return (f"<UrdfModel {self.name}: {len(self._links)} links, {len(self._slots)} joints, "
