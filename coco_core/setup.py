@@ -30,6 +30,7 @@ setup(
             'RangeMonitor = coco_core.demo.range_monitor:RangeMonitor',
             'Supervisor = coco_core.demo.supervisor:Supervisor',
             'TransformationInterface = coco_core.transforms.interface:TransformationInterface',
+            'JointSequence = coco_core.transforms.joint_sequence:JointSequence',
         ],
     },
 )

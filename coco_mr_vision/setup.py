@@ -21,6 +21,8 @@ setup(
             "BagRgbdPeer = coco_mr_vision.rgbd_peers:BagRgbdPeer",
             "RealSenseRgbdPeer = coco_mr_vision.rgbd_peers:RealSenseRgbdPeer",
             "MarkerTracker = coco_mr_vision.marker_tracker:MarkerTracker",
+            "MarkerRegistration = coco_mr_vision.marker_registration:MarkerRegistration",
+            "SimulatedCamera = coco_mr_vision.simulated_camera:SimulatedCamera",
             "MeshReconstructor = coco_mr_vision.mesh_reconstructor:MeshReconstructor",
             "StreamingServer = coco_mr_vision.streaming:StreamingServer",
             "StreamingReceiver = coco_mr_vision.streaming:StreamingReceiver",

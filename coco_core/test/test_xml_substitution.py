@@ -68,6 +68,24 @@ def test_arg_errors():
     ]
 
 
+def test_arg_choices_as_in_ros2_launch():
+    """``<choice value=.../>`` children list what an arg accepts, whoever gives the value."""
+    declaration = """
+  <arg name="source" default="sim">
+    <choice value="sim"/>
+    <choice value="bag"/>
+  </arg>"""
+    text = with_attributes('<attribute name="s" value="$(arg source)"/>', declaration)
+    assert attribute_values(text) == {"s": "sim"}
+    assert attribute_values(text, args={"source": "bag"}) == {"s": "bag"}
+    assert errors_of(text, args={"source": "kinect"}) == [(2, "arg 'source' is 'kinect'; expected one of: sim, bag")]
+    wrong = with_attributes("", '<arg name="a" default="x"><option value="x"/><choice/></arg>')
+    assert errors_of(wrong) == [
+        (1, "unexpected element <option> in <arg>; expected <choice value=.../>"),
+        (1, "<choice> needs a value= attribute"),
+    ]
+
+
 def test_arg_must_be_declared_before_use():
     text = """<package>
   <components><component><task>$(arg t)</task></component></components>

@@ -89,6 +89,8 @@ class MarkerTracker(Component):
     marker_frame = Attribute(str, "marker_{id}", "name of a marker's frame; {id} is replaced by its id")
 
     image = InputPort(Image | Stamped, event=True, doc="camera images (any colour format), with intrinsics")
+    camera_info = InputPort(CameraIntrinsics, doc="the camera's intrinsics, for images that carry none (a ROS "
+                            "Image topic with its camera_info topic beside it); the newest is used")
     markers = OutputPort(Stamped, "Stamped(MarkerDetections), with the image's stamp when it had one")
 
     def init(self) -> None:
@@ -122,8 +124,11 @@ class MarkerTracker(Component):
         return MarkerDetections(ids, stack, poses, image.stamp, image.frame_id)
 
     def on_update(self) -> None:
+        status, info = self.camera_info.read_newest()
         for value in self.image.read_all():
             image, stamp = unstamped(value)
+            if image.intrinsics is None and status:
+                image = Image(image.data, image.format, image.stamp, image.frame_id, info)
             detections = self.detect(image)
             self.frames += 1
             self.detected += detections.ids.size

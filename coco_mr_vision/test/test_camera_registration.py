@@ -5,8 +5,8 @@ marker, the kinematic chain gives base -> gripper -> marker, and the transformat
 registration averages the temporary path over several arm poses and installs camera -> base.
 Goal: within 5 mm and 0.5 degrees of the truth. The camera looks at the gripper from 0.6 m, on the
 line to Baxter's head (at the head itself the marker is ~50 px wide and the error 14 mm). The
-first noisy view is saved as ``view.png`` in the test's tmp folder. (The XML application,
-config/camera_registration.xml, is not written yet.)"""
+first noisy view is saved as ``view.png`` in the test's tmp folder. The application file,
+config/camera_registration.xml, runs the same chain with its components (test/test_camera_registration_app.py)."""
 
 from __future__ import annotations
 
@@ -21,13 +21,12 @@ trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("collada", reason="Baxter's meshes are DAE files, read through pycollada")
 pytest.importorskip("pinocchio")
 
-from PIL import Image as PILImage  # noqa: E402
-
 from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort  # noqa: E402
 from coco_core.transforms.interface import TransformationInterface  # noqa: E402
 from coco_core.transforms.averaging import transform_residuals  # noqa: E402
 from coco_core.transforms.registration import Registration  # noqa: E402
 from coco_mr_vision.image import CameraIntrinsics, Image  # noqa: E402
+from coco_mr_vision.marker_mesh import write_marker_mesh  # noqa: E402
 from coco_mr_vision.marker_tracker import MarkerTracker  # noqa: E402
 
 BAXTER = "package://example-robot-data/robots/baxter_description/urdf/baxter.urdf"
@@ -43,17 +42,7 @@ POSES = [{"left_s0": s0, "left_s1": s1, "left_e1": e1, "left_w1": w1, "left_w2":
 
 def marker_mesh(path: Path) -> Path:
     """A textured square: ArUco DICT_4X4_50 id 3 of side LENGTH with a white border, in the xy plane."""
-    pixels = 240
-    marker = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50), ID, pixels)
-    border = pixels // 4
-    texture = np.full((pixels + 2 * border, pixels + 2 * border), 255, np.uint8)
-    texture[border:-border, border:-border] = marker
-    half = LENGTH * texture.shape[0] / pixels / 2
-    corners = np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]])
-    visual = trimesh.visual.TextureVisuals(uv=[[0, 0], [1, 0], [1, 1], [0, 1]],
-                                           image=PILImage.fromarray(texture).convert("RGB"))
-    trimesh.Trimesh(corners, [[0, 1, 2], [0, 2, 3]], visual=visual, process=False).export(path)
-    return path
+    return write_marker_mesh(path, "DICT_4X4_50", ID, LENGTH)
 
 
 class Frames(Component):

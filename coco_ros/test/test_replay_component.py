@@ -134,14 +134,16 @@ def test_pause_step_operations(joints_bag):
         app.stop()
 
 
-def test_recorder_round_trip_read_back_with_rosbags(joints_bag, tmp_path):
+@pytest.mark.parametrize("stamped", [False, True], ids=["plain", "stamped"])
+def test_recorder_round_trip_read_back_with_rosbags(joints_bag, tmp_path, stamped):
+    """Stamped values (the emission stamp travels for the latency) are recorded as their values."""
     from rosbags.rosbag2 import Reader
     from rosbags.typesys import Stores, get_typestore
 
     out = tmp_path / "recorded"
     app = Application("record")
     app.add(BagReplay("replay", bag=joints_bag, rate=0, stop_at_end=True, topics=["/robot/joint_states"],
-                      max_per_update=10))
+                      max_per_update=10, stamped=stamped))
     app.add(BagRecorder("recorder", folder=out, topics=["joints=/joint_states:sensor_msgs/msg/JointState"],
                         time="stamp"))
     app.connect("replay.robot_joint_states", "recorder.joints", BUFFER)

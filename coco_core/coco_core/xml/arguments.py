@@ -1,7 +1,7 @@
 """``<arg>`` declarations and the values given for them from outside (``name:=value``).
 
 Modelled on ROS 2 launch XML and the original CoCo launcher: ``value=`` or ``default=`` give an
-arg its value, a value given from outside (the command line's ``name:=value``) wins over both, as
+arg its value (ROS 2's ``<choice value="..."/>`` children list the values it accepts), a value given from outside (the command line's ``name:=value``) wins over both, as
 in the original launcher, and an arg with neither must be given. An arg is visible from its declaration on, in document
 order (an included file's args are visible in it and after its ``<include>``). A value given from
 outside is also visible where no declaration precedes it, as in the original launcher, whose
@@ -43,7 +43,7 @@ class Arguments:
         (say an unset environment variable) does not matter when the value is given.
         """
         reader.check_attributes(element, ARG_ATTRIBUTES, required=("name",))
-        reader.empty(element)
+        choices = self._choices(reader, element)
         name = (reader.attribute(element, "name") or "").strip()
         if not name:
             if "name" in element.attributes:
@@ -84,7 +84,27 @@ class Arguments:
                 f"arg {name!r} has no value: give it ({name}:=VALUE) or declare a default=", element
             )
             value = ""
+        if choices and value is not None and value not in choices:
+            reader.error(f"arg {name!r} is {value!r}; expected one of: {', '.join(choices)}", element)
         self.values[name] = value or ""
+
+    @staticmethod
+    def _choices(reader: FileReader, element: Element) -> list[str]:
+        """The values of the ``<choice value=.../>`` children (none: any value); other content is an error."""
+        if element.text.strip():
+            reader.error("unexpected text in <arg>; it has attributes and <choice value=.../> children only",
+                         element)
+        choices = []
+        for child in element.children:
+            if child.tag != "choice":
+                reader.error(f"unexpected element <{child.tag}> in <arg>; expected <choice value=.../>", child)
+                continue
+            reader.check_attributes(child, ("value",), required=("value",))
+            reader.empty(child)
+            value = reader.attribute(child, "value")
+            if value is not None:
+                choices.append(value)
+        return choices
 
     def unknown_given(self) -> list[ConfigError]:
         """An error for each given arg that no file declares (usually a typo on the command line)."""

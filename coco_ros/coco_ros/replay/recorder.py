@@ -32,6 +32,7 @@ from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.errors import CocoError
 from coco_core.ports import InputPort
+from coco_core.stamps import unstamped
 
 from ..bag import BagMessage, BagWriter
 from ..bag.message_types import normalize_type
@@ -96,6 +97,7 @@ class BagRecorder(Component):
 
     def _write(self, writer: BagWriter, topic: str, type_name: str, converter: Any, value: Any) -> None:
         now = time.time_ns()
+        value, _ = unstamped(value)  # a Stamped value is recorded as its value (the stamp is the latency's)
         if isinstance(value, BagMessage):
             log_time = value.log_time if self.time == "bag" else now
             writer.write(topic, value.data, log_time, type_name)

@@ -1,0 +1,73 @@
+"""config/camera_registration.xml, run as a user runs it: the simulated head camera registered to the
+Baxter within the goal (5 mm, 0.5 degree of the true pose), the same application on the bag that the
+simulated run recorded (joint states, images, camera_info: what a real robot records), and the
+failures a user meets: a source it does not know, a recording in which the marker never rests in sight."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from conftest import run_launcher
+
+APP = "config/camera_registration.xml"
+GOAL_M, GOAL_DEG = 0.005, 0.5
+
+
+def registration(folder: Path) -> dict:
+    return json.loads((folder / "registration.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def simulated(coco_launch, tmp_path_factory) -> tuple[Path, Path]:
+    """One simulated run that also records its bag: (its output folder, the bag)."""
+    folder = tmp_path_factory.mktemp("registration")
+    bag = folder / "bag"
+    result = run_launcher(coco_launch, APP, f"output:={folder / 'sim'}", f"record:={bag}", timeout=180)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "error against truth_camera" in result.stderr, result.stderr
+    return folder / "sim", bag
+
+
+def test_simulated_head_camera_is_registered_within_the_goal(simulated):
+    report = registration(simulated[0])
+    assert report["used"] >= 6 and report["samples"] == 8, report
+    assert report["error_m"] < GOAL_M and report["error_deg"] < GOAL_DEG, report
+    assert report["rms_translation"] < GOAL_M, "the residual is reported, and small"
+
+
+def test_the_same_application_registers_from_the_recorded_bag(coco_launch, simulated, tmp_path):
+    """The bag holds what a robot with a head camera records; truth:=true compares with the pose
+    the simulation rendered from, which the bag does not contain."""
+    _, bag = simulated
+    topics = (bag / "metadata.yaml").read_text()
+    for topic in ("/robot/joint_states", "/cameras/head_camera/image", "/cameras/head_camera/camera_info"):
+        assert topic in topics
+    result = run_launcher(coco_launch, APP, "source:=bag", f"bag:={bag}", "truth:=true", f"output:={tmp_path}",
+                          timeout=180)
+    assert result.returncode == 0, result.stdout + result.stderr
+    report = registration(tmp_path)
+    assert report["error_m"] < GOAL_M and report["error_deg"] < GOAL_DEG, report
+    simulated_report = registration(simulated[0])
+    moved = math.dist(report["translation"], simulated_report["translation"])
+    assert moved < 0.003, f"bag and live results differ by {moved * 1000:.1f} mm"
+
+
+def test_an_unknown_source_names_the_choices(coco_launch):
+    result = run_launcher(coco_launch, APP, "source:=kinect", "--check")
+    assert result.returncode == 1
+    assert "camera_registration.xml:" in result.stderr and "arg 'source' is 'kinect'; expected one of: sim, bag" \
+        in result.stderr, result.stderr
+
+
+def test_a_recording_without_the_marker_at_rest_fails_clearly(coco_launch, tmp_path):
+    """The arm never rests (each pose held for a single camera frame): no sample, nothing installed,
+    a non-zero exit that says why."""
+    poses = tmp_path / "poses.csv"
+    poses.write_text("left_s0,left_s1,left_e1,left_w1,left_w2\n0.30,-0.30,1.50,0.80,0.00\n0.15,-0.20,1.40,0.90,0.30\n")
+    result = run_launcher(coco_launch, APP, f"poses:={poses}", "hold:=0.05", f"output:={tmp_path}", timeout=120)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "nothing registered" in result.stderr and not (tmp_path / "registration.json").exists()
