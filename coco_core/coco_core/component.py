@@ -26,7 +26,7 @@ from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 from .attributes import Attribute
-from .errors import CocoError, UnknownNameError, did_you_mean
+from .errors import CocoError, DeclarationError, UnknownNameError, did_you_mean
 from . import operations as ops
 from .operations import Operation
 from .ports import InputPort, OutputPort, Port
@@ -89,8 +89,8 @@ class Component:
                     operations[member._coco_operation] = name
         clashes = sorted((set(attributes) | set(ports)) & _RESERVED_NAMES)
         if clashes:
-            raise TypeError(f"component {cls.__name__}: {', '.join(clashes)} would shadow Component's own "
-                            "member(s) of that name; choose another attribute or port name")
+            raise DeclarationError(f"component {cls.__name__}: {', '.join(clashes)} would shadow Component's own "
+                                   "member(s) of that name; choose another attribute or port name")
         cls._attribute_decls, cls._port_decls, cls._operation_decls = attributes, ports, operations
 
     def __init__(self, name: str | None = None, **attributes: Any) -> None:

@@ -18,6 +18,7 @@ import threading
 from collections import deque
 from typing import TYPE_CHECKING, Any, Callable
 
+from .errors import PolicyError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 
 if TYPE_CHECKING:
@@ -313,5 +314,5 @@ def make_connection(policy: ConnectionPolicy) -> Connection:
     try:
         cls = _CLASSES[(policy.data, locked)]
     except KeyError:
-        raise ValueError(f"{policy.data.value} connections are made by pooled output ports") from None
+        raise PolicyError(f"{policy.data.value} connections are made by pooled output ports") from None
     return cls(policy)

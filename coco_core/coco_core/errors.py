@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 import signal
 from dataclasses import dataclass
+from pathlib import Path
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,47 @@ class WiringError(CocoError):
     """A connection that cannot be made: wrong direction, incompatible types, wrong policy."""
 
 
+class PolicyError(WiringError, ValueError):
+    """A connection policy no connection can honour: a buffer without room, a data policy only pooled
+    ports make, a pooled output asked to share its frames out, a connection that is not the port's."""
+
+
+class PoolError(CocoError, ValueError):
+    """A frame pool used wrongly: too few slots, a slot from another pool or not being read, nothing
+    published yet."""
+
+
+class SetupError(CocoError, ValueError):
+    """A component whose attributes or peers cannot work together, found when it is configured
+    (``far`` not beyond ``near``, a peer of the wrong kind, a missing camera)."""
+
+
+class DeclarationError(CocoError, TypeError):
+    """A component class that cannot be declared: a port or attribute name that shadows Component's own."""
+
+
+class WrongTypeError(CocoError, TypeError):
+    """A value of the wrong kind where it is given: a message to another converter, a pose input that is
+    not a pose, a slot that does not hold a mesh."""
+
+
+class UsageError(CocoError, RuntimeError):
+    """A call at the wrong moment: a server started twice or asked its URL before it started, the
+    transformation graph written inside a read of it."""
+
+
+class ConnectionClosedError(CocoError, EOFError):
+    """The other end closed a connection (a process channel, a WebSocket) before a whole message came."""
+
+
+class FileWriteError(CocoError, OSError):
+    """A file that cannot be written (an image, a video)."""
+
+
+class MissingPackageError(CocoError, ImportError):
+    """A Python package a feature needs is not installed or not built; the message says how to get it."""
+
+
 class FileReadError(CocoError, OSError):
     """A file that is not a regular file, is larger than its limit, or cannot be read."""
 
@@ -111,6 +153,16 @@ class SubstitutionError(CocoError, ValueError):
 
 class ExpressionError(CocoError, ValueError):
     """An expression that is not allowed or cannot be evaluated; the text says why."""
+
+
+class GeometryError(CocoError, ValueError):
+    """Numbers that are not the geometry they should be: not a rotation, not a homogeneous transform, a
+    degenerate camera or screen, vertices that do not match their faces."""
+
+
+class EdgeError(CocoError, ValueError):
+    """An edge or a joint value the transformation graph refuses: one frame twice, a zero axis, a history
+    capacity below 1, a non-finite stamp or joint value, joint names and positions of different lengths."""
 
 
 class TransformError(CocoError, LookupError):
@@ -141,3 +193,92 @@ class WebSocketError(CocoError):
 
 class ChannelError(CocoError):
     """A value that cannot cross the channel (it cannot be pickled)."""
+
+
+class BagError(CocoError):
+    """A bag that cannot be read (or written) as asked.
+
+    ``path`` is the file or folder concerned, ``offset`` the byte position in that file where the
+    problem was found (None when it is not about a position, e.g. a missing folder), ``detail`` says
+    what was expected and what was found.
+    """
+
+    def __init__(self, path: str | Path, detail: str, offset: int | None = None) -> None:
+        self.path = str(path)
+        self.offset = offset
+        self.detail = detail
+        where = self.path if offset is None else f"{self.path} at byte {offset}"
+        super().__init__(f"{where}: {detail}")
+
+
+class MessageTypeError(BagError):
+    """A message type whose Python class cannot be found (its package is not installed)."""
+
+
+class BagFormatError(CocoError, ValueError):
+    """Bag content that cannot be decoded (an MCAP record or chunk, a QoS profile); the reader adds the
+    file and the byte where it is, as a :class:`BagError`."""
+
+
+class MessageError(CocoError, ValueError):
+    """A ROS message, message type name or value that cannot be converted: malformed CDR, a layout the
+    data does not fill, a time out of range, a type without a converter."""
+
+
+class SpecError(CocoError, ValueError):
+    """A topic spec that cannot be used; the message names the spec and the expected syntax."""
+
+
+class ReplayError(CocoError, ValueError):
+    """A replay or recording option that cannot be used: a negative offset or rate, a bad remapping or
+    topic spec, an unknown compression."""
+
+
+class RecordingError(CocoError, ValueError):
+    """A joint_recorder file that cannot be read: says file:line and what was expected."""
+
+
+class SessionError(CocoError, ValueError):
+    """Arguments that cannot give a session (duration too short, no reachable layout...)."""
+
+
+class DisplayError(CocoError, RuntimeError):
+    """A window or an OpenGL context that cannot be created."""
+
+
+class MeshLoadError(CocoError, ValueError):
+    """A mesh file that cannot be found or read, or a primitive with a wrong size."""
+
+
+class StructureError(CocoError, ValueError):
+    """A cloud that the requested structure cannot be built from."""
+
+
+class SurfaceExpressionError(CocoError, ValueError):
+    """A surface expression that cannot be parsed or built; says where and what was expected."""
+
+
+class HapticDeviceError(CocoError, ValueError):
+    """A simulated haptic device that cannot run (a hand trajectory it cannot follow, an empty workspace),
+    or a recorded run of a device too short to plot."""
+
+
+class ImageError(CocoError, ValueError):
+    """Image, RGB-D frame or point cloud data that does not match its format, size or intrinsics, or
+    lacks the intrinsics its use needs."""
+
+
+class ConversionError(CocoError, ValueError):
+    """A conversion that has no meaning (colour to depth and back)."""
+
+
+class PacketError(CocoError, ValueError):
+    """A packet that cannot be decoded; ``kind`` is ``garbage`` or ``truncated``."""
+
+    def __init__(self, kind: str, message: str) -> None:
+        super().__init__(message)
+        self.kind = kind
+
+
+class CameraError(CocoError):
+    """A camera or a recording that cannot be opened or read."""

@@ -10,6 +10,7 @@ activity.
 
 from __future__ import annotations
 
+from .errors import ActivityError
 from .profiling import ActivityStats
 
 
@@ -20,7 +21,7 @@ class PeriodGrid:
 
     def __init__(self, period: float, stats: ActivityStats) -> None:
         if period <= 0:
-            raise ValueError(f"the period must be positive, got {period}")
+            raise ActivityError(f"the period must be positive, got {period}")
         self.period = period
         self.deadline = 0.0
         """The deadline of the next cycle (``time.perf_counter`` seconds)."""
@@ -62,7 +63,7 @@ class PeriodGrid:
         """A new period: the next cycle comes ``period`` after the last one was due (at once if that
         is already past), and the grid continues from there; returns the new next deadline."""
         if period <= 0:
-            raise ValueError(f"the period must be positive, got {period}")
+            raise ActivityError(f"the period must be positive, got {period}")
         self.deadline = max(self.deadline - self.period + period, now)
         self.period = period
         return self.deadline

@@ -10,6 +10,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
+from .errors import PolicyError
+
 
 class ReadStatus(enum.IntEnum):
     """Result of reading an input port, as CoCo's ``FlowStatus``.
@@ -63,7 +65,7 @@ class ConnectionPolicy:
 
     def __post_init__(self) -> None:
         if self.data in (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR) and self.size < 1:
-            raise ValueError(f"a {self.data.value} connection needs a buffer size >= 1, got {self.size}")
+            raise PolicyError(f"a {self.data.value} connection needs a buffer size >= 1, got {self.size}")
 
     def __str__(self) -> str:
         sized = self.data in (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR)

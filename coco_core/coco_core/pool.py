@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from .connections import EMPTY, Connection
+from .errors import PoolError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 
 
@@ -66,7 +67,7 @@ class FramePool:
 
     def __init__(self, slots: int) -> None:
         if slots < 2:
-            raise ValueError(f"a frame pool needs at least 2 slots (one written, one read), got {slots}")
+            raise PoolError(f"a frame pool needs at least 2 slots (one written, one read), got {slots}")
         self._lock = threading.Lock()
         self.slots = [Slot(self, i) for i in range(slots)]
         self.published = 0
@@ -108,7 +109,7 @@ class FramePool:
         """Make a written slot the newest frame (WRITING -> READY)."""
         with self._lock:
             if slot.state is not SlotState.WRITING or slot.pool is not self:
-                raise ValueError(f"publish() needs a slot acquired from this pool, got {slot!r}")
+                raise PoolError(f"publish() needs a slot acquired from this pool, got {slot!r}")
             self.published += 1
             slot.seq = self.published
             slot.state = SlotState.READY
@@ -130,7 +131,7 @@ class FramePool:
         """One reader is done with ``slot``; the last one returns it to READY (newest) or FREE."""
         with self._lock:
             if slot.readers <= 0:
-                raise ValueError(f"release() of a slot that is not being read: {slot!r}")
+                raise PoolError(f"release() of a slot that is not being read: {slot!r}")
             slot.readers -= 1
             if slot.readers == 0:
                 slot.state = SlotState.READY if slot is self.newest else SlotState.FREE

@@ -11,6 +11,7 @@ import copy
 from typing import TYPE_CHECKING, Any, Callable
 
 from .connections import EMPTY, Connection
+from .errors import PolicyError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
 from .pool import FramePool, PoolConnection, Slot
 
@@ -91,7 +92,7 @@ class OutputPort(Port):
     def share(self, connection: Connection) -> None:
         """Let ``connection`` (one of this port's) take turns with the other shared connections."""
         if connection not in self._every:
-            raise ValueError(f"{connection!r} is not a connection of {self.qualified_name}")
+            raise PolicyError(f"{connection!r} is not a connection of {self.qualified_name}")
         self._every.remove(connection)
         self._shared.append(connection)
 
@@ -141,8 +142,8 @@ class PooledOutputPort(OutputPort):
 
     def share(self, connection: Connection) -> None:
         """Refused: a pooled frame is published to every reader of the pool."""
-        raise ValueError(f"{self.qualified_name} is a pooled output: its frames go to every reader and "
-                         "cannot be shared out one per connection (a farm's source writes a plain output)")
+        raise PolicyError(f"{self.qualified_name} is a pooled output: its frames go to every reader and "
+                          "cannot be shared out one per connection (a farm's source writes a plain output)")
 
     def connection(self) -> PoolConnection:
         """A new reader-side connection on this port's pool."""

@@ -22,6 +22,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import SetupError
 from coco_core.operations import operation
 from coco_core.ports import InputPort
 from coco_core.policy import NEW_DATA
@@ -126,7 +127,7 @@ class GLCameraManager(Component):
 
     def on_config(self) -> None:
         if self.far <= self.near:
-            raise ValueError(f"camera {self.name}: far ({self.far}) must be larger than near ({self.near})")
+            raise SetupError(f"camera {self.name}: far ({self.far}) must be larger than near ({self.near})")
         if self.projection == "oblique":
             proj.screen_basis(self.screen_lower_left, self.screen_lower_right, self.screen_upper_left)
         self.reset_pose()  # attributes may have changed since init()

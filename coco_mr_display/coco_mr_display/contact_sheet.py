@@ -15,6 +15,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from coco_core.errors import FileWriteError, SetupError
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,7 @@ class ContactSheet:
 
     def __init__(self, frames: int = 16, columns: int = 4, tile_width: int = 240) -> None:
         if frames < 1 or columns < 1 or tile_width < 8:
-            raise ValueError(f"contact sheet: frames ({frames}) and columns ({columns}) must be >= 1, "
+            raise SetupError(f"contact sheet: frames ({frames}) and columns ({columns}) must be >= 1, "
                              f"tile_width ({tile_width}) >= 8")
         self.frames, self.columns, self.tile_width = frames, columns, tile_width
         self.stride = 1
@@ -101,5 +102,5 @@ class ContactSheet:
         if sheet is None:
             return False
         if not cv2.imwrite(str(path), sheet[..., ::-1]):
-            raise OSError(f"could not write the contact sheet {path}")
+            raise FileWriteError(f"could not write the contact sheet {path}")
         return True

@@ -20,6 +20,7 @@ import threading
 from types import ModuleType
 
 import moderngl
+from coco_core.errors import DisplayError
 
 from .events import Action, EventKind, InputEvent
 
@@ -91,7 +92,7 @@ class _Glfw:
 
         with cls.lock:
             if cls.windows == 0 and not glfw.init():
-                raise RuntimeError(f"GLFW could not be initialised (a window needs a display, DISPLAY or "
+                raise DisplayError(f"GLFW could not be initialised (a window needs a display, DISPLAY or "
                                    f"WAYLAND_DISPLAY; use mode headless without one): {glfw.get_error()[1]!r}")
             cls.windows += 1
         return glfw
@@ -124,7 +125,7 @@ class WindowSurface(Surface):
                 glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
                 window = glfw.create_window(width, height, title, None, None)
             if not window:
-                raise RuntimeError(f"GLFW could not create a {width}x{height} OpenGL {GL_VERSION // 100}."
+                raise DisplayError(f"GLFW could not create a {width}x{height} OpenGL {GL_VERSION // 100}."
                                    f"{GL_VERSION % 100 // 10} core window")
         except BaseException:
             _Glfw.release()

@@ -23,6 +23,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import WrongTypeError
 from coco_core.transforms import se3
 
 from .camera import GLCameraManager
@@ -47,8 +48,8 @@ class CameraController(EventHandler, Component):
 
     def on_config(self) -> None:
         if not isinstance(self.owner, GLCameraManager):
-            raise TypeError(f"{type(self).__name__} {self.name} must be a peer of a GLCameraManager, not of "
-                            f"{self.owner.name if self.owner else 'nothing'}")
+            raise WrongTypeError(f"{type(self).__name__} {self.name} must be a peer of a GLCameraManager, not of "
+                                 f"{self.owner.name if self.owner else 'nothing'}")
 
     def handle_event(self, event: InputEvent) -> None:
         if event.kind is EventKind.MOUSE_BUTTON:

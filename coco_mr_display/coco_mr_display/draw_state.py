@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
+from coco_core.errors import AttributeValueError, GeometryError
 
 from .mesh import MeshPart, with_positions
 
@@ -39,7 +40,7 @@ class DrawState:
         """Draw with ``color`` (RGB or RGBA in 0..1); ``override`` also recolours coloured meshes."""
         values = [float(value) for value in color]
         if len(values) not in (3, 4):
-            raise ValueError(f"a colour is r g b or r g b a, got {list(color)}")
+            raise AttributeValueError(f"a colour is r g b or r g b a, got {list(color)}")
         self.color = (values[0], values[1], values[2], values[3] if len(values) == 4 else self.color[3])
         self.override_color = override
 
@@ -54,13 +55,13 @@ class DrawState:
         vertices = np.asarray(vertices, dtype="f4").reshape(-1, 3)
         if faces is not None:
             if len(self.parts) != 1:
-                raise ValueError(f"new faces need a single-part entity; this one has {len(self.parts)} parts "
-                                 "(give positions only, or use a mesh without textures)")
+                raise GeometryError(f"new faces need a single-part entity; this one has {len(self.parts)} parts "
+                                    "(give positions only, or use a mesh without textures)")
             self.parts = [with_positions(self.parts[0], vertices, faces)]
         else:
             total = sum(len(part.positions) for part in self.parts)
             if len(vertices) != total:
-                raise ValueError(f"expected {total} vertices, got {len(vertices)}")
+                raise GeometryError(f"expected {total} vertices, got {len(vertices)}")
             ends = np.cumsum([len(part.positions) for part in self.parts])[:-1]
             self.parts = [with_positions(part, chunk) for part, chunk in zip(self.parts, np.split(vertices, ends))]
         self.geometry_changed = True

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from coco_core.attributes import Attribute
+from coco_core.errors import GeometryError
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
 from coco_core.stamps import unstamped
@@ -58,7 +59,7 @@ def _length_check(*lengths: int) -> Callable[[list[float]], str | None]:
 def offset_pose(position: list[float], rpy: list[float], quaternion: list[float]) -> np.ndarray:
     """4x4 pose of ``position`` and either ``rpy`` (URDF's fixed axes) or ``quaternion`` (x y z w)."""
     if quaternion and any(rpy):
-        raise ValueError("give the orientation as rpy or as quaternion, not both")
+        raise GeometryError("give the orientation as rpy or as quaternion, not both")
     rotation = se3.quaternion_to_matrix(quaternion) if quaternion else se3.rpy_to_matrix(*rpy)
     return se3.make(rotation, position)
 

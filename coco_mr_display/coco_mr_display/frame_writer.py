@@ -17,6 +17,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import FileWriteError, ImageError
 from coco_core.ports import InputPort
 from coco_core.stamps import Stamped, unstamped
 from coco_mr_vision.image import Image
@@ -76,7 +77,7 @@ class FrameWriter(Component):
         index = self.written
         if self.format == "png":
             if not cv2.imwrite(str(self.frame_path(index)), bgr, [cv2.IMWRITE_PNG_COMPRESSION, self.png_compression]):
-                raise OSError(f"FrameWriter {self.name}: could not write {self.frame_path(index)}")
+                raise FileWriteError(f"FrameWriter {self.name}: could not write {self.frame_path(index)}")
         else:
             self._video_frame(np.ascontiguousarray(bgr))
         if image.stamp is not None and self._first_stamp is None:
@@ -93,11 +94,11 @@ class FrameWriter(Component):
             self._video = cv2.VideoWriter(str(self.video_path), cv2.VideoWriter.fourcc(*"mp4v"), self.fps, size)
             if not self._video.isOpened():
                 self._video = None
-                raise OSError(f"FrameWriter {self.name}: OpenCV cannot open {self.video_path} for 'mp4v' video")
+                raise FileWriteError(f"FrameWriter {self.name}: OpenCV cannot open {self.video_path} for 'mp4v' video")
             self._video_size = size
         elif size != self._video_size:
             width, height = self._video_size or (0, 0)
-            raise ValueError(f"FrameWriter {self.name}: frame {self.written} is {size[0]}x{size[1]}, the video is "
+            raise ImageError(f"FrameWriter {self.name}: frame {self.written} is {size[0]}x{size[1]}, the video is "
                              f"{width}x{height}: a video keeps one size (use png)")
         self._video.write(bgr)
 

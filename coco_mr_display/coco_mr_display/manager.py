@@ -31,6 +31,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import SetupError
 from coco_core.ports import OutputPort
 from coco_core.stamps import Stamp, Stamped
 from coco_mr_vision.image import Image, ImageFormat
@@ -94,7 +95,7 @@ class GLManager(Component):
     # --- life cycle -----------------------------------------------------------------------------
     def on_config(self) -> None:
         if self.visualization != "2d" and self.camera is None:
-            raise ValueError(f"GLManager {self.name}: {self.visualization} visualization needs a camera peer "
+            raise SetupError(f"GLManager {self.name}: {self.visualization} visualization needs a camera peer "
                              f"(GLCameraManager); peers: {', '.join(p.name for p in self.peers) or 'none'}")
         if self.depth.connected and not self.depth_output:
             log.warning("GLManager %s: its depth port is connected but depth_output is false: no depth images "

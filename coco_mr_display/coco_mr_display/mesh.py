@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from coco_core.errors import CocoError
+from coco_core.errors import GeometryError, MeshLoadError
 from coco_core.files import MESH_LIMIT, FileReadError, read_regular_file
 from coco_core.transforms.resources import resolve
 
@@ -30,10 +30,6 @@ if TYPE_CHECKING:
 
 PRIMITIVES = ("box", "sphere", "cylinder")
 """Shapes that need no file: ``mesh="box"`` etc., sized by a component's ``size`` attribute."""
-
-
-class MeshLoadError(CocoError, ValueError):
-    """A mesh file that cannot be found or read, or a primitive with a wrong size."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -257,12 +253,12 @@ def with_positions(part: MeshPart, positions: np.ndarray, indices: np.ndarray | 
     positions = np.ascontiguousarray(positions, dtype="f4").reshape(-1, 3)
     if indices is None:
         if len(positions) != len(part.positions):
-            raise ValueError(f"expected {len(part.positions)} vertices (or new faces with them), "
-                             f"got {len(positions)}")
+            raise GeometryError(f"expected {len(part.positions)} vertices (or new faces with them), "
+                                f"got {len(positions)}")
         return replace(part, positions=positions)
     indices = np.ascontiguousarray(indices, dtype="u4").reshape(-1, 3)
     if len(indices) and int(indices.max()) >= len(positions):
-        raise ValueError(f"a face uses vertex {int(indices.max())} of {len(positions)}")
+        raise GeometryError(f"a face uses vertex {int(indices.max())} of {len(positions)}")
     keep = len(positions) == len(part.positions)
     return MeshPart(positions, indices, part.colors if keep else None, part.uvs if keep else None,
                     part.texture if keep else None)

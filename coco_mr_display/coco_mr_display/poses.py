@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from coco_core.errors import WrongTypeError
 from coco_core.stamps import unstamped
 from coco_core.transforms.samples import FramePose, TransformSample
 
@@ -24,7 +25,7 @@ def reference_of(value: Any) -> tuple[str | None, np.ndarray]:
         return value.parent, np.asarray(value.transform, dtype=float)
     matrix = np.asarray(value, dtype=float) if isinstance(value, (np.ndarray, list, tuple)) else None
     if matrix is None or matrix.shape != (4, 4):
-        raise TypeError(f"a pose input takes a FramePose, a TransformSample or a 4x4 matrix, got {value!r}")
+        raise WrongTypeError(f"a pose input takes a FramePose, a TransformSample or a 4x4 matrix, got {value!r}")
     return None, matrix
 
 

@@ -14,6 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
+from coco_core.errors import GeometryError
 from coco_core.transforms import se3
 
 
@@ -22,11 +23,11 @@ def look_at(eye: Sequence[float], target: Sequence[float], up: Sequence[float]) 
     eye_, forward = np.asarray(eye, float), np.asarray(target, float) - np.asarray(eye, float)
     distance = np.linalg.norm(forward)
     if distance == 0.0:
-        raise ValueError(f"look_at: the camera position {list(eye_)} equals the target")
+        raise GeometryError(f"look_at: the camera position {list(eye_)} equals the target")
     forward /= distance
     right = np.cross(forward, np.asarray(up, float))
     if np.linalg.norm(right) < 1e-9:
-        raise ValueError(f"look_at: the up vector {list(up)} is parallel to the viewing direction {list(forward)}")
+        raise GeometryError(f"look_at: the up vector {list(up)} is parallel to the viewing direction {list(forward)}")
     right /= np.linalg.norm(right)
     return se3.make(np.column_stack([right, np.cross(right, forward), -forward]), eye_)
 
@@ -66,11 +67,11 @@ def screen_basis(lower_left: Sequence[float], lower_right: Sequence[float],
     pa, pb, pc = (np.asarray(p, float) for p in (lower_left, lower_right, upper_left))
     width, height = pb - pa, pc - pa
     if np.linalg.norm(width) < 1e-9 or np.linalg.norm(height) < 1e-9:
-        raise ValueError(f"screen corners {list(pa)}, {list(pb)}, {list(pc)} do not span a rectangle")
+        raise GeometryError(f"screen corners {list(pa)}, {list(pb)}, {list(pc)} do not span a rectangle")
     vr, vu = width / np.linalg.norm(width), height / np.linalg.norm(height)
     if abs(float(vr @ vu)) > 1e-3:
-        raise ValueError(f"screen corners: lower-left -> lower-right {list(width)} and lower-left -> upper-left "
-                         f"{list(height)} must be perpendicular (the screen is a rectangle)")
+        raise GeometryError(f"screen corners: lower-left -> lower-right {list(width)} and lower-left -> upper-left "
+                            f"{list(height)} must be perpendicular (the screen is a rectangle)")
     return np.column_stack([vr, vu, np.cross(vr, vu)])
 
 
@@ -88,8 +89,8 @@ def off_axis(lower_left: Sequence[float], lower_right: Sequence[float], upper_le
     va, vb, vc = (np.asarray(p, float) - pe for p in (lower_left, lower_right, upper_left))
     distance = -float(vn @ va)
     if distance <= 1e-9:
-        raise ValueError(f"eye {list(pe)} is not in front of the screen (distance {distance:.4g} m along the normal "
-                         f"{list(vn)}; the normal is right x up of the corners)")
+        raise GeometryError(f"eye {list(pe)} is not in front of the screen (distance {distance:.4g} m along the normal "
+                            f"{list(vn)}; the normal is right x up of the corners)")
     scale = near / distance
     projection = frustum(float(vr @ va) * scale, float(vr @ vb) * scale, float(vu @ va) * scale,
                          float(vu @ vc) * scale, near, far)

@@ -43,6 +43,7 @@ import moderngl
 import numpy as np
 
 from coco_core.attributes import Attribute
+from coco_core.errors import ImageError
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
 from coco_core.stamps import Stamped, unstamped
@@ -310,7 +311,7 @@ class GLRGBDImage(GLPeer):
             depth, origin = unstamped(value)
             self.shown.add(origin)
             if not depth.format.is_depth:
-                raise ValueError(f"{self.name}.depth takes DEPTH16 or DEPTH32F images, got {depth.format.name}")
+                raise ImageError(f"{self.name}.depth takes DEPTH16 or DEPTH32F images, got {depth.format.name}")
             self._depth = (depth, self.depth_scale)
             self._data_intrinsics = depth.intrinsics
         if self._depth is not None or self._pinhole is not None:
@@ -325,7 +326,7 @@ class GLRGBDImage(GLPeer):
             return known.fx, known.fy, known.cx, known.cy
         if self.fx > 0 and self.fy > 0:
             return self.fx, self.fy, self.cx, self.cy
-        raise ValueError(f"{self.name}: no intrinsics: connect the intrinsics port, send images or frames "
+        raise ImageError(f"{self.name}: no intrinsics: connect the intrinsics port, send images or frames "
                          "that carry intrinsics, or set the attributes fx, fy, cx, cy")
 
     def camera_pose(self, world: str) -> np.ndarray:

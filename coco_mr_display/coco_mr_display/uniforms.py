@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from coco_core.errors import did_you_mean
+from coco_core.errors import UnknownNameError, did_you_mean
 
 if TYPE_CHECKING:
     import moderngl
@@ -23,5 +23,5 @@ def uniform(program: moderngl.Program, name: str) -> moderngl.Uniform:
     member = program.get(name, None)
     if not isinstance(member, moderngl.Uniform):
         names = [key for key in program if isinstance(program.get(key, None), moderngl.Uniform)]
-        raise KeyError(f"shader program has no uniform {name!r}: {did_you_mean(name, names)}")
+        raise UnknownNameError(f"shader program has no uniform {name!r}: {did_you_mean(name, names)}")
     return member

@@ -21,7 +21,7 @@ from typing import Any, Callable
 from coco_core.attributes import Attribute
 from coco_core.colors import green_yellow_red
 from coco_core.component import Component, UnknownNameError
-from coco_core.errors import did_you_mean
+from coco_core.errors import AttributeValueError, SetupError, did_you_mean
 from coco_core.operations import operation
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
@@ -54,7 +54,7 @@ def colormap(name: str) -> ColorMap:
 def _color_of(value: Any) -> tuple[float, ...]:
     values = tuple(float(channel) for channel in value)
     if len(values) not in (3, 4):
-        raise ValueError(f"a colour is r g b or r g b a in 0..1, got {value!r}")
+        raise AttributeValueError(f"a colour is r g b or r g b a in 0..1, got {value!r}")
     return values
 
 
@@ -70,7 +70,7 @@ class UpdateColor(Component):
 
     def on_config(self) -> None:
         if not self.max > self.min:
-            raise ValueError(f"{self.name}: max ({self.max}) must be greater than min ({self.min})")
+            raise SetupError(f"{self.name}: max ({self.max}) must be greater than min ({self.min})")
         self._map = colormap(self.colormap)
         self.current: tuple[float, ...] | None = None
         """The colour preRender applies; None until a value or colour arrived."""

@@ -40,7 +40,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import UnknownNameError
-from coco_core.errors import did_you_mean
+from coco_core.errors import AttributeValueError, did_you_mean
 from coco_core.transforms.graph import KinematicModel, TransformGraph
 from coco_core.transforms.resources import resolve
 from coco_core.transforms.urdf import UrdfModel, UrdfVisual
@@ -69,8 +69,8 @@ def parse_link_colors(text: str) -> dict[str, tuple[float, float, float, float]]
         except ValueError:
             numbers = []
         if not (equals and link.strip() and len(numbers) in (3, 4) and all(0.0 <= x <= 1.0 for x in numbers)):
-            raise ValueError(f"colour override {entry!r} must look like link=r g b [a] (0..1), "
-                             "entries separated by commas")
+            raise AttributeValueError(f"colour override {entry!r} must look like link=r g b [a] (0..1), "
+                                      "entries separated by commas")
         colors[link.strip()] = (numbers[0], numbers[1], numbers[2], numbers[3] if len(numbers) == 4 else 1.0)
     return colors
 

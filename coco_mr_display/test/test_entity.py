@@ -14,6 +14,7 @@ import trimesh
 from conftest import CUBE_CORNERS, project
 from coco_core import Application
 from coco_core.component import Component
+from coco_core.errors import MeshLoadError
 from coco_core.operations import operation
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamped
@@ -22,7 +23,6 @@ from coco_core.transforms.resources import ResourceNotFoundError
 from coco_core.transforms.samples import FramePose, TransformSample
 from coco_mr_display.draw_state import DrawState
 from coco_mr_display.entity import GLEntity
-from coco_mr_display.mesh import MeshLoadError
 from test_mesh import camera_view, draw, textured_quad
 
 SIZE = (160, 120)

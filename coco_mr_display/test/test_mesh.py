@@ -16,10 +16,11 @@ import trimesh
 from PIL import Image as PILImage
 
 from conftest import read_rgb
+from coco_core.errors import MeshLoadError
 from coco_core.transforms import se3
 from coco_core.transforms.resources import ResourceNotFoundError
 from coco_mr_display import projection as proj
-from coco_mr_display.mesh import MeshLoadError, load_geometry, load_parts, merge_parts, parts_of, primitive
+from coco_mr_display.mesh import load_geometry, load_parts, merge_parts, parts_of, primitive
 from coco_mr_display.peer import GLPeer
 from coco_mr_display.view import RenderView
 

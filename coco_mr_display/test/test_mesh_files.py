@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from coco_mr_display.mesh import MeshLoadError, load_geometry
+from coco_core.errors import MeshLoadError
+from coco_mr_display.mesh import load_geometry
 
 
 @pytest.mark.parametrize("device", ["/dev/zero", "/dev/urandom"])

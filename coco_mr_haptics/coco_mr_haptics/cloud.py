@@ -24,6 +24,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import SetupError, StructureError
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort, OutputPort
 from coco_mr_vision.pointcloud import PointCloud
@@ -40,10 +41,6 @@ log = logging.getLogger("coco")
 STRUCTURES = ("auto", "projective", "grid", "kdtree")
 KDTREE_NEIGHBOURS = 32
 """Candidates a kd-tree query returns for one local fit."""
-
-
-class StructureError(ValueError):
-    """A cloud that the requested structure cannot be built from."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,7 +168,7 @@ class KDTreeBuilder(Component):
 
     def on_config(self) -> None:
         if self.intrinsics and len(self.intrinsics) != 4:
-            raise ValueError(f"{self.name}: intrinsics are fx fy cx cy, got {self.intrinsics}")
+            raise SetupError(f"{self.name}: intrinsics are fx fy cx cy, got {self.intrinsics}")
         self._known: tuple[tuple[int, ...], tuple[float, float, float, float]] | None = None
         self.built = 0
         self.skipped = 0
@@ -291,7 +288,7 @@ class HapticCloud(SurfaceRenderer):
     def on_config(self) -> None:
         super().on_config()
         if len(self.viewpoint) != 3:
-            raise ValueError(f"{self.name}: viewpoint needs 3 numbers, got {self.viewpoint}")
+            raise SetupError(f"{self.name}: viewpoint needs 3 numbers, got {self.viewpoint}")
         warm_up()
         self.scene = Scene(Plane((0.0, 0.0, 1.0), -1e3))
         self.proxy_object = GodObject(self.scene, self.material())

@@ -15,14 +15,10 @@ import re
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from coco_core.errors import CocoError, did_you_mean
+from coco_core.errors import SurfaceExpressionError, did_you_mean
 
 from .implicit import (Box, Capsule, Cylinder, Difference, Intersection, Placed, Plane, Sphere, Surface,
                        Torus, Union, pose_from_xyz_rpy)
-
-
-class SurfaceExpressionError(CocoError, ValueError):
-    """A surface expression that cannot be parsed or built; says where and what was expected."""
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ import math
 from typing import Sequence
 
 import numpy as np
+from coco_core.errors import SurfaceExpressionError
 
 from . import kernel
 
@@ -73,7 +74,7 @@ class Plane(Primitive):
         nx, ny, nz = (float(v) for v in normal)
         length = math.sqrt(nx * nx + ny * ny + nz * nz)
         if length < 1e-12:
-            raise ValueError("plane normal must not be zero")
+            raise SurfaceExpressionError("plane normal must not be zero")
         self.nx, self.ny, self.nz = nx / length, ny / length, nz / length
         self.offset = float(offset)
 
@@ -127,7 +128,7 @@ class Capsule(Primitive):
     def __init__(self, radius: float, height: float) -> None:
         _positive("capsule radius", radius)
         if height < 0:
-            raise ValueError(f"capsule height must be >= 0, got {height}")
+            raise SurfaceExpressionError(f"capsule height must be >= 0, got {height}")
         self.radius, self.half = float(radius), float(height) / 2
 
     def shape(self) -> list[float]:
@@ -146,7 +147,8 @@ class Torus(Primitive):
         _positive("torus major radius", major)
         _positive("torus minor radius", minor)
         if minor >= major:
-            raise ValueError(f"torus minor radius ({minor}) must be smaller than the major radius ({major})")
+            raise SurfaceExpressionError(f"torus minor radius ({minor}) must be smaller than the major radius "
+                                         f"({major})")
         self.major, self.minor = float(major), float(minor)
 
     def shape(self) -> list[float]:
@@ -246,14 +248,14 @@ def pose_from_xyz_rpy(xyz: Sequence[float] = (0.0, 0.0, 0.0),
 
 def _positive(what: str, value: float) -> None:
     if not float(value) > 0:
-        raise ValueError(f"{what} must be > 0, got {value}")
+        raise SurfaceExpressionError(f"{what} must be > 0, got {value}")
 
 
 def _at_least_one(what: str, children: Sequence[Surface]) -> tuple[Surface, ...]:
     parts = tuple(children)
     if not parts:
-        raise ValueError(f"{what} needs at least one surface")
+        raise SurfaceExpressionError(f"{what} needs at least one surface")
     for part in parts:
         if not isinstance(part, Surface):
-            raise ValueError(f"{what} takes surfaces, got {part!r}")
+            raise SurfaceExpressionError(f"{what} takes surfaces, got {part!r}")
     return parts

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from coco_core.attributes import Attribute
+from coco_core.errors import AttributeValueError
 
 from .expression import parse_surface, surface_problem
 from .proxy import GodObject
@@ -30,8 +31,8 @@ class HapticImplicitSurf(SurfaceRenderer):
     def on_config(self) -> None:
         super().on_config()
         if not self.surface.strip():
-            raise ValueError(f"{self.name}: the attribute surface is empty; describe the surface, "
-                             "e.g. sphere(0.05)")
+            raise AttributeValueError(f"{self.name}: the attribute surface is empty; describe the surface, "
+                                      "e.g. sphere(0.05)")
         self.scene = Scene(parse_surface(self.surface))
         self._built = self.surface
         self.proxy_object = GodObject(self.scene, self.material())

@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from coco_core.errors import HapticDeviceError
 
 
 def energy(table: np.ndarray) -> tuple[float, float]:
@@ -33,7 +34,7 @@ def draw_run(csv_path: Path, png_path: Path) -> None:
 
     table = np.genfromtxt(csv_path, delimiter=",", names=True, dtype=None, encoding="utf-8")
     if table.size < 2:
-        raise ValueError(f"{csv_path}: fewer than 2 haptic samples")
+        raise HapticDeviceError(f"{csv_path}: fewer than 2 haptic samples")
     t = table["time"] - table["time"][0]
     force = np.sqrt(table["force_x"] ** 2 + table["force_y"] ** 2 + table["force_z"] ** 2)
     figure, (side, top, forces) = plt.subplots(1, 3, figsize=(15, 4.2))

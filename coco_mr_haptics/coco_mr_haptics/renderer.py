@@ -20,6 +20,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import SetupError
 from coco_core.policy import NO_DATA
 from coco_core.ports import InputPort, OutputPort
 
@@ -104,7 +105,7 @@ class SurfaceRenderer(Component):
 
     def material(self) -> Material:
         if self.dynamic_friction > self.static_friction:
-            raise ValueError(f"{self.name}: dynamic_friction ({self.dynamic_friction}) must not exceed "
+            raise SetupError(f"{self.name}: dynamic_friction ({self.dynamic_friction}) must not exceed "
                              f"static_friction ({self.static_friction})")
         return Material(self.stiffness, self.damping, self.static_friction, self.dynamic_friction,
                         self.max_force, self.max_slide)
@@ -174,7 +175,7 @@ class HapticRenderer(Component):
         self.renderers = [peer for peer in self.peers if isinstance(peer, SurfaceRenderer)]
         others = [peer.name for peer in self.peers if not isinstance(peer, SurfaceRenderer)]
         if others:
-            raise ValueError(f"{self.name}: peers {', '.join(others)} are not surface renderers "
+            raise SetupError(f"{self.name}: peers {', '.join(others)} are not surface renderers "
                              "(HapticImplicitSurf, HapticCloud)")
         self._workspace = FrameLink(self, self.frame, self.device_frame)
 

@@ -9,6 +9,7 @@ touches only the rows below them.
 from __future__ import annotations
 
 import numpy as np
+from coco_core.errors import WrongTypeError
 
 from . import kernel
 from .implicit import Difference, Intersection, Placed, Primitive, Surface, Union
@@ -50,7 +51,7 @@ class Scene:
                 deepest = max(deepest, self._compile(child, chain, ops, height + index))
             ops.append((node.code, len(children)))
             return deepest
-        raise TypeError(f"cannot compile {node!r}: not a surface of coco_mr_haptics.implicit")
+        raise WrongTypeError(f"cannot compile {node!r}: not a surface of coco_mr_haptics.implicit")
 
     def _fill(self, row: int) -> None:
         primitive, chain = self._chains[row]

@@ -26,6 +26,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import HapticDeviceError
 from coco_core.policy import NEW_DATA, NO_DATA
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamped, unstamped
@@ -43,20 +44,20 @@ class HandTrajectory:
             reader = csv.DictReader(stream)
             missing = {"time", "x", "y", "z"} - set(reader.fieldnames or [])
             if missing:
-                raise ValueError(f"{path}: a hand trajectory needs the columns time,x,y,z; "
-                                 f"missing {', '.join(sorted(missing))} (found {reader.fieldnames})")
+                raise HapticDeviceError(f"{path}: a hand trajectory needs the columns time,x,y,z; "
+                                        f"missing {', '.join(sorted(missing))} (found {reader.fieldnames})")
             rows = []
             for line, row in enumerate(reader, start=2):
                 try:
                     rows.append((float(row["time"]), float(row["x"]), float(row["y"]), float(row["z"]),
                                  float(row.get("buttons") or 0)))
                 except ValueError:
-                    raise ValueError(f"{path}:{line}: expected numbers, got {row}") from None
+                    raise HapticDeviceError(f"{path}:{line}: expected numbers, got {row}") from None
         if len(rows) < 2:
-            raise ValueError(f"{path}: a hand trajectory needs at least 2 rows, got {len(rows)}")
+            raise HapticDeviceError(f"{path}: a hand trajectory needs at least 2 rows, got {len(rows)}")
         table = np.array(rows)
         if np.any(np.diff(table[:, 0]) <= 0):
-            raise ValueError(f"{path}: time must increase from row to row")
+            raise HapticDeviceError(f"{path}: time must increase from row to row")
         self.times, self.points, self.buttons = table[:, 0] - table[0, 0], table[:, 1:4], table[:, 4]
         self._index = 0
 
@@ -107,10 +108,10 @@ class SimulatedDevice(Component):
     def on_config(self) -> None:
         for name in ("workspace_min", "workspace_max"):
             if len(getattr(self, name)) != 3:
-                raise ValueError(f"{self.name}: {name} needs 3 numbers, got {getattr(self, name)}")
+                raise HapticDeviceError(f"{self.name}: {name} needs 3 numbers, got {getattr(self, name)}")
         if any(lo >= hi for lo, hi in zip(self.workspace_min, self.workspace_max)):
-            raise ValueError(f"{self.name}: workspace_min {self.workspace_min} must be below "
-                             f"workspace_max {self.workspace_max} on every axis")
+            raise HapticDeviceError(f"{self.name}: workspace_min {self.workspace_min} must be below "
+                                    f"workspace_max {self.workspace_max} on every axis")
         self._trajectory = HandTrajectory(Path(self.trajectory)) if self.trajectory else None
         if self._trajectory is not None:
             hand, self._buttons = self._trajectory.at(0.0)

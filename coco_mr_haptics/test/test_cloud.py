@@ -9,9 +9,10 @@ from scipy.spatial import cKDTree
 
 from coco_core.application import Application
 from coco_core.component import Component
+from coco_core.errors import CocoError, StructureError
 from coco_core.policy import BufferPolicy, ConnectionPolicy
 from coco_core.ports import OutputPort
-from coco_mr_haptics.cloud import HapticCloud, KDTreeBuilder, StructureError
+from coco_mr_haptics.cloud import HapticCloud, KDTreeBuilder
 from coco_mr_haptics.implicit_surf import HapticImplicitSurf
 from coco_mr_vision.image import CameraIntrinsics
 from coco_mr_vision.pointcloud import PointCloud
@@ -148,8 +149,9 @@ def test_builder_filters_and_structures():
     assert np.array_equal(np.repeat(cells.keys, cells.ends - cells.starts), keys)
     projective = KDTreeBuilder("p", structure_kind="projective")
     projective.configure()
-    with pytest.raises(StructureError, match="needs an organised cloud"):
+    with pytest.raises(StructureError, match="needs an organised cloud") as caught:
         projective.build(vertices)
+    assert isinstance(caught.value, CocoError) and isinstance(caught.value, ValueError)
 
 
 class Camera(Component):

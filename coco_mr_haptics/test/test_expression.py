@@ -2,7 +2,8 @@
 
 import pytest
 
-from coco_mr_haptics.expression import PRIMITIVES, SurfaceExpressionError, parse_surface, surface_problem
+from coco_core.errors import SurfaceExpressionError
+from coco_mr_haptics.expression import PRIMITIVES, parse_surface, surface_problem
 from coco_mr_haptics.implicit import Box, Difference, Placed, Plane, Sphere, Torus, Union
 
 

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from coco_core.errors import CocoError, HapticDeviceError, SurfaceExpressionError, WrongTypeError
 
 from coco_mr_haptics.expression import parse_surface
 from coco_mr_haptics.implicit import (Box, Capsule, Cylinder, Difference, Intersection, Placed, Plane, Sphere,
@@ -88,3 +89,24 @@ def test_frame_pose_moves_only_its_branch():
     scene.set_frame_pose("tool", moved)
     assert scene.evaluate(0.1, 0, 0.5)[0] == pytest.approx(-0.02)
     assert scene.evaluate(0, 0, 0)[0] == pytest.approx(-0.01)
+
+
+def test_surfaces_that_cannot_be_built_raise_coco_errors_that_stay_value_errors() -> None:
+    with pytest.raises(SurfaceExpressionError, match="plane normal") as caught:
+        Plane((0.0, 0.0, 0.0))
+    assert isinstance(caught.value, CocoError) and isinstance(caught.value, ValueError)
+    with pytest.raises(SurfaceExpressionError, match="plane normal must not be zero"):
+        parse_surface("plane([0, 0, 0])")
+    with pytest.raises(WrongTypeError) as not_a_surface:
+        Scene(object())  # type: ignore[arg-type]
+    assert isinstance(not_a_surface.value, TypeError)
+
+
+def test_a_hand_trajectory_too_short_is_a_haptic_device_error(tmp_path) -> None:
+    from coco_mr_haptics.simulated_device import HandTrajectory
+
+    path = tmp_path / "hand.csv"
+    path.write_text("time,x,y,z\n0,0,0,0\n")
+    with pytest.raises(HapticDeviceError, match="at least 2 rows") as caught:
+        HandTrajectory(path)
+    assert isinstance(caught.value, CocoError) and isinstance(caught.value, ValueError)

@@ -27,17 +27,13 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import CocoError
+from coco_core.errors import CameraError
 from coco_core.ports import OutputPort
 from coco_core.stamps import Stamp, Stamped
 
 from .image import CameraIntrinsics, Image, ImageFormat
 
 log = logging.getLogger("coco.vision")
-
-
-class CameraError(CocoError):
-    """A camera or a recording that cannot be opened or read."""
 
 
 def has_gstreamer() -> bool:

@@ -20,6 +20,7 @@ from typing import Callable
 
 import cv2
 import numpy as np
+from coco_core.errors import ConversionError
 
 from .image import Image, ImageFormat, _as_format
 
@@ -28,10 +29,6 @@ Step = Callable[[np.ndarray], np.ndarray]
 F = ImageFormat
 _OPENCV_NAMES = {F.GRAY8: "GRAY", F.RGB8: "RGB", F.BGR8: "BGR", F.RGBA8: "RGBA", F.BGRA8: "BGRA"}
 _COLOUR = (F.GRAY8, F.GRAY16, F.RGB8, F.BGR8, F.RGBA8, F.BGRA8, F.YUYV, F.I420)
-
-
-class ConversionError(ValueError):
-    """A conversion that has no meaning (colour to depth and back)."""
 
 
 def _cvt(code: int) -> Step:
@@ -116,7 +113,7 @@ def convert_array(data: np.ndarray, source: ImageFormat | str, target: ImageForm
 
 def _depth_to_depth(data: np.ndarray, source: ImageFormat, depth_scale: float) -> np.ndarray:
     if not depth_scale > 0:
-        raise ValueError(f"depth_scale is DEPTH16 units per metre and must be > 0, got {depth_scale}")
+        raise ConversionError(f"depth_scale is DEPTH16 units per metre and must be > 0, got {depth_scale}")
     if source is F.DEPTH16:
         metres = data.astype(np.float32)
         metres *= np.float32(1.0 / depth_scale)

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+from coco_core.errors import ImageError, UnknownNameError, WrongTypeError
 
 
 class ImageFormat(enum.Enum):
@@ -92,7 +93,7 @@ def _as_format(value: ImageFormat | str) -> ImageFormat:
         return ImageFormat[str(value).upper()]
     except KeyError:
         names = ", ".join(f.name for f in ImageFormat)
-        raise ValueError(f"unknown image format {value!r}; expected one of {names}") from None
+        raise ImageError(f"unknown image format {value!r}; expected one of {names}") from None
 
 
 def _optional_seconds(stamp: Any) -> float | None:
@@ -100,7 +101,7 @@ def _optional_seconds(stamp: Any) -> float | None:
         return stamp
     if isinstance(stamp, (int, np.floating, np.integer)) and not isinstance(stamp, bool):
         return float(stamp)
-    raise TypeError(f"stamp must be float seconds or None, got {type(stamp).__name__}")
+    raise WrongTypeError(f"stamp must be float seconds or None, got {type(stamp).__name__}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,7 +134,7 @@ class CameraIntrinsics:
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         if self.width < 0 or self.height < 0:
-            raise ValueError(f"image size must not be negative, got {self.width}x{self.height}")
+            raise ImageError(f"image size must not be negative, got {self.width}x{self.height}")
         for name in ("fx", "fy", "cx", "cy", "skew"):
             set_(self, name, float(getattr(self, name)))
         set_(self, "width", int(self.width))
@@ -145,7 +146,7 @@ class CameraIntrinsics:
             if value is not None:
                 matrix = np.array(value, dtype=float)
                 if matrix.size != shape[0] * shape[1]:
-                    raise ValueError(f"{name} must be {shape[0]}x{shape[1]}, got shape {matrix.shape}")
+                    raise ImageError(f"{name} must be {shape[0]}x{shape[1]}, got shape {matrix.shape}")
                 matrix = matrix.reshape(shape)
                 matrix.flags.writeable = False
                 set_(self, name, matrix)
@@ -202,7 +203,7 @@ class CameraIntrinsics:
         if isinstance(document, Mapping) and isinstance(document.get("camera"), Mapping):
             document = document["camera"]
         if not isinstance(document, Mapping):
-            raise ValueError(f"{origin}: expected a JSON object with camera intrinsics")
+            raise ImageError(f"{origin}: expected a JSON object with camera intrinsics")
         try:
             width, height = int(document["width"]), int(document["height"])
             if "K" in document:
@@ -210,11 +211,11 @@ class CameraIntrinsics:
             elif "intrinsic_matrix" in document:
                 K = np.asarray(document["intrinsic_matrix"], dtype=float).reshape(3, 3).T  # noqa: N806
             else:
-                raise KeyError("K (or intrinsic_matrix)")
+                raise UnknownNameError("K (or intrinsic_matrix)")
         except KeyError as error:
-            raise ValueError(f"{origin}: camera intrinsics lack {error.args[0]}") from None
+            raise ImageError(f"{origin}: camera intrinsics lack {error.args[0]}") from None
         except ValueError as error:
-            raise ValueError(f"{origin}: bad camera matrix: {error}") from None
+            raise ImageError(f"{origin}: bad camera matrix: {error}") from None
         return cls.from_matrix(K, width, height, document.get("D", ()),
                                document.get("distortion_model", "plumb_bob"), **kwargs)
 
@@ -245,24 +246,24 @@ class Image:
         object.__setattr__(self, "stamp", _optional_seconds(self.stamp))
         data = self.data
         if not isinstance(data, np.ndarray):
-            raise TypeError(f"{image_format.name} image data must be a numpy array, got {type(data).__name__}")
+            raise WrongTypeError(f"{image_format.name} image data must be a numpy array, got {type(data).__name__}")
         if data.dtype != image_format.dtype:
             hint = " (swap the byte order first: data.astype(data.dtype.newbyteorder('='))" \
                 if data.dtype.newbyteorder("=") == image_format.dtype else ""
-            raise ValueError(f"{image_format.name} image data must be {image_format.dtype}, got {data.dtype}{hint}")
+            raise ImageError(f"{image_format.name} image data must be {image_format.dtype}, got {data.dtype}{hint}")
         expected = "HxW" if image_format.channels == 1 else f"HxWx{image_format.channels}"
         if image_format is ImageFormat.I420:
             expected = "(H*3/2)xW"
         ok = data.ndim == 2 if image_format.channels == 1 else (
             data.ndim == 3 and data.shape[2] == image_format.channels)
         if not ok:
-            raise ValueError(f"{image_format.name} image data must have shape {expected}, got {data.shape}")
+            raise ImageError(f"{image_format.name} image data must have shape {expected}, got {data.shape}")
         if image_format is ImageFormat.YUYV and data.shape[1] % 2:
-            raise ValueError(f"YUYV images need an even width (pixels come in pairs), got {data.shape[1]}")
+            raise ImageError(f"YUYV images need an even width (pixels come in pairs), got {data.shape[1]}")
         if image_format is ImageFormat.I420:
             rows, width = data.shape
             if rows % 3 or width % 2:
-                raise ValueError(f"I420 image data must have shape (H*3/2)xW with H and W even, got {data.shape}")
+                raise ImageError(f"I420 image data must have shape (H*3/2)xW with H and W even, got {data.shape}")
 
     @property
     def width(self) -> int:
@@ -336,4 +337,4 @@ class Image:
             metres = self.data.astype(np.float32) * np.float32(0.001)
             metres[self.data == 0] = np.nan
             return metres
-        raise ValueError(f"a {self.format.name} image holds no depth")
+        raise ImageError(f"a {self.format.name} image holds no depth")

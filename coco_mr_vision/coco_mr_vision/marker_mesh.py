@@ -14,6 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from coco_core.errors import UnknownNameError, did_you_mean
+
 from .marker_tracker import DICTIONARIES
 
 PIXELS = 240
@@ -28,7 +30,7 @@ def write_marker_mesh(path: Path, dictionary: str, marker_id: int, length: float
     from PIL import Image as PILImage
 
     if dictionary not in DICTIONARIES:
-        raise ValueError(f"unknown marker dictionary {dictionary!r}; valid: {', '.join(DICTIONARIES)}")
+        raise UnknownNameError(f"unknown marker dictionary {dictionary!r}; {did_you_mean(dictionary, DICTIONARIES)}")
     marker = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)),
                                            marker_id, PIXELS)
     border = round(PIXELS * quiet_zone)

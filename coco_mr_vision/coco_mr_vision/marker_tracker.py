@@ -21,7 +21,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import did_you_mean
+from coco_core.errors import UnknownNameError, did_you_mean
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamped, unstamped
 
@@ -54,7 +54,7 @@ class MarkerDetections:
         """``T_camera_marker`` of one marker id (the first if it was seen twice)."""
         found = np.flatnonzero(self.ids == marker_id)
         if not found.size:
-            raise KeyError(f"marker {marker_id} was not detected; detected: {self.ids.tolist()}")
+            raise UnknownNameError(f"marker {marker_id} was not detected; detected: {self.ids.tolist()}")
         return self.poses[found[0]]
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from coco_core.errors import WrongTypeError
 from coco_core.stamps import Stamp
 
 
@@ -73,7 +74,7 @@ class TriangleMesh:
     def from_slot(cls, slot) -> TriangleMesh:  # noqa: ANN001 - a coco_core Slot
         """The mesh a MeshReconstructor published in ``slot`` (valid while the slot is held)."""
         if not isinstance(slot.stamp, MeshInfo):
-            raise TypeError(f"slot {slot!r} does not hold a mesh (its stamp is {type(slot.stamp).__name__})")
+            raise WrongTypeError(f"slot {slot!r} does not hold a mesh (its stamp is {type(slot.stamp).__name__})")
         return cls(slot.array, slot.stamp)
 
     @staticmethod

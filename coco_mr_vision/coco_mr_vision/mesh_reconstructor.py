@@ -27,6 +27,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import ImageError, PoolError
 from coco_core.operations import operation
 from coco_core.pool import Slot
 from coco_core.ports import InputPort, PooledOutputPort
@@ -117,7 +118,7 @@ class MeshReconstructor(Component):
         self.skipped += len(waiting) - 1  # a mesh is only worth making for the newest frame
         frame, stamp = unstamped(waiting[-1])
         if frame.intrinsics is None:
-            raise ValueError(f"{self.name}: the RGB-D frame carries no intrinsics, so its depth cannot be "
+            raise ImageError(f"{self.name}: the RGB-D frame carries no intrinsics, so its depth cannot be "
                              "back-projected")
         layout = MeshLayout(*frame.depth_metres()[::self.stride, ::self.stride].shape)
         slot = self.mesh.acquire((layout.offsets[-1],), np.uint8)
@@ -209,6 +210,6 @@ class MeshReconstructor(Component):
     def export_ply(self, path: str) -> str:
         """Save the latest mesh as a binary PLY; returns the path written."""
         if self._newest is None:
-            raise ValueError(f"{self.name}: no mesh has been made yet")
+            raise PoolError(f"{self.name}: no mesh has been made yet")
         mesh = TriangleMesh.from_slot(self._newest)
         return str(write_ply(Path(path), mesh.vertices, mesh.triangles, mesh.normals, mesh.colors))

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from coco_core.errors import ImageError
 
 from .image import CameraIntrinsics, Image, ImageFormat, _optional_seconds
 
@@ -33,21 +34,21 @@ class PointCloud:
         points, colors = self.points, self.colors
         if not isinstance(points, np.ndarray) or points.ndim != 2 or points.shape[1] != 3:
             shape = points.shape if isinstance(points, np.ndarray) else type(points).__name__
-            raise ValueError(f"point cloud points must be an Nx3 numpy array, got {shape}")
+            raise ImageError(f"point cloud points must be an Nx3 numpy array, got {shape}")
         if points.dtype != np.float32:
-            raise ValueError(f"point cloud points must be float32, got {points.dtype} "
+            raise ImageError(f"point cloud points must be float32, got {points.dtype} "
                              "(convert with points.astype(np.float32))")
         if colors is not None:
             if not isinstance(colors, np.ndarray) or colors.shape != points.shape:
                 shape = colors.shape if isinstance(colors, np.ndarray) else type(colors).__name__
-                raise ValueError(f"point cloud colors must be an Nx3 array like the points {points.shape}, "
+                raise ImageError(f"point cloud colors must be an Nx3 array like the points {points.shape}, "
                                  f"got {shape}")
             if colors.dtype != np.uint8:
-                raise ValueError(f"point cloud colors must be uint8 RGB, got {colors.dtype}")
+                raise ImageError(f"point cloud colors must be uint8 RGB, got {colors.dtype}")
         if self.organized is not None:
             height, width = (int(n) for n in self.organized)
             if height * width != len(points):
-                raise ValueError(f"an organized {height}x{width} cloud needs {height * width} points, "
+                raise ImageError(f"an organized {height}x{width} cloud needs {height * width} points, "
                                  f"got {len(points)}")
             object.__setattr__(self, "organized", (height, width))
         object.__setattr__(self, "stamp", _optional_seconds(self.stamp))
@@ -78,7 +79,7 @@ class PointCloud:
         The cloud has the depth image's frame and stamp.
         """
         if intrinsics.width and (intrinsics.width, intrinsics.height) != depth.size:
-            raise ValueError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} images, "
+            raise ImageError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} images, "
                              f"the depth image is {depth.width}x{depth.height}")
         z = depth.depth_metres()
         height, width = z.shape
@@ -90,7 +91,7 @@ class PointCloud:
         colors = None
         if color is not None:
             if color.size != depth.size:
-                raise ValueError(f"the color image is {color.width}x{color.height}, "
+                raise ImageError(f"the color image is {color.width}x{color.height}, "
                                  f"the depth image {depth.width}x{depth.height}")
             colors = np.ascontiguousarray(color.to_rgb()).reshape(-1, 3)
         if organized:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from coco_core.errors import ImageError, ResourceNotFoundError
 
 from .image import CameraIntrinsics, Image, ImageFormat
 
@@ -33,21 +34,21 @@ class RGBDFrame:
 
     def __post_init__(self) -> None:
         if not self.depth.format.is_depth:
-            raise ValueError(f"the depth image of an RGBDFrame must be DEPTH16 or DEPTH32F, "
+            raise ImageError(f"the depth image of an RGBDFrame must be DEPTH16 or DEPTH32F, "
                              f"got {self.depth.format.name}")
         if self.color.format.is_depth:
-            raise ValueError(f"the color image of an RGBDFrame must not be depth, got {self.color.format.name}")
+            raise ImageError(f"the color image of an RGBDFrame must not be depth, got {self.color.format.name}")
         if self.color.size != self.depth.size:
-            raise ValueError(f"color ({self.color.width}x{self.color.height}) and depth "
+            raise ImageError(f"color ({self.color.width}x{self.color.height}) and depth "
                              f"({self.depth.width}x{self.depth.height}) must be registered: same size")
         if not self.depth_scale > 0:
-            raise ValueError(f"depth_scale is depth units per metre and must be > 0, got {self.depth_scale}")
+            raise ImageError(f"depth_scale is depth units per metre and must be > 0, got {self.depth_scale}")
         object.__setattr__(self, "depth_scale", float(self.depth_scale))
         if self.intrinsics is None:
             object.__setattr__(self, "intrinsics", self.depth.intrinsics)
         intrinsics = self.intrinsics
         if intrinsics is not None and intrinsics.width and (intrinsics.width, intrinsics.height) != self.depth.size:
-            raise ValueError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} images, "
+            raise ImageError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} images, "
                              f"the frame is {self.depth.width}x{self.depth.height}")
 
     @property
@@ -79,11 +80,11 @@ class RGBDFrame:
 
         bgr = cv2.imread(str(color), cv2.IMREAD_COLOR)
         if bgr is None:
-            raise FileNotFoundError(f"cannot read a colour image from {color}")
+            raise ResourceNotFoundError(f"cannot read a colour image from {color}")
         raw = cv2.imread(str(depth), cv2.IMREAD_UNCHANGED)
         if raw is None:
-            raise FileNotFoundError(f"cannot read a depth image from {depth}")
+            raise ResourceNotFoundError(f"cannot read a depth image from {depth}")
         if raw.dtype != np.uint16 or raw.ndim != 2:
-            raise ValueError(f"{depth}: expected a single-channel 16-bit depth image, got {raw.dtype} {raw.shape}")
+            raise ImageError(f"{depth}: expected a single-channel 16-bit depth image, got {raw.dtype} {raw.shape}")
         return cls(Image(bgr, ImageFormat.BGR8, stamp, frame_id, intrinsics),
                    Image(raw, ImageFormat.DEPTH16, stamp, frame_id, intrinsics), intrinsics, depth_scale)

@@ -4,7 +4,7 @@ The peer interface, for whoever adds an OpenNI, Kinect or ZED peer:
 
 - subclass :class:`RgbdPeer` (a Component, so it has attributes an XML file can set, and is
   registered under ``coco.components`` like any other);
-- open the device or recording in ``on_config`` and raise :class:`~coco_mr_vision.camera_reader.CameraError`
+- open the device or recording in ``on_config`` and raise :class:`~coco_core.errors.CameraError`
   with what is missing when it cannot (no device, no SDK, no file);
 - implement ``grab()``: the next :class:`RGBDFrame` (colour and depth registered to each other, same
   size, with the depth camera's intrinsics and the depth scale of its 16-bit depth), or ``None``
@@ -24,8 +24,8 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import CameraError
 
-from .camera_reader import CameraError
 from .image import CameraIntrinsics, Image, ImageFormat
 from .rgbd import RGBDFrame
 

@@ -20,6 +20,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+from coco_core.errors import ConversionError, PacketError
 
 from .image import CameraIntrinsics, Image, ImageFormat
 
@@ -27,14 +28,6 @@ MAGIC = b"CCV1"
 _PREFIX = struct.Struct("<4sI")
 COLOR_ENCODINGS = ("jpeg", "raw")
 DEPTH_ENCODINGS = ("png", "raw")
-
-
-class PacketError(ValueError):
-    """A packet that cannot be decoded; ``kind`` is ``garbage`` or ``truncated``."""
-
-    def __init__(self, kind: str, message: str) -> None:
-        super().__init__(message)
-        self.kind = kind
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,11 +80,11 @@ def _encode_color(image: Image, encoding: str, quality: int) -> tuple[bytes, str
             source = image.to(ImageFormat.BGR8)
         ok, data = cv2.imencode(".jpg", source.data, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
         if not ok:
-            raise ValueError("OpenCV could not JPEG-encode the image")
+            raise ConversionError("OpenCV could not JPEG-encode the image")
         return data.tobytes(), "jpeg", source.format
     if encoding == "raw":
         return np.ascontiguousarray(image.data).tobytes(), "raw", image.format
-    raise ValueError(f"unknown colour encoding {encoding!r}; expected one of {', '.join(COLOR_ENCODINGS)}")
+    raise ConversionError(f"unknown colour encoding {encoding!r}; expected one of {', '.join(COLOR_ENCODINGS)}")
 
 
 def _encode_depth(image: Image, encoding: str, depth_scale: float) -> tuple[bytes, str, ImageFormat]:
@@ -99,11 +92,11 @@ def _encode_depth(image: Image, encoding: str, depth_scale: float) -> tuple[byte
     if encoding == "png":
         ok, data = cv2.imencode(".png", depth.data, [cv2.IMWRITE_PNG_COMPRESSION, 1])
         if not ok:
-            raise ValueError("OpenCV could not PNG-encode the depth")
+            raise ConversionError("OpenCV could not PNG-encode the depth")
         return data.tobytes(), "png", ImageFormat.DEPTH16
     if encoding == "raw":
         return np.ascontiguousarray(depth.data).astype("<u2").tobytes(), "raw", ImageFormat.DEPTH16
-    raise ValueError(f"unknown depth encoding {encoding!r}; expected one of {', '.join(DEPTH_ENCODINGS)}")
+    raise ConversionError(f"unknown depth encoding {encoding!r}; expected one of {', '.join(DEPTH_ENCODINGS)}")
 
 
 def decode(packet: bytes | memoryview) -> StreamFrame:

@@ -19,12 +19,13 @@ import zmq
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import PacketError
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamp, Stamped, unstamped
 
 from .image import Image
 from .rgbd import RGBDFrame
-from .stream_codec import COLOR_ENCODINGS, DEPTH_ENCODINGS, PacketError, decode, encode
+from .stream_codec import COLOR_ENCODINGS, DEPTH_ENCODINGS, decode, encode
 
 log = logging.getLogger("coco.vision")
 

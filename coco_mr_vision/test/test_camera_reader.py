@@ -12,7 +12,8 @@ import pytest
 cv2 = pytest.importorskip("cv2")
 
 from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort  # noqa: E402
-from coco_mr_vision.camera_reader import CameraError, CameraReader, has_gstreamer, open_source  # noqa: E402
+from coco_core.errors import CameraError  # noqa: E402
+from coco_mr_vision.camera_reader import CameraReader, has_gstreamer, open_source  # noqa: E402
 from coco_mr_vision.image import ImageFormat  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data"

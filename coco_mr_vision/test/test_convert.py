@@ -12,8 +12,9 @@ import pytest
 cv2 = pytest.importorskip("cv2")
 
 from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort  # noqa: E402
+from coco_core.errors import CocoError, ConversionError  # noqa: E402
 from coco_core.stamps import Stamp, Stamped  # noqa: E402
-from coco_mr_vision.convert import ConversionError, conversion_path, convert, convert_array  # noqa: E402
+from coco_mr_vision.convert import conversion_path, convert, convert_array  # noqa: E402
 from coco_mr_vision.converter import ImageConverter  # noqa: E402
 from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat  # noqa: E402
 
@@ -124,6 +125,12 @@ def test_depth_and_colour_do_not_mix():
         convert_array(np.zeros((2, 2), np.uint16), F.DEPTH16, F.RGB8)
     with pytest.raises(ConversionError, match="GRAY8 to DEPTH32F"):
         convert(Image(np.zeros((2, 2), np.uint8), F.GRAY8), "depth32f")
+
+
+def test_conversion_errors_are_coco_errors_and_value_errors() -> None:
+    with pytest.raises(ConversionError, match="depth_scale") as caught:
+        convert_array(np.zeros((2, 2), np.uint16), F.DEPTH16, F.DEPTH32F, depth_scale=0)
+    assert isinstance(caught.value, CocoError) and isinstance(caught.value, ValueError)
 
 
 def test_intrinsics_travel_and_a_format_is_converted_once(photo):

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from coco_core.errors import CocoError, ImageError, UnknownNameError, WrongTypeError
 from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
 from coco_mr_vision.pointcloud import PointCloud
 
@@ -72,6 +73,21 @@ def test_data_must_be_an_array_and_stamp_seconds():
     with pytest.raises(TypeError, match="stamp must be float seconds"):
         Image(np.zeros((2, 2), np.uint8), ImageFormat.GRAY8, stamp="now")
     assert Image(np.zeros((2, 2), np.uint8), ImageFormat.GRAY8, stamp=3).stamp == 3.0
+
+
+def test_image_errors_are_coco_errors_that_keep_their_builtin_class() -> None:
+    """The launcher reports a CocoError as a message; callers that catch ValueError or TypeError still do."""
+    with pytest.raises(ImageError) as bad_format:
+        Image(np.zeros((2, 2), np.uint8), "NV12")
+    assert isinstance(bad_format.value, CocoError) and isinstance(bad_format.value, ValueError)
+    with pytest.raises(WrongTypeError) as bad_stamp:
+        Image(np.zeros((2, 2), np.uint8), ImageFormat.GRAY8, stamp="now")
+    assert isinstance(bad_stamp.value, CocoError) and isinstance(bad_stamp.value, TypeError)
+    with pytest.raises(ImageError):
+        PointCloud(np.zeros((4, 2), np.float32))
+    with pytest.raises(ImageError, match="lack K") as no_matrix:
+        CameraIntrinsics.from_json({"width": 4, "height": 3})
+    assert not isinstance(no_matrix.value, UnknownNameError), "the lookup's KeyError stays inside"
 
 
 def test_images_are_frozen_and_share_their_data():

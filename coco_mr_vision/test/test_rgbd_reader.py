@@ -13,8 +13,7 @@ import pytest
 cv2 = pytest.importorskip("cv2")
 
 from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort  # noqa: E402
-from coco_core.errors import CocoError  # noqa: E402
-from coco_mr_vision.camera_reader import CameraError  # noqa: E402
+from coco_core.errors import CameraError, CocoError  # noqa: E402
 from coco_mr_vision.image import ImageFormat  # noqa: E402
 from coco_mr_vision.rgbd_peers import BagRgbdPeer, RealSenseRgbdPeer, RedwoodRgbdPeer, TumRgbdPeer  # noqa: E402
 from coco_mr_vision.rgbd_reader import RgbdCameraReader  # noqa: E402

@@ -20,9 +20,10 @@ cv2 = pytest.importorskip("cv2")
 zmq = pytest.importorskip("zmq")
 
 from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort  # noqa: E402
+from coco_core.errors import CocoError, PacketError  # noqa: E402
 from coco_mr_vision.image import CameraIntrinsics  # noqa: E402
 from coco_mr_vision.rgbd import RGBDFrame  # noqa: E402
-from coco_mr_vision.stream_codec import PacketError, decode, encode  # noqa: E402
+from coco_mr_vision.stream_codec import decode, encode  # noqa: E402
 from coco_mr_vision.streaming import StreamingReceiver  # noqa: E402
 
 REDWOOD = Path(__file__).resolve().parents[3] / "shared" / "data" / "rgbd" / "redwood"
@@ -79,6 +80,7 @@ def test_bad_packets_raise_packet_errors_by_kind(packet, kind):
     with pytest.raises(PacketError) as caught:
         decode(packet)
     assert caught.value.kind == kind
+    assert isinstance(caught.value, CocoError) and isinstance(caught.value, ValueError)
 
 
 def test_server_in_another_process_to_receiver(tmp_path):

@@ -464,10 +464,15 @@ def ros_node(app_or_component: Application | Component) -> Node:
     app = app_or_component.app if isinstance(app_or_component, Component) else app_or_component
     node = getattr(app, "ros_node", None)
     if node is None:
-        name = app.name if app is not None else "(none)"
-        raise CocoError(f"application {name} has no ROS node: run it with the ROS launcher "
-                        "(ros2 run coco_ros launcher app.xml), not coco-launch")
+        raise _not_hosted(app)
     return node
+
+
+def _not_hosted(app: Application | None) -> CocoError:
+    """The explanation for an application that the ROS launcher does not run (it has no node or host)."""
+    name = app.name if app is not None else "(none)"
+    return CocoError(f"application {name} has no ROS node: run it with the ROS launcher "
+                     "(ros2 run coco_ros launcher app.xml), not coco-launch")
 
 
 def _scheduled(component: Component) -> tuple[ExecutorHost, Activity | None]:
@@ -477,8 +482,7 @@ def _scheduled(component: Component) -> tuple[ExecutorHost, Activity | None]:
         top = top.owner
     host: ExecutorHost | None = getattr(top.app, "ros_host", None)
     if host is None:
-        ros_node(component)  # raises the explanation
-        raise AssertionError("unreachable")
+        raise _not_hosted(top.app)
     return host, top.activity
 
 

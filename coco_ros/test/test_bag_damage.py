@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from coco_ros.bag import BagError, BagReader, BagWriter
+from coco_core.errors import BagError
+from coco_ros.bag import BagReader, BagWriter
 
 T0 = 1_700_000_000_000_000_000
 MS = 1_000_000

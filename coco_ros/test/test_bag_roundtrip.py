@@ -18,7 +18,8 @@ import pytest
 import yaml
 from tf2_msgs.msg import TFMessage
 
-from coco_ros.bag import TF_STATIC, BagError, BagReader, BagWriter, Qos
+from coco_core.errors import BagError, MessageTypeError
+from coco_ros.bag import TF_STATIC, BagReader, BagWriter, Qos
 from rclpy.serialization import serialize_message as serialize
 
 T0 = 1_700_000_000_000_000_000
@@ -279,7 +280,7 @@ def test_writer_refuses_what_it_cannot_record(tmp_path):
 
 def test_raw_bytes_and_explicit_definition_for_a_type_not_installed(tmp_path):
     """A type whose package is missing is still recorded and replayed as bytes; decoding says why not."""
-    from coco_ros.bag import MessageTypeError
+    from coco_core.errors import BagError, MessageTypeError
 
     payload = b"\x00\x01\x00\x00\x2a\x00\x00\x00"
     with BagWriter(tmp_path / "bag") as writer:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from coco_ros.bag import TF_STATIC, MessageTypeError, Qos
+from coco_core.errors import BagError, MessageTypeError
+from coco_ros.bag import TF_STATIC, Qos
 from coco_ros.bag import qos as qos_module
 from coco_ros.bag.message_types import TF_MESSAGE, TypeResolver, normalize_type, type_name_of
 from rclpy.serialization import serialize_message as serialize
@@ -64,7 +65,7 @@ def test_dependencies_of_a_msg_text():
 
 
 def test_missing_definition_names_the_type_and_where_it_looked(tmp_path):
-    from coco_ros.bag import BagError
+    from coco_core.errors import BagError, MessageTypeError
 
     with pytest.raises(BagError, match=r"no message definition: expected nope_msgs/msg/Thing\.msg under"):
         DefinitionSource([tmp_path]).full_text("nope_msgs/msg/Thing")

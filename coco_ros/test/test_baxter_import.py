@@ -8,7 +8,7 @@ import pytest
 from conftest import SHARED_DATA
 
 from coco_ros.bag import BagReader
-from coco_ros.baxter.importer import RecordingError, import_recording, main, read_recording
+from coco_ros.baxter.importer import import_recording, main, read_recording
 from coco_ros.baxter.joints import (
     BAXTER_JOINT_NAMES,
     FINGER_UPPER,
@@ -16,6 +16,8 @@ from coco_ros.baxter.joints import (
     gripper_to_fingers,
     parse_joint_state_dump,
 )
+
+from coco_core.errors import RecordingError
 
 BAXTER = SHARED_DATA / "baxter"
 START = 1_700_000_000 * 10**9

@@ -14,11 +14,12 @@ import pytest
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
 from coco_core import Application, AttributeValueError, CocoError, TriggeredActivity
+from coco_core.errors import SpecError
 from coco_core.stamps import Stamped
 from coco_core.transforms.samples import FramePose, JointSample
 from coco_ros.bag import BagMessage
 from coco_ros.interface.component import ROSInterface
-from coco_ros.interface.topic import SYNTAX, SpecError, available_types, parse_spec, parse_specs
+from coco_ros.interface.topic import SYNTAX, available_types, parse_spec, parse_specs
 
 WORKSPACE = Path(__file__).resolve().parents[2]
 COCO_LAUNCH = WORKSPACE / "install" / "coco_core" / "lib" / "coco_core" / "coco-launch"

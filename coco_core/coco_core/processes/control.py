@@ -15,6 +15,8 @@ import threading
 from multiprocessing.connection import Connection
 from typing import Any, Callable
 
+from ..errors import ConnectionClosedError
+
 
 class ControlLink:
     """One end of a control link; ``send`` and ``request`` may be called from any thread. ``peer``
@@ -79,7 +81,7 @@ class ControlLink:
         try:
             message: dict[str, Any] = self._connection.recv()
         except OSError as error:
-            raise EOFError(str(error)) from None
+            raise ConnectionClosedError(str(error)) from None
         return message
 
     def close(self) -> None:

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..connections import EMPTY, Connection
-from ..errors import CocoError
+from ..errors import CocoError, PoolError
 from ..pool import Slot, SlotState
 from .channel import ChannelSpec
 from .segment import Segment, unlink
@@ -183,7 +183,7 @@ class ShmFramePool:
         with self._locked:
             record = self._record(slot.index)
             if slot.pool is not self or record[STATE] != CODE[SlotState.WRITING]:
-                raise ValueError(f"publish() needs a slot acquired from this pool, got {slot!r}")
+                raise PoolError(f"publish() needs a slot acquired from this pool, got {slot!r}")
             self.header[PUBLISHED] += 1
             slot.seq = record[SEQ] = int(self.header[PUBLISHED])
             record[STATE] = CODE[SlotState.READY]
@@ -225,7 +225,7 @@ class ShmFramePool:
         with self._locked:
             record = self._record(slot.index)
             if record[READERS] <= 0:
-                raise ValueError(f"release() of a slot that is not being read: {slot!r}")
+                raise PoolError(f"release() of a slot that is not being read: {slot!r}")
             record[READERS] -= 1
             if record[READERS] == 0:
                 newest = int(self.header[NEWEST]) == slot.index

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from . import se3
-from ..errors import ExtrapolationError
+from ..errors import EdgeError, ExtrapolationError
 
 if TYPE_CHECKING:
     from ..stamps import Stamp
@@ -61,7 +61,7 @@ class Edge(Dependency):
     def __init__(self, parent: str, child: str) -> None:
         super().__init__()
         if parent == child:
-            raise ValueError(f"an edge needs two different frames, got {parent!r} twice")
+            raise EdgeError(f"an edge needs two different frames, got {parent!r} twice")
         self.parent = parent
         self.child = child
         self._inverse: np.ndarray | None = None
@@ -123,7 +123,7 @@ class DynamicEdge(Edge):
     def __init__(self, parent: str, child: str, capacity: int = 100) -> None:
         super().__init__(parent, child)
         if capacity < 1:
-            raise ValueError(f"edge {parent}->{child}: history capacity must be >= 1, got {capacity}")
+            raise EdgeError(f"edge {parent}->{child}: history capacity must be >= 1, got {capacity}")
         self.capacity = capacity
         self._stamps: deque[float] = deque(maxlen=capacity)
         self._values: deque[np.ndarray] = deque(maxlen=capacity)
@@ -208,7 +208,7 @@ class AxisEdge(Edge):
         self.suffix = None if suffix is None else se3.frozen(se3.as_transform(suffix))
         norm = float(np.linalg.norm(axis))
         if norm == 0.0:
-            raise ValueError(f"joint {joint} ({parent}->{child}): the axis must not be zero")
+            raise EdgeError(f"joint {joint} ({parent}->{child}): the axis must not be zero")
         self.axis = tuple(float(a) / norm for a in axis)
         self._value = float(value)
         self._cached: np.ndarray | None = None

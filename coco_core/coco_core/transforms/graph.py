@@ -21,7 +21,7 @@ from typing import Any, Callable, ContextManager, Iterable, Mapping
 
 import numpy as np
 
-from ..errors import TransformError, did_you_mean
+from ..errors import EdgeError, TransformError, did_you_mean
 from ..stamps import Stamp
 from . import se3
 from .edges import AxisEdge, Dependency, DynamicEdge, Edge, EdgeKind, StaticEdge
@@ -36,7 +36,7 @@ def _finite_time(value: Any, what: str) -> float:
     """``value`` as seconds; NaN and infinities are refused (they compare false with every stamp, so
     they would silently break the order of a history or return a NaN pose)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value):
-        raise ValueError(f"{what} must be a finite number of seconds, got {value!r}")
+        raise EdgeError(f"{what} must be a finite number of seconds, got {value!r}")
     return float(value)
 
 
@@ -434,7 +434,7 @@ class TransformGraph:
         changed: list[Dependency] = []
         for name, value in values.items():  # nothing changes when one value is wrong
             if not isinstance(value, (int, float, np.number)) or isinstance(value, bool) or not math.isfinite(value):
-                raise ValueError(f"joint {name}: expected a finite number, got {value!r}")
+                raise EdgeError(f"joint {name}: expected a finite number, got {value!r}")
         with self._lock.write():
             remaining = dict(values)
             for model in self._models.values():
@@ -464,10 +464,10 @@ class TransformGraph:
         if type(positions) is not np.ndarray or positions.dtype != np.float64:
             positions = np.asarray(positions, dtype=float)
         if positions.shape != (len(names),):
-            raise ValueError(f"joint sample with {len(names)} names but {positions.size} positions: refused")
+            raise EdgeError(f"joint sample with {len(names)} names but {positions.size} positions: refused")
         if not math.isfinite(positions.sum()):  # NaN and infinities make the sum non-finite
             bad = next(i for i, value in enumerate(positions.tolist()) if not math.isfinite(value))
-            raise ValueError(f"joint {names[bad]}: expected a finite number, got {positions[bad]!r}")
+            raise EdgeError(f"joint {names[bad]}: expected a finite number, got {positions[bad]!r}")
         changed: list[Dependency] = []
         left: list[str] = []
         with self._lock.write():

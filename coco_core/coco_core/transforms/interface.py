@@ -22,6 +22,7 @@ import numpy as np
 
 from ..attributes import Attribute
 from ..component import Component
+from ..errors import AttributeValueError
 from ..operations import current_activity, operation
 from ..ports import InputPort, OutputPort
 from ..stamps import Stamp, Stamped, unstamped
@@ -36,7 +37,7 @@ def parse_output(spec: str) -> tuple[str, str, str]:
     port, equals, pair = spec.partition("=")
     target, colon, source = pair.partition(":")
     if not (equals and colon and port.strip() and target.strip() and source.strip()):
-        raise ValueError(f"output {spec!r} must look like port=target:source (e.g. gripper=base:left_gripper)")
+        raise AttributeValueError(f"output {spec!r} must look like port=target:source (e.g. gripper=base:left_gripper)")
     return port.strip(), target.strip(), source.strip()
 
 

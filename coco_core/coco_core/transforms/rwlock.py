@@ -14,6 +14,8 @@ from __future__ import annotations
 import threading
 from threading import get_ident
 
+from ..errors import UsageError
+
 
 class ReadWriteLock:
     """Readers share the lock; a waiting writer blocks new readers so updates are not starved."""
@@ -90,7 +92,7 @@ class _WriteGuard:
     def __enter__(self) -> None:
         lock = self.lock
         if lock._readers and getattr(lock._local, "depth", 0):  # no reader at all: this thread is none
-            raise RuntimeError("a thread that reads the transformation graph cannot write it inside the read")
+            raise UsageError("a thread that reads the transformation graph cannot write it inside the read")
         me = get_ident()
         if lock._writer == me:  # nested write by the same thread
             lock._write_depth += 1

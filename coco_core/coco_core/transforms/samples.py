@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import EdgeError
+
 
 @dataclass(frozen=True, slots=True)
 class TransformSample:
@@ -44,7 +46,7 @@ class JointSample:
         """Raise ``ValueError`` naming both lengths when positions and names differ in length."""
         count = len(self.positions)
         if count != len(self.names):
-            raise ValueError(f"joint sample with {len(self.names)} names but {count} positions: refused")
+            raise EdgeError(f"joint sample with {len(self.names)} names but {count} positions: refused")
 
 
 @dataclass(frozen=True, slots=True)

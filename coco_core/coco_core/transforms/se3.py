@@ -12,6 +12,8 @@ from typing import Sequence
 
 import numpy as np
 
+from ..errors import GeometryError
+
 IDENTITY = np.eye(4)
 IDENTITY.flags.writeable = False
 
@@ -51,7 +53,7 @@ def _rotation_rows(q: Sequence[float] | np.ndarray) -> list[list[float]]:
     x, y, z, w = (float(c) for c in q)
     norm = math.sqrt(x * x + y * y + z * z + w * w)
     if not norm > 0.0:
-        raise ValueError(f"quaternion {(x, y, z, w)} has no direction (norm {norm}): not a rotation")
+        raise GeometryError(f"quaternion {(x, y, z, w)} has no direction (norm {norm}): not a rotation")
     x, y, z, w = x / norm, y / norm, z / norm, w / norm
     return [
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
@@ -161,20 +163,20 @@ def as_transform(value: np.ndarray | Sequence[Sequence[float]]) -> np.ndarray:
     """
     matrix = np.array(value, dtype=float)
     if matrix.shape != (4, 4):
-        raise ValueError(f"expected a 4x4 homogeneous transform, got shape {matrix.shape}")
+        raise GeometryError(f"expected a 4x4 homogeneous transform, got shape {matrix.shape}")
     (a, b, c, x), (d, e, f, y), (g, h, i, z), bottom = matrix.tolist()
     if not (math.isfinite(x + y + z) and math.isfinite(sum(bottom))):
-        raise ValueError("the transform has NaN or infinite entries")
+        raise GeometryError("the transform has NaN or infinite entries")
     b0, b1, b2, b3 = bottom
     if abs(b0) + abs(b1) + abs(b2) + abs(b3 - 1.0) > 1e-9:
-        raise ValueError(f"the last row of a homogeneous transform must be 0 0 0 1, got {matrix[3]}")
+        raise GeometryError(f"the last row of a homogeneous transform must be 0 0 0 1, got {matrix[3]}")
     tolerance = 1e-6
     if not (abs(a * a + b * b + c * c - 1.0) <= tolerance and abs(d * d + e * e + f * f - 1.0) <= tolerance
             and abs(g * g + h * h + i * i - 1.0) <= tolerance and abs(a * d + b * e + c * f) <= tolerance
             and abs(a * g + b * h + c * i) <= tolerance and abs(d * g + e * h + f * i) <= tolerance):
         if not math.isfinite(a + b + c + d + e + f + g + h + i):
-            raise ValueError("the transform has NaN or infinite entries")
-        raise ValueError("the rotation part of the transform is not orthonormal")
+            raise GeometryError("the transform has NaN or infinite entries")
+        raise GeometryError("the rotation part of the transform is not orthonormal")
     if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0.0:
-        raise ValueError("the rotation part of the transform is a reflection (determinant -1)")
+        raise GeometryError("the rotation part of the transform is a reflection (determinant -1)")
     return matrix

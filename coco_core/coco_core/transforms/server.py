@@ -65,6 +65,7 @@ from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 
+from ..errors import AttributeValueError, CocoError, UsageError
 from . import export
 from .websocket import CLOSE_GOING_AWAY, WebSocket, WebSocketError, handshake_headers
 
@@ -93,7 +94,7 @@ every few ms): under a flood, one serialisation per 0.1 s instead of one per req
 _LOOPBACK_NAMES = {"localhost", "localhost.localdomain", "ip6-localhost"}
 
 
-class _RequestError(Exception):
+class _RequestError(CocoError):
     """An HTTP error answer: status and JSON body."""
 
     def __init__(self, status: HTTPStatus, message: str, **extra: Any) -> None:
@@ -128,7 +129,7 @@ class TransformServer:
 
     def __init__(self, graph: TransformGraph, host: str = "127.0.0.1", port: int = 0, rate: float = 30.0) -> None:
         if rate <= 0:
-            raise ValueError(f"rate must be > 0 messages per second, got {rate}")
+            raise AttributeValueError(f"rate must be > 0 messages per second, got {rate}")
         self.graph = graph
         self.host = host
         self.port = port
@@ -147,7 +148,7 @@ class TransformServer:
     def start(self) -> TransformServer:
         """Bind and serve in a background thread; returns ``self``."""
         if self._httpd is not None:
-            raise RuntimeError(f"the transform server already runs at {self.url}")
+            raise UsageError(f"the transform server already runs at {self.url}")
         httpd = (_HTTPServer6 if ":" in self.host else _HTTPServer)((self.host, self.port), _Handler)
         httpd.owner = self
         self._httpd = httpd
@@ -193,7 +194,7 @@ class TransformServer:
     def url(self) -> str:
         """``http://host:port/`` of the running server."""
         if self._httpd is None:
-            raise RuntimeError("the transform server is not started: call start() first")
+            raise UsageError("the transform server is not started: call start() first")
         host = self.host if ":" not in self.host else f"[{self.host}]"
         return f"http://{host}:{self.port}/"
 
@@ -527,11 +528,10 @@ class _Handler(BaseHTTPRequestHandler):
         text = self._one(query, "time", required=False)
         try:
             time = None if text is None else float(text)
-            if time is not None and not math.isfinite(time):
-                raise ValueError
         except ValueError:
-            raise _RequestError(HTTPStatus.BAD_REQUEST,
-                                f"time must be a finite number of seconds, got {text!r}") from None
+            time = math.nan
+        if time is not None and not math.isfinite(time):
+            raise _RequestError(HTTPStatus.BAD_REQUEST, f"time must be a finite number of seconds, got {text!r}")
         graph = self.owner.graph
         try:
             path = graph.path(target, source)
@@ -580,11 +580,11 @@ class _Handler(BaseHTTPRequestHandler):
             return self.owner.rate
         try:
             rate = float(text)
-            if not rate > 0:
-                raise ValueError
         except ValueError:
+            rate = math.nan
+        if not rate > 0:  # NaN too
             raise _RequestError(HTTPStatus.BAD_REQUEST, f"rate must be a positive number of messages per "
-                                f"second, got {text!r}") from None
+                                f"second, got {text!r}")
         return min(rate, self.owner.rate)
 
     def _websocket(self, query: dict[str, list[str]], pairs: list[tuple[str, str]] | None) -> None:

@@ -39,7 +39,7 @@ from .edges import EdgeKind
 from .graph import KinematicModel, ModelEdge, TransformError, TransformGraph
 from .resources import ResourceNotFoundError, resolve
 from .urdf_visuals import UrdfVisual, parse_visuals
-from ..errors import UrdfError
+from ..errors import EdgeError, UrdfError
 
 try:
     import pinocchio
@@ -397,7 +397,7 @@ class UrdfModel(KinematicModel):
                 try:
                     new[slot] = value
                 except (TypeError, ValueError):
-                    raise ValueError(f"model {self.name}: joint {name} value {value!r} is not a number") from None
+                    raise EdgeError(f"model {self.name}: joint {name} value {value!r} is not a number") from None
             elif name not in self._followers:
                 unknown.append(name)
         if self._unset:

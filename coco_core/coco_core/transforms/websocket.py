@@ -13,7 +13,7 @@ import hashlib
 import struct
 import threading
 from typing import Callable, Protocol
-from ..errors import WebSocketError
+from ..errors import ConnectionClosedError, WebSocketError
 
 GUID = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
 
@@ -57,10 +57,11 @@ def handshake_headers(headers: Headers) -> dict[str, str]:
                              "supported: 13")
     key = headers.get("Sec-WebSocket-Key", "").strip()
     try:
-        if len(base64.b64decode(key, validate=True)) != 16:
-            raise ValueError
-    except ValueError:
-        raise WebSocketError(f"invalid Sec-WebSocket-Key {key!r}: expected 16 bytes in base64") from None
+        decoded = base64.b64decode(key, validate=True)
+    except ValueError:  # binascii.Error: not base64
+        decoded = b""
+    if len(decoded) != 16:
+        raise WebSocketError(f"invalid Sec-WebSocket-Key {key!r}: expected 16 bytes in base64")
     return {"Upgrade": "websocket", "Connection": "Upgrade", "Sec-WebSocket-Accept": accept_key(key)}
 
 
@@ -82,7 +83,7 @@ def _read_exactly(read: Callable[[int], bytes], count: int) -> bytes:
     while len(data) < count:
         more = read(count - len(data))
         if not more:
-            raise EOFError("the connection closed in the middle of a frame")
+            raise ConnectionClosedError("the connection closed in the middle of a frame")
         data += more
     return data
 
@@ -96,7 +97,7 @@ def read_frame(read: Callable[[int], bytes], max_size: int = MAX_MESSAGE) -> tup
     """
     head = read(2)
     if not head:
-        raise EOFError("the connection closed")
+        raise ConnectionClosedError("the connection closed")
     head += _read_exactly(read, 2 - len(head))
     first, second = head
     fin, opcode = bool(first & 0x80), first & 0x0F

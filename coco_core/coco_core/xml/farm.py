@@ -26,7 +26,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from ..errors import Location
+from ..errors import AttributeValueError, Location
 from ..model import ActivitySpec, ComponentSpec, ConnectionSpec, PortRef, ScheduleSpec
 from ..policy import BufferPolicy, SyncPolicy
 from .draft import Draft, Scheduled
@@ -161,7 +161,7 @@ def _worker_count(text: str) -> int:
     expected = f"a number of workers from 1 to {MAX_WORKERS}"
     count = parse_int(text, expected)
     if not 1 <= count <= MAX_WORKERS:
-        raise ValueError(expected)
+        raise AttributeValueError(expected)
     return count
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-from ..errors import Location
+from ..errors import AttributeValueError, Location
 from ..model import ActivitySpec, ConnectionSpec, PortRef, ScheduleSpec
 from ..policy import BufferPolicy, SyncPolicy
 from .draft import Draft, Scheduled
@@ -165,5 +165,5 @@ def _buffer_size(text: str) -> int:
     expected = "a buffer size of at least 1"
     size = parse_int(text, expected)
     if size < 1:
-        raise ValueError(expected)
+        raise AttributeValueError(expected)
     return size

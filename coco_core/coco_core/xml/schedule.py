@@ -8,6 +8,7 @@ from Python.
 
 from __future__ import annotations
 
+from ..errors import AttributeValueError
 from ..model import ScheduleSpec
 from .reader import FileReader
 from .tree import Element
@@ -107,5 +108,5 @@ def parse_nice(text: str) -> int:
     expected = "a nice value from -20 (most favourable) to 19"
     value = parse_int(text, expected)
     if not -20 <= value <= 19:
-        raise ValueError(expected)
+        raise AttributeValueError(expected)
     return value

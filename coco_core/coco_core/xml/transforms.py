@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from ..errors import ConfigError, Location
+from ..errors import AttributeValueError, ConfigError, Location
 from ..files import URDF_LIMIT, FileReadError, check_regular_file
 from ..model import EdgeSpec, FrameSpec, TransformsSpec, UrdfSpec
 from ..transforms import se3
@@ -266,10 +266,10 @@ def _vector(count: int, expected: str, nonzero: bool = False) -> Callable[[str],
     def parse(text: str) -> tuple[float, ...]:
         words = text.split()
         if len(words) != count:
-            raise ValueError(expected)
+            raise AttributeValueError(expected)
         numbers = tuple(parse_number(word, expected) for word in words)
         if nonzero and not any(numbers):
-            raise ValueError(expected)
+            raise AttributeValueError(expected)
         return numbers
 
     return parse
@@ -283,6 +283,6 @@ def _history(text: str) -> int:
     expected = "a number of samples, at least 1"
     size = parse_int(text, expected)
     if size < 1:
-        raise ValueError(expected)
+        raise AttributeValueError(expected)
     return size
 

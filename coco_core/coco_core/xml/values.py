@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import re
 
+from ..errors import AttributeValueError
+
 TRUE_WORDS = ("true", "1", "yes", "on")
 FALSE_WORDS = ("false", "0", "no", "off")
 BOOLEAN_EXPECTED = "true/false, 1/0, yes/no or on/off"
@@ -26,7 +28,7 @@ def parse_bool(text: str) -> bool:
         return True
     if word in FALSE_WORDS:
         return False
-    raise ValueError(BOOLEAN_EXPECTED)
+    raise AttributeValueError(BOOLEAN_EXPECTED)
 
 
 def parse_condition(text: str) -> bool:
@@ -36,14 +38,14 @@ def parse_condition(text: str) -> bool:
     try:
         return parse_bool(text)
     except ValueError:
-        raise ValueError(f"{BOOLEAN_EXPECTED} (or empty for false)") from None
+        raise AttributeValueError(f"{BOOLEAN_EXPECTED} (or empty for false)") from None
 
 
 def parse_int(text: str, expected: str = "an integer") -> int:
     """A decimal integer, optionally signed."""
     stripped = text.strip()
     if not _INTEGER.fullmatch(stripped):
-        raise ValueError(expected)
+        raise AttributeValueError(expected)
     return int(stripped)
 
 
@@ -51,7 +53,7 @@ def parse_number(text: str, expected: str = "a number") -> float:
     """A finite decimal number such as ``10``, ``2.5`` or ``1e3``."""
     stripped = text.strip()
     if not _NUMBER.fullmatch(stripped):
-        raise ValueError(expected)
+        raise AttributeValueError(expected)
     return float(stripped)
 
 
@@ -61,5 +63,5 @@ def parse_cores(text: str) -> list[int]:
     if stripped in ("", "-1"):
         return []
     if not _CORES.fullmatch(stripped):
-        raise ValueError("a core number, a comma-separated list of core numbers, or -1 for none")
+        raise AttributeValueError("a core number, a comma-separated list of core numbers, or -1 for none")
     return list(dict.fromkeys(int(core) for core in stripped.split(",")))

@@ -7,7 +7,8 @@
   that rosbag2, rosbags and Foxglove read; flushed regularly so an interruption loses little.
 """
 
-from .errors import BagError, MessageTypeError
+from coco_core.errors import BagError, MessageTypeError
+
 from .qos import TF_STATIC, Qos
 from .reader import BagMessage, BagReader
 from .topic import TopicInfo

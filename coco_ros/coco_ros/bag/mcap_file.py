@@ -29,6 +29,7 @@ from io import BytesIO
 from pathlib import Path
 from typing import Any, Callable, Iterator, NamedTuple
 
+from coco_core.errors import BagError, BagFormatError, CocoError
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile
 from mcap.opcode import Opcode
@@ -42,8 +43,6 @@ from mcap.records import (
     Schema,
     Statistics,
 )
-
-from .errors import BagError
 
 MAGIC = b"\x89MCAP0\r\n"
 _RECORD_HEAD = struct.Struct("<BQ")
@@ -84,7 +83,7 @@ class Block:
     order: int = 0
 
 
-class _Damage(Exception):
+class _Damage(CocoError):
     """Framing or decoding failure inside a buffer: where (offset) and what."""
 
     def __init__(self, offset: int, detail: str) -> None:
@@ -109,12 +108,12 @@ def _parse(record_class: Any, body: bytes | memoryview) -> Any:
         return record_class.read(_StrictStream(BytesIO(body)))
     except (EndOfFile, struct.error, UnicodeDecodeError) as error:
         name = record_class.__name__
-        raise ValueError(f"{name} record body is malformed ({type(error).__name__})") from None
+        raise BagFormatError(f"{name} record body is malformed ({type(error).__name__})") from None
 
 
 def _message(body: bytes | memoryview) -> RawMessage:
     if len(body) < _MESSAGE_HEAD.size:
-        raise ValueError(f"Message record of {len(body)} bytes, expected at least {_MESSAGE_HEAD.size}")
+        raise BagFormatError(f"Message record of {len(body)} bytes, expected at least {_MESSAGE_HEAD.size}")
     channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(body)
     return RawMessage(channel_id, sequence, log_time, publish_time, bytes(body[_MESSAGE_HEAD.size :]))
 
@@ -161,10 +160,10 @@ def _chunk(body: bytes | memoryview) -> _ChunkView:
         compression = bytes(view[_CHUNK_HEAD.size:position]).decode("utf-8")
         (length,) = struct.unpack_from("<Q", view, position)
     except (struct.error, UnicodeDecodeError) as error:
-        raise ValueError(f"Chunk record body is malformed ({type(error).__name__})") from None
+        raise BagFormatError(f"Chunk record body is malformed ({type(error).__name__})") from None
     data = view[position + 8:position + 8 + length]
     if len(data) != length:
-        raise ValueError(f"Chunk record body is malformed (its records declare {length} bytes, {len(data)} follow)")
+        raise BagFormatError(f"Chunk record body is malformed (its records declare {length} bytes, {len(data)} follow)")
     return _ChunkView(start, end, size, crc, compression, data)
 
 
@@ -180,22 +179,22 @@ def _chunk_payload(chunk: _ChunkView) -> bytes | memoryview:
             decompressor = zstandard.ZstdDecompressor()
             data = decompressor.decompress(chunk.data, max_output_size=chunk.uncompressed_size)
         except zstandard.ZstdError as error:
-            raise ValueError(f"zstd data does not decompress ({error})") from None
+            raise BagFormatError(f"zstd data does not decompress ({error})") from None
     elif chunk.compression == "lz4":
         import lz4.frame
 
         try:
             data = lz4.frame.decompress(chunk.data)
         except RuntimeError as error:
-            raise ValueError(f"lz4 data does not decompress ({error})") from None
+            raise BagFormatError(f"lz4 data does not decompress ({error})") from None
     else:
-        raise ValueError(
+        raise BagFormatError(
             f"chunk compression {chunk.compression!r} is not supported (expected '', zstd or lz4)"
         )
     if len(data) != chunk.uncompressed_size:
-        raise ValueError(f"chunk holds {len(data)} bytes, its header says {chunk.uncompressed_size}")
+        raise BagFormatError(f"chunk holds {len(data)} bytes, its header says {chunk.uncompressed_size}")
     if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
-        raise ValueError("chunk CRC does not match its data")
+        raise BagFormatError("chunk CRC does not match its data")
     return data
 
 

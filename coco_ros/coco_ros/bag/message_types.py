@@ -14,7 +14,8 @@ import re
 import threading
 from typing import Any, Callable
 
-from .errors import MessageTypeError
+from coco_core.errors import MessageError, MessageTypeError, WrongTypeError
+
 
 _TYPE_NAME = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)/(?:([A-Za-z][A-Za-z0-9_]*)/)?([A-Za-z][A-Za-z0-9_]*)$")
 
@@ -26,7 +27,7 @@ def normalize_type(type_name: str) -> str:
     """``pkg/Name`` or ``pkg/msg/Name`` -> ``pkg/msg/Name``; anything else is an error."""
     match = _TYPE_NAME.match(type_name.strip()) if isinstance(type_name, str) else None
     if not match:
-        raise ValueError(f"expected a message type name like 'std_msgs/msg/String', got {type_name!r}")
+        raise MessageError(f"expected a message type name like 'std_msgs/msg/String', got {type_name!r}")
     package, namespace, name = match.groups()
     return f"{package}/{namespace or 'msg'}/{name}"
 
@@ -37,7 +38,7 @@ def type_name_of(message: Any) -> str:
     parts = cls.__module__.split(".")
     if len(parts) >= 2 and hasattr(cls, "get_fields_and_field_types"):
         return f"{parts[0]}/{parts[1]}/{cls.__name__}"
-    raise TypeError(
+    raise WrongTypeError(
         f"expected a ROS message object (a rosidl-generated class), got {cls.__module__}.{cls.__name__}"
     )
 

@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from coco_core.errors import BagError
 
-from .errors import BagError
 from .qos import dump_profiles, parse_profiles
 from .topic import TopicInfo
 

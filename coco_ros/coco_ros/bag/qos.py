@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Iterable, Sequence
 
 import yaml
+from coco_core.errors import BagFormatError
 
 # rmw enum numbers (rmw/types.h) -> rmw's string names (rmw/qos_string_conversions.c).
 _HISTORY = {0: "system_default", 1: "keep_last", 2: "keep_all", 3: "unknown"}
@@ -80,7 +81,7 @@ class Qos:
     def from_dict(cls, item: dict[str, Any]) -> Qos:
         """Read one profile in either spelling (version 9 names or older enum numbers)."""
         if not isinstance(item, dict):
-            raise ValueError(f"expected a QoS profile mapping, got {item!r}")
+            raise BagFormatError(f"expected a QoS profile mapping, got {item!r}")
         try:
             return cls(
                 history=_policy(item["history"], _HISTORY, "history"),
@@ -96,7 +97,7 @@ class Qos:
                 avoid_ros_namespace_conventions=bool(item.get("avoid_ros_namespace_conventions", False)),
             )
         except KeyError as missing:
-            raise ValueError(f"QoS profile without the {missing} field: {item!r}") from None
+            raise BagFormatError(f"QoS profile without the {missing} field: {item!r}") from None
 
     def to_rclpy(self):  # -> rclpy.qos.QoSProfile (rclpy imported lazily)
         """The rclpy profile a publisher replaying this topic should offer."""
@@ -162,11 +163,11 @@ def parse_profiles(value: str | Sequence[dict[str, Any]] | None) -> tuple[Qos, .
         try:
             value = yaml.safe_load(value)
         except yaml.YAMLError as error:
-            raise ValueError(f"offered_qos_profiles is not valid YAML: {error}") from None
+            raise BagFormatError(f"offered_qos_profiles is not valid YAML: {error}") from None
         if value is None:
             return ()
     if not isinstance(value, list):
-        raise ValueError(f"expected offered_qos_profiles to be a list of profiles, got {value!r}")
+        raise BagFormatError(f"expected offered_qos_profiles to be a list of profiles, got {value!r}")
     return tuple(Qos.from_dict(item) for item in value)
 
 
@@ -214,7 +215,7 @@ def for_replay(profiles: Sequence[Qos], depth: int | None = None) -> Qos:
 
 def _policy(value: Any, names: dict[int, str], field: str) -> str:
     if isinstance(value, bool):
-        raise ValueError(f"QoS {field}: expected a policy name or number, got {value!r}")
+        raise BagFormatError(f"QoS {field}: expected a policy name or number, got {value!r}")
     if isinstance(value, int):
         return names.get(value, "unknown")
     if isinstance(value, str):
@@ -222,13 +223,13 @@ def _policy(value: Any, names: dict[int, str], field: str) -> str:
         if name in names.values():
             return name
         valid = ", ".join(sorted(set(names.values())))
-        raise ValueError(f"QoS {field}: expected one of {valid}, got {value!r}")
-    raise ValueError(f"QoS {field}: expected a policy name or number, got {value!r}")
+        raise BagFormatError(f"QoS {field}: expected one of {valid}, got {value!r}")
+    raise BagFormatError(f"QoS {field}: expected a policy name or number, got {value!r}")
 
 
 def _time(value: Any, field: str) -> Time:
     try:
         time = (int(value["sec"]), int(value["nsec"]))
     except (TypeError, KeyError, ValueError):
-        raise ValueError(f"QoS {field}: expected {{sec: int, nsec: int}}, got {value!r}") from None
+        raise BagFormatError(f"QoS {field}: expected {{sec: int, nsec: int}}, got {value!r}") from None
     return INFINITE if time in _FOXY_INFINITE else time

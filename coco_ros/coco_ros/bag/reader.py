@@ -21,9 +21,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
-from coco_core.errors import did_you_mean
+from coco_core.errors import BagError, MessageTypeError, did_you_mean
 
-from .errors import BagError, MessageTypeError
 from .mcap_file import McapFile, RawMessage
 from .message_types import TF_MESSAGE, TypeResolver
 from .metadata import BagMetadata, read_metadata

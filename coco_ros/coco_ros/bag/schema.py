@@ -19,7 +19,8 @@ import sys
 import threading
 from pathlib import Path
 
-from .errors import BagError
+from coco_core.errors import BagError
+
 from .message_types import normalize_type
 
 DELIMITER = "=" * 80

@@ -33,9 +33,9 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+from coco_core.errors import BagError, ReplayError
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
 
-from .errors import BagError
 from .message_types import normalize_type, type_name_of
 from .metadata import FileRecord, dump_metadata, metadata_document, write_metadata
 from .topic import TopicInfo
@@ -185,7 +185,7 @@ class BagWriter:
     ) -> None:
         folder = Path(folder)
         if compression not in _COMPRESSION:
-            raise ValueError(f"compression must be one of {', '.join(_COMPRESSION)}, got {compression!r}")
+            raise ReplayError(f"compression must be one of {', '.join(_COMPRESSION)}, got {compression!r}")
         if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
             raise BagError(
                 folder, "cannot record here: expected a new or empty folder (a bag is never overwritten)"

@@ -15,6 +15,7 @@ from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
+from coco_core.errors import UrdfError
 
 from .joints import ARM_JOINTS
 
@@ -56,7 +57,7 @@ class ArmIk:
         self.data = model.createData()
         self.frame_id = model.getFrameId(frame or f"{side}_gripper")
         if self.frame_id >= model.nframes:
-            raise ValueError(f"the model has no frame {frame or side + '_gripper'}")
+            raise UrdfError(f"the model has no frame {frame or side + '_gripper'}")
         self.joints = ARM_JOINTS[side]
         ids = [model.getJointId(name) for name in self.joints]
         self.q_index = np.array([model.joints[i].idx_q for i in ids])

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from coco_core.errors import CocoError
+from coco_core.errors import CocoError, RecordingError
 
 from .joints import ARM_JOINTS, BAXTER_JOINT_NAMES, FINGER_JOINTS, GRIPPER_COLUMNS, gripper_to_fingers
 
@@ -36,10 +36,6 @@ FRAME_ID = ""  # a real Baxter's /robot/joint_states header has an empty frame_i
 
 KNOWN_COLUMNS = tuple(ARM_JOINTS["left"]) + ("left_gripper",) + tuple(ARM_JOINTS["right"]) + ("right_gripper",)
 """The columns joint_recorder writes after ``time`` (with both arms and grippers)."""
-
-
-class RecordingError(CocoError, ValueError):
-    """A joint_recorder file that cannot be read: says file:line and what was expected."""
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,8 @@ import ast
 import re
 from pathlib import Path
 
+from coco_core.errors import RecordingError
+
 ROBOT_JOINT_NAMES: tuple[str, ...] = (
     # Copied from a real Baxter's /robot/joint_states: osrf/baxter_demos, hand_calib_pos.dat
     # (Apache-2.0). Alphabetical; head_nod and torso_t0 are fixed joints in the URDF.
@@ -98,7 +100,8 @@ def parse_joint_state_dump(path: str | Path) -> dict[str, list]:
             try:
                 result[match.group(1)] = list(ast.literal_eval(match.group(2)))
             except (ValueError, SyntaxError):
-                raise ValueError(f"{path}:{line_number}: expected a Python-style list after '{match.group(1)}:'") from None
+                raise RecordingError(f"{path}:{line_number}: expected a Python-style list after "
+                                     f"'{match.group(1)}:'") from None
     if "name" not in result:
-        raise ValueError(f"{path}: no 'name: [...]' line (expected a dump of a sensor_msgs/JointState)")
+        raise RecordingError(f"{path}: no 'name: [...]' line (expected a dump of a sensor_msgs/JointState)")
     return result

@@ -42,6 +42,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 import pinocchio as pin
+from coco_core.errors import CocoError, SessionError
 
 from .ik import NEUTRAL, ArmIk, load_baxter
 from .importer import finite_difference_velocities, joint_state
@@ -89,10 +90,6 @@ PHASES = (
     ("retreat", 1.1, "move"),
 )
 NOMINAL_DURATION = sum(p[1] for p in PHASES) + 0.5
-
-
-class SessionError(ValueError):
-    """Arguments that cannot give a session (duration too short, no reachable layout...)."""
 
 
 @dataclass
@@ -403,13 +400,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="epoch seconds of session time 0 (default: a fixed epoch, for reproducibility)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
-    from coco_core.errors import CocoError
-
     start = DEFAULT_START_NS if args.start is None else int(round(args.start * 1e9))
     try:
         info = generate_session(args.bag, args.seed, args.duration, args.rate, start_stamp=start,
                                 progress=not args.quiet)
-    except (SessionError, CocoError) as error:
+    except CocoError as error:
         print(f"baxter-session: {error}", file=sys.stderr)
         return 1
     if not args.quiet:

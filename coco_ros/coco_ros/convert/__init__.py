@@ -19,6 +19,8 @@ import importlib
 import inspect
 from typing import Any
 
+from coco_core.errors import MessageError
+
 from .base import Converter
 
 #: ROS type name -> (module of this package, converter class)
@@ -63,8 +65,8 @@ def converter_for(type_name: str | type, **options: Any) -> Converter:
     try:
         module_name, class_name = _CONVERTERS[name]
     except KeyError:
-        raise ValueError(f"no converter for ROS message type {str(type_name)!r}; supported: "
-                         f"{', '.join(supported_types())}") from None
+        raise MessageError(f"no converter for ROS message type {str(type_name)!r}; supported: "
+                           f"{', '.join(supported_types())}") from None
     cls = getattr(importlib.import_module(f".{module_name}", __name__), class_name)
     if module_name == "arrays":
         options = {**options, "type_name": name}
@@ -74,8 +76,8 @@ def converter_for(type_name: str | type, **options: Any) -> Converter:
     except TypeError:
         unknown = sorted(set(options) - set(parameters) - {"type_name"})
         accepted = ", ".join(parameters) or "none"
-        raise ValueError(f"the {name} converter has no option(s) {', '.join(unknown)}; its options: "
-                         f"{accepted}") from None
+        raise MessageError(f"the {name} converter has no option(s) {', '.join(unknown)}; its options: "
+                           f"{accepted}") from None
     return cls(**options)
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+from coco_core.errors import MessageError, WrongTypeError
 from std_msgs.msg import MultiArrayDimension, MultiArrayLayout
 
 from .base import Converter, read_only, typed_array
@@ -47,7 +48,7 @@ class MultiArrayConverter(Converter[object, np.ndarray]):
     def __init__(self, type_name: str = "std_msgs/msg/Float64MultiArray", labels: Sequence[str] = ()) -> None:
         name = type_name.rsplit("/", 1)[-1]
         if type_name not in TYPE_NAMES:
-            raise ValueError(f"no multi-array converter for {type_name!r}; supported: {', '.join(TYPE_NAMES)}")
+            raise MessageError(f"no multi-array converter for {type_name!r}; supported: {', '.join(TYPE_NAMES)}")
         self.type_name = type_name  # type: ignore[misc]  # one class serves every element type
         self.dtype, self.typecode = ELEMENT_TYPES[name]
         self.labels = tuple(str(label) for label in labels)
@@ -59,7 +60,7 @@ class MultiArrayConverter(Converter[object, np.ndarray]):
         offset, dims = layout.data_offset, layout.dim
         if not dims:
             if offset > len(data):
-                raise ValueError(f"{self.type_name}: data_offset {offset} is past the {len(data)} elements")
+                raise MessageError(f"{self.type_name}: data_offset {offset} is past the {len(data)} elements")
             return read_only(data[offset:])
         shape = tuple(dim.size for dim in dims)
         if all(dim.stride == 0 for dim in dims):
@@ -70,8 +71,8 @@ class MultiArrayConverter(Converter[object, np.ndarray]):
             if all(shape) else offset
         if extent > len(data):
             described = ", ".join(f"{dim.label or '?'}: size {dim.size} stride {dim.stride}" for dim in dims)
-            raise ValueError(f"{self.type_name} layout ({described}; data_offset {offset}) needs {extent} "
-                             f"elements, the data has {len(data)}")
+            raise MessageError(f"{self.type_name} layout ({described}; data_offset {offset}) needs {extent} "
+                               f"elements, the data has {len(data)}")
         itemsize = self.dtype.itemsize
         array = np.ndarray(shape, self.dtype, data, offset * itemsize if all(shape) else 0,
                            tuple(stride * itemsize for stride in strides))
@@ -80,11 +81,11 @@ class MultiArrayConverter(Converter[object, np.ndarray]):
     def to_ros(self, value: np.ndarray) -> object:
         array = np.atleast_1d(np.asarray(value))
         if array.dtype == object:
-            raise TypeError(f"{type(self).__name__} publishes numeric arrays, got {type(value).__name__}")
+            raise WrongTypeError(f"{type(self).__name__} publishes numeric arrays, got {type(value).__name__}")
         try:
             array = np.ascontiguousarray(array.astype(self.dtype, casting="same_kind", copy=False))
         except TypeError as error:
-            raise TypeError(f"cannot publish {array.dtype} values as {self.type_name}: {error}") from None
+            raise WrongTypeError(f"cannot publish {array.dtype} values as {self.type_name}: {error}") from None
         shape = array.shape
         dims = [MultiArrayDimension(label=self.labels[k] if k < len(self.labels) else "", size=size,
                                     stride=int(np.prod(shape[k:], dtype=np.int64)))

@@ -7,6 +7,7 @@ import importlib
 from typing import Any, ClassVar, Generic, TypeVar
 
 import numpy as np
+from coco_core.errors import MessageError, WrongTypeError
 from std_msgs.msg import Header
 
 from .stamps import seconds_to_time, time_to_seconds
@@ -52,14 +53,14 @@ class Converter(Generic[M, V]):
     def _check_message(self, msg: Any) -> None:
         name = self.type_name.rsplit("/", 1)[-1]
         if type(msg).__name__ != name:
-            raise TypeError(f"{type(self).__name__} converts {self.type_name} messages, got {type(msg).__name__}")
+            raise WrongTypeError(f"{type(self).__name__} converts {self.type_name} messages, got {type(msg).__name__}")
 
     def _check_value(self, value: Any, expected: type | tuple[type, ...] | None = None) -> None:
         expected = self.coco_type if expected is None else expected
         if not isinstance(value, expected):
             names = " or ".join(t.__name__ for t in (expected if isinstance(expected, tuple) else (expected,)))
-            raise TypeError(f"{type(self).__name__} publishes {names} values as {self.type_name}, "
-                            f"got {type(value).__name__}")
+            raise WrongTypeError(f"{type(self).__name__} publishes {names} values as {self.type_name}, "
+                                 f"got {type(value).__name__}")
 
 
 def message_class(type_name: str) -> type:
@@ -82,7 +83,7 @@ def typed_array(values: np.ndarray, typecode: str) -> array.array:
     result = array.array(typecode)
     contiguous = np.ascontiguousarray(values)
     if contiguous.dtype.itemsize != result.itemsize and typecode != "B":
-        raise ValueError(f"cannot store {contiguous.dtype} values in an array of {typecode!r}")
+        raise MessageError(f"cannot store {contiguous.dtype} values in an array of {typecode!r}")
     result.frombytes(contiguous.reshape(-1).view(np.uint8))  # type: ignore[arg-type]  # an ndarray is a buffer
     return result
 

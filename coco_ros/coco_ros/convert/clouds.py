@@ -20,6 +20,7 @@ the points; an organized cloud keeps its height and width, others are one row.
 from __future__ import annotations
 
 import numpy as np
+from coco_core.errors import MessageError
 from coco_mr_vision.pointcloud import PointCloud
 from sensor_msgs.msg import PointCloud2, PointField
 
@@ -48,29 +49,29 @@ class PointCloud2Converter(Converter[PointCloud2, PointCloud]):
         fields = {field.name: field for field in msg.fields}
         missing = [name for name in "xyz" if name not in fields]
         if missing:
-            raise ValueError(f"PointCloud2 lacks field(s) {', '.join(missing)}; it has: "
-                             f"{', '.join(fields) or 'no fields'}")
+            raise MessageError(f"PointCloud2 lacks field(s) {', '.join(missing)}; it has: "
+                               f"{', '.join(fields) or 'no fields'}")
         height, width, point_step, row_step = msg.height, msg.width, msg.point_step, msg.row_step
         order = ">" if msg.is_bigendian else "<"
         types = {name: _field_dtype(fields[name], order) for name in "xyz"}
         color_name = next((name for name in COLOR_FIELDS if name in fields), None)
         if color_name is not None and _field_dtype(fields[color_name], order).itemsize != 4:
-            raise ValueError(f"PointCloud2 field {color_name!r} must be 4 bytes (packed 0x00RRGGBB), got "
-                             f"datatype {fields[color_name].datatype}")
+            raise MessageError(f"PointCloud2 field {color_name!r} must be 4 bytes (packed 0x00RRGGBB), got "
+                               f"datatype {fields[color_name].datatype}")
         used = [*"xyz", color_name] if color_name else [*"xyz"]
         extent = max(fields[name].offset + (4 if name == color_name else types[name].itemsize) for name in used)
         if point_step < extent:
-            raise ValueError(f"PointCloud2 point_step {point_step} is smaller than its fields "
-                             f"(they need {extent} bytes)")
+            raise MessageError(f"PointCloud2 point_step {point_step} is smaller than its fields "
+                               f"(they need {extent} bytes)")
         if height > 1 and row_step < width * point_step:
-            raise ValueError(f"PointCloud2 row_step {row_step} is smaller than width * point_step "
-                             f"({width} * {point_step})")
+            raise MessageError(f"PointCloud2 row_step {row_step} is smaller than width * point_step "
+                               f"({width} * {point_step})")
         row_step = row_step if height > 1 else width * point_step  # one row: row_step never used
         buffer = np.frombuffer(msg.data, dtype=np.uint8)
         needed = row_step * (height - 1) + width * point_step if height and width else 0
         if buffer.size < needed:
-            raise ValueError(f"PointCloud2 of {height}x{width} points (point_step {point_step}, row_step "
-                             f"{row_step}) needs {needed} bytes of data, got {buffer.size}")
+            raise MessageError(f"PointCloud2 of {height}x{width} points (point_step {point_step}, row_step "
+                               f"{row_step}) needs {needed} bytes of data, got {buffer.size}")
         count = height * width
         if count == 0:
             return PointCloud(np.empty((0, 3), np.float32), None if color_name is None else np.empty((0, 3), np.uint8),
@@ -122,5 +123,5 @@ def _field_dtype(field: PointField, order: str) -> np.dtype:
     try:
         code = FIELD_TYPES[field.datatype]
     except KeyError:
-        raise ValueError(f"PointCloud2 field {field.name!r} has unknown datatype {field.datatype}") from None
+        raise MessageError(f"PointCloud2 field {field.name!r} has unknown datatype {field.datatype}") from None
     return np.dtype(code if code.endswith("1") else order + code)

@@ -20,6 +20,7 @@ from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
+from coco_core.errors import GeometryError, MessageError, MissingPackageError, WrongTypeError
 from coco_core.transforms import se3
 from coco_core.transforms.samples import FramePose, TransformSample
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
@@ -32,14 +33,14 @@ def matrix_of(translation: Any, rotation: Any) -> np.ndarray:
     """4x4 transform of a message's translation (Point or Vector3) and rotation (Quaternion)."""
     quaternion = (rotation.x, rotation.y, rotation.z, rotation.w)
     if sum(c * c for c in quaternion) < 1e-12:
-        raise ValueError(f"quaternion {quaternion} is zero: not a rotation")
+        raise GeometryError(f"quaternion {quaternion} is zero: not a rotation")
     return se3.from_pose((translation.x, translation.y, translation.z), quaternion)
 
 
 def _pose_parts(transform: np.ndarray) -> tuple[list[float], list[float]]:
     matrix = np.asarray(transform, dtype=float)
     if matrix.shape != (4, 4):
-        raise ValueError(f"expected a 4x4 transform, got shape {matrix.shape}")
+        raise GeometryError(f"expected a 4x4 transform, got shape {matrix.shape}")
     translation, quaternion = se3.to_pose(matrix)
     return translation.tolist(), quaternion.tolist()
 
@@ -130,7 +131,7 @@ def _tf_samples_from_cdr(data: bytes, static: bool) -> list[TransformSample]:
         tx, ty, tz, qx, qy, qz, qw = _POSE.unpack_from(data, position)
         position += _POSE.size
         if qx * qx + qy * qy + qz * qz + qw * qw < 1e-12:
-            raise ValueError(f"quaternion {(qx, qy, qz, qw)} is zero: not a rotation")
+            raise GeometryError(f"quaternion {(qx, qy, qz, qw)} is zero: not a rotation")
         matrix = se3.from_pose((tx, ty, tz), (qx, qy, qz, qw))
         if static:
             samples.append(TransformSample(parent, child, matrix, RosTime(sec, nanosec), static=True))
@@ -177,9 +178,9 @@ class TFMessageConverter(Converter[Any, list]):
         try:
             self._message = message_class(self.type_name)
         except ImportError as error:
-            raise ImportError(f"the {self.type_name} converter needs the tf2_msgs Python package ({error}); "
-                              "it is built in the workspace from vendor/tf2_msgs: run scripts/setup.sh, or "
-                              "source install/setup.bash") from error
+            raise MissingPackageError(f"the {self.type_name} converter needs the tf2_msgs Python package ({error}); "
+                                      "it is built in the workspace from vendor/tf2_msgs: run scripts/setup.sh, or "
+                                      "source install/setup.bash") from error
 
     @property
     def message_type(self) -> type:
@@ -194,7 +195,7 @@ class TFMessageConverter(Converter[Any, list]):
         try:
             return _tf_samples_from_cdr(data, self.static)
         except (struct.error, UnicodeDecodeError) as error:
-            raise ValueError(f"malformed TFMessage CDR ({len(data)} bytes): {error}") from None
+            raise MessageError(f"malformed TFMessage CDR ({len(data)} bytes): {error}") from None
 
     def to_coco(self, msg: Any) -> list[TransformSample]:
         self._check_message(msg)
@@ -208,8 +209,8 @@ class TFMessageConverter(Converter[Any, list]):
         elif isinstance(value, Iterable):
             samples = list(value)
         else:
-            raise TypeError(f"{type(self).__name__} publishes a TransformSample or FramePose, or a list of them, "
-                            f"got {type(value).__name__}")
+            raise WrongTypeError(f"{type(self).__name__} publishes a TransformSample or FramePose, or a list of them, "
+                                 f"got {type(value).__name__}")
         for sample in samples:
             self._check_value(sample, (TransformSample, FramePose))
         return self._message(transforms=[transform_stamped(sample) for sample in samples])

@@ -21,6 +21,7 @@ from __future__ import annotations
 import sys
 
 import numpy as np
+from coco_core.errors import MessageError
 from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
 from sensor_msgs.msg import CameraInfo, RegionOfInterest
 from sensor_msgs.msg import Image as ImageMsg
@@ -77,8 +78,8 @@ class ImageConverter(Converter[ImageMsg, Image]):
         try:
             image_format, uyvy = READ_ENCODINGS[msg.encoding]
         except KeyError:
-            raise ValueError(f"image encoding {msg.encoding!r} is not supported; supported: "
-                             f"{', '.join(READ_ENCODINGS)}") from None
+            raise MessageError(f"image encoding {msg.encoding!r} is not supported; supported: "
+                               f"{', '.join(READ_ENCODINGS)}") from None
         height, width, step = msg.height, msg.width, msg.step
         dtype = image_format.dtype
         if dtype.itemsize > 1:
@@ -116,22 +117,22 @@ class ImageConverter(Converter[ImageMsg, Image]):
 
 def _check_size(buffer: np.ndarray, width: int, height: int, step: int, row_bytes: int, encoding: str) -> None:
     if step < row_bytes:
-        raise ValueError(f"{encoding} image of width {width} needs step >= {row_bytes} bytes, got step {step}")
+        raise MessageError(f"{encoding} image of width {width} needs step >= {row_bytes} bytes, got step {step}")
     needed = step * (height - 1) + row_bytes if height and width else 0
     if buffer.size < needed:
-        raise ValueError(f"{encoding} image {width}x{height} with step {step} needs {needed} bytes of data, "
-                         f"got {buffer.size}")
+        raise MessageError(f"{encoding} image {width}x{height} with step {step} needs {needed} bytes of data, "
+                           f"got {buffer.size}")
 
 
 def _i420_view(buffer: np.ndarray, width: int, height: int, step: int, encoding: str) -> np.ndarray:
     """The (H*3/2)xW array of an I420 image: a view when rows are unpadded, else a planar copy."""
     if width % 2 or height % 2:
-        raise ValueError(f"{encoding} images need an even width and height, got {width}x{height}")
+        raise MessageError(f"{encoding} images need an even width and height, got {width}x{height}")
     if step == width:
         _check_size(buffer, width, height * 3 // 2, step, width, encoding)
         return np.ndarray((height * 3 // 2, width), dtype=np.uint8, buffer=buffer, strides=(step, 1))
     if step % 2:
-        raise ValueError(f"{encoding} image with padded rows needs an even step, got {step}")
+        raise MessageError(f"{encoding} image with padded rows needs an even step, got {step}")
     _check_size(buffer, width, height * 3 // 2, step, width, encoding)
     chroma_step, luma_bytes = step // 2, step * height
     planes = [np.ndarray((height, width), np.uint8, buffer, 0, (step, 1))] + [

@@ -14,6 +14,7 @@ import struct
 from dataclasses import dataclass
 
 import numpy as np
+from coco_core.errors import MessageError
 from coco_core.transforms.samples import JointSample
 from sensor_msgs.msg import JointState
 
@@ -61,7 +62,7 @@ class JointStateConverter(Converter[JointState, JointSample]):
         except (struct.error, ValueError, UnicodeDecodeError) as error:
             if isinstance(error, ValueError) and "JointState has" in str(error):
                 raise
-            raise ValueError(f"malformed JointState CDR ({len(data)} bytes): {error}") from None
+            raise MessageError(f"malformed JointState CDR ({len(data)} bytes): {error}") from None
 
     def to_ros(self, value: JointSample) -> JointState:
         self._check_value(value)
@@ -81,8 +82,8 @@ def _values(field: object, label: str, names: tuple[str, ...], required: bool = 
         return values
     if len(values) == 0 and not required:
         return None
-    raise ValueError(f"JointState has {len(names)} names but {len(values)} {label} values"
-                     + (" (positions are required)" if required and not len(values) else ""))
+    raise MessageError(f"JointState has {len(names)} names but {len(values)} {label} values"
+                       + (" (positions are required)" if required and not len(values) else ""))
 
 
 def _joint_state_from_cdr(data: bytes) -> JointStateSample:
@@ -104,7 +105,7 @@ def _joint_state_from_cdr(data: bytes) -> JointStateSample:
         length, position = count_at(position)
         position += length
     if position > len(data):
-        raise ValueError("the joint names run past the end")
+        raise MessageError("the joint names run past the end")
     names_tuple = _names(data[start:position], (start - 4) % 4)
     arrays = []
     for _ in range(3):  # position, velocity, effort
@@ -112,7 +113,7 @@ def _joint_state_from_cdr(data: bytes) -> JointStateSample:
         if count:
             position += -(position - 4) % 8
         if position + 8 * count > len(data):
-            raise ValueError(f"a sequence of {count} doubles runs past the end")
+            raise MessageError(f"a sequence of {count} doubles runs past the end")
         arrays.append(np.frombuffer(data, "<f8", count, position))
         position += 8 * count
     positions, velocities, efforts = (_sized(values, label, names_tuple, required)
@@ -152,5 +153,5 @@ def _sized(values: np.ndarray, label: str, names: tuple[str, ...], required: boo
 def _checked(values: np.ndarray, label: str, names: tuple[str, ...]):
     array = np.asarray(values, dtype=np.float64).reshape(-1)
     if len(array) != len(names):
-        raise ValueError(f"a joint sample with {len(names)} names has {len(array)} {label}")
+        raise MessageError(f"a joint sample with {len(names)} names has {len(array)} {label}")
     return typed_array(array, "d")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numbers
 
+from coco_core.errors import WrongTypeError
 from std_msgs.msg import Float64
 
 from .base import Converter
@@ -29,6 +30,6 @@ class Float64Converter(Converter[Float64, float]):
 
     def to_ros(self, value: float) -> Float64:
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            raise TypeError(f"{type(self).__name__} publishes real numbers as {self.type_name}, "
-                            f"got {type(value).__name__}")
+            raise WrongTypeError(f"{type(self).__name__} publishes real numbers as {self.type_name}, "
+                                 f"got {type(value).__name__}")
         return Float64(data=float(value))

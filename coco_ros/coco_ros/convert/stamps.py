@@ -20,6 +20,7 @@ import math
 from typing import Any
 
 from builtin_interfaces.msg import Time
+from coco_core.errors import MessageError
 
 _NS = 1_000_000_000
 _INT32 = 2**31
@@ -67,11 +68,11 @@ def seconds_to_time(seconds: float | None) -> Time:
         return Time(sec=seconds.sec, nanosec=seconds.nanosec)
     value = float(seconds)
     if not math.isfinite(value):
-        raise ValueError(f"a ROS time must be finite, got {value}")
+        raise MessageError(f"a ROS time must be finite, got {value}")
     sec = math.floor(value)
     nanosec = round((value - sec) * _NS)  # value - floor(value) is exact in floating point
     if nanosec >= _NS:
         sec, nanosec = sec + 1, nanosec - _NS
     if not -_INT32 <= sec < _INT32:
-        raise ValueError(f"{value} s is outside the range of a ROS time (int32 seconds)")
+        raise MessageError(f"{value} s is outside the range of a ROS time (int32 seconds)")
     return Time(sec=sec, nanosec=nanosec)

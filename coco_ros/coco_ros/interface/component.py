@@ -39,7 +39,7 @@ from typing import Any, Union
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import CocoError
+from coco_core.errors import CocoError, WrongTypeError
 from coco_core.operations import operation
 from coco_core.stamps import Stamped
 
@@ -177,8 +177,8 @@ class ROSInterface(Component):
     def _passed_through(route: _Route, message: BagMessage) -> bytes:
         """The CDR bytes of a recorded message, published as they are (rclpy publishes bytes raw)."""
         if normalize_type(message.type) != normalize_type(route.spec.type_name):
-            raise TypeError(f"a recorded {message.type} message from {message.topic} cannot go to "
-                            f"{route.spec.topic}, which publishes {route.spec.type_name}")
+            raise WrongTypeError(f"a recorded {message.type} message from {message.topic} cannot go to "
+                                 f"{route.spec.topic}, which publishes {route.spec.type_name}")
         return message.data
 
     def on_stop(self) -> None:

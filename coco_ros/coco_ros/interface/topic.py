@@ -27,6 +27,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
+from coco_core.errors import SpecError
+
 from ..bag.qos import Qos
 from ..convert import converter_for, normalize_type_name, supported_types
 from ..convert.base import Converter
@@ -43,10 +45,6 @@ _PORT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _TOPIC = re.compile(r"^~?/?[A-Za-z_{][A-Za-z0-9_{}~/]*$")
 _TRUE = {"true", "1", "yes", "on"}
 _FALSE = {"false", "0", "no", "off"}
-
-
-class SpecError(ValueError):
-    """A topic spec that cannot be used; the message names the spec and the expected syntax."""
 
 
 @dataclass(frozen=True)
@@ -179,9 +177,9 @@ def parse_options(items: Sequence[str]) -> dict[str, str]:
         key, equals, value = item.partition("=")
         key = key.strip()
         if not equals or not key:
-            raise ValueError(f"option {item!r} is not key=value")
+            raise SpecError(f"option {item!r} is not key=value")
         if key in raw:
-            raise ValueError(f"option {key!r} given twice")
+            raise SpecError(f"option {key!r} given twice")
         raw[key] = value.strip()
     return raw
 
@@ -214,13 +212,13 @@ def _typed_options(type_name: str, options: dict[str, str]) -> dict[str, Any]:
         if isinstance(default, bool):
             word = value.lower()
             if word not in _TRUE | _FALSE:
-                raise ValueError(f"option {key} expects true or false, got {value!r}")
+                raise SpecError(f"option {key} expects true or false, got {value!r}")
             typed[key] = word in _TRUE
         elif isinstance(default, (int, float)):
             try:
                 typed[key] = type(default)(value)
             except ValueError:
-                raise ValueError(f"option {key} expects a number, got {value!r}") from None
+                raise SpecError(f"option {key} expects a number, got {value!r}") from None
         elif isinstance(default, (tuple, list)):
             typed[key] = tuple(item for item in value.split("|") if item)
         else:

@@ -18,7 +18,9 @@ import sys
 import time
 from collections.abc import Sequence
 
-from ..bag import BagError, BagReader
+from coco_core.errors import BagError
+
+from ..bag import BagReader
 from ..bag.qos import for_replay
 from .flow import ACK_TIMEOUT, as_fast_as_possible, unacknowledged
 from .player import Player, parse_remaps

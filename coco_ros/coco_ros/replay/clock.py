@@ -20,6 +20,8 @@ import threading
 import time
 from typing import Callable
 
+from coco_core.errors import ReplayError
+
 MAX_SLEEP = 0.05
 """Seconds :meth:`PlaybackClock.wait` sleeps at most at once, so pause and stop react quickly."""
 
@@ -43,7 +45,7 @@ class PlaybackClock:
     def _checked(rate: float) -> float:
         rate = float(rate)
         if math.isnan(rate) or rate < 0:
-            raise ValueError(f"the replay rate must be a factor >= 0 (0: as fast as possible), got {rate}")
+            raise ReplayError(f"the replay rate must be a factor >= 0 (0: as fast as possible), got {rate}")
         return rate
 
     # -- state -----------------------------------------------------------------------------------
@@ -100,7 +102,7 @@ class PlaybackClock:
     def step(self, count: int = 1) -> None:
         """Release the next ``count`` messages now (pauses first if running)."""
         if count < 1:
-            raise ValueError(f"step count must be >= 1, got {count}")
+            raise ReplayError(f"step count must be >= 1, got {count}")
         with self._lock:
             if not self._paused:
                 self._last = self._now_locked()

@@ -64,12 +64,12 @@ from typing import Any
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import CocoError
+from coco_core.errors import BagError, CocoError, ReplayError
 from coco_core.operations import operation
 from coco_core.ports import OutputPort
 from coco_core.stamps import Stamp, Stamped
 
-from ..bag import BagError, BagMessage, BagReader
+from ..bag import BagMessage, BagReader
 from ..bag.message_types import TF_MESSAGE
 from ..interface.topic import converter_options, parse_options
 from .player import Played, Player, parse_remaps
@@ -88,7 +88,7 @@ def port_name_for(topic: str) -> str:
     """``/robot/joint_states`` -> ``robot_joint_states`` (a valid port name from a topic)."""
     name = _NOT_NAME.sub("_", topic).strip("_")
     if not name:
-        raise ValueError(f"cannot derive a port name from topic {topic!r}")
+        raise ReplayError(f"cannot derive a port name from topic {topic!r}")
     return f"t_{name}" if name[0].isdigit() else name
 
 
@@ -99,8 +99,8 @@ def _converter(type_name: str, options: dict[str, str]) -> Any | None:
 
     if options:
         if type_name not in supported_types():
-            raise ValueError(f"no converter for {type_name}, so no options (types with a converter: "
-                             f"{', '.join(supported_types())})")
+            raise ReplayError(f"no converter for {type_name}, so no options (types with a converter: "
+                              f"{', '.join(supported_types())})")
         return converter_for(type_name, **converter_options(type_name, options))
     try:
         return converter_for(type_name)

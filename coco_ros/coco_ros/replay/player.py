@@ -21,9 +21,9 @@ import threading
 from collections.abc import Iterable, Iterator, Sequence
 from typing import Callable, NamedTuple
 
-from coco_core.errors import did_you_mean
+from coco_core.errors import BagError, ReplayError, did_you_mean
 
-from ..bag import BagError, BagMessage, BagReader
+from ..bag import BagMessage, BagReader
 from .clock import PlaybackClock
 
 
@@ -47,7 +47,7 @@ def parse_remaps(remaps: Iterable[str] | dict[str, str] | None) -> dict[str, str
     for item in remaps:
         source, sep, target = item.partition(":=")
         if not sep or not source.strip() or not target.strip():
-            raise ValueError(f"expected a remapping like '/from:=/to', got {item!r}")
+            raise ReplayError(f"expected a remapping like '/from:=/to', got {item!r}")
         result[source.strip()] = target.strip()
     return result
 
@@ -70,9 +70,9 @@ class Player:
     ) -> None:
         self.reader = reader
         if start_offset < 0:
-            raise ValueError(f"start offset must be >= 0 s, got {start_offset}")
+            raise ReplayError(f"start offset must be >= 0 s, got {start_offset}")
         if duration is not None and duration <= 0:
-            raise ValueError(f"duration must be > 0 s (None: to the end), got {duration}")
+            raise ReplayError(f"duration must be > 0 s (None: to the end), got {duration}")
         self.topics = list(dict.fromkeys(topics)) if topics else list(reader.topics)
         for name in self.topics:
             if name not in reader.topics:
@@ -211,7 +211,7 @@ class Player:
         Takes effect before the next message; call it from the thread that consumes the player.
         """
         if offset < 0:
-            raise ValueError(f"seek offset must be >= 0 s, got {offset}")
+            raise ReplayError(f"seek offset must be >= 0 s, got {offset}")
         self._next = None
         self._finished = False
         self._source = self._sequence(offset)

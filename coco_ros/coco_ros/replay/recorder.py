@@ -30,7 +30,7 @@ from typing import Any
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import CocoError
+from coco_core.errors import CocoError, ReplayError
 from coco_core.ports import InputPort
 from coco_core.stamps import unstamped
 
@@ -45,7 +45,7 @@ def parse_topic_spec(item: str) -> tuple[str, str, str]:
     port, sep, rest = item.partition("=")
     topic, sep2, type_name = rest.rpartition(":")
     if not sep or not sep2 or not port.strip() or not topic.strip().startswith("/") or not type_name.strip():
-        raise ValueError(f"expected 'port=/topic:pkg/msg/Type', got {item!r}")
+        raise ReplayError(f"expected 'port=/topic:pkg/msg/Type', got {item!r}")
     return port.strip(), topic.strip(), normalize_type(type_name.strip())
 
 

@@ -44,6 +44,7 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.colors import green_yellow_red
 from coco_core.component import Component
+from coco_core.errors import SetupError
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamp, Stamped, unstamped
 from coco_core.transforms.samples import FramePose
@@ -56,7 +57,7 @@ def distance_color(distance: float, near: float = 0.02, far: float = 0.5) -> tup
     """The UpdateColorCalc colour of a distance: green at ``<= near``, red at ``>= far``, yellow
     half-way, linear in between (see the module docstring)."""
     if not far > near:
-        raise ValueError(f"far ({far}) must be greater than near ({near})")
+        raise SetupError(f"far ({far}) must be greater than near ({near})")
     return green_yellow_red((distance - near) / (far - near))
 
 
@@ -93,7 +94,7 @@ class EndEffectorDistance(Component):
 
     def on_config(self) -> None:
         if not self.far > self.near:
-            raise ValueError(f"component {self.name}: far ({self.far}) must be greater than near ({self.near})")
+            raise SetupError(f"component {self.name}: far ({self.far}) must be greater than near ({self.near})")
 
     def on_update(self) -> None:
         read = Stamp.now()

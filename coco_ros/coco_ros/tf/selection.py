@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
-from coco_core.errors import did_you_mean
+from coco_core.errors import AttributeValueError, did_you_mean
 from coco_core.transforms.edges import AxisEdge, DynamicEdge, Edge, EdgeKind, StaticEdge
 from coco_core.transforms.graph import ModelEdge, TransformError, TransformGraph
 from coco_core.transforms.samples import TransformSample
@@ -43,9 +43,9 @@ def parse_pair(text: str) -> Pair:
     parent, colon, child = text.partition(":")
     parent, child = parent.strip(), child.strip()
     if not colon or not parent or not child or ":" in child:
-        raise ValueError(f"frame pair {text!r} must look like parent:child (e.g. base:left_gripper)")
+        raise AttributeValueError(f"frame pair {text!r} must look like parent:child (e.g. base:left_gripper)")
     if parent == child:
-        raise ValueError(f"frame pair {text!r} names the same frame twice")
+        raise AttributeValueError(f"frame pair {text!r} names the same frame twice")
     return parent, child
 
 
