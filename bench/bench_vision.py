@@ -293,7 +293,7 @@ def bench_dds(frame: RGBDFrame, live: Table) -> dict:
         from _ros import Loopback, RosContext
         from sensor_msgs.msg import CompressedImage
         from sensor_msgs.msg import Image as ImageMsg
-        from coco_ros.convert.images import ImageConverter as RosImages
+        from coco_ros.convert.images import ImageMessageConverter as RosImages
     except ImportError as error:
         live.notes.append(f"rclpy rows missing: {error}")
         return {}

@@ -570,3 +570,15 @@ def test_visual_shapes_materials_and_errors():
         with pytest.raises(UrdfError, match=message):
             load_urdf(TransformGraph(), f'<robot name="r"><link name="a"><visual><geometry>{bad}</geometry>'
                                         "</visual></link></robot>")
+
+
+def test_a_urdf_is_read_only_from_a_regular_file(tmp_path):
+    """The one place a URDF is read (a display draws the model loaded here): a FIFO or a device is
+    refused by name, not read until it blocks or fills the memory."""
+    import os
+
+    os.mkfifo(tmp_path / "robot.urdf")
+    with pytest.raises(UrdfError, match="URDF .*robot.urdf is a FIFO, not a regular file"):
+        UrdfModel.load(tmp_path / "robot.urdf")
+    with pytest.raises(UrdfError, match="URDF /dev/zero is a character device, not a regular file"):
+        UrdfModel.load(Path("/dev/zero"))

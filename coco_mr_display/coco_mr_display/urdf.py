@@ -9,9 +9,9 @@ application names the robot's file once, and what is drawn cannot disagree with 
 
 Loading is split so that errors are immediate and the render loop never waits:
 
-- ``on_config`` (fast, synchronous): find the model in the graph (an unknown name lists the ones
-  there are), resolve every mesh file (a missing one fails here, named), check the ``colors`` link
-  names against the model's links;
+- ``on_config`` (fast, synchronous; ``init`` with ``preload``): find the model in the graph (an
+  unknown name lists the ones there are), resolve every mesh file (a missing one fails here, named),
+  check the ``colors`` link names against the model's links;
 - a loader thread started there reads the meshes (DAE, STL, OBJ ... through trimesh; each file
   once, even when several links use it), applies visual origins and scales and bakes colours, and
   merges all visuals of a link into as few buffers as possible (one for Baxter's links);
@@ -90,7 +90,8 @@ def robot_model(graph: TransformGraph, name: str, component: str) -> UrdfModel:
         return models[name]
     if not name and len(models) == 1:
         return next(iter(models.values()))
-    hint = ("load it with a TransformationInterface (its urdf attribute) in this process" if not models
+    hint = ("load it with a TransformationInterface (its urdf attribute) in this process, declared before "
+            "the display" if not models
             else f"name one with the robot attribute; {did_you_mean(name, models)}")
     raise UnknownNameError(f"{component}: the transformation graph has "
                            f"{'no URDF model ' + repr(name) if name else str(len(models)) + ' URDF models'}: {hint}")
@@ -150,7 +151,7 @@ class GLUrdf(PhongPeer):
     wait_for_joints = Attribute(bool, False, "draw no link that a robot model places before that model's first "
                                 "joint state (the all-zero pose loaded at start is not the robot's), as "
                                 "TransformationInterface's attribute of that name publishes nothing then")
-    preload = Attribute(bool, False, "read the meshes while the application is configured, so that the first "
+    preload = Attribute(bool, False, "read the meshes while the application is built (init), so that the first "
                         "frame shows the robot; the start waits for them (about 2 s for Baxter)")
 
     def init(self) -> None:
@@ -162,8 +163,17 @@ class GLUrdf(PhongPeer):
         self._missing: set[str] = set()
         self._cancel = threading.Event()
         self._loading: Future = Future()
+        if self.preload:  # while the application is built: its start (and the other processes') waits
+            self._load(*self._work())
+            self._loading.result()  # a bad mesh fails the application's construction, with its message
 
     def on_config(self) -> None:
+        if not self.preload:
+            threading.Thread(target=self._load, args=self._work(), name=f"{self.name}-loader", daemon=True).start()
+
+    def _work(self) -> tuple[list[UrdfVisual], dict[str, Path], tuple[float, ...], float]:
+        """What the loader needs, checked: the model's visuals and mesh files, the default colour and
+        the fraction of triangles kept."""
         model = robot_model(self.transform_graph, self.robot, self.name)
         overrides = parse_link_colors(self.colors)
         for link in overrides:
@@ -172,12 +182,7 @@ class GLUrdf(PhongPeer):
                                        f"have; {did_you_mean(link, model.link_names)}")
         self._prefix, self._overrides = model.prefix, overrides
         default = tuple(self.color) + ((1.0,) if len(self.color) == 3 else ())
-        work = (model.visuals, mesh_paths(model), default, self.simplify)
-        if self.preload:
-            self._load(*work)
-            self._loading.result()  # a bad mesh fails the configuration, with its message
-        else:
-            threading.Thread(target=self._load, args=work, name=f"{self.name}-loader", daemon=True).start()
+        return model.visuals, mesh_paths(model), default, self.simplify
 
     def _load(self, visuals: list[UrdfVisual], paths: dict[str, Path], default: tuple[float, ...],
               keep: float) -> None:

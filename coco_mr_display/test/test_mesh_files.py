@@ -2,7 +2,6 @@
 clear error, not an endless read or a blocked loader."""
 
 import os
-from pathlib import Path
 
 import pytest
 
@@ -25,14 +24,3 @@ def test_a_fifo_is_refused_without_blocking(tmp_path):
 def test_a_mesh_file_is_still_read_from_its_bytes(tmp_path):
     (tmp_path / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     assert len(load_geometry(tmp_path / "tri.obj").faces) == 1
-
-
-def test_glurdf_reads_its_urdf_only_from_a_regular_file(tmp_path):
-    from coco_core.errors import CocoError
-    from coco_mr_display.urdf import read_visuals
-
-    os.mkfifo(tmp_path / "robot.urdf")
-    with pytest.raises(CocoError, match="URDF .*robot.urdf is a FIFO, not a regular file"):
-        read_visuals(tmp_path / "robot.urdf")
-    with pytest.raises(CocoError, match="URDF /dev/zero is a character device, not a regular file"):
-        read_visuals(Path("/dev/zero"))

@@ -183,22 +183,21 @@ def test_a_missing_mesh_file_is_named_at_configuration(tmp_path):
         app.add(GLUrdf("broken")).on_config()
 
 
-def test_preload_reads_the_meshes_while_the_application_is_configured(robot):
-    """With preload the meshes are read in on_config: the first frame after configuration shows the robot."""
+def test_preload_reads_the_meshes_while_the_application_is_built(robot):
+    """With preload the meshes are read in init(): the first frame after configuration shows the robot."""
     peer, _, frame = robot(preload=True, simplify=0.25)
     assert peer.loaded, "preload must have read the meshes before the application starts"
     _, mask = frame()
     assert mask.sum() > 5000, "the first frame after a preload shows the robot"
 
 
-def test_preload_reports_a_bad_mesh_at_configuration(tmp_path):
+def test_preload_reports_a_bad_mesh_when_the_application_is_built(tmp_path):
     (tmp_path / "meshes").mkdir()
     (tmp_path / "meshes" / "bad.stl").write_bytes(b"solid nothing but words")
     app = Application("urdf-preload")
     app.add(TransformationInterface("tf", urdf=broken_robot(tmp_path, "bad.stl")))
-    peer = app.add(GLUrdf("broken", preload=True))
     with pytest.raises(Exception, match=r"bad\.stl"):
-        peer.on_config()
+        app.add(GLUrdf("broken", preload=True))
 
 
 def test_wait_for_joints_draws_nothing_before_the_first_joint_state(robot):

@@ -265,6 +265,12 @@ class Image:
             if rows % 3 or width % 2:
                 raise ImageError(f"I420 image data must have shape (H*3/2)xW with H and W even, got {data.shape}")
 
+    def __reduce__(self) -> tuple[type[Image], tuple[Any, ...]]:
+        """Pickled (across processes: a shared-memory channel, a child's port) without the
+        conversions made so far: each would add a whole image to every transfer, and a reader in the
+        other process converts what it needs itself."""
+        return Image, (self.data, self.format, self.stamp, self.frame_id, self.intrinsics)
+
     @property
     def width(self) -> int:
         return int(self.data.shape[1])

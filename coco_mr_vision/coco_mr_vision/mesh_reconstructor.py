@@ -13,8 +13,9 @@ For each frame (every ``stride``-th pixel in both directions):
 4. normals come from the grid (cross product of the central differences), facing the camera;
    colours are the RGB of the pixel.
 
-All of it is whole-array numpy and OpenCV work, written straight into the slot's buffer. The
-vertices feed the haptic module's point-cloud structures; ``export_ply`` saves the latest mesh.
+The hole filling is OpenCV's; steps 2-4 are compiled passes over the grid (:mod:`.mesh_kernel`)
+that write straight into the slot's buffer. The vertices feed the haptic module's point-cloud
+structures; ``export_ply`` saves the latest mesh.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from coco_core.stamps import Stamped, unstamped
 
 from .image import ImageFormat
 from .mesh import MeshInfo, MeshLayout, TriangleMesh, write_ply
+from .mesh_kernel import mesh_points, mesh_triangles
 from .rgbd import RGBDFrame
 
 log = logging.getLogger("coco.vision")
@@ -62,31 +64,6 @@ def fill_small_holes(depth: np.ndarray, hole_size: int) -> np.ndarray:
     return filled
 
 
-def _grid_differences(planes: tuple[np.ndarray, ...], known: np.ndarray, axis: int) -> list[np.ndarray]:
-    """Differences of neighbouring grid points along ``axis`` for each coordinate plane: central where
-    both neighbours are known, else forward, else backward (NaN when neither is)."""
-    ahead = np.zeros_like(known)
-    behind = np.zeros_like(known)
-    inner = (slice(None), slice(1, -1)) if axis == 1 else (slice(1, -1), slice(None))
-    after = (slice(None), slice(2, None)) if axis == 1 else (slice(2, None), slice(None))
-    before = (slice(None), slice(None, -2)) if axis == 1 else (slice(None, -2), slice(None))
-    head = (slice(None), slice(0, 1)) if axis == 1 else (slice(0, 1), slice(None))
-    head_next = (slice(None), slice(1, 2)) if axis == 1 else (slice(1, 2), slice(None))
-    tail = (slice(None), slice(-1, None)) if axis == 1 else (slice(-1, None), slice(None))
-    tail_prev = (slice(None), slice(-2, -1)) if axis == 1 else (slice(-2, -1), slice(None))
-    ahead[inner], ahead[head] = known[after], known[head_next]
-    behind[inner], behind[tail] = known[before], known[tail_prev]
-    both, only_ahead = ahead & behind, ahead & ~behind
-    out = []
-    for plane in planes:
-        step = np.diff(plane, axis=axis)  # step[i] = p[i+1] - p[i]
-        pad = np.zeros_like(np.take(plane, [0], axis=axis))
-        forward = np.concatenate([step, pad], axis=axis)
-        backward = np.concatenate([pad, step], axis=axis)
-        out.append(np.where(both, 0.5 * (forward + backward), np.where(only_ahead, forward, backward)))
-    return out
-
-
 class MeshReconstructor(Component):
     """Turns each RGB-D frame into an organised, coloured triangle mesh with normals."""
 
@@ -107,6 +84,8 @@ class MeshReconstructor(Component):
         self.stalls = 0
         """Frames skipped because every slot of the pool was held by readers."""
         self._rays: tuple[tuple, np.ndarray, np.ndarray] | None = None
+        self._scratch: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        """Per-grid-point vertex index and x, y planes, kept between frames of one size."""
         self._newest: Slot | None = None
         """The slot published last: only this component writes slots, in its own thread, and an
         operation runs in that thread too, so the slot is intact when ``export_ply`` reads it."""
@@ -150,61 +129,14 @@ class MeshReconstructor(Component):
         depth = fill_small_holes(depth, max(self.hole_size // s, 0) if s > 1 else self.hole_size)
         rows, cols = depth.shape
         ray_x, ray_y = self._ray_grid(frame, rows, cols)
-        x, y = ray_x * depth, ray_y * depth
-        valid = np.isfinite(depth)
-        index = np.cumsum(valid.ravel(), dtype=np.int32).reshape(rows, cols) - 1
+        if self._scratch is None or self._scratch[0].shape != (rows, cols):
+            self._scratch = (np.empty((rows, cols), np.int32), np.empty((rows, cols), np.float32),
+                             np.empty((rows, cols), np.float32))
+        index, x, y = self._scratch
         vertices, normals, colors, triangles = TriangleMesh.writable(buffer, layout)
-        count = int(index[-1, -1] + 1) if valid.size else 0
-        for column, plane in enumerate((x, y, depth)):
-            vertices[:count, column] = plane[valid]
-        for column, plane in enumerate(self._normals(x, y, depth, valid)):
-            normals[:count, column] = plane[valid]
         rgb = frame.color.to(ImageFormat.RGB8).data[::s, ::s]
-        colors[:count] = rgb[valid]
-        faces = self._triangles(depth, valid, index)
-        triangles[:len(faces)] = faces
-        return count, len(faces)
-
-    @staticmethod
-    def _normals(x: np.ndarray, y: np.ndarray, z: np.ndarray, known: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Unit normal planes from grid differences (central where both neighbours exist, else
-        one-sided), turned towards the camera; with no neighbour at all, the direction back to it.
-        Works plane by plane in float32: a third of the memory traffic of Nx3 rows."""
-        dx = _grid_differences((x, y, z), known, axis=1)
-        dy = _grid_differences((x, y, z), known, axis=0)
-        nx = dx[1] * dy[2] - dx[2] * dy[1]
-        ny = dx[2] * dy[0] - dx[0] * dy[2]
-        nz = dx[0] * dy[1] - dx[1] * dy[0]
-        length = np.sqrt(nx * nx + ny * ny + nz * nz)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            # Facing the camera: the normal and the point (the ray from the camera) point opposite ways.
-            sign = np.where(nx * x + ny * y + nz * z > 0, -1.0, 1.0).astype(np.float32) / length
-            bad = ~np.isfinite(sign)
-            distance = np.sqrt(x * x + y * y + z * z)
-            nx, ny, nz = nx * sign, ny * sign, nz * sign
-            for normal, coordinate in ((nx, x), (ny, y), (nz, z)):
-                normal[bad] = -coordinate[bad] / distance[bad]
-        return nx, ny, nz
-
-    def _triangles(self, depth: np.ndarray, valid: np.ndarray, index: np.ndarray) -> np.ndarray:
-        a, b = index[:-1, :-1], index[:-1, 1:]
-        c, d = index[1:, :-1], index[1:, 1:]
-        za, zb, zc, zd = depth[:-1, :-1], depth[:-1, 1:], depth[1:, :-1], depth[1:, 1:]
-        va, vb, vc, vd = valid[:-1, :-1], valid[:-1, 1:], valid[1:, :-1], valid[1:, 1:]
-        limit = self.discontinuity
-        with np.errstate(invalid="ignore"):
-            near1 = np.fmin(np.fmin(za, zc), zb)
-            far1 = np.fmax(np.fmax(za, zc), zb)
-            near2 = np.fmin(np.fmin(zb, zc), zd)
-            far2 = np.fmax(np.fmax(zb, zc), zd)
-            keep1 = va & vb & vc & (far1 - near1 <= limit * near1)
-            keep2 = vb & vc & vd & (far2 - near2 <= limit * near2)
-        # Image rows grow downwards and the camera looks along +z: (a, c, b) is counter-clockwise as
-        # the camera sees it, so the triangles face the camera.
-        first = np.stack([a[keep1], c[keep1], b[keep1]], axis=-1)
-        second = np.stack([b[keep2], c[keep2], d[keep2]], axis=-1)
-        return np.concatenate([first, second]).astype(np.int32)
+        count = mesh_points(depth, ray_x, ray_y, rgb, index, x, y, vertices, normals, colors)
+        return count, mesh_triangles(depth, index, self.discontinuity, triangles)
 
     @operation
     def export_ply(self, path: str) -> str:

@@ -200,7 +200,7 @@ class BagRgbdPeer(RgbdPeer):
 
     def on_config(self) -> None:
         from coco_ros.bag import BagReader  # ROS only for this peer
-        from coco_ros.convert.images import CameraInfoConverter, ImageConverter
+        from coco_ros.convert.images import CameraInfoConverter, ImageMessageConverter
 
         try:
             self._reader = BagReader(self.path)
@@ -211,7 +211,7 @@ class BagRgbdPeer(RgbdPeer):
         if missing:
             raise CameraError(f"{self.name}: bag {self.path!r} has no topic {', '.join(missing)}; "
                               f"it has {', '.join(sorted(topics))}")
-        self._images, self._infos = ImageConverter(copy=True), CameraInfoConverter()
+        self._images, self._infos = ImageMessageConverter(copy=True), CameraInfoConverter()
         self._start()
 
     def _start(self) -> None:

@@ -41,6 +41,9 @@ class StreamFrame:
     depth: Image | None
     depth_scale: float
     source: str
+    stream: str = ""
+    """The sending server's run (new at each start), so that a receiver tells a restart, whose
+    sequence numbers begin again, from packets that arrive out of order."""
 
 
 def _intrinsics_header(k: CameraIntrinsics | None) -> dict[str, Any] | None:
@@ -52,10 +55,10 @@ def _intrinsics_header(k: CameraIntrinsics | None) -> dict[str, Any] | None:
 
 def encode(seq: int, acquired: float, sent: float, color: Image | None, depth: Image | None, *,
            depth_scale: float = 1000.0, color_encoding: str = "jpeg", quality: int = 90,
-           depth_encoding: str = "png", source: str = "") -> bytes:
+           depth_encoding: str = "png", source: str = "", stream: str = "") -> bytes:
     """One packet of ``color`` and/or ``depth``."""
     header: dict[str, Any] = {"seq": seq, "acquired": acquired, "sent": sent, "source": source,
-                              "depth_scale": depth_scale}
+                              "stream": stream, "depth_scale": depth_scale}
     payloads: list[bytes] = []
     for name, image in (("color", color), ("depth", depth)):
         if image is None:
@@ -127,7 +130,8 @@ def decode(packet: bytes | memoryview) -> StreamFrame:
         if offset != len(packet):
             raise PacketError("garbage", f"{len(packet) - offset} bytes after the payloads")
         return StreamFrame(int(header["seq"]), float(header["acquired"]), float(header["sent"]), images["color"],
-                           images["depth"], float(header["depth_scale"]), str(header.get("source", "")))
+                           images["depth"], float(header["depth_scale"]), str(header.get("source", "")),
+                           str(header.get("stream", "")))
     except PacketError:
         raise
     except (ValueError, KeyError, TypeError, IndexError, cv2.error) as error:

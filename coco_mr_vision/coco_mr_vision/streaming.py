@@ -6,13 +6,15 @@ blocks it (ZeroMQ drops beyond the high-water mark). The receiver connects a SUB
 activation, drains every packet that arrived and delivers only the newest ("newest frame only",
 what live use wants); the older ones are counted as dropped, as are gaps in the sequence numbers.
 Garbage, truncated and out-of-order packets are counted by kind and skipped: a bad packet is never
-a crash. Latency is measured from the frame's acquisition stamp on the server side (the monotonic
+a crash. Each server run names itself in its packets, so a server that starts again (its sequence
+numbers from 1) is counted once as a restart and its frames delivered, not taken for stale ones. Latency is measured from the frame's acquisition stamp on the server side (the monotonic
 clock is shared by the processes of one host).
 """
 
 from __future__ import annotations
 
 import logging
+import secrets
 import time
 
 import zmq
@@ -59,6 +61,7 @@ class StreamingServer(Component):
         self._socket.setsockopt(zmq.LINGER, 0)
         self._socket.bind(self.address)
         self._seq = 0
+        self._stream = secrets.token_hex(8)
 
     def on_update(self) -> None:
         for value in self.rgbd.read_all():
@@ -73,7 +76,8 @@ class StreamingServer(Component):
         now = time.perf_counter()
         packet = encode(self._seq, stamp.time if stamp is not None else now, now, color, depth,
                         depth_scale=depth_scale, color_encoding=self.color_encoding, quality=self.quality,
-                        depth_encoding=self.depth_encoding, source=stamp.source if stamp else self.name)
+                        depth_encoding=self.depth_encoding, source=stamp.source if stamp else self.name,
+                        stream=self._stream)
         try:
             self._socket.send(packet, zmq.NOBLOCK, copy=False)
         except zmq.Again:
@@ -101,14 +105,18 @@ class StreamingReceiver(Component):
         self.garbage = 0
         self.truncated = 0
         self.out_of_order = 0
+        self.restarts = 0
+        """Times the server started again (a new run, its sequence numbers from 1 again)."""
         self.latency_last = float("nan")
         self.latency_sum = 0.0
         self._last_seq = 0
+        self._stream: str | None = None
 
     def counters(self) -> dict[str, float]:
         """What the profile shows: frames, drops, bad packets by kind, bytes, latency (s)."""
         return {"frames": self.frames, "dropped": self.dropped, "bytes": self.bytes, "garbage": self.garbage,
-                "truncated": self.truncated, "out_of_order": self.out_of_order, "latency_last": self.latency_last,
+                "truncated": self.truncated, "out_of_order": self.out_of_order,
+                "restarts": self.restarts, "latency_last": self.latency_last,
                 "latency_mean": self.latency_sum / self.frames if self.frames else float("nan")}
 
     def on_config(self) -> None:
@@ -132,6 +140,11 @@ class StreamingReceiver(Component):
                 setattr(self, error.kind, getattr(self, error.kind) + 1)
                 log.debug("%s: %s packet: %s", self.name, error.kind, error)
                 continue
+            if frame.stream != self._stream:  # the first packet, or a server that started again
+                if self._stream is not None:
+                    self.restarts += 1
+                    log.info("%s: the server started again (stream %s)", self.name, frame.stream)
+                self._stream, self._last_seq = frame.stream, 0  # numbered from 1: a gap before is a drop
             if frame.seq <= self._last_seq:
                 self.out_of_order += 1
                 continue

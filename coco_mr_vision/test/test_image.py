@@ -241,3 +241,19 @@ def test_cloud_of_the_redwood_depth_image():
     assert np.isnan(organized.points[depth.reshape(-1) == 0]).all()
     with pytest.raises(ValueError, match="intrinsics are for 320x240 images"):
         PointCloud.from_depth(image, CameraIntrinsics(320, 240, 1, 1, 1, 1))
+
+
+def test_pickled_without_the_conversions_made_so_far():
+    """What crosses a process boundary is the image, not every format a reader asked of it."""
+    import pickle
+
+    intrinsics = CameraIntrinsics(64, 48, 50.0, 50.0, 31.5, 23.5, frame_id="camera")
+    image = Image(np.arange(64 * 48 * 3, dtype=np.uint8).reshape(48, 64, 3), "RGB8", 2.5, "camera", intrinsics)
+    alone = len(pickle.dumps(image))
+    image.to("GRAY8"), image.to("BGR8"), image.to("YUYV")
+    assert len(pickle.dumps(image)) == alone
+    back = pickle.loads(pickle.dumps(image))
+    assert np.array_equal(back.data, image.data) and (back.format, back.stamp, back.frame_id) == \
+        (image.format, image.stamp, image.frame_id)
+    np.testing.assert_array_equal(back.intrinsics.K, intrinsics.K)
+    assert np.array_equal(back.to("GRAY8").data, image.to("GRAY8").data)

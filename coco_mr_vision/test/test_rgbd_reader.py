@@ -133,11 +133,11 @@ def test_rosbag2_bag_with_image_and_camera_info(tmp_path):
     needs(REDWOOD)
     pytest.importorskip("rclpy")
     from coco_ros.bag import BagWriter
-    from coco_ros.convert.images import CameraInfoConverter, ImageConverter
+    from coco_ros.convert.images import CameraInfoConverter, ImageMessageConverter
     from coco_mr_vision.rgbd import RGBDFrame
     from coco_mr_vision.rgbd_peers import PRIMESENSE
 
-    images, infos = ImageConverter(), CameraInfoConverter()
+    images, infos = ImageMessageConverter(), CameraInfoConverter()
     writer = BagWriter(tmp_path / "camera_bag")
     originals = []
     for index in range(2):

@@ -176,3 +176,42 @@ def test_garbage_truncated_out_of_order_and_gaps_are_counted():
     assert after["frames"] - before["frames"] == 1, "newest frame only: seq 6"
     assert after["dropped"] - before["dropped"] == 3 + 1, "2, 3, 4 never came in order; 5 was superseded by 6"
     assert sink.rgbd.read_all()[-1].stamp.seq == 6
+
+
+def test_a_server_that_starts_again_is_one_restart_and_its_frames_are_delivered():
+    """Its sequence numbers begin at 1 again: not out-of-order packets to skip, but a new run."""
+    frame = redwood()
+    port = free_port()
+    publisher = zmq.Context.instance().socket(zmq.PUB)
+    publisher.setsockopt(zmq.LINGER, 0)
+    publisher.bind(f"tcp://127.0.0.1:{port}")
+    receiver, sink = receiver_rig(f"tcp://127.0.0.1:{port}")
+
+    def packet_of(seq: int, stream: str) -> bytes:
+        return encode(seq, time.perf_counter(), time.perf_counter(), frame.color, None, stream=stream)
+
+    try:
+        deadline = time.monotonic() + 10
+        seq = 0
+        while receiver.frames == 0 and time.monotonic() < deadline:  # until the subscription is up
+            seq += 1
+            publisher.send(packet_of(seq, "first"))
+            time.sleep(0.02)
+            receiver.on_update()
+        for later in range(seq + 1, seq + 4):
+            publisher.send(packet_of(later, "first"))
+        time.sleep(0.2)
+        receiver.on_update()
+        before = receiver.counters()
+        for again in (1, 2, 3):
+            publisher.send(packet_of(again, "second"))
+            time.sleep(0.1)
+            receiver.on_update()
+        after = receiver.counters()
+    finally:
+        publisher.close(0)
+        receiver.on_stop()
+    assert after["restarts"] - before["restarts"] == 1
+    assert after["out_of_order"] == before["out_of_order"] and after["dropped"] == before["dropped"]
+    assert after["frames"] - before["frames"] == 3
+    assert [stamped.stamp.seq for stamped in sink.image.read_all()[-3:]] == [1, 2, 3]

@@ -26,7 +26,7 @@ from .base import Converter
 #: ROS type name -> (module of this package, converter class)
 _CONVERTERS: dict[str, tuple[str, str]] = {
     "sensor_msgs/msg/JointState": ("joints", "JointStateConverter"),
-    "sensor_msgs/msg/Image": ("images", "ImageConverter"),
+    "sensor_msgs/msg/Image": ("images", "ImageMessageConverter"),
     "sensor_msgs/msg/CameraInfo": ("images", "CameraInfoConverter"),
     "sensor_msgs/msg/PointCloud2": ("clouds", "PointCloud2Converter"),
     "geometry_msgs/msg/PoseStamped": ("geometry", "PoseStampedConverter"),

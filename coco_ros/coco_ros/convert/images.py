@@ -64,7 +64,7 @@ WRITE_ENCODINGS: dict[ImageFormat, str] = {
 _BIG_ENDIAN_HOST = sys.byteorder == "big"
 
 
-class ImageConverter(Converter[ImageMsg, Image]):
+class ImageMessageConverter(Converter[ImageMsg, Image]):
     """``sensor_msgs/Image`` <-> :class:`Image`; ``copy=True`` to own the pixels of incoming images."""
 
     type_name = "sensor_msgs/msg/Image"
