@@ -140,36 +140,47 @@ def test_server_in_another_process_to_receiver(tmp_path):
     assert last.value.intrinsics.fx == 525.0 and last.stamp.source == "camera"
 
 
-def test_garbage_truncated_out_of_order_and_gaps_are_counted():
-    frame = redwood()
+@pytest.fixture
+def link():
+    """A bare ZeroMQ publisher, whose packets the test makes, and a receiver rig on it:
+    (publisher, receiver, sink)."""
     port = free_port()
     publisher = zmq.Context.instance().socket(zmq.PUB)
     publisher.setsockopt(zmq.LINGER, 0)
     publisher.bind(f"tcp://127.0.0.1:{port}")
     receiver, sink = receiver_rig(f"tcp://127.0.0.1:{port}")
-    try:
-        packet = encode(1, time.perf_counter(), time.perf_counter(), frame.color, frame.depth)
-        deadline = time.monotonic() + 10
-        while receiver.frames == 0 and time.monotonic() < deadline:  # until the subscription is up
-            publisher.send(packet)
-            time.sleep(0.02)
-            receiver.on_update()
-        time.sleep(0.1)
-        receiver.on_update()
-        before = receiver.counters()
+    yield publisher, receiver, sink
+    publisher.close(0)
+    receiver.on_stop()
 
-        def packet_of(seq: int) -> bytes:
-            return encode(seq, time.perf_counter(), time.perf_counter(), frame.color, frame.depth)
 
-        for bad in (b"not a packet", packet_of(2)[:-100], packet_of(1), os.urandom(300), packet_of(5),
-                    packet_of(6), packet_of(4)):
-            publisher.send(bad)
-        time.sleep(0.3)
+def subscribed(publisher, receiver, packet: bytes) -> None:
+    """Send ``packet`` until the receiver delivers it (a ZeroMQ subscription takes a moment), then
+    let the repeats that were on their way arrive."""
+    deadline = time.monotonic() + 10
+    while receiver.frames == 0 and time.monotonic() < deadline:
+        publisher.send(packet)
+        time.sleep(0.02)
         receiver.on_update()
-        after = receiver.counters()
-    finally:
-        publisher.close(0)
-        receiver.on_stop()
+    time.sleep(0.1)
+    receiver.on_update()
+
+
+def test_garbage_truncated_out_of_order_and_gaps_are_counted(link):
+    publisher, receiver, sink = link
+    frame = redwood()
+
+    def packet_of(seq: int) -> bytes:
+        return encode(seq, time.perf_counter(), time.perf_counter(), frame.color, frame.depth)
+
+    subscribed(publisher, receiver, packet_of(1))
+    before = receiver.counters()
+    for bad in (b"not a packet", packet_of(2)[:-100], packet_of(1), os.urandom(300), packet_of(5),
+                packet_of(6), packet_of(4)):
+        publisher.send(bad)
+    time.sleep(0.3)
+    receiver.on_update()
+    after = receiver.counters()
     assert after["garbage"] - before["garbage"] == 2
     assert after["truncated"] - before["truncated"] == 1
     assert after["out_of_order"] - before["out_of_order"] == 2, "seq 1 again, and 4 after 6"
@@ -178,39 +189,25 @@ def test_garbage_truncated_out_of_order_and_gaps_are_counted():
     assert sink.rgbd.read_all()[-1].stamp.seq == 6
 
 
-def test_a_server_that_starts_again_is_one_restart_and_its_frames_are_delivered():
+def test_a_server_that_starts_again_is_one_restart_and_its_frames_are_delivered(link):
     """Its sequence numbers begin at 1 again: not out-of-order packets to skip, but a new run."""
+    publisher, receiver, sink = link
     frame = redwood()
-    port = free_port()
-    publisher = zmq.Context.instance().socket(zmq.PUB)
-    publisher.setsockopt(zmq.LINGER, 0)
-    publisher.bind(f"tcp://127.0.0.1:{port}")
-    receiver, sink = receiver_rig(f"tcp://127.0.0.1:{port}")
 
     def packet_of(seq: int, stream: str) -> bytes:
         return encode(seq, time.perf_counter(), time.perf_counter(), frame.color, None, stream=stream)
 
-    try:
-        deadline = time.monotonic() + 10
-        seq = 0
-        while receiver.frames == 0 and time.monotonic() < deadline:  # until the subscription is up
-            seq += 1
-            publisher.send(packet_of(seq, "first"))
-            time.sleep(0.02)
-            receiver.on_update()
-        for later in range(seq + 1, seq + 4):
-            publisher.send(packet_of(later, "first"))
-        time.sleep(0.2)
+    subscribed(publisher, receiver, packet_of(1, "first"))
+    for later in (2, 3, 4):
+        publisher.send(packet_of(later, "first"))
+    time.sleep(0.2)
+    receiver.on_update()
+    before = receiver.counters()
+    for again in (1, 2, 3):
+        publisher.send(packet_of(again, "second"))
+        time.sleep(0.1)
         receiver.on_update()
-        before = receiver.counters()
-        for again in (1, 2, 3):
-            publisher.send(packet_of(again, "second"))
-            time.sleep(0.1)
-            receiver.on_update()
-        after = receiver.counters()
-    finally:
-        publisher.close(0)
-        receiver.on_stop()
+    after = receiver.counters()
     assert after["restarts"] - before["restarts"] == 1
     assert after["out_of_order"] == before["out_of_order"] and after["dropped"] == before["dropped"]
     assert after["frames"] - before["frames"] == 3
