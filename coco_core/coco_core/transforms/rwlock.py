@@ -21,7 +21,10 @@ class ReadWriteLock:
     """Readers share the lock; a waiting writer blocks new readers so updates are not starved."""
 
     def __init__(self) -> None:
-        self._condition = threading.Condition(threading.Lock())
+        self._mutex = threading.Lock()
+        """The condition's lock, taken directly (``with lock._mutex``): a raw lock's context manager
+        is C code, the condition's two Python frames more per section."""
+        self._condition = threading.Condition(self._mutex)
         self._readers = 0
         self._writer: int | None = None
         """Thread id of the writer holding the lock."""
@@ -63,7 +66,7 @@ class _ReadGuard:
         if depth or lock._writer == get_ident():
             local.depth = depth + 1  # already inside: never wait for queued writers
             return
-        with lock._condition:
+        with lock._mutex:
             while lock._writer is not None or lock._writers_waiting:
                 lock._wait()
             lock._readers += 1
@@ -77,7 +80,7 @@ class _ReadGuard:
         if local.depth or not getattr(local, "counted", False):
             return
         local.counted = False
-        with lock._condition:
+        with lock._mutex:
             lock._readers -= 1
             if lock._readers == 0 and lock._waiting:
                 lock._condition.notify_all()
@@ -97,7 +100,7 @@ class _WriteGuard:
         if lock._writer == me:  # nested write by the same thread
             lock._write_depth += 1
             return
-        with lock._condition:
+        with lock._mutex:
             if lock._writer is not None or lock._readers:
                 lock._writers_waiting += 1
                 try:
@@ -113,7 +116,7 @@ class _WriteGuard:
         lock._write_depth -= 1
         if lock._write_depth:
             return
-        with lock._condition:
+        with lock._mutex:
             lock._writer = None
             if lock._waiting:
                 lock._condition.notify_all()
