@@ -9,8 +9,9 @@ with the same CDR bytes: by the project's ``BagWriter`` and by ``rosbags``' own 
 Variants, each a whole pass over the bag, per message (interleaved rounds, median):
 
 - *anchor*: ``rosbags`` ``Reader.messages()`` + ``typestore.deserialize_cdr`` of every message;
-- *CoCo BagReader + message*: ``BagReader.messages()`` + ``BagMessage.message`` (rclpy's
-  ``deserialize_message``): the rclpy message a node or a converter gets;
+- *CoCo BagReader + message*: ``BagReader.messages()`` + ``BagMessage.message``: the rclpy message
+  a node or a converter gets (made by the decoder generated per type, ``coco_ros.bag.cdr_decoder``,
+  equal to rclpy's ``deserialize_message``);
 - *no decoding*: both readers handing out the CDR bytes only (what a replay to DDS, ``coco-replay``
   and ``BagReplay output=bag``, needs);
 - 6c, ``/joint_states`` and ``/tf`` alone into what a consumer uses: rosbags' messages against

@@ -85,10 +85,10 @@ class TypeResolver:
         except AttributeError:
             problem = f"module {module_name!r} has no class {name!r}"
         else:
-            from rclpy.serialization import deserialize_message
+            from .cdr_decoder import message_decoder
 
             self._classes[full] = cls
-            return lambda data: deserialize_message(data, cls)
+            return message_decoder(cls)
         return MessageTypeError(
             where or full,
             f"cannot deserialize messages of type {full!r}: {problem}; install the package that "

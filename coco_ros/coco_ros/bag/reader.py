@@ -2,7 +2,8 @@
 
 A bag is a folder with ``metadata.yaml`` and one or more ``.mcap`` files (what ``ros2 bag record``
 makes), or a single ``.mcap`` file. Messages keep their CDR bytes; ``BagMessage.message``
-deserializes them with rclpy on first access, so filtering and forwarding cost no decoding.
+decodes them into rclpy messages on first access (:mod:`.cdr_decoder`), so filtering and
+forwarding cost no decoding.
 
 Damage (see :mod:`.mcap_file`): whatever is readable is read. Problems are :class:`BagError`s that
 name the file and the byte where reading stopped; they are collected in :attr:`BagReader.errors`

@@ -37,12 +37,12 @@ class Converter(Generic[M, V]):
         raise NotImplementedError
 
     def from_cdr(self, data: bytes) -> V:
-        """The CoCo value of a message given as its CDR bytes (a recorded message): deserialised with
-        rclpy, then :meth:`to_coco`. A converter that can read the bytes directly overrides this, so
-        that a replay skips building the rclpy message."""
-        from rclpy.serialization import deserialize_message
+        """The CoCo value of a message given as its CDR bytes (a recorded message): decoded into the
+        rclpy message (:mod:`coco_ros.bag.cdr_decoder`), then :meth:`to_coco`. A converter that can
+        read the bytes directly overrides this, so that a replay skips building the rclpy message."""
+        from ..bag.cdr_decoder import message_decoder
 
-        return self.to_coco(deserialize_message(data, self.message_type))
+        return self.to_coco(message_decoder(self.message_type)(data))
 
     def to_ros(self, value: V) -> M:
         raise NotImplementedError
