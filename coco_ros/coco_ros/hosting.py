@@ -71,6 +71,13 @@ MULTI_POLL = 0.1
 
 PARKED_NS = 86_400 * 10**9
 """The period (a day) a stopped activity's timer is parked at until the node is destroyed."""
+CHAIN_LIMIT = 64
+"""Cycles one executor callback runs at most for the activities its data woke (the rest get their
+guard conditions): a chain that keeps waking itself cannot hold an executor thread for ever."""
+
+_CHAIN = threading.local()
+"""``queue``: the hosted triggered activities woken by the executor callback this thread runs, whose
+cycles it runs before it returns (None outside such a callback)."""
 
 
 def dedicated_reason(activity: Activity, forced: bool = False) -> str | None:
@@ -153,6 +160,13 @@ class ExecutorDriver:
         self.inside = False
         """A callback of this activity's group runs now (the group lets one run at a time): a wake-up
         then only marks ``pending``, and that callback serves it when it ends."""
+        self.busy = threading.Lock()
+        """Held while this activity's components run, by its own callbacks and by a cycle another
+        activity's callback runs for it (the chain): the callback group alone cannot keep those two
+        apart, since a chained cycle runs in another group's callback."""
+        self.chained = not isinstance(activity, PeriodicActivity)
+        """Whether a wake-up from another hosted activity's callback runs this one's cycle in that
+        callback (triggered activities) rather than through the guard condition."""
         node = host.node
         self.guard: GuardCondition = node.create_guard_condition(self._on_guard, callback_group=group)
         self.timer: Timer | None = None
@@ -176,7 +190,12 @@ class ExecutorDriver:
         if self.pending:
             return
         self.pending = True
-        if not self.inside and self.started:
+        if self.inside or not self.started:
+            return
+        queue = getattr(_CHAIN, "queue", None)
+        if queue is not None and self.chained and self.configured:
+            queue.append(self)  # the callback running in this thread runs the cycle before it returns
+        else:
             self._trigger()
 
     @property
@@ -219,8 +238,12 @@ class ExecutorDriver:
         """End of a callback of the group: a wake-up that came meanwhile gets its cycle. ``inside`` is
         cleared before ``pending`` is read, so a wake-up from another thread is never lost: either it
         sees ``inside`` False and triggers, or this sees its ``pending``."""
+        queue, _CHAIN.queue = _CHAIN.queue, None
+        for driver in queue or ():  # woken after the last cycle (a bug guard's exit): their guards
+            driver._trigger()
         set_current_activity(None)
         self.inside = False
+        self.busy.release()
         if self.pending:
             self._trigger()
 
@@ -236,8 +259,7 @@ class ExecutorDriver:
         activity = self.activity
         if not self.started or activity.finished:
             return
-        self.inside = True
-        set_current_activity(activity)
+        self._enter()
         try:
             if activity.stopping:
                 activity.finish()
@@ -252,27 +274,79 @@ class ExecutorDriver:
                     self._begin_grid(activity)  # and run the first cycle now, as a thread driver does
                     activity.cycle()
                     return
-            if self.pending:
-                self.pending = False
-                activity.cycle()
+            self._serve()
         except Exception:  # components isolate their own errors; this is a bug guard
             self._crashed()
         finally:
             self._leave()
 
+    # --- the chain: a pipeline of hosted activities in the callback its data came in -------------
+    def _enter(self) -> None:
+        """Start of a callback of the group: this activity's components are this thread's, and the
+        activities it wakes are run by this callback (``_CHAIN.queue``) instead of being triggered."""
+        self.busy.acquire()  # only a chained cycle on another thread can hold it: a cycle's length
+        self.inside = True
+        set_current_activity(self.activity)
+        _CHAIN.queue = []
+
+    def _serve(self) -> None:
+        """The cycles the callback's data asked for, in this callback: this activity's, then one of
+        each activity it woke, in the order woken (their own wake-ups join the chain), with one more
+        of this activity's after each if they woke it (a reply), up to :data:`CHAIN_LIMIT` cycles.
+        Saved per hop: the guard condition round trip (trigger, executor wake-up, wait-set rebuild,
+        dispatch to a worker thread), the costliest part of a pipeline's latency on the executor.
+        A wake-up that comes from elsewhere during the last cycle goes to the guard condition, so a
+        busy activity does not keep this executor thread."""
+        activity, queue = self.activity, _CHAIN.queue
+        budget, own = CHAIN_LIMIT, True
+        while budget:
+            if own and self.pending and not activity.stopping and not activity.finished:
+                self.pending, own = False, False
+                budget -= 1
+                set_current_activity(activity)
+                activity.cycle()
+            elif queue:
+                queue.pop(0)._run_chained()
+                budget -= 1
+                own = True
+            else:
+                break
+        for driver in queue:  # beyond the budget: served by their guard conditions
+            driver._trigger()
+        queue.clear()
+
+    def _run_chained(self) -> None:
+        """Run this activity's pending cycle in the calling callback (another activity's). When its
+        own callback or another chain runs it now, or it is woken again meanwhile, its guard
+        condition serves the wake-up."""
+        activity = self.activity
+        if not self.busy.acquire(blocking=False):
+            self._trigger()
+            return
+        self.inside = True
+        try:
+            if self.pending and not activity.stopping and not activity.finished:
+                self.pending = False
+                set_current_activity(activity)
+                activity.cycle()
+        except Exception:  # components isolate their own errors; this is a bug guard
+            self._crashed()
+        finally:
+            self.inside = False
+            self.busy.release()
+        if self.pending:
+            self._trigger()
+
     def run_entity_callback(self, callback: Callable[..., None], *args: object) -> None:
         """A ROS entity callback of this group (so never during a cycle), as the activity, then at
         once the cycle its writes asked for: the data reaches the components in this executor
         callback instead of one guard condition round trip later."""
-        activity = self.activity
-        self.inside = True
-        set_current_activity(activity)
+        self._enter()
         try:
             callback(*args)
-            if self.pending and self.configured and not activity.stopping and not activity.finished:
-                self.pending = False
+            if self.configured:
                 try:
-                    activity.cycle()
+                    self._serve()
                 except Exception:  # components isolate their own errors; this is a bug guard
                     self._crashed()
         finally:
@@ -292,13 +366,14 @@ class ExecutorDriver:
         assert isinstance(activity, PeriodicActivity)
         with self._lock:
             activity.grid.fired(now)
-        set_current_activity(activity)
+        self._enter()
         try:
             activity.cycle()
+            self._serve()  # the activities its cycle woke (and one more of its own for a queued operation)
         except Exception:
             self._crashed()
         finally:
-            set_current_activity(None)
+            self._leave()
 
     def _crashed(self) -> None:
         log.exception("activity %s: its executor callback failed; stopping the application", self.activity.name)
@@ -358,7 +433,10 @@ class ExecutorHost:
         groups, at least two; but 1 when the executor hosts every activity and there is at most one:
         every callback is then in that activity's group, except those of components in no activity
         (the node's default group), so there is next to nothing to run in parallel, and
-        :meth:`create_executor` makes it a ``SingleThreadedExecutor``."""
+        :meth:`create_executor` makes it a ``SingleThreadedExecutor``. Triggered activities keep
+        threads of their own on the executor (they run in parallel, as activities do) although a
+        pipeline of them runs in one callback (the chain); ``--executor-threads 1`` trades that
+        parallelism for latency (docs/ros.md)."""
         if len(self.hosted) <= 1 and len(self.hosted) == len(self.app.activities):
             return 1
         return max(2, len(self.hosted) + 1)

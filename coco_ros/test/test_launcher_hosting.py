@@ -516,3 +516,82 @@ def test_one_hosted_activity_gets_a_single_threaded_executor_and_more_get_worker
     threaded, _, _ = pipeline()
     assert ExecutorHost(hosting.node, threaded, threads=["ticks"]).executor_threads() == 2, \
         "an activity on its own thread may have entities in its group: they get a worker of their own"
+
+
+class Relay(Recorder):
+    """Records like Recorder and hands every value on (a stage of a pipeline)."""
+
+    out = OutputPort(int)
+
+    def on_update(self) -> None:
+        before = len(self.values)
+        super().on_update()
+        for value in self.values[before:]:
+            self.out.write(value)
+
+
+def chain_app() -> tuple[Application, Counter, Relay, Relay, Recorder]:
+    """source (in no activity, written by an entity callback of "first") -> first -> second -> third,
+    each stage a triggered activity of its own: the default layout of a ROS pipeline."""
+    app = Application("chain")
+    source = app.add(Counter("source"))
+    first = app.add(Relay("a"), TriggeredActivity("first"))
+    second = app.add(Relay("b"), TriggeredActivity("second"))
+    third = app.add(Recorder("c"), TriggeredActivity("third"))
+    app.connect("source.out", "a.ev", BUFFERED)
+    app.connect("a.out", "b.ev", BUFFERED)
+    app.connect("b.out", "c.ev", BUFFERED)
+    return app, source, first, second, third
+
+
+def test_a_chain_of_triggered_activities_runs_in_the_callback_its_data_came_in(hosting: Hosting) -> None:
+    """A message through three hosted triggered activities: each stage's cycle runs, as its own
+    activity, in the executor callback that brought the data, before it returns (no guard
+    condition round trip per hop)."""
+    app, source, first, second, third = chain_app()
+    hosting.start(app)
+    assert wait_until(lambda: all("on_config" in r.phases() for r in (first, second, third)))
+    wrapped = activity_callback(first, source.on_update)
+    after: list[tuple[str, list[int]]] = []
+
+    def tick() -> None:
+        wrapped()
+        after.append((threading.current_thread().name, list(third.values)))
+
+    timer = hosting.node.create_timer(0.01, tick, callback_group=callback_group(first))
+    assert wait_until(lambda: len(after) >= 5)
+    timer.timer_period_ns = 10**15
+    timer.reset()
+    assert hosting.stop()
+    for k, (_, values) in enumerate(after[:5]):
+        assert values == list(range(k + 1)), "the last stage had the value before the callback returned"
+    updates = {r.name: [(thread, activity) for phase, thread, activity in r.events if phase == "on_update"]
+               for r in (first, second, third)}
+    for name, activity in (("a", "first"), ("b", "second"), ("c", "third")):
+        assert all(a == activity for _, a in updates[name]), "each cycle runs as its own activity"
+    ticks = [thread for thread, _ in after[:5]]
+    assert [thread for thread, _ in updates["c"][:5]] == ticks, "in the thread of the callback"
+
+
+def test_a_chained_activity_busy_elsewhere_is_served_by_its_guard_and_never_runs_twice_at_once(
+        hosting: Hosting) -> None:
+    """While a stage is running (its own callback, slow, woken from elsewhere too), the stage before
+    it cannot run its cycle in its callback: the wake-up goes to its guard condition, nothing is
+    lost, the callback is not kept, and no component ever runs twice at once."""
+    app, source, first, second, third = chain_app()
+    second.work = 0.02
+    hosting.start(app)
+    assert wait_until(lambda: all("on_config" in r.phases() for r in (first, second, third)))
+    wrapped = activity_callback(first, source.on_update)
+    direct = [hosting.node.create_timer(0.003, wrapped, callback_group=callback_group(first)),
+              hosting.node.create_timer(0.007, lambda: app.activity("second").wake(),
+                                        callback_group=MutuallyExclusiveCallbackGroup())]
+    assert wait_until(lambda: source.count >= 60, timeout=10)
+    for timer in direct:
+        timer.timer_period_ns = 10**15
+        timer.reset()
+    sent = source.count
+    assert wait_until(lambda: len(third.values) == sent, timeout=10), (len(third.values), sent)
+    assert hosting.stop()
+    assert third.values == list(range(sent)), "every value, in order"
+    assert first.max_in_update == second.max_in_update == third.max_in_update == 1
