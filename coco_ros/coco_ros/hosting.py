@@ -16,7 +16,11 @@ parallel on the executor's threads:
   :func:`activity_callback` (a ROSInterface subscription) runs the cycle its data asked for right
   after it, in the same executor callback: the guard condition round trip (trigger, executor
   wake-up, wait-set rebuild, dispatch to a worker) is the costliest hop of a pipeline, measured in
-  ``docs/benchmarks.md`` (Figure 6).
+  ``docs/benchmarks.md`` (Figure 6). The same holds between activities (the *chain*): a triggered
+  activity woken by a hosted activity's callback runs its cycle in that callback, right after, as
+  itself and under its own lock (``ExecutorDriver.busy``: its own callbacks wait for it, and a
+  wake-up while one of them runs goes to its guard condition), so a pipeline of triggered
+  activities crosses all its stages in the callback that brought the message.
 
 Every callback makes the activity the thread's *current activity* while it runs (executor threads
 are shared, so operations called from a component must know whose thread they are in). The first
