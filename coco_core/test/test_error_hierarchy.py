@@ -45,7 +45,8 @@ COCO_EXCEPTIONS = {name for name, value in vars(errors).items()
                    if isinstance(value, type) and issubclass(value, BaseException)}
 # Private control-flow exceptions, caught in their own module: they need no public home.
 PRIVATE_EXCEPTIONS = {("coco_core/coco_core/transforms/server.py", "_RequestError"),
-                      ("coco_ros/coco_ros/bag/mcap_file.py", "_Damage")}
+                      ("coco_ros/coco_ros/bag/mcap_file.py", "_Damage"),
+                      ("coco_ros/coco_ros/bag/cdr_decoder.py", "_Unsupported")}
 
 
 def sources() -> list[Path]:

@@ -33,6 +33,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from coco_core.errors import CocoError
+
 _BASIC = {  # rosidl basic type -> (struct code, size, array typecode, numpy dtype)
     "boolean": ("?", 1, "", None),
     "int8": ("b", 1, "b", np.int8), "uint8": ("B", 1, "B", np.uint8),
@@ -48,8 +50,8 @@ _DECODERS: dict[type, Callable[[bytes], Any]] = {}
 _NAMESPACE: dict[str, Any] = {"unpack_from": struct.unpack_from, "np": np, "array": array.array, "str": str}
 
 
-class _Unsupported(Exception):
-    """A field this decoder does not read: the type keeps rclpy's decoder."""
+class _Unsupported(CocoError):
+    """A field this decoder does not read: the type keeps rclpy's decoder (caught in this module)."""
 
 
 def message_decoder(cls: type) -> Callable[[bytes], Any]:
