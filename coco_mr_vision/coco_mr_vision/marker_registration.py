@@ -11,7 +11,12 @@ logged (and written as JSON), and the application may stop.
 A sample combines the tracker's measurement with the joint values of the moment it is taken, so it
 is taken only while the arm is at rest, and once per rest: when ``still_frames`` consecutive
 detections of the marker agree within ``still_translation`` and ``still_rotation`` (the camera is
-fixed, so a marker still in the image is an arm at rest), and not again until the marker moved.
+fixed, so a marker still in the image is an arm at rest), and so does the marker's pose through the
+kinematic chain, read from the graph at each of them; not again until the marker moved. The second
+test matters when the images lag behind the joint states (a loaded machine): three images of the
+old pose processed after the graph took the new one agree with each other but not with the graph.
+With the newest image only on the camera's connections (DATA), an image is never older than the
+detection before it, so when both agree over three detections they show the same rest.
 Nothing here depends on where the images come from: a camera, a bag, or a SimulatedCamera.
 
 With ``truth`` (a frame of the graph at the camera's true pose, known in a simulation), the result
@@ -64,12 +69,14 @@ class MarkerRegistration(Component):
         """(metres, radians) between the installed pose and ``truth``, when there is a truth."""
         self._registration: Registration | None = None
         self._last: np.ndarray | None = None
+        self._last_arm: np.ndarray | None = None
         self._still = 0
         self._armed = True
 
     def on_config(self) -> None:
-        marker = self.marker_frame.format(id=self.marker_id)
-        self._registration = Registration(self.transform_graph, self.parent, self.camera, via=(self.camera, marker))
+        self._marker = self.marker_frame.format(id=self.marker_id)
+        self._registration = Registration(self.transform_graph, self.parent, self.camera,
+                                          via=(self.camera, self._marker))
 
     def on_update(self) -> None:
         for value in self.markers.read_all():
@@ -85,11 +92,13 @@ class MarkerRegistration(Component):
         if pose is None or not np.isfinite(pose).all():
             self._last, self._still = None, 0  # out of sight: a rest counts from the next sighting
             return
-        if self._last is not None and self._agrees(self._last, pose):
+        arm = self.transform_graph.lookup(self.parent, self._marker)  # through the kinematic chain
+        if self._last is not None and self._last_arm is not None and self._agrees(self._last, pose) \
+                and self._agrees(self._last_arm, arm):
             self._still += 1
         else:
             self._still, self._armed = 1, True  # moved (or first seen): the next rest gives a sample
-        self._last = pose
+        self._last, self._last_arm = pose, arm
         if self._armed and self._still >= self.still_frames and registration.sample() == 1:
             self._armed = False
             log.info("%s: sample %d of %d", self.name, registration.sample_count, self.samples)
