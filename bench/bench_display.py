@@ -52,11 +52,11 @@ from coco_core.application import Application
 from coco_core.component import Component
 from coco_core.ports import InputPort, OutputPort
 from coco_core.transforms import se3
-from coco_core.transforms.urdf import UrdfModel, load_urdf
+from coco_core.transforms.urdf import load_urdf
 from coco_mr_display.camera import GLCameraManager
 from coco_mr_display.manager import GLManager
 from coco_mr_display.rgbd import GLRGBDImage, grid_indices
-from coco_mr_display.urdf import GLUrdf, load_links, mesh_paths
+from coco_mr_display.urdf import GLUrdf, load_links, mesh_paths, robot_model
 from coco_mr_vision.image import CameraIntrinsics, Image
 from coco_mr_vision.rgbd import RGBDFrame
 
@@ -255,8 +255,7 @@ class PyrenderScene:
         self.links: list[tuple[str, Any]] = []
         self.triangles = 0
         if baxter:
-            model = self.app.transforms.models["baxter"]
-            assert isinstance(model, UrdfModel)
+            model = robot_model(self.app.transforms, "baxter", "pyrender")
             links = load_links(model.visuals, mesh_paths(model), (0.6, 0.6, 0.6, 1.0), keep=simplify,
                                cancelled=threading.Event())
             for link, parts in links.items():

@@ -68,8 +68,8 @@ class MarkerRegistration(Component):
         self.error: tuple[float, float] | None = None
         """(metres, radians) between the installed pose and ``truth``, when there is a truth."""
         self._registration: Registration | None = None
-        self._last: np.ndarray | None = None
-        self._last_arm: np.ndarray | None = None
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
+        """The last detection's marker pose in the camera and, through the kinematic chain, in ``parent``."""
         self._still = 0
         self._armed = True
 
@@ -93,12 +93,11 @@ class MarkerRegistration(Component):
             self._last, self._still = None, 0  # out of sight: a rest counts from the next sighting
             return
         arm = self.transform_graph.lookup(self.parent, self._marker)  # through the kinematic chain
-        if self._last is not None and self._last_arm is not None and self._agrees(self._last, pose) \
-                and self._agrees(self._last_arm, arm):
+        if self._last is not None and self._agrees(self._last[0], pose) and self._agrees(self._last[1], arm):
             self._still += 1
         else:
             self._still, self._armed = 1, True  # moved (or first seen): the next rest gives a sample
-        self._last, self._last_arm = pose, arm
+        self._last = (pose, arm)
         if self._armed and self._still >= self.still_frames and registration.sample() == 1:
             self._armed = False
             log.info("%s: sample %d of %d", self.name, registration.sample_count, self.samples)
@@ -132,7 +131,7 @@ class MarkerRegistration(Component):
     def _install(self) -> None:
         assert self._registration is not None
         result = self.result = self._registration.install()
-        found = self.transform_graph.lookup(self.parent, self.camera)
+        found = result.transform  # T_parent_camera, the static edge just installed
         report: dict[str, Any] = result.describe()
         message = f"{self.name}: registered {result.summary()}"
         if self.truth:

@@ -301,14 +301,12 @@ class ExecutorDriver:
         dispatch to a worker thread), the costliest part of a pipeline's latency on the executor.
         A wake-up that comes from elsewhere during the last cycle goes to the guard condition, so a
         busy activity does not keep this executor thread."""
-        activity, queue = self.activity, _CHAIN.queue
+        queue = _CHAIN.queue
         budget, own = CHAIN_LIMIT, True
         while budget:
-            if own and self.pending and not activity.stopping and not activity.finished:
-                self.pending, own = False, False
+            if own and self._cycle_pending():
+                own = False
                 budget -= 1
-                set_current_activity(activity)
-                activity.cycle()
             elif queue:
                 queue.pop(0)._run_chained()
                 budget -= 1
@@ -319,20 +317,27 @@ class ExecutorDriver:
             driver._trigger()
         queue.clear()
 
+    def _cycle_pending(self) -> bool:
+        """The activity's cycle, when a wake-up is pending and the activity still runs; whether it ran
+        (the caller holds ``busy``)."""
+        activity = self.activity
+        if not self.pending or activity.stopping or activity.finished:
+            return False
+        self.pending = False
+        set_current_activity(activity)
+        activity.cycle()
+        return True
+
     def _run_chained(self) -> None:
         """Run this activity's pending cycle in the calling callback (another activity's). When its
         own callback or another chain runs it now, or it is woken again meanwhile, its guard
         condition serves the wake-up."""
-        activity = self.activity
         if not self.busy.acquire(blocking=False):
             self._trigger()
             return
         self.inside = True
         try:
-            if self.pending and not activity.stopping and not activity.finished:
-                self.pending = False
-                set_current_activity(activity)
-                activity.cycle()
+            self._cycle_pending()
         except Exception:  # components isolate their own errors; this is a bug guard
             self._crashed()
         finally:

@@ -47,7 +47,8 @@ _LOCK = threading.Lock()
 _FUNCTIONS: dict[type, str] = {}
 """Message class -> the name of its generated function in ``_NAMESPACE``."""
 _DECODERS: dict[type, Callable[[bytes], Any]] = {}
-_NAMESPACE: dict[str, Any] = {"unpack_from": struct.unpack_from, "np": np, "array": array.array, "str": str}
+_NAMESPACE: dict[str, Any] = {"unpack_from": struct.unpack_from, "np": np, "array": array.array,
+                              "new": object.__new__}
 
 
 class _Unsupported(CocoError):
@@ -127,7 +128,6 @@ def _generate(cls: type) -> str:
     check = getattr(sys.modules.get(cls.__module__), "ros_python_check_fields", "") == "1"
     lines.append(f"    m._check_fields = {check}")
     lines.append("    return m, pos")
-    _NAMESPACE["new"] = object.__new__
     exec(compile("\n".join(lines), f"<cdr decoder of {cls.__module__}.{cls.__name__}>", "exec"),
          {**_NAMESPACE, "C": cls}, _NAMESPACE)
     _FUNCTIONS[cls] = name
