@@ -1,17 +1,24 @@
 """Figure 6: the teleop app's stamp-to-output latency over DDS, CoCo ROS launcher vs a plain rclpy node.
 
-A driver (this process) publishes ``/robot/joint_states`` (sensor_msgs/JointState, the 21 names the
-Baxter tools write, stamped with the wall clock at publish time) at 100 Hz and ``/bowl/pose`` at 2 Hz.
-The pipelines run at the same time, each in its own process, on the same input:
+A driver (this process) publishes joint states (sensor_msgs/JointState, the 21 names the Baxter
+tools write, stamped with the wall clock at publish time) at 100 Hz, to each pipeline on topics of
+its own, after a bowl pose (2 Hz until every pipeline answered, then no more) (``<prefix>/joint_states``, ``<prefix>/bowl_pose``; the launchers remap
+the app's ``/robot/joint_states`` and ``/bowl/pose``). The pipelines run in the same run, each in
+its own process, fed in turns (``Driver.turns``): 1.5 s of input to one, then the next, the order
+reversed every round. Fed all at once, they competed for the two cores, and the order in which DDS
+delivered to them weighed on the result: the same plain node, started after the launchers, was
+1.10-1.16x slower at p50 than when started first. The pipelines:
 
 - *CoCo*: the installed ROS launcher runs ``test/data/interop_teleop.xml``: ROSInterface ->
   TransformationInterface (the Baxter URDF in the transformation graph, Pinocchio) ->
-  EndEffectorDistance -> ROSInterface, publishing ``/coco/gripper_pose`` and ``/coco/distance``;
-  three times: one activity per stage hosted in the launcher's rclpy executor (its default: a
-  MultiThreadedExecutor, the activities in parallel; a pipeline of triggered activities runs in the
-  callback that brought its data), the same on a single-threaded executor (``--executor-threads 1``,
-  outputs remapped to ``/coco_single/...``), and the whole pipeline in one triggered activity
-  (``one_activity:=true``, outputs remapped to ``/coco_one/...``);
+  EndEffectorDistance -> ROSInterface, publishing ``gripper_pose`` and ``distance`` (topics under
+  ``/coco``, ``/coco_single``, ``/coco_multi``, ``/coco_one``); four times: one activity per stage
+  hosted by the launcher (its default: each activity waits on its own entities in a thread of its
+  own, an :class:`coco_ros.wait_set.ActivityWaitSet`, the activities in parallel; a pipeline of
+  triggered activities runs in the callback that brought its data), the same as callback groups of
+  one single-threaded executor (``--executor-threads 1``) and of a multi-threaded one
+  (``--executor-threads 4``, the default before the wait sets), and the whole pipeline in one
+  triggered activity (``one_activity:=true``);
 - *anchor*: a plain rclpy node (this script with ``--plain-node``): subscribe, Pinocchio forward
   kinematics of ``left_gripper``, distance to the bowl, publish ``/plain/gripper_pose`` and
   ``/plain/distance`` (std_msgs/Float64, as the app), spun by a SingleThreadedExecutor; and the same
@@ -52,7 +59,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 
@@ -69,26 +76,32 @@ BOWL_HZ = 2.0
 BOWL = (0.06, -3.0, -0.2)
 """Bowl far to the robot's right: the distance grows monotonically as left_s0 sweeps (checked)."""
 S0_RANGE = (-0.6, 0.6)
+TURN_S = 1.5
+"""Seconds a pipeline gets the input before the next one does (see ``Driver.turns``)."""
 TELEOP_APP = _report.REPO / "test" / "data" / "interop_teleop.xml"
 LAUNCHER = _report.REPO / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
 ONE_ACTIVITY = "CoCo ROS launcher, one activity"
 EVENTS = "plain rclpy node, EventsExecutor"
 SINGLE = "CoCo ROS launcher --executor-threads 1"
+MULTI = "CoCo ROS launcher --executor-threads 4"
 PIPELINES = {"plain rclpy node": "/plain", EVENTS: "/plain_events", "CoCo ROS launcher": "/coco",
-             SINGLE: "/coco_single", ONE_ACTIVITY: "/coco_one"}
+             SINGLE: "/coco_single", MULTI: "/coco_multi", ONE_ACTIVITY: "/coco_one"}
 
 
-def _renamed(suffix: str) -> list[str]:
-    """ROS arguments giving a second launcher of the app its own node name and output topics."""
-    return ["--ros-args", "-r", f"__node:=interop_teleop_{suffix}",
-            "-r", f"/coco/gripper_pose:=/coco_{suffix}/gripper_pose", "-r", f"/coco/distance:=/coco_{suffix}/distance"]
+def _renamed(prefix: str) -> list[str]:
+    """ROS arguments giving a launcher of the app its own node name, input and output topics."""
+    return ["--ros-args", "-r", f"__node:=interop_teleop{prefix.replace('/', '_')}",
+            "-r", f"/robot/joint_states:={prefix}/joint_states", "-r", f"/bowl/pose:={prefix}/bowl_pose",
+            "-r", f"/coco/gripper_pose:={prefix}/gripper_pose", "-r", f"/coco/distance:={prefix}/distance"]
 
 
-LAUNCHED = {"CoCo ROS launcher": [], SINGLE: ["--executor-threads", "1", *_renamed("single")],
-            ONE_ACTIVITY: ["one_activity:=true", *_renamed("one")]}
-"""One activity per stage hosted in the rclpy executor (default: a MultiThreadedExecutor, the
-activities in parallel), the same on a single-threaded executor, and the whole pipeline in one
-triggered activity hosted in the executor."""
+LAUNCHED = {"CoCo ROS launcher": _renamed(PIPELINES["CoCo ROS launcher"]),
+            SINGLE: ["--executor-threads", "1", *_renamed(PIPELINES[SINGLE])],
+            MULTI: ["--executor-threads", "4", *_renamed(PIPELINES[MULTI])],
+            ONE_ACTIVITY: ["one_activity:=true", *_renamed(PIPELINES[ONE_ACTIVITY])]}
+"""One activity per stage, each in a wait set of its own (the default), the same as callback groups of
+a single-threaded executor and of a multi-threaded one (the default before the wait sets: one thread
+per activity and one more), and the whole pipeline in one triggered activity."""
 ANCHOR = "plain rclpy node"
 OUTPUTS = ("gripper_pose", "distance")
 MATCH_TOLERANCE = 1e-6
@@ -158,8 +171,8 @@ def plain_node(events: bool) -> int:
         if bowl:
             distance_out.publish(Float64(data=float(np.linalg.norm(T[:3, 3] - bowl[0]))))
 
-    node.create_subscription(JointState, "/robot/joint_states", on_joints, QoSProfile(depth=50))
-    node.create_subscription(PoseStamped, "/bowl/pose", on_bowl, QoSProfile(depth=10))
+    node.create_subscription(JointState, f"{prefix}/joint_states", on_joints, QoSProfile(depth=50))
+    node.create_subscription(PoseStamped, f"{prefix}/bowl_pose", on_bowl, QoSProfile(depth=10))
     try:
         if events:
             from rclpy.experimental import EventsExecutor
@@ -236,8 +249,10 @@ class Driver:
 
         self.postures = postures
         self.node = Node("bench_latency_driver", context=context)
-        self.joints_out = self.node.create_publisher(JointState, "/robot/joint_states", QoSProfile(depth=50))
-        self.bowl_out = self.node.create_publisher(PoseStamped, "/bowl/pose", QoSProfile(depth=10))
+        self.joints_out = {pipeline: self.node.create_publisher(JointState, f"{prefix}/joint_states", QoSProfile(depth=50))
+                           for pipeline, prefix in PIPELINES.items()}
+        self.bowl_out = {pipeline: self.node.create_publisher(PoseStamped, f"{prefix}/bowl_pose", QoSProfile(depth=10))
+                         for pipeline, prefix in PIPELINES.items()}
         self.JointState, self.PoseStamped = JointState, PoseStamped
         self.tracks = {(pipeline, output): Track() for pipeline in PIPELINES for output in OUTPUTS}
         for pipeline, prefix in PIPELINES.items():
@@ -272,36 +287,54 @@ class Driver:
 
         return receive
 
-    def _publish_joints(self) -> None:
+    def _publish_joints(self, pipelines: Iterable[str]) -> None:
         index = self.sent % len(self.postures.positions)
         msg = self.JointState(name=self.postures.names, position=self.postures.positions[index])
-        now = time.perf_counter()
-        for (_, _), track in self.tracks.items():
-            track.pending[index] = now
         msg.header.stamp = self.node.get_clock().now().to_msg()  # wall clock at publish time
-        self.joints_out.publish(msg)
+        for pipeline in pipelines:
+            now = time.perf_counter()
+            for output in OUTPUTS:
+                self.tracks[(pipeline, output)].pending[index] = now
+            self.joints_out[pipeline].publish(msg)
         self.sent += 1
 
-    def _publish_bowl(self) -> None:
+    def _publish_bowl(self, pipelines: Iterable[str]) -> None:
         msg = self.PoseStamped()
         msg.header.stamp, msg.header.frame_id = self.node.get_clock().now().to_msg(), "base"
         msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = BOWL
         msg.pose.orientation.w = 1.0
-        self.bowl_out.publish(msg)
+        for pipeline in pipelines:
+            self.bowl_out[pipeline].publish(msg)
 
-    def run(self, seconds: float, until: Callable[[], bool] | None = None) -> None:
-        """Publish at RATE_HZ (and the bowl at BOWL_HZ) on absolute deadlines, receiving in between."""
+    def run(self, seconds: float, pipelines: Iterable[str], until: Callable[[], bool] | None = None,
+            bowl: bool = True) -> None:
+        """Publish to ``pipelines`` at RATE_HZ (and with ``bowl`` the bowl at BOWL_HZ) on absolute
+        deadlines, receiving in between."""
+        pipelines = list(pipelines)
         start = time.perf_counter()
         period, bowl_every = 1.0 / RATE_HZ, round(RATE_HZ / BOWL_HZ)
         tick = 0
         while time.perf_counter() - start < seconds and not (until and until()):
-            if tick % bowl_every == 0:
-                self._publish_bowl()
-            self._publish_joints()
+            if bowl and tick % bowl_every == 0:
+                self._publish_bowl(pipelines)
+            self._publish_joints(pipelines)
             tick += 1
             deadline = start + tick * period
             while (remaining := deadline - time.perf_counter()) > 0:
                 self.executor.spin_once(timeout_sec=remaining)
+
+    def turns(self, seconds: float, pipelines: list[str], turn: float = TURN_S) -> None:
+        """``seconds`` of input for each of ``pipelines``, one at a time in turns of ``turn`` seconds,
+        their order reversed every round: no pipeline competes with another for the two cores, and
+        none is always first or last after a change of load. No bowl pose: the pipelines have it
+        (``run``), and one at the start of a turn would time the distance from the gripper pose of
+        the pipeline's previous turn (the launchers' in-app latency)."""
+        rounds = max(1, round(seconds / turn))
+        for number in range(rounds):
+            for pipeline in (pipelines if number % 2 == 0 else pipelines[::-1]):
+                self.run(seconds / rounds, [pipeline], bowl=False)
+            print(f"\r  round {number + 1}/{rounds}", end="", file=sys.stderr, flush=True)
+        print(file=sys.stderr)
 
     def reset(self) -> None:
         for track in self.tracks.values():
@@ -365,20 +398,24 @@ def table(driver: Driver, profiles: dict[tuple[str, str], tuple[float, float] | 
         t.add(f"{name}: profiler (in app)", PROFILED[component], "-", f"mean {fmt_time_ns(profile[0] * 1e9)}", "-",
               "-", fmt_time_ns(profile[1] * 1e9), "-", "-", "-", "-", "-")
         results[f"{name}: profiler {component}"] = {"mean": profile[0], "max": profile[1]}
-    t.notes += [f"{args.seconds:g} s measured after {args.warmup:g} s warm-up; joint states at {RATE_HZ:g} Hz, "
-                f"bowl pose at {BOWL_HZ:g} Hz; all pipelines run at the same time on the same input "
-                "(noise hits them alike).",
-                "The launcher hosts activities in its rclpy executor: a MultiThreadedExecutor by default, one thread "
-                "with --executor-threads 1; a pipeline of triggered activities runs in the callback that brought "
-                "its data either way; 'one activity': the whole pipeline in one triggered activity "
-                "(one_activity:=true), in the executor. Ratios > 1: slower than the plain node by that factor, "
+    t.notes += [f"{args.seconds:g} s measured per pipeline after {args.warmup:g} s warm-up each; joint states at "
+                f"{RATE_HZ:g} Hz (the bowl pose before: {BOWL_HZ:g} Hz until every pipeline answered). All "
+                "pipelines run in the same run, each fed in "
+                f"turns of {TURN_S:g} s, the order reversed every round: one pipeline at a time gets input, so none "
+                "waits for another's work on the two cores (fed all at once, the same plain node started after "
+                "the launchers was 1.10-1.16x slower at p50 than the one started first), and machine noise hits "
+                "them alike.",
+                "By default the launcher gives each activity a wait set of its own on a thread of its own "
+                "(ActivityWaitSet); --executor-threads N: callback groups of one executor with N threads; a pipeline "
+                "of triggered activities runs in the callback that brought its data either way; 'one activity': "
+                "the whole pipeline in one triggered activity (one_activity:=true). Ratios > 1: slower than the plain node by that factor, "
                 "< 1: faster. The profiler rows are inside the app, mean and max: EndEffectorDistance's interval "
                 "(read of its triggering pose -> outputs written) and the bridge's (that read -> the distance "
                 "handed to DDS).",
                 f"{args.postures} postures swept; an output matches its joint state by value (within "
                 f"{MATCH_TOLERANCE:g} m); the first output per joint state counts."]
     if not driver.tracks[(EVENTS, "distance")].latencies:
-        t.notes.append("plain rclpy node, EventsExecutor: no output in a 15 s probe before the run, so it was left "
+        t.notes.append("plain rclpy node, EventsExecutor: no output in the 30 s the pipelines had to start, so it was left "
                        "out (rclpy.experimental.EventsExecutor of these Jazzy wheels spun a core and ran no "
                        "callback); its ratios are n/a")
     return t, results
@@ -390,13 +427,20 @@ def draw(driver: Driver) -> Callable[[Any], Any]:
         rows = [(f"{pipeline}: {output}", percentiles(driver.tracks[(pipeline, output)].latencies))
                 for output in OUTPUTS for pipeline in PIPELINES]
         height = 0.25
+        anchor = percentiles(driver.tracks[(ANCHOR, "distance")].latencies)["p99"] * 1e3
+        limit = 3 * anchor if anchor > 0 else None  # a tail far beyond is written, not drawn to scale
         for k, (key, color) in enumerate((("p50", "tab:blue"), ("p90", "tab:orange"), ("p99", "tab:red"))):
-            ax.barh([y + (k - 1) * height for y in range(len(rows))], [stats[key] * 1e3 for _, stats in rows],
-                    height=height, color=color, label=key)
+            ys = [y + (k - 1) * height for y in range(len(rows))]
+            values = [stats[key] * 1e3 for _, stats in rows]
+            ax.barh(ys, [min(v, limit) if limit else v for v in values], height=height, color=color, label=key)
+            for y, value in zip(ys, values):
+                if limit and value > limit:
+                    ax.text(limit, y, f" {value:.0f} ms", va="center", ha="right", fontsize=7, color="white")
+        if limit:
+            ax.set_xlim(0, limit)
         ax.set_yticks(range(len(rows)), [label for label, _ in rows], fontsize=8)
         ax.invert_yaxis()
-        ax.set_xscale("log")
-        ax.set_xlabel("joint state published -> output received (ms, log scale)")
+        ax.set_xlabel("joint state published -> output received (ms; axis cut at 3x the plain node's p99)")
         ax.set_title("Teleop app latency over DDS: CoCo ROS launcher vs plain rclpy node")
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
         return fig
@@ -510,29 +554,34 @@ def main() -> None:
     with RosContext() as context:
         driver = Driver(context, postures)
         script = [sys.executable, str(Path(__file__).resolve()), "--plain-node"]
-        # The EventsExecutor of the Jazzy wheels may deliver nothing (seen: it spins a core and never
-        # runs a callback): probed alone first, and left out of the run (which it would load) if so.
-        processes = {EVENTS: start([*script, "--events"])}
-        driver.run(15.0, until=lambda: bool(driver.tracks[(EVENTS, "distance")].latencies))
-        if not driver.tracks[(EVENTS, "distance")].latencies:
-            interrupt(processes.pop(EVENTS))
-            print(f"{EVENTS}: no output in 15 s: left out of the run", file=sys.stderr)
-        processes[ANCHOR] = start(script)
+        # The EventsExecutor of the Jazzy wheels may deliver nothing (seen: it spins a core, never runs
+        # a callback and ignores SIGINT): fed with the others until they all answered, and left out
+        # of the measurement (which it would load) if it did not. Not probed alone before the others
+        # start: a participant started after it was killed received nothing from the driver (seen
+        # here); nor after they started: their first output would then date from 15 s back.
+        processes = {ANCHOR: start(script), EVENTS: start([*script, "--events"])}
         for name, options in LAUNCHED.items():
             processes[name] = start([sys.executable, str(LAUNCHER), str(TELEOP_APP), "--profile", "3600",
                                      "--log-level", "WARNING", *options])
         outputs: dict[str, str] = {}
         try:
-            required = [pipeline for pipeline in PIPELINES if pipeline in processes or pipeline in LAUNCHED]
-            ready = lambda: all(driver.tracks[(pipeline, "distance")].latencies for pipeline in required)  # noqa: E731
-            driver.run(30.0, until=lambda: ready() or any(p.poll() is not None for p in processes.values()))
+            required = [pipeline for pipeline in PIPELINES if pipeline != EVENTS]
+            answered = lambda pipeline: bool(driver.tracks[(pipeline, "distance")].latencies)  # noqa: E731
+            ready = lambda: all(map(answered, required))  # noqa: E731
+            driver.run(30.0, PIPELINES, until=lambda: (ready() and answered(EVENTS)) or
+                       any(p.poll() is not None for p in processes.values()))
             if not ready():
-                silent = [name for name in required if not driver.tracks[(name, "distance")].latencies]
+                silent = [name for name in required if not answered(name)]
                 raise RuntimeError(f"no output within 30 s from {', '.join(silent)}: "
                                    + "; ".join(f"{n}: exit {p.poll()}" for n, p in processes.items()))
-            driver.run(args.warmup)
+            if answered(EVENTS):
+                required.insert(1, EVENTS)
+            else:
+                interrupt(processes.pop(EVENTS), timeout=2.0)
+                print(f"{EVENTS}: no output in 30 s: left out of the run", file=sys.stderr)
+            driver.turns(args.warmup, required)
             driver.reset()
-            driver.run(args.seconds)
+            driver.turns(args.seconds, required)
         finally:
             for name, process in processes.items():
                 outputs[name] = interrupt(process)[1]

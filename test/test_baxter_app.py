@@ -102,7 +102,7 @@ def test_teleop_app_replays_the_session(coco_launch: Path, session, tmp_path: Pa
 
 
 def test_teleop_app_in_the_ros_launcher(session, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The same app hosted by the rclpy launcher node (its activities as executor callback groups)."""
+    """The same app hosted by the rclpy launcher node (its activities in wait sets of their own)."""
     monkeypatch.setenv("ROS_DOMAIN_ID", "65")
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     launcher = ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
@@ -114,7 +114,7 @@ def test_teleop_app_in_the_ros_launcher(session, tmp_path: Path, monkeypatch: py
                           f"time_origin:={info.start_ns / 1e9}", "--profile", "100", "--duration", "60", timeout=120)
     assert result.returncode == 0, result.stderr
     assert "node /baxter_teleop_replay hosts application baxter_teleop_replay" in result.stderr, result.stderr
-    assert "activity frames: triggered -> executor" in result.stderr, result.stderr
+    assert "activity frames: triggered -> wait set on its own thread" in result.stderr, result.stderr
     # The view runs in a process of its own (display_process:=true), with a node of its own; there
     # too the display keeps its EGL context on one thread: GLManager is thread-bound.
     assert "activity display: periodic 50 ms -> process view" in result.stderr, result.stderr

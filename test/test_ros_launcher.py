@@ -58,18 +58,18 @@ def test_demo_runs_in_the_node_with_profile_and_output(ros_launcher: Path, tmp_p
     for name in ("acquisition", "filtering", "recording", "supervision (main)", "generator", "filter",
                  "recorder", "monitor (peer)", "supervisor"):
         assert name in report, f"{name} missing from the profile:\n{report}"
-    # Executor-hosted periodic activities report their timer's period error.
+    # Hosted periodic activities report their timer's period error.
     assert re.search(r"acquisition\s+periodic 10 ms\s+\d+\s+\d+\s+[0-9.]+ / [0-9.]+ / [0-9.]+", report), report
     log = result.stderr
     assert "node /demo_pipeline hosts application demo_pipeline" in log
-    assert "activity acquisition: periodic 10 ms -> executor (rclpy timer in its callback group)" in log
-    assert "activity filtering: triggered -> executor (guard condition in its callback group)" in log
+    assert "activity acquisition: periodic 10 ms -> wait set on its own thread (rclpy timer in its callback group)" in log
+    assert "activity filtering: triggered -> wait set on its own thread (guard condition in its callback group)" in log
     assert "activity supervision: periodic 1000 ms -> thread: main activity" in log
     rows = read_rows(output)
     assert len(rows) > 100, f"only {len(rows)} rows in 3 s at 100 Hz"
     seqs = [int(row["seq"]) for row in rows]
     assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
-    # The supervisor (main thread) reached the filter (executor) through a queued operation.
+    # The supervisor (main thread) reached the filter (its wait set) through a queued operation.
     assert "supervisor: filter.set_window -> previous value 8" in log
 
 

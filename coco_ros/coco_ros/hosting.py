@@ -1,8 +1,18 @@
-"""Hosting CoCo activities in an rclpy node: callback groups of a multi-threaded executor, or threads.
+"""Hosting CoCo activities in an rclpy node: a wait set per activity, callback groups of an executor, or threads.
 
-Each activity hosted by the executor is one ``MutuallyExclusiveCallbackGroup`` of the launcher's
-node, so its components never run concurrently with each other while different activities run in
-parallel on the executor's threads:
+Each activity hosted by rclpy is one callback group of the launcher's node, so its components never
+run concurrently with each other while different activities run in parallel. Who runs the group's
+callbacks:
+
+- by default an :class:`~coco_ros.wait_set.ActivityWaitSet`: a thread of the activity's own that waits
+  on the group's entities only and runs their callbacks itself (a :class:`~coco_ros.wait_set.WaitSetGroup`,
+  which the node's executor leaves alone). No wait set of the whole node rebuilt after every
+  callback, no hand-off from the executor's thread to a worker: the default layout answers as fast
+  as a plain rclpy node on a ``SingleThreadedExecutor`` (``docs/benchmarks.md``, Figure 6);
+- with ``wait_sets=False`` (the launcher's ``--executor-threads N``) the node's executor: the group is
+  a ``MutuallyExclusiveCallbackGroup`` and the executor's threads (N of them) run all groups.
+
+Either way:
 
 - a *periodic* activity is a timer (steady clock) in its group. Its callbacks are measured against
   the ideal time grid: the lateness goes into ``activity.stats`` (``--profile`` shows it as the
@@ -14,29 +24,30 @@ parallel on the executor's threads:
   the next trigger nothing; one from inside the group's own callbacks is served at the end of that
   callback (one guard condition trigger at most); and a ROS entity callback wrapped by
   :func:`activity_callback` (a ROSInterface subscription) runs the cycle its data asked for right
-  after it, in the same executor callback: the guard condition round trip (trigger, executor
-  wake-up, wait-set rebuild, dispatch to a worker) is the costliest hop of a pipeline, measured in
-  ``docs/benchmarks.md`` (Figure 6). The same holds between activities (the *chain*): a triggered
+  after it, in the same callback: the guard condition round trip (trigger, wake-up, wait-set
+  rebuild, and on the executor a dispatch to a worker) is the costliest hop of a pipeline, measured
+  in ``docs/benchmarks.md`` (Figure 6). The same holds between activities (the *chain*): a triggered
   activity woken by a hosted activity's callback runs its cycle in that callback, right after, as
   itself and under its own lock (``ExecutorDriver.busy``: its own callbacks wait for it, and a
   wake-up while one of them runs goes to its guard condition), so a pipeline of triggered
   activities crosses all its stages in the callback that brought the message.
 
 Every callback makes the activity the thread's *current activity* while it runs (executor threads
-are shared, so operations called from a component must know whose thread they are in). The first
-callback of an activity configures its components; the activity's last callback runs ``finish``
-(``on_stop``), inside its group, after the application asked for a stop. ``on_config``,
-``on_update`` and ``on_stop`` of an executor-hosted activity may therefore run on *different*
-executor threads (never at the same time): a component that holds a thread-bound resource (an
-OpenGL context, a thread-affine device SDK) needs a dedicated thread.
+are shared, and a chained cycle runs in another activity's thread, so operations called from a
+component must know whose thread they are in). The first callback of an activity configures its
+components; the activity's last callback runs ``finish`` (``on_stop``), inside its group, after the
+application asked for a stop. ``on_config``, ``on_update`` and ``on_stop`` of a hosted activity may
+therefore run on *different* threads (never at the same time): a component that holds a thread-bound
+resource (an OpenGL context, a thread-affine device SDK) needs a dedicated thread.
 
 Which activities get their own thread (coco_core's loop: ``Activity.start``) instead is decided by
 :func:`dedicated_reason`; see ``docs/ros.md`` for the rule and the measured numbers behind it.
 
-How the executor attaches to an activity: an :class:`ExecutorDriver` is the activity's driver
-(``Activity.drive_with``, the protocol of :mod:`coco_core.drivers`), so event ports, queued
-operations, ``Application.stop``, ``Application.set_period`` and ``Application.in_flight`` reach the
-executor through the activity's own methods; nothing is replaced on the activity.
+How rclpy attaches to an activity: an :class:`ExecutorDriver` is the activity's driver
+(``Activity.drive_with``, the protocol of :mod:`coco_core.drivers`), whether a wait set or the
+executor runs its group, so event ports, queued operations, ``Application.stop``,
+``Application.set_period`` and ``Application.in_flight`` reach it through the activity's own
+methods; nothing is replaced on the activity.
 """
 
 from __future__ import annotations
@@ -51,6 +62,7 @@ from coco_core import Activity, Application, CocoError, Component, PeriodicActiv
 from coco_core.errors import did_you_mean
 from coco_core.drivers import EventfdDriver
 from coco_core.operations import set_current_activity
+from .wait_set import ActivityWaitSet, WaitSetGroup
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType
 
@@ -136,26 +148,33 @@ def plan_hosting(app: Application, threads: Iterable[str] = (), all_threads: boo
     return plan
 
 
-def describe_hosting(app: Application, plan: dict[str, str]) -> str:
-    """One line per activity of ``app``: its schedule and where ``plan`` runs it."""
+def describe_hosting(app: Application, plan: dict[str, str], wait_sets: bool = True) -> str:
+    """One line per activity of ``app``: its schedule and where ``plan`` runs it (``wait_sets``: as
+    :class:`ExecutorHost` does by default, each hosted activity in a wait set of its own)."""
     lines = []
     for name, where in plan.items():
         activity = app.activities[name]
         how = "rclpy timer" if isinstance(activity, PeriodicActivity) else "guard condition"
-        lines.append(f"  activity {name}: {activity.describe()} -> "
-                     + (f"executor ({how} in its callback group)" if where == EXECUTOR else where))
+        hosted = (f"wait set on its own thread ({how} in its callback group)" if wait_sets else
+                  f"executor ({how} in its callback group)")
+        lines.append(f"  activity {name}: {activity.describe()} -> " + (hosted if where == EXECUTOR else where))
     return "\n".join(lines)
 
 
 class ExecutorDriver:
-    """The driver (:class:`coco_core.drivers.Driver`) of one activity run by the executor: its callback
-    group, guard condition and (periodic) timer. The activity keeps its own class and methods: its
-    ``wake``, ``stop``, ``set_period`` and ``join`` come here because this is its driver."""
+    """The driver (:class:`coco_core.drivers.Driver`) of one activity hosted by rclpy: its callback
+    group, guard condition and (periodic) timer, run by its wait set or by the node's executor. The
+    activity keeps its own class and methods: its ``wake``, ``stop``, ``set_period`` and ``join``
+    come here because this is its driver."""
 
-    def __init__(self, host: ExecutorHost, activity: Activity, group: MutuallyExclusiveCallbackGroup) -> None:
+    def __init__(self, host: ExecutorHost, activity: Activity, group: MutuallyExclusiveCallbackGroup,
+                 server: ActivityWaitSet | None = None) -> None:
         self.host = host
         self.activity = activity
         self.group = group
+        self.server = server
+        """The thread that waits on this activity's entities (a :class:`WaitSetGroup`), or None when
+        the node's executor runs the group's callbacks."""
         self.started = False
         self.configured = False
         self.pending = False
@@ -230,9 +249,11 @@ class ExecutorDriver:
             if self.configured:
                 self.timer.reset()  # the timer's next call is one new period from now: so is the grid's
                 activity.grid.begin(time.perf_counter() + period)
-        executor = self.host.node.executor
-        if executor is not None:
-            executor.wake()  # the executor's current wait was computed with the old period
+        # the current wait was computed with the old period
+        if self.server is not None:
+            self.server.wake()
+        elif self.host.node.executor is not None:
+            self.host.node.executor.wake()
 
     def join(self, timeout: float | None = None) -> bool:
         return self.activity.wait_finished(timeout) if self.started else True
@@ -390,7 +411,10 @@ class ExecutorDriver:
         app.request_stop(f"activity {self.activity.name} failed")
 
     def close(self) -> None:
-        """Destroy the timer and the guard condition (after the executor stopped spinning)."""
+        """End the wait set's thread, then destroy the timer and the guard condition (after the
+        executor stopped spinning)."""
+        if self.server is not None:
+            self.server.stop()
         self.closed = True
         if self.timer is not None:
             self.host.node.destroy_timer(self.timer)
@@ -398,32 +422,46 @@ class ExecutorDriver:
 
 
 class ExecutorHost:
-    """Runs ``app``'s activities in ``node``: callback groups of the node's executor, or threads.
+    """Runs ``app``'s activities in ``node``: each in a wait set of its own (``wait_sets``, the
+    default) or as callback groups of the node's executor, or on threads of their own.
 
     Create it after the application was built and before ``app.start()``; add ``node`` to the
-    executor of :meth:`create_executor` and spin it while the application runs (a
-    ``MultiThreadedExecutor`` with as many threads as activities it hosts, to run them all in
-    parallel: :meth:`executor_threads`). After ``app.stop()``, stop spinning and call :meth:`close`.
+    executor of :meth:`create_executor` and spin it, and :meth:`start` the wait sets, while the
+    application runs (the executor runs what no wait
+    set does: the node's parameter services, the entities of components in no activity or in an
+    activity on its own thread, and without wait sets the hosted activities, which then need as many
+    threads to run in parallel: :meth:`executor_threads`). After ``app.stop()``, stop spinning and
+    call :meth:`close`, which also ends the wait sets' threads.
 
-    Every activity, hosted or not, gets a ``MutuallyExclusiveCallbackGroup``
-    (:meth:`callback_group`): the ROS entities of its components (subscriptions, timers) belong there,
-    so that they never run at the same time as the activity's cycle when the executor hosts it.
+    Every activity, hosted or not, gets a mutually exclusive callback group (:meth:`callback_group`):
+    the ROS entities of its components (subscriptions, timers) belong there, so that they never run
+    at the same time as the activity's cycle when it is hosted.
     The node and the host are reachable from the application (``app.ros_node``, ``app.ros_host``) and
     so from any component (:func:`ros_node`, :func:`callback_group`).
     """
 
     def __init__(self, node: Node, app: Application, threads: Iterable[str] = (),
-                 all_threads: bool = False) -> None:
+                 all_threads: bool = False, wait_sets: bool = True) -> None:
         self.node = node
         self.app = app
+        self.wait_sets = wait_sets
+        """Whether each hosted activity has a wait set on a thread of its own (an
+        :class:`ActivityWaitSet`) rather than a callback group in the executor's shared threads."""
         self.clock = Clock(clock_type=ClockType.STEADY_TIME)
         """Activity timers run on the steady clock, like the activities' own threads (not /clock)."""
         self.plan = plan_hosting(app, threads, all_threads)
         self.groups: dict[str, MutuallyExclusiveCallbackGroup] = {}
         self.hosted: dict[str, ExecutorDriver] = {}
         for name, activity in app.activities.items():
-            group = self.groups[name] = MutuallyExclusiveCallbackGroup()
-            if self.plan[name] == EXECUTOR:
+            if self.plan[name] != EXECUTOR:
+                self.groups[name] = MutuallyExclusiveCallbackGroup()
+            elif wait_sets:
+                waited = WaitSetGroup()
+                self.groups[name] = waited
+                server = ActivityWaitSet(waited, node.context, name, on_error=app.request_stop)
+                self.hosted[name] = ExecutorDriver(self, activity, waited, server)
+            else:
+                group = self.groups[name] = MutuallyExclusiveCallbackGroup()
                 self.hosted[name] = ExecutorDriver(self, activity, group)
         app.ros_node = node  # type: ignore[attr-defined]
         app.ros_host = self  # type: ignore[attr-defined]
@@ -438,14 +476,17 @@ class ExecutorHost:
                             f"{did_you_mean(name, self.groups)}") from None
 
     def executor_threads(self) -> int:
-        """Executor threads: one per hosted activity and one more for the ROS entities in other
+        """Executor threads. With wait sets (the default) the executor runs no hosted activity, only
+        the ROS entities of the activities on threads of their own (one executor thread each, so
+        they run in parallel) and of the node's default group (one more): 1 when there are none of
+        the former. Otherwise one per hosted activity and one more for the ROS entities in other
         groups, at least two; but 1 when the executor hosts every activity and there is at most one:
         every callback is then in that activity's group, except those of components in no activity
         (the node's default group), so there is next to nothing to run in parallel, and
-        :meth:`create_executor` makes it a ``SingleThreadedExecutor``. Triggered activities keep
-        threads of their own on the executor (they run in parallel, as activities do) although a
-        pipeline of them runs in one callback (the chain); ``--executor-threads 1`` trades that
-        parallelism for latency (docs/ros.md)."""
+        :meth:`create_executor` makes it a ``SingleThreadedExecutor``."""
+        if self.wait_sets:
+            threaded = sum(1 for where in self.plan.values() if where.startswith("thread"))
+            return threaded + 1 if threaded else 1
         if len(self.hosted) <= 1 and len(self.hosted) == len(self.app.activities):
             return 1
         return max(2, len(self.hosted) + 1)
@@ -467,9 +508,16 @@ class ExecutorHost:
             return SingleThreadedExecutor(context=context)
         return MultiThreadedExecutor(num_threads=threads, context=context)
 
+    def start(self) -> None:
+        """Start the wait sets' threads: call it when the executor starts spinning (after
+        ``app.start()``, which has the first callback of every hosted activity configure it)."""
+        for hosted in self.hosted.values():
+            if hosted.server is not None:
+                hosted.server.start()
+
     def describe(self) -> str:
         """One line per activity: its schedule and where it runs."""
-        return describe_hosting(self.app, self.plan)
+        return describe_hosting(self.app, self.plan, self.wait_sets)
 
     def close(self) -> None:
         """Release the timers and guard conditions; call after the executor stopped spinning."""

@@ -7,9 +7,10 @@
 The command line is ``coco-launch``'s (same file format, same ``name:=value`` arguments, same
 ``--profile`` report); everything after ``--ros-args`` goes to ``rclpy.init``: remapping (the node's
 name is the application's, ``-r __node:=NAME`` renames it), parameters (``-p``, declared on the node
-from the overrides), log levels. The application's activities run as callback groups of an rclpy
-executor (multi-threaded; single-threaded when it hosts the only activity) or on threads of their own
-(:mod:`coco_ros.hosting` decides, ``--threads`` overrides). Ctrl-C (or SIGTERM) stops every activity
+from the overrides), log levels. Each of the application's activities runs in a wait set of its own
+on a thread of its own (its timer or guard condition and its components' ROS entities:
+:mod:`coco_ros.wait_set`), as callback groups of one rclpy executor (``--executor-threads N``), or
+on the activity's own loop (:mod:`coco_ros.hosting` decides, ``--threads`` overrides). Ctrl-C (or SIGTERM) stops every activity
 within a second, after each component's ``on_stop`` ran (:mod:`coco_core.signals`: the rules and the
 exit statuses).
 
@@ -63,8 +64,8 @@ def make_ros_parser() -> argparse.ArgumentParser:
     parser.add_argument("--all-threads", action="store_true",
                         help="run every activity on its own thread (as coco-launch does)")
     parser.add_argument("--executor-threads", type=_positive_int, metavar="N",
-                        help="executor threads (default: one per hosted activity, plus one; 1 when the "
-                        "executor hosts the only activity); 1 gives a SingleThreadedExecutor")
+                        help="host the activities as callback groups of one executor with N threads (1: a "
+                        "SingleThreadedExecutor) instead of a wait set on a thread of its own for each")
     return parser
 
 
@@ -130,7 +131,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         if options.check:
             print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
             print("hosting in the ROS launcher (the launcher's process):")
-            print(describe_hosting(app, plan))
+            print(describe_hosting(app, plan, wait_sets=options.executor_threads is None))
             return 0
     except CocoError as error:
         return failure(_NAME, error)
@@ -152,10 +153,16 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
                         "all_threads": options.all_threads}
         with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
                            child_config=child_config) as processes:
-            host = ExecutorHost(node, app, _threads(options.threads), options.all_threads)
+            host = ExecutorHost(node, app, _threads(options.threads), options.all_threads,
+                                wait_sets=options.executor_threads is None)
             executor = host.create_executor(options.executor_threads)
             executor.add_node(node)
             log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
+            if (options.executor_threads or 1) > 1:
+                log.warning("--executor-threads %d: rclpy's MultiThreadedExecutor hosts the activities; it missed "
+                            "wake-ups in docs/benchmarks.md (Figure 6: p99 60-460x a plain node, messages lost "
+                            "from full DDS queues): prefer the default (a wait set per activity) or 1",
+                            options.executor_threads)
             signals.attach(app)
             code = _run_hosted(app, host, executor, options, processes)
             return INTERRUPTED if signals.forced else code
@@ -190,6 +197,7 @@ def run_hosted(app: Application, host: ExecutorHost, executor: object, duration:
     timer = None
     try:
         app.start()
+        host.start()
         spinner.start()
         if duration is not None:
             timer = threading.Timer(duration, app.request_stop, args=(f"duration of {duration:g} s reached",))

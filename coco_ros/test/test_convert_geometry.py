@@ -106,6 +106,30 @@ def test_wrong_values_are_refused():
         transforms.to_coco(PoseStamped())
 
 
+@pytest.mark.parametrize("frame", ["", "a", "base", "odom_", "a_frame_name_of_some_length"])
+@pytest.mark.parametrize("stamp", [None, 12.5, RosTime(1_700_000_000, 123_456_789), -3.25])
+def test_pose_stamped_cdr_reads_back_as_the_message_to_ros_builds(frame, stamp):
+    """Every length of frame_id (so every padding before the doubles) and every kind of stamp."""
+    value = FramePose(frame, "tool", a_transform(7), stamp)
+    assert poses.writes_cdr
+    assert deserialize_message(poses.to_cdr(value), PoseStamped) == poses.to_ros(value)
+
+
+def test_writing_cdr_refuses_what_to_ros_refuses():
+    with pytest.raises(TypeError, match="publishes FramePose values as geometry_msgs/msg/PoseStamped"):
+        poses.to_cdr(TransformSample("a", "b", np.eye(4)))
+    with pytest.raises(ValueError, match="expected a 4x4 transform"):
+        poses.to_cdr(FramePose("a", "b", np.eye(3)))
+    with pytest.raises(ValueError, match="a ROS time must be finite"):
+        poses.to_cdr(FramePose("a", "b", np.eye(4), math.nan))
+
+
+def test_a_converter_that_does_not_write_cdr_serializes_its_message():
+    value = FramePose("base", "gripper", a_transform(3), 1.0)
+    assert not transforms.writes_cdr
+    assert deserialize_message(transforms.to_cdr(value), TransformStamped) == transforms.to_ros(value)
+
+
 # --- TFMessage -------------------------------------------------------------------------------------
 # tf2_msgs has no PyPI wheel: the workspace builds it (vendor/tf2_msgs).
 

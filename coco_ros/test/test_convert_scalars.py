@@ -38,3 +38,15 @@ def test_anything_but_a_real_number_is_refused_naming_the_type(value):
 def test_another_message_type_is_refused():
     with pytest.raises(TypeError, match="converts std_msgs/msg/Float64 messages, got Float64MultiArray"):
         scalar.to_coco(Float64MultiArray(data=[1.0]))
+
+
+@pytest.mark.parametrize("value", [0.0, -2.5, 1.7e308, 3, np.float32(0.5), np.int64(4), math.inf])
+def test_the_cdr_bytes_it_writes_are_rclpy_s_serialization(value):
+    assert scalar.writes_cdr
+    assert scalar.to_cdr(value) == serialize_message(scalar.to_ros(value))
+
+
+@pytest.mark.parametrize("value", [True, "1.0", None])
+def test_writing_cdr_refuses_what_to_ros_refuses(value):
+    with pytest.raises(TypeError, match=f"publishes real numbers as std_msgs/msg/Float64, got {type(value).__name__}"):
+        scalar.to_cdr(value)

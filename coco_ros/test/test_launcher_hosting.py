@@ -118,9 +118,11 @@ class Recorder(Component):
 
 
 class Hosting:
-    """One rclpy context, node and executor hosting one application."""
+    """One rclpy context, node and executor hosting one application, each hosted activity in a wait
+    set of its own (``wait_sets``, the launcher's default) or as a callback group of the executor."""
 
-    def __init__(self) -> None:
+    def __init__(self, wait_sets: bool = True) -> None:
+        self.wait_sets = wait_sets
         self.context = Context()
         rclpy.init(context=self.context)
         self.node = Node("coco_test_hosting", context=self.context)
@@ -131,13 +133,14 @@ class Hosting:
 
     def host_app(self, app: Application, **options: object) -> ExecutorHost:
         self.app = app
-        self.host = ExecutorHost(self.node, app, **options)  # type: ignore[arg-type]
+        self.host = ExecutorHost(self.node, app, wait_sets=self.wait_sets, **options)  # type: ignore[arg-type]
         return self.host
 
     def spin(self) -> None:
         assert self.host is not None
         executor = self.host.create_executor(context=self.context)
         executor.add_node(self.node)
+        self.host.start()
         self.spinner = ExecutorThread(executor, on_error=self.errors.append).start()
 
     def start(self, app: Application, **options: object) -> ExecutorHost:
@@ -150,6 +153,10 @@ class Hosting:
         clean = self.app.stop() if self.app is not None else True
         if self.spinner is not None:
             assert self.spinner.stop(), "the spin loop did not end"
+            self.spinner = None
+        if self.host is not None and clean:
+            self.host.close()  # ends the wait sets' threads
+            self.host = None
         assert self.errors == [], self.errors
         return clean
 
@@ -162,11 +169,11 @@ class Hosting:
             self.context.destroy()
 
 
-@pytest.fixture
-def hosting(monkeypatch: pytest.MonkeyPatch):
+@pytest.fixture(params=[True, False], ids=["wait sets", "executor"])
+def hosting(monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest):
     monkeypatch.setenv("ROS_DOMAIN_ID", "94")  # read by rclpy.init: this test's own domain, this host only
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    rig = Hosting()
+    rig = Hosting(wait_sets=request.param)
     yield rig
     rig.close()
 
@@ -225,9 +232,13 @@ def test_periodic_timer_and_triggered_guard_condition_run_every_sample(hosting: 
     host = hosting.start(app)
     assert set(host.hosted) == {"ticks", "events"}
     assert wait_until(lambda: len(recorder.values) >= 30)
-    # No activity thread was started: the executor's workers ran everything.
-    assert not {"coco:ticks", "coco:events"} & {t.name for t in threading.enumerate()}
+    # No activity loop was started: the wait sets' threads (or the executor's workers) ran everything.
+    names = {t.name for t in threading.enumerate()}
+    assert not {"coco:ticks", "coco:events"} & names
+    wait_sets = {"coco:ticks (wait set)", "coco:events (wait set)"}
+    assert wait_sets <= names if hosting.wait_sets else not wait_sets & names
     assert hosting.stop()
+    assert not wait_sets & {t.name for t in threading.enumerate()}, "a wait set's thread outlived the host"
     # Every sample in order, none lost or repeated (a sample written during the stop may stay unread).
     assert recorder.values == list(range(len(recorder.values)))
     ticks, events = app.activity("ticks"), app.activity("events")
@@ -510,12 +521,14 @@ def test_one_hosted_activity_gets_a_single_threaded_executor_and_more_get_worker
     app.start()
     hosting.spin()
     recorder.operation("mark")("single")
-    assert wait_until(lambda: recorder.updates == 1), "the single-threaded executor runs the activity"
+    assert wait_until(lambda: recorder.updates == 1), "the activity never ran"
     two, _, _ = pipeline()
-    assert ExecutorHost(hosting.node, two).executor_threads() == 3
+    # With wait sets the executor runs no hosted activity: one thread is enough for the rest.
+    assert ExecutorHost(hosting.node, two, wait_sets=hosting.wait_sets).executor_threads() == \
+        (1 if hosting.wait_sets else 3)
     threaded, _, _ = pipeline()
-    assert ExecutorHost(hosting.node, threaded, threads=["ticks"]).executor_threads() == 2, \
-        "an activity on its own thread may have entities in its group: they get a worker of their own"
+    assert ExecutorHost(hosting.node, threaded, threads=["ticks"], wait_sets=hosting.wait_sets).executor_threads() \
+        == 2, "an activity on its own thread may have entities in its group: they get a worker of their own"
 
 
 class Relay(Recorder):

@@ -27,6 +27,9 @@ class Converter(Generic[M, V]):
 
     type_name: ClassVar[str]
     coco_type: ClassVar[type | tuple[type, ...]]
+    writes_cdr: ClassVar[bool] = False
+    """Whether :meth:`to_cdr` packs the message's bytes itself (:mod:`coco_ros.convert.cdr_writer`):
+    a ROSInterface then publishes those bytes, and no rclpy message is built."""
 
     @property
     def message_type(self) -> type:
@@ -46,6 +49,14 @@ class Converter(Generic[M, V]):
 
     def to_ros(self, value: V) -> M:
         raise NotImplementedError
+
+    def to_cdr(self, value: V) -> bytes:
+        """The CDR bytes of the message of ``value``: by default rclpy's serialization of
+        :meth:`to_ros`; converters that set ``writes_cdr`` pack them directly (rclpy reads them back as
+        the same message)."""
+        from rclpy.serialization import serialize_message
+
+        return serialize_message(self.to_ros(value))
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.type_name})"

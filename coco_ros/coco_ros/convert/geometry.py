@@ -26,6 +26,7 @@ from coco_core.transforms.samples import FramePose, TransformSample
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
 
 from .base import Converter, header_stamp, make_header, message_class
+from .cdr_writer import align, with_header
 from .stamps import RosTime
 
 
@@ -64,6 +65,7 @@ class PoseStampedConverter(Converter[PoseStamped, FramePose]):
 
     type_name = "geometry_msgs/msg/PoseStamped"
     coco_type = FramePose
+    writes_cdr = True
 
     def __init__(self, child_frame: str = "") -> None:
         self.child_frame = child_frame
@@ -78,6 +80,13 @@ class PoseStampedConverter(Converter[PoseStamped, FramePose]):
         """The pose of ``value.source`` in ``value.target`` (the source's name is not carried)."""
         self._check_value(value)
         return PoseStamped(header=make_header(value.stamp, value.target), pose=pose_of(value.transform))
+
+    def to_cdr(self, value: FramePose) -> bytes:
+        self._check_value(value)
+        buffer = align(with_header(value.stamp, value.target), 8)
+        translation, quaternion = _pose_parts(value.transform)
+        buffer += _POSE.pack(*translation, *quaternion)
+        return bytes(buffer)
 
 
 class TransformStampedConverter(Converter[TransformStamped, TransformSample]):

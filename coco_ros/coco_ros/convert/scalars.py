@@ -11,11 +11,15 @@ measurement.
 from __future__ import annotations
 
 import numbers
+import struct
 
 from coco_core.errors import WrongTypeError
 from std_msgs.msg import Float64
 
 from .base import Converter
+from .cdr_writer import ENCAPSULATION
+
+_DOUBLE = struct.Struct("<d")
 
 
 class Float64Converter(Converter[Float64, float]):
@@ -23,13 +27,20 @@ class Float64Converter(Converter[Float64, float]):
 
     type_name = "std_msgs/msg/Float64"
     coco_type = float
+    writes_cdr = True
 
     def to_coco(self, msg: Float64) -> float:
         self._check_message(msg)
         return msg.data
 
     def to_ros(self, value: float) -> Float64:
+        return Float64(data=self._real(value))
+
+    def to_cdr(self, value: float) -> bytes:
+        return ENCAPSULATION + _DOUBLE.pack(self._real(value))
+
+    def _real(self, value: float) -> float:
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             raise WrongTypeError(f"{type(self).__name__} publishes real numbers as {self.type_name}, "
                                  f"got {type(value).__name__}")
-        return Float64(data=float(value))
+        return float(value)

@@ -64,8 +64,17 @@ def seconds_to_time(seconds: float | None) -> Time:
     :class:`RosTime`); ``None`` gives the zero time."""
     if seconds is None:
         return Time()
+    sec, nanosec = sec_nanosec(seconds)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def sec_nanosec(seconds: float | None) -> tuple[int, int]:
+    """The ``(sec, nanosec)`` of a ``builtin_interfaces/Time`` for float seconds, as
+    :func:`seconds_to_time` gives them, without building the message."""
+    if seconds is None:
+        return 0, 0
     if isinstance(seconds, RosTime):
-        return Time(sec=seconds.sec, nanosec=seconds.nanosec)
+        return seconds.sec, seconds.nanosec
     value = float(seconds)
     if not math.isfinite(value):
         raise MessageError(f"a ROS time must be finite, got {value}")
@@ -75,4 +84,4 @@ def seconds_to_time(seconds: float | None) -> Time:
         sec, nanosec = sec + 1, nanosec - _NS
     if not -_INT32 <= sec < _INT32:
         raise MessageError(f"{value} s is outside the range of a ROS time (int32 seconds)")
-    return Time(sec=sec, nanosec=nanosec)
+    return sec, nanosec

@@ -6,13 +6,18 @@ Attributes (lists of topic specs, syntax in :mod:`coco_ros.interface.topic`)::
     <attribute name="publish" value="pose=/tool_pose:geometry_msgs/msg/PoseStamped;reliability=best_effort"/>
 
 - ``subscribe``: each spec gives an **output** port: every message received on the topic is
-  converted (``converter.to_coco``) and written to it, from the subscription callback, which runs in
+  converted and written to it, from the subscription callback, which runs in
   the component's activity's callback group (never during the activity's own cycle). When the
   executor hosts that activity and it is triggered, the cycle the message woke runs right after, in
   the same callback (:func:`coco_ros.hosting.activity_callback`): components scheduled after the
-  bridge in that activity see the message without another executor hop.
+  bridge in that activity see the message without another executor hop. The subscription takes the
+  message's CDR bytes (``raw``) and the converter reads them (``converter.from_cdr``): directly for
+  the converters that know their type's layout (a JointState's positions become an array without a
+  list of floats), through the generated decoders of :mod:`coco_ros.bag.cdr_decoder` for the others,
+  which build the rclpy message 3-8x faster than rclpy does when it takes a message.
 - ``publish``: each spec gives an **event input** port: the values written to it are converted
-  (``converter.to_ros``) and published in ``on_update``, all of them, in order. Put the component in a
+  and published in ``on_update``, all of them, in order: as CDR bytes when the converter packs them
+  itself (``writes_cdr``: PoseStamped, Float64), else as the message ``converter.to_ros`` builds. Put the component in a
   triggered activity to publish as soon as values arrive (or in a periodic one to publish at its rate).
   A ``Stamped(value, stamp)`` is accepted on every publish port (its type is the converter's
   ``coco_type`` or ``Stamped``): the converter gets ``value``, and once the message is published the
@@ -79,6 +84,9 @@ class _Route:
         self.converter = converter
         self.port = port
         self.entity: Any = None
+        self.encode = converter.to_cdr if converter.writes_cdr else converter.to_ros
+        """What a published value becomes: the message's CDR bytes when the converter packs them
+        itself (no rclpy message built), else the rclpy message."""
         self.count = 0
         self.errors = 0
         self.last_log = 0.0
@@ -131,7 +139,7 @@ class ROSInterface(Component):
             spec = route.spec
             route.entity = node.create_subscription(route.converter.message_type, spec.topic,
                                                     activity_callback(self, self._receiver(route)),
-                                                    spec.qos_profile(), callback_group=group)
+                                                    spec.qos_profile(), callback_group=group, raw=True)
         for route in self._publications:
             spec = route.spec
             route.entity = node.create_publisher(route.converter.message_type, spec.topic, spec.qos_profile(),
@@ -143,9 +151,9 @@ class ROSInterface(Component):
     def _receiver(self, route: _Route):
         converter, port = route.converter, route.port
 
-        def receive(msg: Any) -> None:
+        def receive(data: bytes) -> None:
             try:
-                value = converter.to_coco(msg)
+                value = converter.from_cdr(data)
             except Exception as error:  # a malformed message must not stop the bridge
                 route.failed(self.name, "a message from", error)
                 return
@@ -163,7 +171,7 @@ class ROSInterface(Component):
                     value, stamp = value.value, value.stamp
                 try:
                     msg = self._passed_through(route, value) if isinstance(value, BagMessage) else \
-                        route.converter.to_ros(value)
+                        route.encode(value)
                 except Exception as error:
                     route.failed(self.name, "a value for", error)
                     continue
