@@ -74,6 +74,7 @@ class ActivityWaitSet:
         self.on_error = on_error
         self._wake = GuardCondition(None, None, context=context)
         """Ends a wait: :meth:`wake` (a timer's period changed) and :meth:`stop`."""
+        self._wake_destroyed = False
         self._stopped = False
         self._wait_set: Any = None
         self._cache: _Entities | None = None
@@ -98,7 +99,8 @@ class ActivityWaitSet:
         if self._thread.is_alive():
             self._thread.join(timeout)
         alive = self._thread.is_alive()
-        if not alive:
+        if not alive and not self._wake_destroyed:
+            self._wake_destroyed = True
             self._wake.destroy()
         return not alive
 

@@ -110,3 +110,17 @@ def test_from_cdr_refuses_cut_bytes():
     data = serialize_message(JointState(name=["a", "b"], position=[1.0, 2.0]))
     with pytest.raises(ValueError, match="malformed JointState CDR"):
         converter.from_cdr(data[:-9])
+
+
+def test_from_cdr_reads_each_message_s_own_names_when_the_list_changes():
+    """The last name section is reused only for the same bytes at the same alignment: messages whose
+    names differ, share a prefix, or sit after a frame_id of another length are each read anew."""
+    converter = converter_for("sensor_msgs/msg/JointState")
+    cases = [(["a", "b"], "base"), (["a", "b"], "base"), (["a", "b", "c"], "base"), (["a", "b"], "base_"),
+             (["a", "bb"], "base"), ([], "base"), (["a", "b"], "")]
+    for names, frame in cases * 2:
+        msg = JointState(name=names, position=[float(i) for i in range(len(names))])
+        msg.header.frame_id = frame
+        sample = converter.from_cdr(serialize_message(msg))
+        assert sample.names == tuple(names), (names, frame)
+        np.testing.assert_array_equal(sample.positions, np.arange(len(names), dtype=float))
