@@ -10,8 +10,8 @@ name is the application's, ``-r __node:=NAME`` renames it), parameters (``-p``, 
 from the overrides), log levels. Each of the application's activities runs in a wait set of its own
 on a thread of its own (its timer or guard condition and its components' ROS entities:
 :mod:`coco_ros.wait_set`), as callback groups of one rclpy executor (``--executor-threads N``), or
-on the activity's own loop (:mod:`coco_ros.hosting` decides, ``--threads`` overrides). Ctrl-C (or SIGTERM) stops every activity
-within a second, after each component's ``on_stop`` ran (:mod:`coco_core.signals`: the rules and the
+on the activity's own loop (:mod:`coco_ros.hosting` decides, ``--threads`` overrides). Ctrl-C (or
+SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran (:mod:`coco_core.signals`: the rules and the
 exit statuses).
 
 Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.ros_node``).
@@ -127,11 +127,12 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
     try:
         spec, app = load_and_build(options)
         plan = plan_hosting(app, _threads(options.threads), options.all_threads)
+        wait_sets = options.executor_threads is None
         signals.check()
         if options.check:
             print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
             print("hosting in the ROS launcher (the launcher's process):")
-            print(describe_hosting(app, plan, wait_sets=options.executor_threads is None))
+            print(describe_hosting(app, plan, wait_sets))
             return 0
     except CocoError as error:
         return failure(_NAME, error)
@@ -153,14 +154,13 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
                         "all_threads": options.all_threads}
         with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
                            child_config=child_config) as processes:
-            host = ExecutorHost(node, app, _threads(options.threads), options.all_threads,
-                                wait_sets=options.executor_threads is None)
+            host = ExecutorHost(node, app, _threads(options.threads), options.all_threads, wait_sets)
             executor = host.create_executor(options.executor_threads)
             executor.add_node(node)
             log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
             if (options.executor_threads or 1) > 1:
                 log.warning("--executor-threads %d: rclpy's MultiThreadedExecutor hosts the activities; it missed "
-                            "wake-ups in docs/benchmarks.md (Figure 6: p99 60-460x a plain node, messages lost "
+                            "wake-ups in docs/benchmarks.md (Figure 6: p99 2.7-460x a plain node, messages lost "
                             "from full DDS queues): prefer the default (a wait set per activity) or 1",
                             options.executor_threads)
             signals.attach(app)

@@ -147,35 +147,23 @@ class ActivityWaitSet:
             return
         try:
             wait_set = self._reuse(entities)
-            for subscription in entities.subscriptions:
-                wait_set.add_subscription(subscription.handle)
-            for timer in entities.timers:
-                wait_set.add_timer(timer.handle)
-            for guard in entities.guards:
-                wait_set.add_guard_condition(guard.handle)
-            for service in entities.services:
-                wait_set.add_service(service.handle)
-            for client in entities.clients:
-                wait_set.add_client(client.handle)
+            for kind in entities.kinds:
+                for handle in kind.handles:
+                    kind.add(wait_set, handle)
             for waitable in entities.waitables:
                 waitable.add_to_wait_set(wait_set)
             wait_set.wait(POLL_NS)
             if self._stopped:
                 return
-            ready = [(entities.timers_at, wait_set.get_ready_entities("timer") if entities.timers else ()),
-                     (entities.subscriptions_at, wait_set.get_ready_entities("subscription")
-                      if entities.subscriptions else ()),
-                     (entities.guards_at, wait_set.get_ready_entities("guard_condition")),
-                     (entities.services_at, wait_set.get_ready_entities("service") if entities.services else ()),
-                     (entities.clients_at, wait_set.get_ready_entities("client") if entities.clients else ())]
+            ready = [(kind, wait_set.get_ready_entities(kind.name)) for kind in entities.kinds if kind.handles]
         finally:
             for handle in held:
                 handle.__exit__(None, None, None)
-        for (at, run), pointers in ready:  # what became ready, kind by kind: usually one entity
+        for kind, pointers in ready:  # what became ready, kind by kind: usually one entity
             for pointer in pointers:
-                entity = at.get(pointer)
+                entity = kind.by_pointer.get(pointer)
                 if entity is not None:
-                    run(entity)
+                    kind.run(entity)
         # QoS events last: after the data (the wait set keeps its results until it is filled again)
         for waitable in entities.waitables:
             if waitable.is_ready(wait_set):
@@ -243,8 +231,18 @@ class ActivityWaitSet:
         future.set_result(response)
 
 
-_Kind = tuple[dict[int, Any], Callable[[Any], None]]
-"""The entities of one kind by the pointer the wait set reports, and the function that runs one."""
+class _Kind:
+    """The group's entities of one kind (in rclpy's executor order), as the wait set takes them: how
+    to add a handle, the name it reports them by when ready, the entity behind each ready pointer,
+    and how to run one."""
+
+    def __init__(self, name: str, add: Callable[[Any, Any], None], run: Callable[[Any], None],
+                 entities: list[Any]) -> None:
+        self.name = name
+        self.add = add
+        self.run = run
+        self.handles = [entity.handle for entity in entities]
+        self.by_pointer = {handle.pointer: entity for handle, entity in zip(self.handles, entities)}
 
 
 class _Entities:
@@ -253,39 +251,24 @@ class _Entities:
 
     def __init__(self, group: WaitSetGroup, count: int, wake: GuardCondition, context: Context) -> None:
         self.count = count
-        self.subscriptions: list[Subscription] = []
-        self.timers: list[Timer] = []
-        self.guards: list[GuardCondition] = [wake]
-        self.services: list[Service] = []
-        self.clients: list[Client] = []
-        self.waitables: list[Waitable] = []
+        found: dict[type, list[Any]] = {Timer: [], Subscription: [], GuardCondition: [wake], Service: [],
+                                        Client: [], Waitable: []}
         for reference in list(group.entities):
             entity = reference()
-            if entity is None or not _alive(entity):
-                continue
-            if isinstance(entity, Subscription):
-                self.subscriptions.append(entity)
-            elif isinstance(entity, Timer):
-                self.timers.append(entity)
-            elif isinstance(entity, GuardCondition):
-                self.guards.append(entity)
-            elif isinstance(entity, Service):
-                self.services.append(entity)
-            elif isinstance(entity, Client):
-                self.clients.append(entity)
-            elif isinstance(entity, Waitable):
-                self.waitables.append(entity)
-        kinds: list[Any] = [self.subscriptions, self.timers, self.guards, self.services, self.clients]
-        self.handles: list[Any] = [e.handle for kind in kinds for e in kind] + self.waitables + [context.handle]
-        at = lambda entities: {entity.handle.pointer: entity for entity in entities}  # noqa: E731
-        self.timers_at: _Kind = (at(self.timers), ActivityWaitSet._timer)
-        """Entities by the pointer the wait set reports when they are ready, and how to run one."""
-        self.subscriptions_at: _Kind = (at(self.subscriptions), ActivityWaitSet._subscription)
-        self.guards_at: _Kind = (at(guard for guard in self.guards if guard.callback is not None), _guard)
-        self.services_at: _Kind = (at(self.services), ActivityWaitSet._service)
-        self.clients_at: _Kind = (at(self.clients), ActivityWaitSet._client)
-        count_ = NumberOfEntities(len(self.subscriptions), len(self.guards), len(self.timers), len(self.clients),
-                                  len(self.services))
+            kind = next((kind for kind in found if isinstance(entity, kind)), None)  # None: a dead reference
+            if kind is not None and _alive(entity):
+                found[kind].append(entity)
+        ws = _rclpy.WaitSet
+        self.kinds = [_Kind("timer", ws.add_timer, ActivityWaitSet._timer, found[Timer]),
+                      _Kind("subscription", ws.add_subscription, ActivityWaitSet._subscription, found[Subscription]),
+                      _Kind("guard_condition", ws.add_guard_condition, _guard, found[GuardCondition]),
+                      _Kind("service", ws.add_service, ActivityWaitSet._service, found[Service]),
+                      _Kind("client", ws.add_client, ActivityWaitSet._client, found[Client])]
+        self.waitables: list[Waitable] = found[Waitable]
+        self.handles: list[Any] = [handle for kind in self.kinds for handle in kind.handles] + self.waitables \
+            + [context.handle]
+        count_ = NumberOfEntities(len(found[Subscription]), len(found[GuardCondition]), len(found[Timer]),
+                                  len(found[Client]), len(found[Service]))
         for waitable in self.waitables:
             count_ += waitable.get_num_entities()
         self.sizes = (count_.num_subscriptions, count_.num_guard_conditions, count_.num_timers,
@@ -293,7 +276,8 @@ class _Entities:
 
 
 def _guard(guard: GuardCondition) -> None:
-    _run(guard.callback)
+    if guard.callback is not None:  # the wake-up has none: it only ends the wait
+        _run(guard.callback)
 
 
 def _alive(entity: Any) -> bool:

@@ -6,8 +6,8 @@ Attributes (lists of topic specs, syntax in :mod:`coco_ros.interface.topic`)::
     <attribute name="publish" value="pose=/tool_pose:geometry_msgs/msg/PoseStamped;reliability=best_effort"/>
 
 - ``subscribe``: each spec gives an **output** port: every message received on the topic is
-  converted and written to it, from the subscription callback, which runs in
-  the component's activity's callback group (never during the activity's own cycle). When the
+  converted and written to it, from the subscription callback, which runs in the component's
+  activity's callback group (never during the activity's own cycle). When the
   executor hosts that activity and it is triggered, the cycle the message woke runs right after, in
   the same callback (:func:`coco_ros.hosting.activity_callback`): components scheduled after the
   bridge in that activity see the message without another executor hop. The subscription takes the
@@ -17,8 +17,9 @@ Attributes (lists of topic specs, syntax in :mod:`coco_ros.interface.topic`)::
   which build the rclpy message 3-8x faster than rclpy does when it takes a message.
 - ``publish``: each spec gives an **event input** port: the values written to it are converted
   and published in ``on_update``, all of them, in order: as CDR bytes when the converter packs them
-  itself (``writes_cdr``: PoseStamped, Float64), else as the message ``converter.to_ros`` builds. Put the component in a
-  triggered activity to publish as soon as values arrive (or in a periodic one to publish at its rate).
+  itself (``writes_cdr``: PoseStamped, Float64), else as the message ``converter.to_ros`` builds.
+  Put the component in a triggered activity to publish as soon as values arrive (or in a periodic
+  one to publish at its rate).
   A ``Stamped(value, stamp)`` is accepted on every publish port (its type is the converter's
   ``coco_type`` or ``Stamped``): the converter gets ``value``, and once the message is published the
   component records the stamp's age (``record_latency``), so ``--profile`` shows the latency from
