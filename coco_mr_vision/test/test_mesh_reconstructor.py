@@ -13,7 +13,8 @@ cv2 = pytest.importorskip("cv2")
 from coco_core import Application, Component, InputPort, NEW_DATA, OutputPort, Slot  # noqa: E402
 from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat  # noqa: E402
 from coco_mr_vision.mesh import TriangleMesh  # noqa: E402
-from coco_mr_vision.mesh_reconstructor import MeshReconstructor, fill_small_holes  # noqa: E402
+from coco_mr_vision.mesh_kernel import depth_grid, fill_small_holes  # noqa: E402
+from coco_mr_vision.mesh_reconstructor import MeshReconstructor  # noqa: E402
 from coco_mr_vision.rgbd import RGBDFrame  # noqa: E402
 
 REDWOOD = Path(__file__).resolve().parents[3] / "shared" / "data" / "rgbd" / "redwood"
@@ -97,8 +98,47 @@ def test_fill_small_holes_interpolates_a_slope():
     depth = np.tile(np.linspace(1.0, 2.0, 40, dtype=np.float32), (30, 1))
     holed = depth.copy()
     holed[14:17, 19:22] = np.nan
-    filled = fill_small_holes(holed, 3)
+    holed[0:2, 0:4] = np.nan  # 4 wide: too large for 3
+    filled, labels = np.empty_like(holed), np.empty(holed.shape, np.int32)
+    assert depth_grid(holed, np.float32(1.0), np.float32(0.1), np.float32(10.0), filled, labels) == 9 + 8
+    runs = np.empty((holed.size, 3), np.int32)
+    assert fill_small_holes(filled, labels, 3, runs, np.empty(holed.size, np.int32)) == 9
+    assert np.isnan(filled[0:2, 0:4]).all()
+    filled[0:2, 0:4] = depth[0:2, 0:4]
     assert np.isfinite(filled).all() and np.abs(filled - depth).max() < 0.01
+
+
+def _filled_by_opencv(depth: np.ndarray, hole_size: int) -> tuple[np.ndarray, int]:
+    """The reference for the run-based hole filling: OpenCV's 8-connected components of the missing
+    depth pick the regions whose bounding box fits, each of their pixels gets the mean of the known
+    depth in its window (clipped at the border)."""
+    missing = ~np.isfinite(depth)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(missing.astype(np.uint8), connectivity=8)
+    small = (stats[:, cv2.CC_STAT_WIDTH] <= hole_size) & (stats[:, cv2.CC_STAT_HEIGHT] <= hole_size)
+    small[0] = False  # label 0: the known depth
+    filled = depth.copy()
+    chosen = np.nonzero(small[labels] & missing)
+    for r, c in zip(*chosen):
+        window = depth[max(r - hole_size, 0):r + hole_size + 1, max(c - hole_size, 0):c + hole_size + 1]
+        known = window[np.isfinite(window)]
+        filled[r, c] = known.mean() if known.size else np.nan
+    return filled, len(chosen[0])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_hole_filling_finds_the_regions_opencv_finds(seed):
+    rng = np.random.default_rng(seed)
+    rows, cols = rng.integers(8, 70, 2)
+    depth = rng.uniform(1.0, 2.0, (rows, cols)).astype(np.float32)
+    depth[rng.random((rows, cols)) < rng.uniform(0.05, 0.6)] = np.nan  # from specks to large regions
+    hole_size = int(rng.integers(1, 6))
+    filled, labels = np.empty_like(depth), np.empty(depth.shape, np.int32)
+    depth_grid(depth, np.float32(1.0), np.float32(0.1), np.float32(10.0), filled, labels)
+    runs = rows * ((cols + 1) // 2)
+    count = fill_small_holes(filled, labels, hole_size, np.empty((runs, 3), np.int32), np.empty(runs, np.int32))
+    expected, expected_count = _filled_by_opencv(depth, hole_size)
+    assert count == expected_count
+    np.testing.assert_allclose(filled, expected, rtol=1e-6, equal_nan=True)
 
 
 def test_stride_and_reuse_of_the_pool_buffers():
@@ -134,6 +174,30 @@ def test_real_redwood_frame_and_ply_export(tmp_path):
     assert np.allclose(loaded.vertices, mesh.vertices, atol=1e-6)
     assert np.array_equal(loaded.faces, mesh.triangles)
     assert np.array_equal(loaded.visual.vertex_colors[:, :3], mesh.colors)
+
+
+def test_bands_on_helper_threads_give_the_same_mesh():
+    """Rows meshed as bands on several threads: the same vertices, normals, colours and triangles, in
+    the same order, as one thread (a steep slope with holes, so that triangles are cut and holes
+    filled on both sides of the band boundaries)."""
+    rows, cols = 240, 320
+    depth = np.tile(np.linspace(0.8, 3.0, cols, dtype=np.float32), (rows, 1)) + np.linspace(0, 0.5, rows)[:, None]
+    rng = np.random.default_rng(7)
+    depth[rng.random((rows, cols)) < 0.08] = np.nan
+    depth[100:160, 40:90] = np.nan
+    depth[:, 200:] += 0.6  # a step: cells cut along it
+    frame = frame_of(depth, CameraIntrinsics(cols, rows, 300.0, 300.0, 159.5, 119.5))
+    meshes = {}
+    for threads in (1, 2, 3):
+        mesh, slot, reconstructor = mesh_of(frame, threads=threads)
+        meshes[threads] = (mesh, slot)
+        reconstructor.on_stop()
+    one = meshes[1][0]
+    assert len(one.triangles) > rows * cols  # the cut and the holes leave most cells
+    for threads in (2, 3):
+        mesh = meshes[threads][0]
+        assert np.array_equal(mesh.vertices, one.vertices) and np.array_equal(mesh.normals, one.normals)
+        assert np.array_equal(mesh.colors, one.colors) and np.array_equal(mesh.triangles, one.triangles)
 
 
 def test_a_frame_without_intrinsics_is_refused_clearly():
@@ -207,9 +271,9 @@ def _triangles(depth: np.ndarray, valid: np.ndarray, index: np.ndarray, limit: f
         keep2 = vb & vc & vd & (far2 - near2 <= limit * near2)
     # Image rows grow downwards and the camera looks along +z: (a, c, b) is counter-clockwise as
     # the camera sees it, so the triangles face the camera.
-    first = np.stack([a[keep1], c[keep1], b[keep1]], axis=-1)
-    second = np.stack([b[keep2], c[keep2], d[keep2]], axis=-1)
-    return np.concatenate([first, second]).astype(np.int32)
+    # Cell by cell, row-major, its first triangle before its second.
+    cells = np.stack([np.stack([a, c, b], axis=-1), np.stack([b, c, d], axis=-1)], axis=2)
+    return cells[np.stack([keep1, keep2], axis=-1)].astype(np.int32)
 
 
 def numpy_mesh(depth: np.ndarray, ray_x: np.ndarray, ray_y: np.ndarray, rgb: np.ndarray, limit: float):
