@@ -160,7 +160,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
             log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
             if (options.executor_threads or 1) > 1:
                 log.warning("--executor-threads %d: rclpy's MultiThreadedExecutor hosts the activities; it missed "
-                            "wake-ups in docs/benchmarks.md (Figure 6: p99 2.7-460x a plain node, messages lost "
+                            "wake-ups in docs/benchmarks.md (Figure 6: p99 2.4-566x a plain node, messages lost "
                             "from full DDS queues): prefer the default (a wait set per activity) or 1",
                             options.executor_threads)
             signals.attach(app)

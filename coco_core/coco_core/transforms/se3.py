@@ -64,24 +64,26 @@ def _rotation_rows(q: Sequence[float] | np.ndarray) -> list[list[float]]:
 
 def matrix_to_quaternion(rotation: np.ndarray) -> np.ndarray:
     """Quaternion ``(x, y, z, w)`` with ``w >= 0`` of a 3x3 rotation (Shepperd's method, stable for
-    every angle)."""
-    m = rotation
-    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    every angle), on Python floats: every published pose goes through here, and nine numbers read
+    once with ``tolist`` cost a fifth of indexing the array element by element."""
+    (a, b, c), (d, e, f), (g, h, i) = rotation.tolist()
+    trace = a + e + i
     if trace > 0:
         s = 2.0 * math.sqrt(1.0 + trace)
-        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+        x, y, z, w = (h - f) / s, (c - g) / s, (d - b) / s, 0.25 * s
+    elif a > e and a > i:
+        s = 2.0 * math.sqrt(1.0 + a - e - i)
+        x, y, z, w = 0.25 * s, (b + d) / s, (c + g) / s, (h - f) / s
+    elif e > i:
+        s = 2.0 * math.sqrt(1.0 + e - a - i)
+        x, y, z, w = (b + d) / s, 0.25 * s, (f + h) / s, (c - g) / s
     else:
-        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
-    quaternion = np.array(q)
-    quaternion /= np.linalg.norm(quaternion)
-    return -quaternion if quaternion[3] < 0 else quaternion
+        s = 2.0 * math.sqrt(1.0 + i - a - e)
+        x, y, z, w = (c + g) / s, (f + h) / s, 0.25 * s, (d - b) / s
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if w < 0:
+        norm = -norm
+    return np.array((x / norm, y / norm, z / norm, w / norm))
 
 
 def from_pose(translation: Sequence[float], quaternion: Sequence[float]) -> np.ndarray:
