@@ -33,6 +33,7 @@ from coco_core.component import Component
 from coco_core.errors import ImageError, PoolError
 from coco_core.operations import operation
 from coco_core.pool import Slot
+from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort, PooledOutputPort
 from coco_core.stamps import Stamped, unstamped
 
@@ -71,8 +72,6 @@ class MeshReconstructor(Component):
 
     def init(self) -> None:
         self.frames = 0
-        self.skipped = 0
-        """Frames not meshed because a newer one was already waiting."""
         self.stalls = 0
         """Frames skipped because every slot of the pool was held by readers."""
         self._rays: tuple[tuple, np.ndarray, np.ndarray] | None = None
@@ -87,11 +86,12 @@ class MeshReconstructor(Component):
         operation runs in that thread too, so the slot is intact when ``export_ply`` reads it."""
 
     def on_update(self) -> None:
-        waiting = self.rgbd.read_all()
-        if not waiting:
+        # A mesh is only worth making for the newest frame: the older ones waiting count as dropped
+        # on the connection, where the profile shows them.
+        status, value = self.rgbd.read_newest()
+        if status is not NEW_DATA:
             return
-        self.skipped += len(waiting) - 1  # a mesh is only worth making for the newest frame
-        frame, stamp = unstamped(waiting[-1])
+        frame, stamp = unstamped(value)
         if frame.intrinsics is None:
             raise ImageError(f"{self.name}: the RGB-D frame carries no intrinsics, so its depth cannot be "
                              "back-projected")

@@ -176,6 +176,18 @@ def test_real_redwood_frame_and_ply_export(tmp_path):
     assert np.array_equal(loaded.visual.vertex_colors[:, :3], mesh.colors)
 
 
+def test_only_the_newest_waiting_frame_is_meshed_the_older_count_as_dropped():
+    camera, reconstructor, viewer = rig()
+    connection = camera.rgbd.connections[0]
+    for depth in (1.0, 2.0, 3.0):
+        camera.rgbd.write(frame_of(np.full((48, 64), depth)))
+    reconstructor.on_update()
+    status, slot = viewer.mesh.read()
+    assert status is NEW_DATA and np.allclose(TriangleMesh.from_slot(slot).vertices[:, 2], 3.0)
+    assert reconstructor.frames == 1
+    assert connection.dropped == 2, "the two older frames show in the profile's dropped column"
+
+
 def test_bands_on_helper_threads_give_the_same_mesh():
     """Rows meshed as bands on several threads: the same vertices, normals, colours and triangles, in
     the same order, as one thread (a steep slope with holes, so that triangles are cut and holes
