@@ -26,7 +26,9 @@ from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.errors import SetupError, StructureError
 from coco_core.policy import NEW_DATA
+from coco_core.pool import Slot
 from coco_core.ports import InputPort, OutputPort
+from coco_mr_vision.mesh import TriangleMesh
 from coco_mr_vision.pointcloud import PointCloud
 
 from . import kernel
@@ -148,6 +150,17 @@ def _fits(grid: np.ndarray, intrinsics: tuple[float, float, float, float], sampl
     return bool(np.abs(u - cols).max() < 0.1 and np.abs(v - rows).max() < 0.1)
 
 
+def mesh_cloud(slot: Slot) -> PointCloud:
+    """The vertices of the mesh a MeshReconstructor published in ``slot``, as a cloud in the camera's
+    frame with the image's stamp; the slot is released. The vertices are copied: a structure outlives
+    the slot, which the reconstructor refills with a later frame."""
+    try:
+        mesh = TriangleMesh.from_slot(slot)
+        return PointCloud(mesh.vertices.copy(), mesh.colors.copy(), mesh.info.image_stamp, mesh.info.frame_id)
+    finally:
+        slot.release()
+
+
 class KDTreeBuilder(Component):
     """Filters each cloud and builds its search structure in its own activity; the newest finished
     structure is on ``structure`` (the front buffer) while the next is being built."""
@@ -163,7 +176,8 @@ class KDTreeBuilder(Component):
     intrinsics: Attribute[list[float]] = Attribute(list[float], [], "fx fy cx cy of an organised cloud; empty: estimated from it")
     cell = Attribute(float, 0.01, "m: cell of the uniform grid (about HapticCloud's support)", min=1e-4)
 
-    cloud = InputPort(PointCloud | np.ndarray, event=True, doc="PointCloud, or an N x 3 array (mesh vertices)")
+    cloud = InputPort(PointCloud | np.ndarray | Slot, event=True,
+                      doc="PointCloud, an N x 3 array, or a MeshReconstructor's mesh slot (its vertices)")
     structure = OutputPort(CloudStructure, doc="the newest finished search structure")
 
     def on_config(self) -> None:
@@ -171,20 +185,18 @@ class KDTreeBuilder(Component):
             raise SetupError(f"{self.name}: intrinsics are fx fy cx cy, got {self.intrinsics}")
         self._known: tuple[tuple[int, ...], tuple[float, float, float, float]] | None = None
         self.built = 0
-        self.skipped = 0
-        """Clouds that arrived while one was being built and were replaced by a newer one."""
 
     def on_update(self) -> None:
-        clouds = self.cloud.read_all()
-        if not clouds:
+        # Only the newest cloud is worth a structure: the older ones waiting count as dropped on the
+        # connection, where the profile shows them.
+        status, cloud = self.cloud.read_newest()
+        if status is not NEW_DATA:
             return
-        self.skipped += len(clouds) - 1
-        self.structure.write(self.build(clouds[-1]))
+        self.structure.write(self.build(mesh_cloud(cloud) if isinstance(cloud, Slot) else cloud))
         self.built += 1
 
     def on_stop(self) -> None:
-        log.info("%s: %d structures built, %d clouds skipped (a newer one was waiting)", self.name,
-                 self.built, self.skipped)
+        log.info("%s: %d structures built", self.name, self.built)
 
     def build(self, cloud: PointCloud | np.ndarray) -> CloudStructure:
         """The structure of one cloud after the filters."""

@@ -11,7 +11,7 @@ from coco_core.application import Application
 from coco_core.component import Component
 from coco_core.errors import CocoError, StructureError
 from coco_core.policy import BufferPolicy, ConnectionPolicy
-from coco_core.ports import OutputPort
+from coco_core.ports import InputPort, OutputPort
 from coco_mr_haptics.cloud import HapticCloud, KDTreeBuilder
 from coco_mr_haptics.implicit_surf import HapticImplicitSurf
 from coco_mr_vision.image import CameraIntrinsics
@@ -173,10 +173,49 @@ def test_builder_offers_the_newest_structure():
     clouds = [plane_cloud(np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, z])) for z in (1.0, 1.1, 1.2)]
     for cloud in clouds:
         camera.cloud.write(cloud)
-    builder.step()  # three clouds waited: the newest is built, two are counted as skipped
+    builder.step()  # three clouds waited: the newest is built, two are counted as dropped
     cloud_renderer.prepare()
-    assert builder.built == 1 and builder.skipped == 2
+    assert builder.built == 1 and camera.cloud.connections[0].dropped == 2, "the profile shows the skipped clouds"
     assert cloud_renderer.current.grid[240, 320, 2] == pytest.approx(1.2)
+
+
+def test_a_mesh_reconstructor_feeds_the_builder_its_vertices():
+    """RGB-D frames -> MeshReconstructor -> KDTreeBuilder, as wired in an application: the structure
+    holds the mesh's vertices (in the camera's frame, with the image's stamp), and each mesh slot goes
+    back to the reconstructor's pool (its three slots serve any number of frames)."""
+    from coco_mr_vision.image import Image, ImageFormat
+    from coco_mr_vision.mesh_reconstructor import MeshReconstructor
+    from coco_mr_vision.rgbd import RGBDFrame
+
+    class Sensor(Component):
+        rgbd = OutputPort(RGBDFrame)
+
+    class Haptics(Component):
+        structure = InputPort(object)
+
+    app = Application("mesh_to_cloud")
+    sensor, mesher, builder = Sensor("sensor"), MeshReconstructor("mesher"), KDTreeBuilder("builder")
+    haptics = Haptics("haptics")
+    for component in (sensor, mesher, builder, haptics):
+        app.add(component)
+    app.connect("sensor.rgbd", "mesher.rgbd")
+    app.connect("mesher.mesh", "builder.cloud")
+    app.connect("builder.structure", "haptics.structure")
+    builder.configure()
+    intrinsics = CameraIntrinsics(64, 48, 60.0, 60.0, 31.5, 23.5)
+    for frame in range(8):
+        depth = np.full((48, 64), 1.0 + 0.1 * frame, np.float32)
+        depth[:5, :5] = np.nan  # a corner without depth: 25 vertices fewer
+        sensor.rgbd.write(RGBDFrame(Image(np.zeros((48, 64, 3), np.uint8), ImageFormat.RGB8, 10.0 + frame, "cam"),
+                                    Image(depth, ImageFormat.DEPTH32F, 10.0 + frame, "cam"), intrinsics))
+        mesher.step()
+        builder.step()
+        assert mesher.stalls == 0, "every slot came back to the pool"
+    structure = haptics.structure.read()[1]
+    assert structure.kind == "grid" and structure.valid == 48 * 64 - 25
+    assert structure.frame_id == "cam" and structure.stamp == pytest.approx(17.0)
+    assert np.allclose(structure.points[:, 2], 1.7, atol=1e-6)
+    assert builder.built == 8
 
 
 def load_cloud(index):
