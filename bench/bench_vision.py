@@ -273,7 +273,8 @@ def bench_streaming() -> tuple[Table, Table, dict]:
     packets = Table("Stream packet for one 640x480 RGB-D frame: size and encode + decode time",
                     ["colour", "depth", "bytes", "Mbit/s at 30 Hz", "encode", "decode"])
     results: dict = {}
-    for color_encoding, depth_encoding in (("jpeg", "png"), ("jpeg", "raw"), ("raw", "png"), ("raw", "raw")):
+    for color_encoding, depth_encoding in (("jpeg", "zstd"), ("jpeg", "png"), ("jpeg", "raw"), ("raw", "zstd"),
+                                           ("raw", "png"), ("raw", "raw")):
         packet = encode(1, 0.0, 0.0, frame.color, frame.depth, color_encoding=color_encoding,
                         depth_encoding=depth_encoding)
 
@@ -293,7 +294,7 @@ def bench_streaming() -> tuple[Table, Table, dict]:
     live = Table("Streaming 640x480 RGB-D at 30 Hz over ZeroMQ TCP loopback (server and receiver threads)",
                  ["encoding", "frames", "dropped", "latency p50", "latency max", "CPU (process)"])
     from coco_mr_vision.streaming import StreamingReceiver, StreamingServer
-    for port, (ce, de) in enumerate((("jpeg", "png"), ("raw", "raw")), start=5701):
+    for port, (ce, de) in enumerate((("jpeg", "zstd"), ("jpeg", "png"), ("raw", "raw")), start=5701):
         app = Application("stream")
         src = app.add(Source("src"))
         server = app.add(StreamingServer("server", address=f"tcp://127.0.0.1:{port}", color_encoding=ce,

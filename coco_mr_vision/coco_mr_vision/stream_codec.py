@@ -5,7 +5,10 @@ colour payload and the depth payload whose byte sizes the header gives. The head
 receiver needs to rebuild the frame without any other channel: sequence number, acquisition and
 send times (``time.perf_counter``, CLOCK_MONOTONIC, the same clock in every process on one host),
 the image stamp and frame id, formats and encodings, the depth scale, and the intrinsics with their
-distortion. Colour is JPEG (``quality``) or raw pixels; depth is lossless: 16-bit PNG or raw.
+distortion. Colour is JPEG (``quality``) or raw pixels; depth is lossless: Zstandard (level 1) on
+the 16-bit depth, 16-bit PNG or raw. Zstandard is the default: on a 640x480 Redwood depth frame it
+gives 92 kB in 1.3 ms (decoded in 0.6 ms) where PNG gives 122 kB in 7.3 ms (2.4 ms), and LZ4
+169 kB in 0.7 ms (bench/bench_vision.py measures the packets).
 
 Every check that a packet can fail raises :class:`PacketError` with a ``kind`` (``garbage`` or
 ``truncated``) the receiver counts; nothing in a bad packet can crash it.
@@ -20,6 +23,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+import zstandard
 from coco_core.errors import ConversionError, PacketError
 
 from .image import CameraIntrinsics, Image, ImageFormat
@@ -27,7 +31,9 @@ from .image import CameraIntrinsics, Image, ImageFormat
 MAGIC = b"CCV1"
 _PREFIX = struct.Struct("<4sI")
 COLOR_ENCODINGS = ("jpeg", "raw")
-DEPTH_ENCODINGS = ("png", "raw")
+DEPTH_ENCODINGS = ("zstd", "png", "raw")
+ZSTD_LEVEL = 1
+"""Zstandard's fastest level: higher ones shrink depth by 3% more for 15% more time."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,7 +61,7 @@ def _intrinsics_header(k: CameraIntrinsics | None) -> dict[str, Any] | None:
 
 def encode(seq: int, acquired: float, sent: float, color: Image | None, depth: Image | None, *,
            depth_scale: float = 1000.0, color_encoding: str = "jpeg", quality: int = 90,
-           depth_encoding: str = "png", source: str = "", stream: str = "") -> bytes:
+           depth_encoding: str = "zstd", source: str = "", stream: str = "") -> bytes:
     """One packet of ``color`` and/or ``depth``."""
     header: dict[str, Any] = {"seq": seq, "acquired": acquired, "sent": sent, "source": source,
                               "stream": stream, "depth_scale": depth_scale}
@@ -92,6 +98,9 @@ def _encode_color(image: Image, encoding: str, quality: int) -> tuple[bytes, str
 
 def _encode_depth(image: Image, encoding: str, depth_scale: float) -> tuple[bytes, str, ImageFormat]:
     depth = image.to(ImageFormat.DEPTH16, depth_scale)
+    if encoding == "zstd":
+        raw = np.ascontiguousarray(depth.data).astype("<u2", copy=False).tobytes()
+        return zstandard.ZstdCompressor(level=ZSTD_LEVEL).compress(raw), "zstd", ImageFormat.DEPTH16
     if encoding == "png":
         ok, data = cv2.imencode(".png", depth.data, [cv2.IMWRITE_PNG_COMPRESSION, 1])
         if not ok:
@@ -150,6 +159,9 @@ def _decode_image(part: dict[str, Any], payload: memoryview) -> Image:
     elif part["encoding"] == "raw":
         dtype = np.dtype("<u2") if fmt is ImageFormat.DEPTH16 else fmt.dtype
         data = np.frombuffer(payload, dtype).astype(fmt.dtype, copy=False).reshape(fmt.shape(width, height))
+    elif part["encoding"] == "zstd" and fmt is ImageFormat.DEPTH16:
+        data = np.frombuffer(_unzstd(payload, 2 * width * height), "<u2").astype(fmt.dtype, copy=False)
+        data = data.reshape(fmt.shape(width, height))
     else:
         raise PacketError("garbage", f"unknown encoding {part['encoding']!r}")
     if data.shape[:2] != fmt.shape(width, height)[:2]:
@@ -161,3 +173,18 @@ def _decode_image(part: dict[str, Any], payload: memoryview) -> Image:
                                               intrinsics["D"], intrinsics["distortion_model"],
                                               frame_id=part.get("frame_id", ""))
     return Image(data, fmt, part.get("stamp"), part.get("frame_id", ""), camera)
+
+
+def _unzstd(payload: memoryview, size: int) -> bytes:
+    """A Zstandard payload that must hold exactly ``size`` bytes: the size the frame declares is
+    checked before anything is decompressed, so a forged one cannot make the receiver allocate."""
+    try:
+        declared = zstandard.frame_content_size(payload)
+        if declared != size:
+            raise PacketError("garbage", f"zstd payload declares {declared} bytes, the header {size}")
+        data = zstandard.ZstdDecompressor().decompress(payload, max_output_size=size)
+    except zstandard.ZstdError as error:
+        raise PacketError("garbage", f"zstd payload does not decode: {error}") from None
+    if len(data) != size:
+        raise PacketError("garbage", f"zstd payload gave {len(data)} bytes, the header says {size}")
+    return data

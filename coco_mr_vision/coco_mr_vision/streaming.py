@@ -44,7 +44,8 @@ class StreamingServer(Component):
     address = Attribute(str, "tcp://127.0.0.1:5600", "where to bind the PUB socket", check=_loopback_or_any)
     color_encoding = Attribute(str, "jpeg", "jpeg or raw", choices=COLOR_ENCODINGS)
     quality = Attribute(int, 90, "JPEG quality", min=1, max=100)
-    depth_encoding = Attribute(str, "png", "png (16-bit, lossless) or raw", choices=DEPTH_ENCODINGS)
+    depth_encoding = Attribute(str, "zstd", "zstd (Zstandard on the 16-bit depth: lossless, smallest and fastest), "
+                               "png (16-bit, lossless) or raw", choices=DEPTH_ENCODINGS)
     high_water_mark = Attribute(int, 2, "frames ZeroMQ queues per receiver before dropping", min=1)
 
     rgbd = InputPort(RGBDFrame | Stamped, event=True, doc="RGB-D frames to send")

@@ -4,8 +4,10 @@ counted, never a crash."""
 
 from __future__ import annotations
 
+import json
 import os
 import socket
+import struct
 import subprocess
 import sys
 import textwrap
@@ -59,9 +61,10 @@ def receiver_rig(address: str):
     return receiver, sink
 
 
-def test_codec_round_trip_lossless_depth_and_raw_colour():
+@pytest.mark.parametrize("depth_encoding", ["png", "zstd", "raw"])
+def test_codec_round_trip_lossless_depth_and_raw_colour(depth_encoding):
     frame = redwood()
-    packet = encode(3, 1.0, 2.0, frame.color, frame.depth, color_encoding="raw", depth_encoding="png")
+    packet = encode(3, 1.0, 2.0, frame.color, frame.depth, color_encoding="raw", depth_encoding=depth_encoding)
     got = decode(packet)
     assert got.seq == 3 and np.array_equal(got.color.data, frame.color.data)
     assert np.array_equal(got.depth.data, frame.depth.data)
@@ -70,6 +73,39 @@ def test_codec_round_trip_lossless_depth_and_raw_colour():
     jpeg = decode(encode(4, 1.0, 2.0, frame.color, None, quality=80))
     assert jpeg.depth is None and np.abs(jpeg.color.data.astype(int) - frame.color.data).mean() < 4
     assert len(encode(4, 1.0, 2.0, frame.color, None, quality=80)) < len(packet) / 5
+
+
+def test_zstd_depth_is_the_default_and_smaller_than_png():
+    frame = redwood()
+    sizes = {encoding: len(encode(1, 0.0, 0.0, None, frame.depth, depth_encoding=encoding))
+             for encoding in ("zstd", "png", "raw")}
+    assert len(encode(1, 0.0, 0.0, None, frame.depth)) == sizes["zstd"] < sizes["png"] < sizes["raw"] / 4
+
+
+def _depth_packet(payload: bytes, width: int = 64, height: int = 48) -> bytes:
+    """A packet whose 16-bit depth is ``payload``, said to be Zstandard."""
+    header = {"seq": 1, "acquired": 0.0, "sent": 0.0, "source": "", "stream": "", "depth_scale": 1000.0,
+              "depth": {"format": "DEPTH16", "encoding": "zstd", "width": width, "height": height,
+                        "bytes": len(payload), "stamp": None, "frame_id": "", "intrinsics": None}}
+    text = json.dumps(header).encode()
+    return b"CCV1" + struct.pack("<I", len(text)) + text + payload
+
+
+def test_a_damaged_zstd_depth_payload_is_garbage():
+    """A forged or damaged Zstandard payload is a counted bad packet: never a crash, and never a large
+    allocation (the size the frame declares is checked against the header's before decompressing)."""
+    import zstandard
+
+    depth = np.full((48, 64), 1500, np.uint16).tobytes()
+    good = zstandard.ZstdCompressor(level=1).compress(depth)
+    assert np.array_equal(decode(_depth_packet(good)).depth.data, np.full((48, 64), 1500, np.uint16))
+    flipped = good[:8] + bytes(b ^ 0x5A for b in good[8:])
+    other_size = zstandard.ZstdCompressor(level=1).compress(bytes(2 * 48 * 63))  # one column short
+    unknown_size = zstandard.ZstdCompressor(level=1, write_content_size=False).compress(depth)
+    for payload in (flipped, other_size, unknown_size, good[:-3], b"\x28\xb5\x2f\xfd" + bytes(20)):
+        with pytest.raises(PacketError) as caught:
+            decode(_depth_packet(payload))
+        assert caught.value.kind == "garbage"
 
 
 @pytest.mark.parametrize("packet, kind", [
