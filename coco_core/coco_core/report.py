@@ -3,7 +3,9 @@
 Per process (when the application has several): pid, CPU time and resident memory. Per activity:
 cycles, overruns and period error percentiles. Per component: executions, total time, mean and
 standard deviation of compute time and of service time (time between activations), errors, and
-stamp-to-output latency when the component records it. Per connection: flow counters.
+stamp-to-output latency when the component records it. Per connection: flow counters. Per pooled
+output (a frame pool): frames published, and the writer's stalls, frames it could not publish
+because readers held every slot (they never reach a connection, so no connection counts them).
 
 A report is rendered from :class:`ProfileSnapshot` objects, one per process: plain data that a child
 process sends to the launcher, so that one report shows every process of the application.
@@ -18,6 +20,7 @@ from dataclasses import dataclass, field
 
 from .activity import PeriodicActivity
 from .application import Application
+from .ports import PooledOutputPort
 
 
 @dataclass
@@ -35,6 +38,7 @@ class ProfileSnapshot:
     activities: list[list[str]] = field(default_factory=list)
     components: list[list[str]] = field(default_factory=list)
     connections: list[list[str]] = field(default_factory=list)
+    pools: list[list[str]] = field(default_factory=list)
 
 
 def _us(seconds: float) -> str:
@@ -82,6 +86,11 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
                     str(stats.errors), str(stats.refused),
                     f"{_ms(latency.mean)} / {_ms(latency.max)}" if latency.count else "-",
                 ])
+                for port in component.outputs.values():
+                    if isinstance(port, PooledOutputPort):
+                        pool = port.pool
+                        shot.pools.append([port.qualified_name, str(len(pool.slots)), str(pool.published),
+                                           str(pool.stalls)])
     for connection in app.connections:
         counters = connection.counters()
         shot.connections.append([
@@ -122,6 +131,9 @@ def render(name: str, snapshots: list[ProfileSnapshot]) -> str:
     connections = rows("connections")
     if connections:
         parts.append(_table([*where, "connection", "policy", "written", "read", "dropped", "pending"], connections))
+    pools = rows("pools")
+    if pools:
+        parts.append(_table([*where, "pooled output", "slots", "published", "stalls (no free slot)"], pools))
     return "\n\n".join(parts)
 
 

@@ -262,3 +262,22 @@ def test_pool_policy_is_accepted_on_a_pooled_port():
     assert conn.policy.data is BufferPolicy.POOL
     out.write(out.acquire((1,)))
     assert inp.read()[0] is NEW_DATA
+
+
+def test_the_profile_shows_a_writers_stalls():
+    """A frame the writer could not publish (readers held every slot) reaches no connection: the
+    profile's pooled-output table is where it shows."""
+    from coco_core.report import profile_report
+
+    out, (inp,), _ = rig(SmallCamera)
+    held = []
+    for _ in range(2):
+        slot = out.acquire((2, 2))
+        out.write(slot)
+        held.append(inp.read()[1])  # the viewer keeps both frames
+    assert out.acquire((2, 2)) is None
+    report = profile_report(out.owner.app)
+    table = report.split("pooled output")[1].splitlines()
+    assert table[2].split() == ["camera.image", "2", "2", "1"]  # slots, published, stalls
+    for slot in held:
+        slot.release()
