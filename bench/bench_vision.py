@@ -12,7 +12,7 @@
    anchor is Open3D at its best (glibc told to keep freed memory: ``mallopt``); the fresh-process
    figure is shown beside it, measured in a child process.
 4. Streaming packets for 640x480 RGB-D: bytes per frame and encode + decode time for JPEG / raw
-   colour and PNG / raw depth; a 30 Hz run over ZeroMQ TCP loopback between two threads with the
+   colour and Zstandard / PNG / raw depth; a 30 Hz run over ZeroMQ TCP loopback between two threads with the
    receiver's latency, and the same frames as rclpy Image / CompressedImage over DDS.
 
 Run: ``python bench/bench_vision.py --json bench/results/bench_vision.json`` (about a minute).
@@ -24,7 +24,6 @@ import ctypes
 import glob
 import importlib.util
 import json
-import statistics
 import subprocess
 import sys
 import threading
