@@ -23,7 +23,7 @@ feed the haptic module's point-cloud structures; ``export_ply`` saves the latest
 from __future__ import annotations
 
 import logging
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -137,37 +137,41 @@ class MeshReconstructor(Component):
         count = number_known(depth, labels)
         grid = (depth, ray_x, ray_y, _sampled(color.data, s), red, blue, self.discontinuity, labels)
         outputs = (vertices, normals, colors, triangles)
-        bands = self._bands(rows, cols)
-        helpers = [self._helper_pool(len(bands) - 1).submit(mesh_rows, *grid, first, end, *outputs,
-                                                            2 * (cols - 1) * first)
-                   for first, end in bands[1:]] if len(bands) > 1 else []
+        (first, end, start), *others = self._bands(rows, cols)
+        helpers: list[Future[int]] = []
+        if others:
+            pool = self._helper_pool(len(others))
+            helpers = [pool.submit(mesh_rows, *grid, top, bottom, *outputs, face) for top, bottom, face in others]
         try:
-            faces = mesh_rows(*grid, *bands[0], *outputs, 0)
+            faces = mesh_rows(*grid, first, end, *outputs, start)
         finally:  # the helpers write into the slot: never hand it on before they are done
             done: list[int] = [helper.result() for helper in helpers]
-        for (first, _), written in zip(bands[1:], done):  # each band's triangles behind the previous ones
-            start = 2 * (cols - 1) * first
-            triangles[faces:faces + written] = triangles[start:start + written]
+        for (_, _, face), written in zip(others, done):  # each band's triangles behind the previous ones
+            triangles[faces:faces + written] = triangles[face:face + written]
             faces += written
         return count, faces
 
-    def _bands(self, rows: int, cols: int) -> list[tuple[int, int]]:
-        """Row ranges to mesh at once: ``threads`` of them for grids worth the hand-off to a helper
-        thread (about 50 us, a tenth of a 160x120 grid's mesh), else one."""
+    def _bands(self, rows: int, cols: int) -> list[tuple[int, int, int]]:
+        """Row ranges to mesh at once, each with the triangle its triangles are written from (where the
+        most triangles the rows above could give end): ``threads`` of them for grids worth the
+        hand-off to a helper thread (about 50 us, a tenth of a 160x120 grid's mesh), else one."""
         bands = min(self.threads, rows) if rows * cols >= _BANDS_FROM_POINTS else 1
         edges = [rows * band // bands for band in range(bands + 1)]
-        return list(zip(edges[:-1], edges[1:]))
+        return [(first, end, 2 * (cols - 1) * first) for first, end in zip(edges[:-1], edges[1:])]
 
     def _helper_pool(self, size: int) -> ThreadPoolExecutor:
         if self._helpers is None or self._helpers[0] != size:
-            self.on_stop()
+            self._close_helpers()
             self._helpers = (size, ThreadPoolExecutor(size, thread_name_prefix=f"coco:{self.name} (mesh band)"))
         return self._helpers[1]
 
-    def on_stop(self) -> None:
+    def _close_helpers(self) -> None:
         if self._helpers is not None:
             self._helpers[1].shutdown()
             self._helpers = None
+
+    def on_stop(self) -> None:
+        self._close_helpers()
 
     @operation
     def export_ply(self, path: str) -> str:

@@ -456,13 +456,12 @@ class ExecutorHost:
             if self.plan[name] != EXECUTOR:
                 self.groups[name] = MutuallyExclusiveCallbackGroup()
             elif wait_sets:
-                waited = WaitSetGroup()
-                self.groups[name] = waited
-                server = ActivityWaitSet(waited, node.context, name, on_error=app.request_stop)
-                self.hosted[name] = ExecutorDriver(self, activity, waited, server)
+                group = self.groups[name] = WaitSetGroup()
+                server = ActivityWaitSet(group, node.context, name, on_error=app.request_stop)
+                self.hosted[name] = ExecutorDriver(self, activity, group, server)
             else:
-                group = self.groups[name] = MutuallyExclusiveCallbackGroup()
-                self.hosted[name] = ExecutorDriver(self, activity, group)
+                self.groups[name] = MutuallyExclusiveCallbackGroup()
+                self.hosted[name] = ExecutorDriver(self, activity, self.groups[name])
         app.ros_node = node  # type: ignore[attr-defined]
         app.ros_host = self  # type: ignore[attr-defined]
 

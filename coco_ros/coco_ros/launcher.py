@@ -11,8 +11,8 @@ from the overrides), log levels. Each of the application's activities runs in a 
 on a thread of its own (its timer or guard condition and its components' ROS entities:
 :mod:`coco_ros.wait_set`), as callback groups of one rclpy executor (``--executor-threads N``), or
 on the activity's own loop (:mod:`coco_ros.hosting` decides, ``--threads`` overrides). Ctrl-C (or
-SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran (:mod:`coco_core.signals`: the rules and the
-exit statuses).
+SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran
+(:mod:`coco_core.signals`: the rules and the exit statuses).
 
 Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.ros_node``).
 """

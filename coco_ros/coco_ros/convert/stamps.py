@@ -62,8 +62,6 @@ def time_to_seconds(stamp: Time) -> RosTime | None:
 def seconds_to_time(seconds: float | None) -> Time:
     """``builtin_interfaces/Time`` of float seconds, rounded to the nearest nanosecond (exact for a
     :class:`RosTime`); ``None`` gives the zero time."""
-    if seconds is None:
-        return Time()
     sec, nanosec = sec_nanosec(seconds)
     return Time(sec=sec, nanosec=nanosec)
 
