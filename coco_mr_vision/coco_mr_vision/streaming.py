@@ -195,8 +195,12 @@ class StreamingReceiver(Component):
             self._socket.connect(self.address)
 
     def _refuse(self, error: PacketError) -> None:
-        setattr(self, error.kind, getattr(self, error.kind) + 1)
-        log.debug("%s: %s packet: %s", self.name, error.kind, error)
+        """Count a bad packet; the first of each kind is logged as a warning (a server configured for
+        larger frames than ``max_frame`` shows up at once), the others at debug level."""
+        count = getattr(self, error.kind) + 1
+        setattr(self, error.kind, count)
+        log.log(logging.WARNING if count == 1 else logging.DEBUG, "%s: %s packet: %s%s", self.name, error.kind,
+                error, " (further ones are counted)" if count == 1 else "")
 
     def _in_order(self, header: PacketHeader) -> bool:
         """Whether ``header`` follows the packets taken so far; counts gaps, restarts, reorders."""
