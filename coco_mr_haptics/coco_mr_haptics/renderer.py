@@ -156,8 +156,8 @@ class SurfaceRenderer(Component):
         self.force_faults += 1
         if self.force_faults == 1:
             log.error("%s: non-finite force %s (stiffness %g, damping %g, depth %g): zero force sent instead; "
-                      "further faults are counted in the haptic summary", self.name, force, self.stiffness,
-                      self.damping, god.depth)
+                      "further faults are counted (force_faults, the recorder's summary)", self.name, force,
+                      self.stiffness, self.damping, god.depth)
         god.reset()
         return None
 
