@@ -149,6 +149,22 @@ def test_implicit_surf_alone():
     assert value.force[2] == pytest.approx(1000.0 * 0.003, rel=1e-6)
 
 
+def test_implicit_surf_alone_never_sends_a_non_finite_force():
+    app = Application("alone_nan")
+    surf = HapticImplicitSurf("surf", surface="sphere(0.1)", stiffness=math.inf)
+    handle = Handle("handle")
+    app.add(surf)
+    app.add(handle)
+    app.connect("handle.state", "surf.device")
+    app.connect("surf.force", "handle.force")
+    surf.configure()
+    for z in (0.2, 0.15, 0.11, 0.1, 0.097, math.nan):
+        handle.state.write(HapticDeviceState((0.0, 0.0, z)))
+        surf.step()
+        assert handle.force.read()[1].force == (0.0, 0.0, 0.0)
+    assert surf.force_faults >= 1 and surf.stats.refused == 1
+
+
 def test_recorder_summary_file(tmp_path):
     plane = HapticImplicitSurf("plane", surface="plane()", stiffness=800.0)
     device, renderer, recorder, run = loop(tmp_path, [(0, 0, 0, 0.05), (0.3, 0, 0, -0.01), (0.6, 0, 0, 0.05)],
