@@ -73,7 +73,7 @@ def hostile_headers(seq: int) -> list[bytes]:
         "[1, 2, 3]", "null", '"text"', "{" + '"a":' * 0 + '"seq": ' + deep + "}", deep,
         with_fields(seq, seq="1e400"), with_fields(seq, seq="Infinity"), with_fields(seq, seq="NaN"),
         with_fields(seq, seq="1" + "0" * 5000), with_fields(seq, seq="-3"), with_fields(seq, seq="true"),
-        with_fields(seq, seq="[1]"), with_fields(seq, seq="null"), with_fields(seq, seq="10" * 9),
+        with_fields(seq, seq="[1]"), with_fields(seq, seq="null"), with_fields(seq, seq="1" + "0" * 18),
         with_fields(seq, acquired="NaN"), with_fields(seq, acquired="1e400"), with_fields(seq, sent="-Infinity"),
         with_fields(seq, depth_scale="0"), with_fields(seq, source="[]"), with_fields(seq, stream="{}"),
         with_fields(seq, width="Infinity"), with_fields(seq, width="30000"), with_fields(seq, width="64.5"),
