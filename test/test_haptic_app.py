@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from conftest import read_rows, run_launcher
 
@@ -55,3 +56,23 @@ def test_surface_typo_is_reported_at_its_line_and_column() -> None:
     assert f"haptic.xml:{line}" in message
     assert "unknown surface function 'sphre'; did you mean 'sphere'?" in message
     assert "column 15" in message  # frame('ball', sphre(...): the 15th character
+
+
+@pytest.mark.parametrize("original,hostile,words", [
+    ("sphere(0.02)", "sphere(1e999)", ["number 1e999 is out of range", "column 22"]),
+    ("frame('ball', sphere(0.02))", "frame('ball', translate([1e999, 0, 0], sphere(0.02)))",
+     ["number 1e999 is out of range", "column 26"]),
+    ("frame('ball', sphere(0.02))", "union(" * 495 + "sphere(0.02)" + ")" * 495,
+     ["nests deeper than 64 calls"]),
+])
+def test_absurd_numbers_and_deep_nesting_are_refused_at_their_line(original: str, hostile: str,
+                                                                   words: list[str]) -> None:
+    """What made every haptic cycle NaN, or a RecursionError traceback, is refused when the file loads."""
+    text = Path(APP).read_text().replace(original, hostile)
+    line = next(i for i, row in enumerate(text.splitlines(), start=1) if hostile in row)
+    with pytest.raises(ConfigErrors) as caught:
+        build_application(parse_application_string(text, "haptic.xml"))
+    message = str(caught.value)
+    assert f"haptic.xml:{line}" in message
+    for word in words:
+        assert word in message

@@ -7,6 +7,7 @@ import base64
 import hashlib
 import http.client
 import json
+import math
 import os
 import shutil
 import socket
@@ -463,6 +464,104 @@ def test_context_manager(graph) -> None:
     assert not server.running
     with pytest.raises(ValueError, match="rate"):
         TransformServer(graph, rate=0)
+
+
+# --- hostile clients ---------------------------------------------------------------------------------
+def client_frame(opcode: int, payload: bytes = b"", fin: bool = True) -> bytes:
+    """One masked client frame (payload under 126 bytes)."""
+    mask = os.urandom(4)
+    return (bytes([(0x80 if fin else 0) | opcode, 0x80 | len(payload)]) + mask
+            + bytes(byte ^ mask[i % 4] for i, byte in enumerate(payload)))
+
+
+def flood(client: WsClient, data: bytes) -> threading.Thread:
+    """Send ``data`` from a thread (the server may close the socket half-way: that is the point)."""
+    def send() -> None:
+        try:
+            client.sock.sendall(data)
+        except OSError:
+            pass
+    thread = threading.Thread(target=send, daemon=True)
+    thread.start()
+    return thread
+
+
+def close_frame(client: WsClient) -> tuple[int, str, int]:
+    """Read up to the server's close frame: (code, reason, pongs received before it)."""
+    pongs = 0
+    while True:
+        opcode, payload = client.frame(timeout=10.0)
+        if opcode == 0x8:
+            return struct.unpack("!H", payload[:2])[0], payload[2:].decode(), pongs
+        pongs += opcode == 0xA
+
+
+def test_a_flood_of_empty_continuation_frames_is_cut_off_at_the_frame_limit(graph, servers) -> None:
+    """40,000 empty continuation frames (240 kB) kept the reader busy ~36 s (quadratic reassembly),
+    taking the GIL from the application's activities: now the message is closed with 1009 once it has
+    more than MAX_FRAGMENTS frames, and the server reads nothing more from that client."""
+    from coco_core.transforms.websocket import MAX_FRAGMENTS
+
+    server = servers(graph)
+    client = WsClient(server, "/ws/graph")
+    assert client.message()["type"] == "graph"
+    sender = flood(client, client_frame(0x1, b"", fin=False) + client_frame(0x0, b"", fin=False) * 40000)
+    code, reason, _ = close_frame(client)
+    assert code == 1009 and f"{MAX_FRAGMENTS} frames" in reason
+    assert wait_for(lambda: server.clients == 0)
+    sender.join(10.0)
+    client.close()
+
+
+def test_a_ping_flood_is_closed_as_a_policy_violation(graph, servers) -> None:
+    from coco_core.transforms.websocket import FRAME_BURST
+
+    server = servers(graph)
+    client = WsClient(server, "/ws/graph")
+    client.message()
+    sender = flood(client, client_frame(0x9, b"x") * 40000)
+    code, reason, pongs = close_frame(client)
+    assert code == 1008 and "frames" in reason
+    assert FRAME_BURST - 1 <= pongs < 40000 - 1000  # answered up to the budget, not all 40,000
+    assert wait_for(lambda: server.clients == 0)
+    sender.join(10.0)
+    client.close()
+
+
+@pytest.mark.parametrize("frames, code", [
+    ([client_frame(0x0, b"orphan")], 1002),  # a continuation without a message
+    ([client_frame(0x1, b"a", fin=False), client_frame(0x1, b"b")], 1002),  # a new message mid-message
+    ([client_frame(0x1, b"\xff\xfe")], 1007),
+])
+def test_protocol_errors_close_with_their_code(graph, servers, frames, code) -> None:
+    server = servers(graph)
+    client = WsClient(server, "/ws/graph")
+    client.message()
+    client.sock.sendall(b"".join(frames))
+    assert close_frame(client)[0] == code
+    client.close()
+
+
+@pytest.mark.parametrize("rate", ["1e-300", "0.001", "0", "-1", "nan", "-inf", "abc"])
+def test_a_rate_too_low_or_not_a_number_is_refused_before_the_upgrade(graph, servers, rate) -> None:
+    """rate=1e-300 made an interval of 10^300 s that no timer can wait: an internal error (1011)
+    after the upgrade; now a 400 naming the lowest rate."""
+    server = servers(graph)
+    client = WsClient(server, f"/ws/graph?rate={rate}")
+    assert client.status == 400
+    body = json.loads(client.buffer or client.sock.recv(65536))
+    assert "rate must be at least 0.01" in body["error"]
+    client.close()
+    for good in ("0.01", "1e400", "inf"):  # a high one is the server's own rate
+        client = WsClient(server, f"/ws/graph?rate={good}")
+        assert client.status == 101 and client.message()["type"] == "graph"
+        client.close()
+
+
+@pytest.mark.parametrize("rate", [1e-300, 0.0, math.nan, math.inf])
+def test_a_server_rate_out_of_range_is_refused(graph, rate) -> None:
+    with pytest.raises(ValueError, match="rate must be a finite number of at least 0.01"):
+        TransformServer(graph, rate=rate)
 
 
 # --- the page, in headless Chromium ------------------------------------------------------------------

@@ -7,10 +7,17 @@ A small functional language, parsed here by a tokenizer and a recursive-descent 
 vectors ``[x, y, z]`` and quoted frame names ``'table'``. Metres and radians throughout. A mistake is
 reported with its column and a caret under it, and an unknown name lists the valid ones, so that the
 file:line the loader adds points at the exact character.
+
+What a parse accepts is bounded, since the file may come from anywhere and the haptic loop computes
+with whatever it builds: every number is finite and at most :data:`LARGEST` in magnitude (a
+``sphere(1e999)`` would otherwise make every proxy and force NaN), and calls nest at most
+:data:`MAX_DEPTH` deep (the parser and the tree's walks recurse once per level, so a deeper one
+would end in Python's RecursionError instead of a message).
 """
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -78,6 +85,13 @@ FUNCTIONS: dict[str, Function] = {
 }
 """Every name a surface expression may call."""
 
+LARGEST = 1e4
+"""The largest magnitude of a number in an expression: 10 km or 10,000 rad is no haptic scene, and
+beyond it squares of lengths lose every digit of a millimetre."""
+
+MAX_DEPTH = 64
+"""How deep calls and vectors may nest (a hand-written CSG tree is a few levels deep)."""
+
 PRIMITIVES = ("sphere", "plane", "cylinder", "box", "capsule", "torus")
 
 _TOKEN = re.compile(r"""
@@ -130,6 +144,7 @@ class _Parser:
         self.source = source
         self.tokens = _tokenize(source)
         self.index = 0
+        self.depth = 0
 
     @property
     def token(self) -> _Token:
@@ -159,18 +174,32 @@ class _Parser:
     def value(self) -> _Value:
         token = self.token
         if token.kind == "number":
-            self.index += 1
-            return _Value("number", float(token.text), token.column)
+            return _Value("number", self.number(), token.column)
         if token.kind == "text":
             self.index += 1
             return _Value("text", token.text[1:-1], token.column)
         if token.text == "[":
             return self.vector()
         if token.kind == "name":
-            return self.call()
+            if self.depth >= MAX_DEPTH:
+                raise self.fail(f"the expression nests deeper than {MAX_DEPTH} calls")
+            self.depth += 1
+            value = self.call()
+            self.depth -= 1
+            return value
         found = "the end" if token.kind == "end" else repr(token.text)
         raise self.fail(f"expected a surface ({', '.join(PRIMITIVES)}, or union/intersection/difference/"
                         f"translate/rotate/pose/frame), a number or a vector, found {found}")
+
+    def number(self) -> float:
+        """The number token here, refused when it is not finite or larger than :data:`LARGEST`."""
+        token = self.token
+        number = float(token.text)
+        if not math.isfinite(number) or abs(number) > LARGEST:
+            raise self.fail(f"number {token.text} is out of range: numbers are metres or radians of at most "
+                            f"{LARGEST:g} in magnitude")
+        self.index += 1
+        return number
 
     def vector(self) -> _Value:
         start = self.expect("[")
@@ -180,8 +209,7 @@ class _Parser:
             if token.kind != "number":
                 found = "the end" if token.kind == "end" else repr(token.text)
                 raise self.fail(f"expected a number in the vector, found {found}")
-            items.append(float(token.text))
-            self.index += 1
+            items.append(self.number())
             if self.token.text == "]":
                 self.index += 1
                 break

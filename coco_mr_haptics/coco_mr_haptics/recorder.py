@@ -9,6 +9,9 @@ Energy: with the force ``F_k`` held over the step from ``x_k`` to ``x_k+1`` (as 
 the contacts do the work ``F_k . (x_k+1 - x_k)`` on the device. Summed where it is negative, that is
 the energy the contacts absorbed (``energy_in``); where positive, the energy they gave back
 (``energy_out``). A passive contact never gives back more than it absorbed.
+
+``force_faults`` counts the cycles in which the renderer replaced a non-finite force by zero (see
+:mod:`coco_mr_haptics.renderer`): a run with faults is not a run to judge by its energy.
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ class HapticRecorder(Component):
         self._file.write(HEADER)
         self.rows = 0
         self.contact_rows = 0
+        self.force_faults = 0
         self.first_time = self.last_time = 0.0
         self.max_depth = 0.0
         self.max_force = 0.0
@@ -69,6 +73,7 @@ class HapticRecorder(Component):
         if sample.contact:
             self.contact_rows += 1
             self.renderers[sample.renderer] = self.renderers.get(sample.renderer, 0) + 1
+        self.force_faults += sample.fault
         self.max_depth = max(self.max_depth, sample.depth)
         fx, fy, fz = sample.force
         self.max_force = max(self.max_force, (fx * fx + fy * fy + fz * fz) ** 0.5)
@@ -96,6 +101,7 @@ class HapticRecorder(Component):
             "energy_in_j": self.energy_in,
             "energy_out_j": self.energy_out,
             "passive": self.energy_out <= self.energy_in,
+            "force_faults": self.force_faults,
             "csv": self.path,
         }
 
@@ -106,6 +112,9 @@ class HapticRecorder(Component):
         log.info("%s: %d haptic samples at %.1f Hz, max penetration %.2f mm, energy in %.4f J, out %.4f J",
                  self.name, report["samples"], report["rate_hz"], 1e3 * self.max_depth, self.energy_in,
                  self.energy_out)
+        if self.force_faults:
+            log.error("%s: %d haptic cycles had a non-finite force (zero force sent instead)", self.name,
+                      self.force_faults)
         if self.summary:
             Path(self.summary).parent.mkdir(parents=True, exist_ok=True)
             Path(self.summary).write_text(json.dumps(report, indent=2) + "\n")

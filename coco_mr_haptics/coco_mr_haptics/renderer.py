@@ -9,10 +9,18 @@ own (no owner) does the same for itself, with its own ``device``/``force`` ports
 
 The stiffness, damping, friction and force limit of each renderer are attributes: ``set_attribute``
 changes them between two haptic cycles.
+
+Whatever the scene, the material or the device sends, no non-finite number reaches a device: a
+device state with a NaN or an infinity is refused (counted in the profile's ``refused`` column, the
+proxies left where they were, zero force sent), and a renderer whose force is not finite (an infinite
+stiffness, a scene that overflowed) contributes nothing that cycle, its proxy starts afresh and the
+fault is counted (:attr:`SurfaceRenderer.force_faults`, the sample's ``fault``, the recorder's
+summary).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 
@@ -20,14 +28,22 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import SetupError
+from coco_core.errors import HapticDeviceError, SetupError
 from coco_core.policy import NO_DATA
 from coco_core.ports import InputPort, OutputPort
 
 from .proxy import GodObject, Material
 from .types import HapticDeviceState, HapticForce, HapticSample, Vector
 
+log = logging.getLogger("coco")
+
 _ZERO = (0.0, 0.0, 0.0)
+
+
+def _finite(*values: float) -> bool:
+    """True when every value is finite (their sum is NaN or infinite otherwise, or when it
+    overflows: a force or a position that large is a fault all the same)."""
+    return math.isfinite(sum(values))
 
 
 class FrameLink:
@@ -60,14 +76,22 @@ class FrameLink:
         return (r00 * x + r01 * y + r02 * z + tx, r10 * x + r11 * y + r12 * z + ty,
                 r20 * x + r21 * y + r22 * z + tz)
 
-    def read(self, port: InputPort) -> tuple[HapticDeviceState, Vector, Vector] | None:
+    def read(self, port: InputPort, force: OutputPort) -> tuple[HapticDeviceState, Vector, Vector] | None:
         """The newest device state on ``port`` with its position and velocity in the render frame;
-        None before the first."""
+        None before the first, and None once zero force was sent on ``force`` for a state with a
+        non-finite number (refused and counted: rendering it would leave every proxy NaN for good)."""
         status, state = port.read()
         if status is NO_DATA:
             return None
         self.refresh()
-        return state, self.to_render(state.position, True), self.to_render(state.velocity, False)
+        position, velocity = self.to_render(state.position, True), self.to_render(state.velocity, False)
+        if not _finite(*position, *velocity):
+            self.component.record_refusal("a device state", HapticDeviceError(
+                f"non-finite device state: position {state.position}, velocity {state.velocity} "
+                f"(in frame {self.render_frame!r}: {position}, {velocity}); zero force sent"))
+            force.write(HapticForce(_ZERO, state.stamp))
+            return None
+        return state, position, velocity
 
     def to_frame(self, v: Vector) -> Vector:
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = self.r
@@ -118,6 +142,24 @@ class SurfaceRenderer(Component):
     def on_config(self) -> None:
         self._workspace = FrameLink(self, self.frame, self.device_frame)
         self.proxy_object: GodObject | None = None
+        self.force_faults = 0
+        """Cycles whose force was not finite: sent as zero, the proxy restarted."""
+
+    def contact_force(self) -> Vector | None:
+        """The force of the last :meth:`render` in contact; None when it is not finite (counted as a
+        fault, the proxy restarted so that the next cycle starts clean)."""
+        god = self.proxy_object
+        assert god is not None  # render() returned True: it has one
+        force = god.force
+        if _finite(*force):
+            return force
+        self.force_faults += 1
+        if self.force_faults == 1:
+            log.error("%s: non-finite force %s (stiffness %g, damping %g, depth %g): zero force sent instead; "
+                      "further faults are counted (force_faults, the recorder's summary)", self.name, force,
+                      self.stiffness, self.damping, god.depth)
+        god.reset()
+        return None
 
     def refresh_material(self) -> None:
         """Apply changed attributes to the proxy (between two cycles)."""
@@ -140,13 +182,12 @@ class SurfaceRenderer(Component):
         self.prepare()
         if isinstance(self.owner, HapticRenderer):
             return
-        reading = self._workspace.read(self.device)
+        reading = self._workspace.read(self.device, self.force)
         if reading is None:
             return
         state, (x, y, z), (vx, vy, vz) = reading
-        touching = self.render(x, y, z, vx, vy, vz)
-        force = self.proxy_object.force if touching and self.proxy_object is not None else _ZERO
-        self.force.write(HapticForce(self._workspace.to_frame(force), state.stamp))
+        force = self.contact_force() if self.render(x, y, z, vx, vy, vz) else _ZERO
+        self.force.write(HapticForce(self._workspace.to_frame(force or _ZERO), state.stamp))
 
 
 COMBINE = ("sum", "first")
@@ -178,25 +219,31 @@ class HapticRenderer(Component):
             raise SetupError(f"{self.name}: peers {', '.join(others)} are not surface renderers "
                              "(HapticImplicitSurf, HapticCloud)")
         self._workspace = FrameLink(self, self.frame, self.device_frame)
+        self.force_faults = 0
+        """Cycles in which a renderer's force or the combined force was not finite (zero sent instead)."""
 
     def on_update(self) -> None:
         workspace = self._workspace
-        reading = workspace.read(self.device)
+        reading = workspace.read(self.device, self.force)
         if reading is None:
             return
         state, (x, y, z), (vx, vy, vz) = reading
         fx = fy = fz = depth = 0.0
         proxy = (x, y, z)
         touching = ""
+        fault = False
         first = self.combine == "first"
         for renderer in self.renderers:
             renderer.step()  # its own inputs (a new cloud structure, a moved frame) and attributes
             if not renderer.enabled or not renderer.render(x, y, z, vx, vy, vz):
                 continue
+            force = renderer.contact_force()
+            if force is None:
+                fault = True
+                continue
             god = renderer.proxy_object
-            assert god is not None  # render() returned True: it has one
-            gx, gy, gz = god.force
-            fx, fy, fz = fx + gx, fy + gy, fz + gz
+            assert god is not None  # it gave a force
+            fx, fy, fz = fx + force[0], fy + force[1], fz + force[2]
             depth = max(depth, god.depth)
             if not touching:
                 touching, proxy = renderer.name, god.proxy
@@ -206,6 +253,10 @@ class HapticRenderer(Component):
         if magnitude > self.max_force:
             scale = self.max_force / magnitude
             fx, fy, fz = fx * scale, fy * scale, fz * scale
-        self.force.write(HapticForce(workspace.to_frame((fx, fy, fz)), state.stamp))
+        out = workspace.to_frame((fx, fy, fz))
+        if not _finite(*out):  # finite forces that overflowed when summed or turned, an infinite max_force
+            fault, out, (fx, fy, fz) = True, _ZERO, _ZERO
+        self.force_faults += fault
+        self.force.write(HapticForce(out, state.stamp))
         self.sample.write(HapticSample(time.perf_counter(), (x, y, z), proxy, (fx, fy, fz), bool(touching),
-                                       touching, depth))
+                                       touching, depth, fault))

@@ -160,7 +160,12 @@ class SimulatedDevice(Component):
         self._hand_target(dt)
         status, value = self.force.read()
         if status is not NO_DATA:
-            self._rendered = value.force
+            if math.isfinite(sum(value.force)):
+                self._rendered = value.force
+            else:  # a real device must never be commanded NaN; the simulated one refuses it the same way
+                self._rendered = (0.0, 0.0, 0.0)
+                self.record_refusal("a force", HapticDeviceError(f"non-finite force {value.force}; "
+                                                                 "zero force applied"))
         fx, fy, fz = self._rendered
         magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)
         if magnitude > self.max_force:

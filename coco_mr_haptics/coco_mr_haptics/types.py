@@ -46,3 +46,5 @@ class HapticSample(NamedTuple):
     """Name of the renderer in contact ("" when none; the first one when several)."""
     depth: float
     """Penetration along the normal (m), the deepest among the renderers in contact."""
+    fault: bool = False
+    """A renderer's force (or the sum) was not finite this cycle: it was left out (zero sent)."""

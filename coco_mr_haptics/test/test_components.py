@@ -149,6 +149,22 @@ def test_implicit_surf_alone():
     assert value.force[2] == pytest.approx(1000.0 * 0.003, rel=1e-6)
 
 
+def test_implicit_surf_alone_never_sends_a_non_finite_force():
+    app = Application("alone_nan")
+    surf = HapticImplicitSurf("surf", surface="sphere(0.1)", stiffness=math.inf)
+    handle = Handle("handle")
+    app.add(surf)
+    app.add(handle)
+    app.connect("handle.state", "surf.device")
+    app.connect("surf.force", "handle.force")
+    surf.configure()
+    for z in (0.2, 0.15, 0.11, 0.1, 0.097, math.nan):
+        handle.state.write(HapticDeviceState((0.0, 0.0, z)))
+        surf.step()
+        assert handle.force.read()[1].force == (0.0, 0.0, 0.0)
+    assert surf.force_faults >= 1 and surf.stats.refused == 1
+
+
 def test_recorder_summary_file(tmp_path):
     plane = HapticImplicitSurf("plane", surface="plane()", stiffness=800.0)
     device, renderer, recorder, run = loop(tmp_path, [(0, 0, 0, 0.05), (0.3, 0, 0, -0.01), (0.6, 0, 0, 0.05)],
@@ -184,3 +200,65 @@ def test_hand_port_takes_poses():
         device.step()
     # No force: the coupling pulls the handle onto the hand.
     assert (device.x, device.y, device.z) == pytest.approx((0.02, -0.01, 0.03), abs=1e-6)
+
+
+def test_a_non_finite_force_is_never_sent_to_the_device(tmp_path):
+    """An infinite stiffness makes the proxy's force NaN in contact: the renderer sends zero instead,
+    counts the fault (summary, sample) and restarts the proxy; the device never sees a NaN."""
+    wild = HapticImplicitSurf("wild", surface="plane()", stiffness=math.inf)
+    device, renderer, recorder, run = loop(tmp_path, [(0, 0, 0, 0.05), (0.3, 0, 0, -0.02), (1, 0, 0, -0.02)],
+                                           [wild])
+    forces = []
+    for _ in range(1000):
+        device.step()
+        renderer.step()
+        forces.append(device.force.read()[1].force)
+    recorder.stop()
+    assert all(math.isfinite(component) for force in forces for component in force)
+    assert math.isfinite(device.x + device.y + device.z)
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert renderer.force_faults == wild.force_faults == summary["force_faults"] > 0
+    assert math.isfinite(summary["energy_out_j"]) and math.isfinite(summary["max_force_n"])
+
+
+def test_a_non_finite_device_state_is_refused_and_does_not_poison_the_proxy():
+    app = Application("nan_device")
+    renderer = HapticRenderer("renderer")
+    plane = HapticImplicitSurf("plane", surface="plane()", stiffness=1000.0, damping=0.0)
+    renderer.add_peer(plane)
+    handle = Handle("handle")
+    app.add(renderer)
+    app.add(handle)
+    app.connect("handle.state", "renderer.device")
+    app.connect("renderer.force", "handle.force")
+    renderer.configure()
+    for position in ((0.0, 0.0, 0.05), (0.0, 0.0, -0.001), (math.nan, 0.0, -0.002), (0.0, math.inf, 0.0)):
+        handle.state.write(HapticDeviceState(position))
+        renderer.step()
+        assert all(math.isfinite(v) for v in handle.force.read()[1].force)
+    assert handle.force.read()[1].force == (0.0, 0.0, 0.0)
+    assert renderer.stats.refused == 2
+    handle.state.write(HapticDeviceState((0.0, 0.0, -0.003)))  # the proxy still holds the surface
+    renderer.step()
+    assert handle.force.read()[1].force[2] == pytest.approx(1000.0 * 0.003, rel=1e-6)
+    assert plane.proxy_object.proxy[2] == pytest.approx(0.0, abs=1e-9)
+
+
+class ForceSource(Component):
+    """What a renderer looks like to a device: a force output."""
+
+    force = OutputPort(HapticForce)
+
+
+def test_the_simulated_device_refuses_a_non_finite_force():
+    app = Application("device_nan")
+    device = SimulatedDevice("device", time_step=1e-3)
+    source = ForceSource("source")
+    app.add(device)
+    app.add(source)
+    app.connect("source.force", "device.force")
+    device.configure()
+    source.force.write(HapticForce((math.nan, 0.0, 0.0)))
+    device.step()
+    assert device.stats.refused == 1
+    assert math.isfinite(device.x + device.vx)

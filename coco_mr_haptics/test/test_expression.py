@@ -3,7 +3,7 @@
 import pytest
 
 from coco_core.errors import SurfaceExpressionError
-from coco_mr_haptics.expression import PRIMITIVES, parse_surface, surface_problem
+from coco_mr_haptics.expression import MAX_DEPTH, PRIMITIVES, parse_surface, surface_problem
 from coco_mr_haptics.implicit import Box, Difference, Placed, Plane, Sphere, Torus, Union
 
 
@@ -40,6 +40,10 @@ def test_keywords_defaults_numbers_and_frames():
     ("sphere(-0.1)", 1, ["radius must be > 0"]),
     ("sphere(0.1) ; rm", 13, ["unexpected character ';'"]),
     ("0.5", 1, ["expected a surface"]),
+    ("sphere(1e999)", 8, ["number 1e999 is out of range", "at most 10000"]),
+    ("translate([1e999, 0, 0], sphere(0.1))", 12, ["number 1e999 is out of range"]),
+    ("plane(offset=-2e300)", 14, ["number -2e300 is out of range"]),
+    ("rotate([0, 0, 1e5], sphere(0.1))", 15, ["number 1e5 is out of range"]),
 ])
 def test_errors_name_the_column_and_what_was_expected(text, column, words):
     with pytest.raises(SurfaceExpressionError) as caught:
@@ -55,3 +59,13 @@ def test_errors_name_the_column_and_what_was_expected(text, column, words):
 def test_attribute_check_text():
     assert surface_problem("sphere(0.1)") is None
     assert "unknown surface function" in surface_problem("sphre(0.1)")
+
+
+def test_nesting_is_bounded_with_a_message_not_a_recursion_error():
+    deep = "union(" * 495 + "sphere(0.1)" + ")" * 495
+    with pytest.raises(SurfaceExpressionError) as caught:
+        parse_surface(deep)
+    assert f"nests deeper than {MAX_DEPTH} calls" in str(caught.value)
+    assert f"column {6 * MAX_DEPTH + 1}:" in str(caught.value)  # the first call too deep
+    at_limit = "union(" * (MAX_DEPTH - 1) + "sphere(0.1)" + ")" * (MAX_DEPTH - 1)
+    assert isinstance(parse_surface(at_limit), Union)

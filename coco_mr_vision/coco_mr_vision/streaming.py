@@ -7,8 +7,17 @@ activation, drains every packet that arrived and delivers only the newest ("newe
 what live use wants); the older ones are counted as dropped, as are gaps in the sequence numbers.
 Garbage, truncated and out-of-order packets are counted by kind and skipped: a bad packet is never
 a crash. Each server run names itself in its packets, so a server that starts again (its sequence
-numbers from 1) is counted once as a restart and its frames delivered, not taken for stale ones. Latency is measured from the frame's acquisition stamp on the server side (the monotonic
-clock is shared by the processes of one host).
+numbers from 1) is counted once as a restart and its frames delivered, not taken for stale ones.
+Latency is measured from the frame's acquisition stamp on the server side (the monotonic clock is
+shared by the processes of one host).
+
+The receiver trusts nothing in a packet (see :mod:`coco_mr_vision.stream_codec`): ZeroMQ refuses a
+message larger than the packet of the receiver's ``max_frame`` (``MAXMSGSIZE``), every header field
+is checked, image sizes are checked against ``max_frame`` from the header and from the encoded
+image's own first bytes before decoding, a sequence number far ahead of the last is taken only once
+the next packet confirms it, and each activation reads only the headers of the packets it drains
+(at most ``MAX_DRAIN``) and decodes the newest alone, so that under a flood what it delivers is
+recent. One bad packet costs that one packet.
 """
 
 from __future__ import annotations
@@ -27,7 +36,8 @@ from coco_core.stamps import Stamp, Stamped, unstamped
 
 from .image import Image
 from .rgbd import RGBDFrame
-from .stream_codec import COLOR_ENCODINGS, DEPTH_ENCODINGS, decode, encode
+from .stream_codec import COLOR_ENCODINGS, DEPTH_ENCODINGS, OpenedPacket, decode_opened, encode, open_packet
+from .stream_header import FrameLimit, PacketHeader
 
 log = logging.getLogger("coco.vision")
 
@@ -90,10 +100,33 @@ class StreamingServer(Component):
         self._socket.close(0)
 
 
+MAX_DRAIN = 1000
+"""Packets one activation takes at most: under a flood it delivers the newest of these and leaves
+the rest to the next activation, instead of draining for ever."""
+
+MAX_JUMP = 300
+"""Sequence numbers that one packet may skip ahead of the last (10 s at 30 Hz). A larger jump is
+taken only when the next packet confirms it: a forged or damaged number costs that one packet,
+not every packet until the stream catches up with it."""
+
+MAX_LATENCY = 3600.0
+"""Latencies outside 0 to an hour are not a shared clock's (another host's monotonic clock): they are
+left out of the mean."""
+
+
+def _frame_limit_problem(value: list[int]) -> str | None:
+    if len(value) != 2 or not all(16 <= side <= 16384 for side in value):
+        return f"max_frame must be a width and a height of 16 to 16384 pixels, got {value}"
+    return None
+
+
 class StreamingReceiver(Component):
     """Receives the server's packets and delivers the newest frame at each activation."""
 
     address = Attribute(str, "tcp://127.0.0.1:5600", "the server's address", check=_loopback_or_any)
+    max_frame = Attribute(list[int], [1920, 1080], "the largest width and height of an image (pixels): larger "
+                          "packets are refused as garbage before decoding, and ZeroMQ refuses messages "
+                          "larger than such a frame's packet", check=_frame_limit_problem)
 
     rgbd = OutputPort(Stamped, "Stamped(RGBDFrame) for packets with depth")
     image = OutputPort(Stamped, "Stamped(Image) for packets with colour only")
@@ -108,64 +141,130 @@ class StreamingReceiver(Component):
         self.out_of_order = 0
         self.restarts = 0
         """Times the server started again (a new run, its sequence numbers from 1 again)."""
+        self.disconnects = 0
+        """Times the connection to the server broke: the server went away, or it sent a message larger
+        than ``max_frame``'s packet, which ZeroMQ refuses by closing the connection for good; the
+        receiver connects again either way."""
         self.latency_last = float("nan")
         self.latency_sum = 0.0
+        self.latency_count = 0
         self._last_seq = 0
         self._stream: str | None = None
+        self._jump: tuple[str, int] | None = None
+        """The last packet that jumped more than MAX_JUMP ahead (stream, seq), to be confirmed."""
 
     def counters(self) -> dict[str, float]:
         """What the profile shows: frames, drops, bad packets by kind, bytes, latency (s)."""
         return {"frames": self.frames, "dropped": self.dropped, "bytes": self.bytes, "garbage": self.garbage,
                 "truncated": self.truncated, "out_of_order": self.out_of_order,
-                "restarts": self.restarts, "latency_last": self.latency_last,
-                "latency_mean": self.latency_sum / self.frames if self.frames else float("nan")}
+                "restarts": self.restarts, "disconnects": self.disconnects, "latency_last": self.latency_last,
+                "latency_mean": self.latency_sum / self.latency_count if self.latency_count else float("nan")}
+
+    @property
+    def last_seq(self) -> int:
+        """The sequence number of the newest packet taken from the current stream (0 before one)."""
+        return self._last_seq
 
     def on_config(self) -> None:
+        self._limit = FrameLimit(*self.max_frame)
         self._socket: zmq.Socket[bytes] = zmq.Context.instance().socket(zmq.SUB)
         self._socket.setsockopt(zmq.SUBSCRIBE, b"")
         self._socket.setsockopt(zmq.LINGER, 0)
         self._socket.setsockopt(zmq.RCVHWM, 4)
+        # A peer announcing a larger message is disconnected before ZeroMQ allocates it.
+        self._socket.setsockopt(zmq.MAXMSGSIZE, self._limit.packet_bytes)
+        self._monitor: zmq.Socket[bytes] = self._socket.get_monitor_socket(zmq.EVENT_DISCONNECTED)
         self._socket.connect(self.address)
 
-    def on_update(self) -> None:
-        newest = None
+    def _reconnect_after_disconnects(self) -> None:
+        """ZeroMQ connects again after a server went away, but not after a protocol error (a message
+        over MAXMSGSIZE): then the receiver would wait for ever. Connecting again after each
+        disconnection covers both."""
+        disconnected = False
         while True:
+            try:
+                self._monitor.recv_multipart(zmq.NOBLOCK)  # [event and value, endpoint]
+            except zmq.Again:
+                break
+            self.disconnects += 1
+            disconnected = True
+        if disconnected:
+            log.warning("%s: the connection to %s broke (%d so far): connecting again", self.name, self.address,
+                        self.disconnects)
+            self._socket.disconnect(self.address)
+            self._socket.connect(self.address)
+
+    def _refuse(self, error: PacketError) -> None:
+        """Count a bad packet; the first of each kind is logged as a warning (a server configured for
+        larger frames than ``max_frame`` shows up at once), the others at debug level."""
+        count = getattr(self, error.kind) + 1
+        setattr(self, error.kind, count)
+        log.log(logging.WARNING if count == 1 else logging.DEBUG, "%s: %s packet: %s%s", self.name, error.kind,
+                error, " (further ones are counted)" if count == 1 else "")
+
+    def _in_order(self, header: PacketHeader) -> bool:
+        """Whether ``header`` follows the packets taken so far; counts gaps, restarts, reorders."""
+        if header.stream != self._stream:  # the first packet, or a server that started again
+            if self._stream is not None:
+                self.restarts += 1
+                log.info("%s: the server started again (stream %s)", self.name, header.stream)
+            self._stream, self._last_seq = header.stream, 0  # numbered from 1: a gap before is a drop
+        gap = header.seq - self._last_seq
+        if gap <= 0:
+            self.out_of_order += 1
+            return False
+        if gap > MAX_JUMP:
+            if self._last_seq and self._jump != (header.stream, header.seq - 1):
+                self._jump = (header.stream, header.seq)
+                self._refuse(PacketError("garbage", f"sequence number {header.seq} jumps {gap} ahead of "
+                                         f"{self._last_seq}: taken when the next packet confirms it"))
+                return False
+            gap = 1  # joined a stream long under way, or a jump confirmed: what was lost before is unknown
+        self._jump = None
+        self.dropped += gap - 1
+        self._last_seq = header.seq
+        return True
+
+    def on_update(self) -> None:
+        self._reconnect_after_disconnects()
+        newest: OpenedPacket | None = None
+        for _ in range(MAX_DRAIN):  # only headers are read here (~10 us): the newest alone is decoded
             try:
                 packet = self._socket.recv(zmq.NOBLOCK, copy=False)
             except zmq.Again:
                 break
             self.bytes += len(packet.buffer)
             try:
-                frame = decode(packet.buffer)
+                opened = open_packet(packet.buffer, self._limit)
             except PacketError as error:
-                setattr(self, error.kind, getattr(self, error.kind) + 1)
-                log.debug("%s: %s packet: %s", self.name, error.kind, error)
+                self._refuse(error)
                 continue
-            if frame.stream != self._stream:  # the first packet, or a server that started again
-                if self._stream is not None:
-                    self.restarts += 1
-                    log.info("%s: the server started again (stream %s)", self.name, frame.stream)
-                self._stream, self._last_seq = frame.stream, 0  # numbered from 1: a gap before is a drop
-            if frame.seq <= self._last_seq:
-                self.out_of_order += 1
+            if not self._in_order(opened.header):
                 continue
             if newest is not None:
                 self.dropped += 1
-            self.dropped += frame.seq - self._last_seq - 1
-            self._last_seq = frame.seq
-            newest = frame
+            newest = opened
         if newest is None:
             return
-        latency = time.perf_counter() - newest.acquired
+        try:
+            frame = decode_opened(newest)
+        except PacketError as error:
+            self._refuse(error)
+            return
+        latency = time.perf_counter() - frame.acquired
         self.latency_last = latency
-        self.latency_sum += latency
+        if 0.0 <= latency <= MAX_LATENCY:
+            self.latency_sum += latency
+            self.latency_count += 1
         self.frames += 1
-        stamp = Stamp(newest.acquired, newest.seq, newest.source)
-        if newest.depth is not None and newest.color is not None:
-            self.rgbd.write(Stamped(RGBDFrame(newest.color, newest.depth, newest.depth.intrinsics,
-                                              newest.depth_scale), stamp))
-        elif newest.color is not None:
-            self.image.write(Stamped(newest.color, stamp))
+        stamp = Stamp(frame.acquired, frame.seq, frame.source)
+        if frame.depth is not None and frame.color is not None:
+            self.rgbd.write(Stamped(RGBDFrame(frame.color, frame.depth, frame.depth.intrinsics,
+                                              frame.depth_scale), stamp))
+        elif frame.color is not None:
+            self.image.write(Stamped(frame.color, stamp))
 
     def on_stop(self) -> None:
+        self._socket.disable_monitor()
+        self._monitor.close(0)
         self._socket.close(0)

@@ -51,9 +51,9 @@ class Sink(Component):
     image = InputPort(object)
 
 
-def receiver_rig(address: str):
+def receiver_rig(address: str, **attributes):
     app = Application("receive")
-    receiver = app.add(StreamingReceiver("receiver", address=address))
+    receiver = app.add(StreamingReceiver("receiver", address=address, **attributes))
     sink = app.add(Sink("sink"))
     app.connect(receiver.rgbd, sink.rgbd, ConnectionPolicy(BufferPolicy.BUFFER, size=1000))
     app.connect(receiver.image, sink.image, ConnectionPolicy(BufferPolicy.BUFFER, size=1000))
@@ -202,6 +202,17 @@ def subscribed(publisher, receiver, packet: bytes) -> None:
     receiver.on_update()
 
 
+def drained(receiver, done, timeout: float = 10.0) -> bool:
+    """Activate ``receiver`` until ``done(counters)`` (packets take a moment on loopback)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        receiver.on_update()
+        if done(receiver.counters()):
+            return True
+        time.sleep(0.005)
+    return False
+
+
 def test_garbage_truncated_out_of_order_and_gaps_are_counted(link):
     publisher, receiver, sink = link
     frame = redwood()
@@ -214,14 +225,15 @@ def test_garbage_truncated_out_of_order_and_gaps_are_counted(link):
     for bad in (b"not a packet", packet_of(2)[:-100], packet_of(1), os.urandom(300), packet_of(5),
                 packet_of(6), packet_of(4)):
         publisher.send(bad)
-    time.sleep(0.3)
-    receiver.on_update()
+    # One activation takes what has arrived: the seven may come over several.
+    assert drained(receiver, lambda counters: counters["out_of_order"] - before["out_of_order"] == 2)
     after = receiver.counters()
     assert after["garbage"] - before["garbage"] == 2
     assert after["truncated"] - before["truncated"] == 1
     assert after["out_of_order"] - before["out_of_order"] == 2, "seq 1 again, and 4 after 6"
-    assert after["frames"] - before["frames"] == 1, "newest frame only: seq 6"
-    assert after["dropped"] - before["dropped"] == 3 + 1, "2, 3, 4 never came in order; 5 was superseded by 6"
+    # 2, 3, 4 never came in order; 5 was delivered, or superseded by 6 when both came at once.
+    assert (after["frames"] - before["frames"]) + (after["dropped"] - before["dropped"]) == 5
+    assert after["frames"] - before["frames"] in (1, 2)
     assert sink.rgbd.read_all()[-1].stamp.seq == 6
 
 

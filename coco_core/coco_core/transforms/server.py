@@ -32,6 +32,11 @@ WebSocket (text messages, JSON)
 - ``/ws/graph[?rate=hz]``: the whole graph, again whenever it changed, at most ``rate`` times a second:
   ``{"type": "graph", "graph": {...}}``.
 
+``rate`` is at least ``MIN_RATE`` (0.01) messages a second; a lower one, a negative one or not a
+number is refused with 400 before the upgrade. A client's frames are bounded (see
+:mod:`.websocket`): a message over 1 MiB or 64 frames is closed with 1009, more than 1,000 frames at
+once or 200 a second on average with 1008.
+
 Updates are driven by :meth:`Query.on_change` callbacks, which run in the thread that wrote the
 graph: the callback only stores the new value and wakes the connection's sender thread (about 1 us
 added to the write), so a 1 kHz joint loop is not slowed by clients and clients are not flooded.
@@ -87,6 +92,11 @@ ENDPOINTS = ["/", "/api/graph", "/api/frames", "/api/edges", "/api/lookup?target
 BACKLOG = 1024
 """Listen queue length: a burst of hundreds of clients waits in the kernel instead of being refused
 (the default of 5 overflowed thousands of times under 200 concurrent requests)."""
+
+MIN_RATE = 0.01
+"""The lowest rate a server or a client may ask for (a message every 100 s): the interval between
+messages is ``1 / rate`` seconds, and one of 10^300 s is no interval a timer can wait."""
+
 GRAPH_MAX_AGE = 0.1
 """Seconds a serialised ``/api/graph`` is served again while the graph changes (a replay changes it
 every few ms): under a flood, one serialisation per 0.1 s instead of one per request."""
@@ -128,8 +138,9 @@ class TransformServer:
     """
 
     def __init__(self, graph: TransformGraph, host: str = "127.0.0.1", port: int = 0, rate: float = 30.0) -> None:
-        if rate <= 0:
-            raise AttributeValueError(f"rate must be > 0 messages per second, got {rate}")
+        if not MIN_RATE <= rate < math.inf:  # NaN too
+            raise AttributeValueError(f"rate must be a finite number of at least {MIN_RATE:g} messages per second, "
+                                      f"got {rate}")
         self.graph = graph
         self.host = host
         self.port = port
@@ -582,8 +593,8 @@ class _Handler(BaseHTTPRequestHandler):
             rate = float(text)
         except ValueError:
             rate = math.nan
-        if not rate > 0:  # NaN too
-            raise _RequestError(HTTPStatus.BAD_REQUEST, f"rate must be a positive number of messages per "
+        if not rate >= MIN_RATE:  # NaN too; an infinite rate is the server's
+            raise _RequestError(HTTPStatus.BAD_REQUEST, f"rate must be at least {MIN_RATE:g} messages per "
                                 f"second, got {text!r}")
         return min(rate, self.owner.rate)
 

@@ -4,6 +4,13 @@ What a read-mostly diagnostics stream needs and no more: the opening handshake
 (``Sec-WebSocket-Accept``), unmasked text frames from the server, and reading the client's masked
 frames so that pings are answered and a close is echoed. No extensions (no compression), no
 subprotocols. Messages from the client are handed to the caller as whole (reassembled) payloads.
+
+A client is not trusted to be gentle: a message is reassembled in linear time and may have at most
+:data:`MAX_MESSAGE` bytes in at most :data:`MAX_FRAGMENTS` frames (40,000 empty continuation frames
+otherwise kept the reader busy for half a minute, taking the GIL from the application's activities),
+and a connection may send at most :data:`FRAME_BURST` frames at once and :data:`FRAME_RATE` a second
+on average, pings included: beyond, it is closed (1009 too big, 1008 policy violation), so the
+server's reading stays a small, bounded share of the process.
 """
 
 from __future__ import annotations
@@ -12,6 +19,7 @@ import base64
 import hashlib
 import struct
 import threading
+import time
 from typing import Callable, Protocol
 from ..errors import ConnectionClosedError, WebSocketError
 
@@ -20,10 +28,39 @@ GUID = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
 OP_CONTINUATION, OP_TEXT, OP_BINARY = 0x0, 0x1, 0x2
 OP_CLOSE, OP_PING, OP_PONG = 0x8, 0x9, 0xA
 
-CLOSE_NORMAL, CLOSE_GOING_AWAY, CLOSE_PROTOCOL_ERROR, CLOSE_TOO_BIG = 1000, 1001, 1002, 1009
+CLOSE_NORMAL, CLOSE_GOING_AWAY, CLOSE_PROTOCOL_ERROR = 1000, 1001, 1002
+CLOSE_NOT_UTF8, CLOSE_POLICY, CLOSE_TOO_BIG = 1007, 1008, 1009
 
 MAX_MESSAGE = 1 << 20
 """Largest client message accepted (1 MiB); clients of a diagnostics stream send little."""
+
+MAX_FRAGMENTS = 64
+"""Frames one client message may be split into (browsers send one)."""
+
+FRAME_RATE = 200.0
+"""Frames a second a client may send on average (pings, pongs, messages: it has little to say)."""
+
+FRAME_BURST = 1000
+"""Frames a client may send at once before :data:`FRAME_RATE` applies."""
+
+
+class FrameBudget:
+    """A token bucket over a connection's frames: ``burst`` at once, ``rate`` a second after that."""
+
+    def __init__(self, rate: float = FRAME_RATE, burst: int = FRAME_BURST) -> None:
+        self.rate, self.burst = rate, float(burst)
+        self.tokens = float(burst)
+        self.last = time.monotonic()
+
+    def take(self) -> bool:
+        """Spend one frame; False when the client is over its budget."""
+        now = time.monotonic()
+        self.tokens = min(self.burst, self.tokens + (now - self.last) * self.rate)
+        self.last = now
+        if self.tokens < 1.0:
+            return False
+        self.tokens -= 1.0
+        return True
 
 
 def accept_key(key: str) -> str:
@@ -139,6 +176,7 @@ class WebSocket:
         self._write_lock = threading.Lock()
         self.closed = threading.Event()
         """Set once a close frame was sent or the connection broke: nothing more is sent."""
+        self._budget = FrameBudget()
 
     def send_text(self, text: str) -> bool:
         """Send one text message; False when the connection is closed (or broke while sending)."""
@@ -167,26 +205,32 @@ class WebSocket:
         try:
             if self.closed.is_set():
                 return
-            self.closed.set()
-            try:
+            try:  # written before ``closed`` is set: a thread waiting on it shuts the socket down
                 self._write(encode_frame(struct.pack("!H", code) + reason.encode("utf-8")[:120], OP_CLOSE))
             except OSError:
                 pass
+            self.closed.set()
         finally:
             self._write_lock.release()
 
     def receive(self) -> str | bytes | None:
-        """The next message from the client (answering pings meanwhile), or None once it closed."""
+        """The next message from the client (answering pings meanwhile), or None once it closed or
+        was closed for breaking the protocol or its limits."""
         fragments: list[bytes] = []
-        message_opcode = OP_TEXT
+        size = 0
+        message_opcode: int | None = None  # None: no message under way
+        budget = self._budget
         while True:
             try:
-                fin, opcode, payload = read_frame(self._read)
+                fin, opcode, payload = read_frame(self._read, max(MAX_MESSAGE - size, 125))
             except (EOFError, OSError, ValueError):  # ValueError: reading a file closed under us
                 self.closed.set()
                 return None
             except WebSocketError as error:
                 self.close(CLOSE_TOO_BIG if "exceeds" in str(error) else CLOSE_PROTOCOL_ERROR, str(error))
+                return None
+            if not budget.take():
+                self.close(CLOSE_POLICY, f"more than {FRAME_BURST} frames at once or {FRAME_RATE:g} a second")
                 return None
             if opcode == OP_PING:
                 self._send(encode_frame(payload, OP_PONG))
@@ -197,11 +241,16 @@ class WebSocket:
                 self.close(code if 1000 <= code < 5000 and code not in (1005, 1006, 1015) else CLOSE_NORMAL)
                 return None
             elif opcode in (OP_TEXT, OP_BINARY, OP_CONTINUATION):
-                if opcode != OP_CONTINUATION:
-                    fragments, message_opcode = [], opcode
+                if (opcode == OP_CONTINUATION) != (message_opcode is not None):
+                    self.close(CLOSE_PROTOCOL_ERROR, "a continuation frame outside a message" if message_opcode
+                               is None else "a new message before the last one ended")
+                    return None
+                if message_opcode is None:
+                    message_opcode = opcode
                 fragments.append(payload)
-                if sum(len(fragment) for fragment in fragments) > MAX_MESSAGE:
-                    self.close(CLOSE_TOO_BIG, "message too big")
+                size += len(payload)
+                if len(fragments) > MAX_FRAGMENTS or size > MAX_MESSAGE:
+                    self.close(CLOSE_TOO_BIG, f"message over {MAX_MESSAGE} bytes or {MAX_FRAGMENTS} frames")
                     return None
                 if fin:
                     data = b"".join(fragments)
@@ -210,7 +259,7 @@ class WebSocket:
                     try:
                         return data.decode("utf-8")
                     except UnicodeDecodeError:
-                        self.close(1007, "text message is not UTF-8")
+                        self.close(CLOSE_NOT_UTF8, "text message is not UTF-8")
                         return None
             else:
                 self.close(CLOSE_PROTOCOL_ERROR, f"unknown opcode {opcode:#x}")
