@@ -29,6 +29,7 @@ from typing import Sequence
 from coco_core import Application, CocoError
 from coco_core.builder import configure_logging
 from coco_core.launcher import (
+    parse_assignments,
     describe,
     describe_processes,
     failure,
@@ -41,8 +42,10 @@ from coco_core.launcher import (
 from coco_core.processes.level import process_level
 from coco_core.processes.supervisor import ProcessSupervisor
 from coco_core.signals import INTERRUPTED, LaunchSignals, leave
+from coco_core.xml import load_application
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
+from .parameters import ArgParameters, given_parameters
 
 log = logging.getLogger("coco")
 
@@ -124,20 +127,8 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         print(f"{_NAME}: an application file is needed (or --list)", file=sys.stderr)
         return 2
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
-    try:
-        spec, app = load_and_build(options)
-        plan = plan_hosting(app, _threads(options.threads), options.all_threads)
-        wait_sets = options.executor_threads is None
-        signals.check()
-        if options.check:
-            print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
-            print("hosting in the ROS launcher (the launcher's process):")
-            print(describe_hosting(app, plan, wait_sets))
-            return 0
-    except CocoError as error:
-        return failure(_NAME, error)
-    configure_logging(spec.log, logging.getLevelName(options.log_level))
-
+    if options.check and not ros_args:
+        return _check(options, signals)
     import rclpy
     from rclpy.node import Node
     from rclpy.signals import SignalHandlerOptions
@@ -149,12 +140,21 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         return 2
     node = None
     try:
-        node = Node(node_name(app.name), automatically_declare_parameters_from_overrides=True)
+        # The node first: its -p / --params-file values are the file's args too (coco_ros.parameters).
+        node = Node(node_name(application_name(options)), automatically_declare_parameters_from_overrides=True)
+        given = given_parameters(node)
+        if options.check:
+            return _check(options, signals, given)
+        spec, app = load_and_build(options, given)
+        ArgParameters(node, spec).declare(given)
+        signals.check()
+        configure_logging(spec.log, logging.getLevelName(options.log_level))
         child_config = {"node": node.get_name(), "ros_args": list(ros_args), "threads": _threads(options.threads),
                         "all_threads": options.all_threads}
         with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
                            child_config=child_config) as processes:
-            host = ExecutorHost(node, app, _threads(options.threads), options.all_threads, wait_sets)
+            host = ExecutorHost(node, app, _threads(options.threads), options.all_threads,
+                                options.executor_threads is None)
             executor = host.create_executor(options.executor_threads)
             executor.add_node(node)
             log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
@@ -166,12 +166,38 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
             signals.attach(app)
             code = _run_hosted(app, host, executor, options, processes)
             return INTERRUPTED if signals.forced else code
-    except CocoError as error:  # interrupted while the children started, or a child could not be built
+    except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(_NAME, error)
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def _check(options: argparse.Namespace, signals: LaunchSignals, parameters: dict[str, str] | None = None) -> int:
+    """``--check``: load and build (``parameters``: the node's ``-p`` values), print the tree and the
+    hosting, run nothing."""
+    try:
+        spec, app = load_and_build(options, parameters)
+        plan = plan_hosting(app, _threads(options.threads), options.all_threads)
+        signals.check()
+    except CocoError as error:
+        return failure(_NAME, error)
+    print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
+    print("hosting in the ROS launcher (the launcher's process):")
+    print(describe_hosting(app, plan, options.executor_threads is None))
+    return 0
+
+
+def application_name(options: argparse.Namespace) -> str:
+    """The name the launcher's node takes from the application (``<package name=...>``, else the
+    file's stem), known before the node exists: the node's ``-p`` values may be needed to load the
+    file in full, so a file that does not load yet is named by its stem (the load that follows says
+    what is wrong)."""
+    try:
+        return load_application(options.app, parse_assignments(options.args)).name
+    except CocoError:
+        return options.app.stem
 
 
 def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace,
