@@ -43,9 +43,11 @@ from coco_core.processes.level import process_level
 from coco_core.processes.supervisor import ProcessSupervisor
 from coco_core.signals import INTERRUPTED, LaunchSignals, leave
 from coco_core.xml import load_application
+from rclpy.node import Node
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
 from .parameters import ArgParameters, given_parameters
+from .rosout import RosoutLogging
 
 log = logging.getLogger("coco")
 
@@ -130,7 +132,6 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
     if options.check and not ros_args:
         return _check(options, signals)
     import rclpy
-    from rclpy.node import Node
     from rclpy.signals import SignalHandlerOptions
 
     try:
@@ -145,33 +146,40 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         given = given_parameters(node)
         if options.check:
             return _check(options, signals, given)
-        spec, app = load_and_build(options, given)
-        ArgParameters(node, spec).declare(given)
-        signals.check()
-        configure_logging(spec.log, logging.getLevelName(options.log_level))
-        child_config = {"node": node.get_name(), "ros_args": list(ros_args), "threads": _threads(options.threads),
-                        "all_threads": options.all_threads}
-        with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
-                           child_config=child_config) as processes:
-            host = ExecutorHost(node, app, _threads(options.threads), options.all_threads,
-                                options.executor_threads is None)
-            executor = host.create_executor(options.executor_threads)
-            executor.add_node(node)
-            log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
-            if (options.executor_threads or 1) > 1:
-                log.warning("--executor-threads %d: rclpy's MultiThreadedExecutor hosts the activities; it missed "
-                            "wake-ups in docs/benchmarks.md (Figure 6: p99 2.4-566x a plain node, messages lost "
-                            "from full DDS queues): prefer the default (a wait set per activity) or 1",
-                            options.executor_threads)
-            signals.attach(app)
-            code = _run_hosted(app, host, executor, options, processes)
-            return INTERRUPTED if signals.forced else code
+        with RosoutLogging(node):  # CoCo's log lines on /rosout too, from here on
+            return _launch(node, options, ros_args, signals, given)
     except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(_NAME, error)
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], signals: LaunchSignals,
+            parameters: dict[str, str]) -> int:
+    """Load and build the application (``parameters``: the node's ``-p`` values), declare its args on
+    ``node``, start its child processes, host its activities and run it to its stop."""
+    spec, app = load_and_build(options, parameters)
+    ArgParameters(node, spec).declare(parameters)
+    signals.check()
+    configure_logging(spec.log, logging.getLevelName(options.log_level))
+    child_config = {"node": node.get_name(), "ros_args": list(ros_args), "threads": _threads(options.threads),
+                    "all_threads": options.all_threads}
+    with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
+                       child_config=child_config) as processes:
+        host = ExecutorHost(node, app, _threads(options.threads), options.all_threads, options.executor_threads is None)
+        executor = host.create_executor(options.executor_threads)
+        executor.add_node(node)
+        log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
+        if (options.executor_threads or 1) > 1:
+            log.warning("--executor-threads %d: rclpy's MultiThreadedExecutor hosts the activities; it missed "
+                        "wake-ups in docs/benchmarks.md (Figure 6: p99 2.4-566x a plain node, messages lost "
+                        "from full DDS queues): prefer the default (a wait set per activity) or 1",
+                        options.executor_threads)
+        signals.attach(app)
+        code = _run_hosted(app, host, executor, options, processes)
+        return INTERRUPTED if signals.forced else code
 
 
 def _check(options: argparse.Namespace, signals: LaunchSignals, parameters: dict[str, str] | None = None) -> int:

@@ -152,5 +152,44 @@ def test_param_get_reads_what_runs_and_param_set_on_an_arg_is_refused(app_file: 
     assert output.is_file()
 
 
+def test_log_lines_reach_rosout_with_their_severity_and_each_processs_node_name(
+        app_file: Path, tmp_path: Path, peer: tuple[Any, Any]) -> None:
+    from rcl_interfaces.msg import Log
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    node, executor = peer
+    received: list[Any] = []
+    node.create_subscription(Log, "/rosout", received.append, QoSProfile(
+        depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    # The recorder in a child process of its own: its lines come from its own node.
+    in_process = tmp_path / "in_process.xml"
+    in_process.write_text(app_file.read_text().replace(
+        '<activity name="recording">', '<process name="worker"><activity name="recording">').replace(
+        '<components><component name="rec"/></components></activity>',
+        '<components><component name="rec"/></components></activity></process>'))
+    process = subprocess.Popen(launcher_command(str(in_process), f"output:={tmp_path / 'rows.csv'}", "--duration", "2",
+                                                "--ros-args", "-p", "gian:=3", "-r", "__node:=logs_under_test"),
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env())
+
+    def names() -> set[str]:
+        return {message.name for message in received}
+
+    try:
+        deadline = time.monotonic() + 40
+        while time.monotonic() < deadline and not (
+                "logs_under_test.coco.parameters" in names() and "logs_under_test.coco" in names()
+                and any(name.startswith("logs_under_test_worker.") for name in names())):
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        out, _ = process.communicate(timeout=30)
+    assert process.returncode == 0, out
+    warning = next(message for message in received if message.name == "logs_under_test.coco.parameters")
+    assert warning.level == Log.WARN and "gian" in warning.msg and warning.line > 0 and warning.file.endswith(".py")
+    assert any(message.level == Log.INFO for message in received if message.name == "logs_under_test.coco")
+    assert any(name.startswith("logs_under_test_worker.") for name in names()), sorted(names())
+    # The console keeps its lines.
+    assert "[WARNING] coco.parameters: parameters gian" in out
+
+
 if __name__ == "__main__":
     sys.exit(pytest.main([__file__, "-q"]))
