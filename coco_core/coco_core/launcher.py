@@ -14,10 +14,10 @@ import contextlib
 import logging
 import sys
 import threading
-from pathlib import Path
 from typing import Callable, Iterator, Mapping, Sequence
 
 from . import registry
+from .applications import find_application
 from .application import Application
 from .builder import build_application, configure_logging
 from .connections import Connection
@@ -48,7 +48,9 @@ def parse_assignments(items: Sequence[str]) -> dict[str, str]:
 
 def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description="Run a CoCo application file.")
-    parser.add_argument("app", nargs="?", type=Path, help="application XML file")
+    parser.add_argument("app", nargs="?",
+                        help="application XML file, package:// URL, or the name of an installed application "
+                             "(e.g. demo_pipeline: share/<package>/config/demo_pipeline.xml)")
     parser.add_argument("args", nargs="*", metavar="name:=value", help="values for the file's <arg>s")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     parser.add_argument("--profile", type=float, metavar="S",
@@ -208,7 +210,7 @@ def load_and_build(options: argparse.Namespace,
     if options.allow_unknown and not options.check:
         raise CocoError("--allow-unknown goes with --check only: an application without some of its "
                         "components cannot run")
-    spec = load_application(options.app, parse_assignments(options.args), parameters)
+    spec = load_application(find_application(options.app), parse_assignments(options.args), parameters)
     app = build_application(spec, allow_unknown=options.allow_unknown)
     for warning in spec.warnings:
         log.warning("%s", warning)

@@ -24,9 +24,11 @@ import logging
 import re
 import sys
 import threading
+from pathlib import Path
 from typing import Sequence
 
 from coco_core import Application, CocoError
+from coco_core.applications import find_application
 from coco_core.builder import configure_logging
 from coco_core.launcher import (
     parse_assignments,
@@ -203,9 +205,9 @@ def application_name(options: argparse.Namespace) -> str:
     file in full, so a file that does not load yet is named by its stem (the load that follows says
     what is wrong)."""
     try:
-        return load_application(options.app, parse_assignments(options.args)).name
+        return load_application(find_application(options.app), parse_assignments(options.args)).name
     except CocoError:
-        return options.app.stem
+        return Path(options.app).stem
 
 
 def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace,
