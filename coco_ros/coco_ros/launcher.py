@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Sequence
 
 from coco_core import Application, CocoError
+from coco_core.model import AppSpec
 from coco_core.applications import find_application
 from coco_core.builder import configure_logging
 from coco_core.launcher import (
@@ -43,11 +44,13 @@ from coco_core.launcher import (
 )
 from coco_core.processes.level import process_level
 from coco_core.processes.supervisor import ProcessSupervisor
+from coco_core.report import snapshot
 from coco_core.signals import INTERRUPTED, LaunchSignals, leave
 from coco_core.xml import load_application
 from rclpy.node import Node
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
+from .diagnostics import ProfileDiagnostics
 from .parameters import ArgParameters, given_parameters
 from .rosout import RosoutLogging
 
@@ -131,8 +134,16 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         print(f"{_NAME}: an application file is needed (or --list)", file=sys.stderr)
         return 2
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
-    if options.check and not ros_args:
-        return _check(options, signals)
+    built = None
+    if not sets_parameters(ros_args):
+        # No -p / --params-file: the file is loaded and built before rclpy starts, so a wrong one is
+        # reported before any node appears.
+        if options.check:
+            return _check(options, signals)
+        try:
+            built = load_and_build(options)
+        except CocoError as error:
+            return failure(_NAME, error)
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
@@ -143,13 +154,14 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         return 2
     node = None
     try:
-        # The node first: its -p / --params-file values are the file's args too (coco_ros.parameters).
-        node = Node(node_name(application_name(options)), automatically_declare_parameters_from_overrides=True)
+        # With -p / --params-file, the node comes first: its values are the file's args too.
+        name = built[0].name if built else application_name(options)
+        node = Node(node_name(name), automatically_declare_parameters_from_overrides=True)
         given = given_parameters(node)
         if options.check:
             return _check(options, signals, given)
         with RosoutLogging(node):  # CoCo's log lines on /rosout too, from here on
-            return _launch(node, options, ros_args, signals, given)
+            return _launch(node, options, ros_args, signals, given, built)
     except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(_NAME, error)
     finally:
@@ -158,11 +170,18 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         rclpy.try_shutdown()
 
 
+def sets_parameters(ros_args: Sequence[str]) -> bool:
+    """Whether the ``--ros-args`` sections give the node parameters (``-p``, ``--param``,
+    ``--params-file``), which may then give the application's args their values."""
+    return any(word in ("-p", "--param", "--params-file") for word in ros_args)
+
+
 def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], signals: LaunchSignals,
-            parameters: dict[str, str]) -> int:
-    """Load and build the application (``parameters``: the node's ``-p`` values), declare its args on
-    ``node``, start its child processes, host its activities and run it to its stop."""
-    spec, app = load_and_build(options, parameters)
+            parameters: dict[str, str], built: tuple[AppSpec, Application] | None = None) -> int:
+    """Load and build the application (``parameters``: the node's ``-p`` values) unless ``built``
+    already, declare its args on ``node``, start its child processes, host its activities and run it
+    to its stop."""
+    spec, app = built or load_and_build(options, parameters)
     ArgParameters(node, spec).declare(parameters)
     signals.check()
     configure_logging(spec.log, logging.getLevelName(options.log_level))
@@ -180,7 +199,8 @@ def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], si
                         "from full DDS queues): prefer the default (a wait set per activity) or 1",
                         options.executor_threads)
         signals.attach(app)
-        code = _run_hosted(app, host, executor, options, processes)
+        with ProfileDiagnostics(node, app.name, processes.snapshots if processes else lambda: [snapshot(app)]):
+            code = _run_hosted(app, host, executor, options, processes)
         return INTERRUPTED if signals.forced else code
 
 

@@ -13,7 +13,8 @@ Every declared ``<arg>`` is declared as a node parameter, typed from its final v
 application runs with. An arg is read when the application is built, so a change while it runs
 would be accepted and ignored: ``ros2 param set`` on an arg is refused with the reason instead.
 Parameters given with ``-p`` that no ``<arg>`` declares are reported once (a typo would otherwise
-go unnoticed); the node's own parameters (``use_sim_time``, ``qos_overrides.*``) are left to rclpy.
+go unnoticed); the node's own parameters (``use_sim_time``, ``qos_overrides.*``) are left to rclpy,
+and ``diagnostics.*`` to :mod:`coco_ros.diagnostics`.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ log = logging.getLogger("coco.parameters")
 
 NODE_PARAMETERS = ("use_sim_time", "start_type_description_service")
 """Parameters every rclpy node declares for itself: never an application arg."""
-_NODE_PREFIXES = ("qos_overrides.",)
+_NODE_PREFIXES = ("qos_overrides.", "diagnostics.")
+"""rclpy's QoS overrides, and the launcher's /diagnostics settings (coco_ros.diagnostics)."""
 
 
 def is_node_parameter(name: str) -> bool:
