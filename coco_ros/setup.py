@@ -1,6 +1,24 @@
+import os
+from pathlib import Path
+
 from setuptools import find_packages, setup
 
 PACKAGE = "coco_ros"
+HERE = Path(__file__).resolve().parent
+
+
+def installed_tree(source: str, target: str) -> list[tuple[str, list[str]]]:
+    """data_files entries installing every file under ``source`` (relative to this package) into
+    share/<package>/``target``, folders kept: the workspace's applications (config/, with their
+    meshes and CSVs) and launch files, found by name from any folder (coco_core.applications)."""
+    root = (HERE / source).resolve()
+    entries: dict[str, list[str]] = {}
+    for path in sorted(root.rglob("*")):
+        if path.is_file():
+            folder = Path("share", PACKAGE, target, path.parent.relative_to(root))
+            entries.setdefault(str(folder), []).append(os.path.relpath(path, HERE))
+    return sorted(entries.items())
+
 
 setup(
     name=PACKAGE,
@@ -11,6 +29,8 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         # Listed in colcon.pkg: puts lib/<pkg> (the console scripts, where `ros2 run` looks) on PATH.
         (f"share/{PACKAGE}/hook", ["hook/scripts_path.dsv", "hook/scripts_path.sh"]),
+        *installed_tree("../config", "config"),
+        *installed_tree("launch", "launch"),
     ],
     # The launcher is a plain script, not a console-script entry point: see scripts/launcher.
     scripts=["scripts/launcher"],

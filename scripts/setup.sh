@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Prepares the workspace from a fresh clone and leaves it sourced: system packages (when missing),
 # the virtual environment with the pinned requirements, and a colcon build.
-# Sourced by run_app.sh and run_tests.sh; safe to run again (each step is skipped when up to date).
-set -euo pipefail
+# Sourced by run_app.sh and run_tests.sh, or by a user (`source scripts/setup.sh`); safe to run again
+# (each step is skipped when up to date). The steps run in a subshell with `set -euo pipefail`, so a
+# failure ends the setup, never the caller's shell, and the caller's shell options are left as they were.
 
 COCO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="$COCO_ROOT/.venv"
@@ -106,16 +107,32 @@ ensure_system_packages() {
     fi
 }
 
-ensure_system_packages
-ensure_venv
-ensure_requirements
+prepare_workspace() {
+    set -euo pipefail
+    ensure_system_packages
+    ensure_venv
+    ensure_requirements
+    # shellcheck disable=SC1091
+    source "$VENV/bin/activate"
+    ensure_wheel_build_paths
+    build_workspace
+}
+
+# Not `if ! (prepare_workspace)`: bash ignores `set -e` inside a condition, so a failing step would not
+# stop the ones after it. Under the caller's own `set -e` (run_tests.sh) a failure stops the caller here.
+(prepare_workspace)
+_coco_setup_status=$?
+if [ "$_coco_setup_status" -ne 0 ]; then
+    log "setup failed (see above)"
+    return "$_coco_setup_status" 2>/dev/null || exit "$_coco_setup_status"
+fi
+unset _coco_setup_status
+# The activation scripts read unset variables: `set -u` is lifted around them, then restored.
+case $- in *u*) _coco_nounset=1 ;; *) _coco_nounset= ;; esac
 set +u
 # shellcheck disable=SC1091
 source "$VENV/bin/activate"
-set -u
-ensure_wheel_build_paths
-build_workspace
-set +u
 # shellcheck disable=SC1091
 source "$COCO_ROOT/install/setup.bash"
-set -u
+[ -z "$_coco_nounset" ] || set -u
+unset _coco_nounset

@@ -14,10 +14,10 @@ import contextlib
 import logging
 import sys
 import threading
-from pathlib import Path
-from typing import Callable, Iterator, Sequence
+from typing import Callable, Iterator, Mapping, Sequence
 
 from . import registry
+from .applications import find_application
 from .application import Application
 from .builder import build_application, configure_logging
 from .connections import Connection
@@ -48,7 +48,9 @@ def parse_assignments(items: Sequence[str]) -> dict[str, str]:
 
 def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description="Run a CoCo application file.")
-    parser.add_argument("app", nargs="?", type=Path, help="application XML file")
+    parser.add_argument("app", nargs="?",
+                        help="application XML file, package:// URL, or the name of an installed application "
+                             "(e.g. demo_pipeline: share/<package>/config/demo_pipeline.xml)")
     parser.add_argument("args", nargs="*", metavar="name:=value", help="values for the file's <arg>s")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     parser.add_argument("--profile", type=float, metavar="S",
@@ -199,13 +201,16 @@ def stopped_by_a_failure(app: Application) -> bool:
     return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
 
 
-def load_and_build(options: argparse.Namespace) -> tuple[AppSpec, Application]:
+def load_and_build(options: argparse.Namespace,
+                   parameters: Mapping[str, str] | None = None) -> tuple[AppSpec, Application]:
     """The application of ``options`` loaded and built; its warnings (what the file sets but this
-    version ignores, components ``--allow-unknown`` left out) are logged."""
+    version ignores, components ``--allow-unknown`` left out) are logged. ``parameters``: values
+    for the file's args ranked below the command line's ``name:=value`` (the ROS launcher's node
+    parameters)."""
     if options.allow_unknown and not options.check:
         raise CocoError("--allow-unknown goes with --check only: an application without some of its "
                         "components cannot run")
-    spec = load_application(options.app, parse_assignments(options.args))
+    spec = load_application(find_application(options.app), parse_assignments(options.args), parameters)
     app = build_application(spec, allow_unknown=options.allow_unknown)
     for warning in spec.warnings:
         log.warning("%s", warning)

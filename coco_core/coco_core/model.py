@@ -207,6 +207,20 @@ class TransformsSpec:
     """The first ``<transforms>`` element read."""
 
 
+@dataclass(frozen=True)
+class ArgDeclaration:
+    """One ``<arg>`` as declared: what the ROS launcher declares as a node parameter of the same name."""
+
+    name: str
+    value: str
+    """Its final value (given, a parameter, ``value=`` or ``default=``)."""
+    choices: tuple[str, ...] = ()
+    doc: str = ""
+    fixed: bool = False
+    """Declared with ``value=``: nothing from outside changes it."""
+    location: Location | None = None
+
+
 @dataclass
 class AppSpec:
     """A whole application after includes, substitutions and conditions were applied."""
@@ -223,6 +237,8 @@ class AppSpec:
     """Resource search paths (``<paths>``, ``<resourcespaths>``), absolute, in file order."""
     args: dict[str, str] = field(default_factory=dict)
     """Final values of the ``<arg>`` declarations."""
+    arg_declarations: dict[str, ArgDeclaration] = field(default_factory=dict)
+    """The ``<arg>`` declarations by name, in file order (given but undeclared args are not here)."""
     on_error: str = "continue"
     log: LogSpec | None = None
     transforms: TransformsSpec | None = None

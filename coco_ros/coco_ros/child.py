@@ -16,6 +16,26 @@ from coco_core.processes.child import ChildProcess, main
 
 from .hosting import ExecutorHost
 from .launcher import node_name, run_hosted
+from .parameters import ArgParameters, given_parameters
+from .rosout import RosoutLogging
+
+
+def without_node_renames(ros_args: list[str]) -> list[str]:
+    """``ros_args`` less its node renames (``-r __node:=NAME``, ``--remap __name:=NAME``): the
+    child's node is named after the launcher's final name already, and a rename would give every
+    process's node the launcher's name (two nodes of one name: their parameters and /rosout lines
+    could not be told apart)."""
+    kept: list[str] = []
+    words = iter(ros_args)
+    for word in words:
+        if word in ("-r", "--remap"):
+            rule = next(words, "")
+            if rule.split(":=", 1)[0].rsplit(":", 1)[-1] in ("__node", "__name"):
+                continue
+            kept += [word, rule]
+        else:
+            kept.append(word)
+    return kept
 
 
 class RosChildProcess(ChildProcess):
@@ -26,14 +46,19 @@ class RosChildProcess(ChildProcess):
         from rclpy.node import Node
         from rclpy.signals import SignalHandlerOptions
 
-        rclpy.init(args=["launcher", *config["ros_args"]], signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=["launcher", *without_node_renames(config["ros_args"])],
+                   signal_handler_options=SignalHandlerOptions.NO)
         node = None
         try:
             node = Node(f"{config['node']}_{node_name(app.process)}", automatically_declare_parameters_from_overrides=True)
+            # The launcher resolved the args (its -p values included): a child's node shows them and
+            # refuses changes as the launcher's does.
+            ArgParameters(node, config["spec"]).declare(given_parameters(node))
             host = ExecutorHost(node, app, config["threads"], config["all_threads"])
             executor = host.create_executor()
             executor.add_node(node)
-            clean = run_hosted(app, host, executor)
+            with RosoutLogging(node):  # this process's log lines on /rosout, under its node's name
+                clean = run_hosted(app, host, executor)
             if clean:
                 host.close()
             return clean

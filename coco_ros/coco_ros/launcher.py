@@ -24,11 +24,15 @@ import logging
 import re
 import sys
 import threading
+from pathlib import Path
 from typing import Sequence
 
 from coco_core import Application, CocoError
+from coco_core.model import AppSpec
+from coco_core.applications import find_application
 from coco_core.builder import configure_logging
 from coco_core.launcher import (
+    parse_assignments,
     describe,
     describe_processes,
     failure,
@@ -40,9 +44,15 @@ from coco_core.launcher import (
 )
 from coco_core.processes.level import process_level
 from coco_core.processes.supervisor import ProcessSupervisor
+from coco_core.report import snapshot
 from coco_core.signals import INTERRUPTED, LaunchSignals, leave
+from coco_core.xml import load_application
+from rclpy.node import Node
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
+from .diagnostics import ProfileDiagnostics
+from .parameters import ArgParameters, given_parameters
+from .rosout import RosoutLogging
 
 log = logging.getLogger("coco")
 
@@ -124,22 +134,17 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         print(f"{_NAME}: an application file is needed (or --list)", file=sys.stderr)
         return 2
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
-    try:
-        spec, app = load_and_build(options)
-        plan = plan_hosting(app, _threads(options.threads), options.all_threads)
-        wait_sets = options.executor_threads is None
-        signals.check()
+    built = None
+    if not sets_parameters(ros_args):
+        # No -p / --params-file: the file is loaded and built before rclpy starts, so a wrong one is
+        # reported before any node appears.
         if options.check:
-            print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
-            print("hosting in the ROS launcher (the launcher's process):")
-            print(describe_hosting(app, plan, wait_sets))
-            return 0
-    except CocoError as error:
-        return failure(_NAME, error)
-    configure_logging(spec.log, logging.getLevelName(options.log_level))
-
+            return _check(options, signals)
+        try:
+            built = load_and_build(options)
+        except CocoError as error:
+            return failure(_NAME, error)
     import rclpy
-    from rclpy.node import Node
     from rclpy.signals import SignalHandlerOptions
 
     try:
@@ -149,29 +154,80 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         return 2
     node = None
     try:
-        node = Node(node_name(app.name), automatically_declare_parameters_from_overrides=True)
-        child_config = {"node": node.get_name(), "ros_args": list(ros_args), "threads": _threads(options.threads),
-                        "all_threads": options.all_threads}
-        with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
-                           child_config=child_config) as processes:
-            host = ExecutorHost(node, app, _threads(options.threads), options.all_threads, wait_sets)
-            executor = host.create_executor(options.executor_threads)
-            executor.add_node(node)
-            log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
-            if (options.executor_threads or 1) > 1:
-                log.warning("--executor-threads %d: rclpy's MultiThreadedExecutor hosts the activities; it missed "
-                            "wake-ups in docs/benchmarks.md (Figure 6: p99 2.4-566x a plain node, messages lost "
-                            "from full DDS queues): prefer the default (a wait set per activity) or 1",
-                            options.executor_threads)
-            signals.attach(app)
-            code = _run_hosted(app, host, executor, options, processes)
-            return INTERRUPTED if signals.forced else code
-    except CocoError as error:  # interrupted while the children started, or a child could not be built
+        # With -p / --params-file, the node comes first: its values are the file's args too.
+        name = built[0].name if built else application_name(options)
+        node = Node(node_name(name), automatically_declare_parameters_from_overrides=True)
+        given = given_parameters(node)
+        if options.check:
+            return _check(options, signals, given)
+        with RosoutLogging(node):  # CoCo's log lines on /rosout too, from here on
+            return _launch(node, options, ros_args, signals, given, built)
+    except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(_NAME, error)
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def sets_parameters(ros_args: Sequence[str]) -> bool:
+    """Whether the ``--ros-args`` sections give the node parameters (``-p``, ``--param``,
+    ``--params-file``), which may then give the application's args their values."""
+    return any(word in ("-p", "--param", "--params-file") for word in ros_args)
+
+
+def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], signals: LaunchSignals,
+            parameters: dict[str, str], built: tuple[AppSpec, Application] | None = None) -> int:
+    """Load and build the application (``parameters``: the node's ``-p`` values) unless ``built``
+    already, declare its args on ``node``, start its child processes, host its activities and run it
+    to its stop."""
+    spec, app = built or load_and_build(options, parameters)
+    ArgParameters(node, spec).declare(parameters)
+    signals.check()
+    configure_logging(spec.log, logging.getLevelName(options.log_level))
+    child_config = {"node": node.get_name(), "ros_args": list(ros_args), "threads": _threads(options.threads),
+                    "all_threads": options.all_threads}
+    with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
+                       child_config=child_config) as processes:
+        host = ExecutorHost(node, app, _threads(options.threads), options.all_threads, options.executor_threads is None)
+        executor = host.create_executor(options.executor_threads)
+        executor.add_node(node)
+        log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
+        if (options.executor_threads or 1) > 1:
+            log.warning("--executor-threads %d: rclpy's MultiThreadedExecutor hosts the activities; it missed "
+                        "wake-ups in docs/benchmarks.md (Figure 6: p99 2.4-566x a plain node, messages lost "
+                        "from full DDS queues): prefer the default (a wait set per activity) or 1",
+                        options.executor_threads)
+        signals.attach(app)
+        with ProfileDiagnostics(node, app.name, processes.snapshots if processes else lambda: [snapshot(app)]):
+            code = _run_hosted(app, host, executor, options, processes)
+        return INTERRUPTED if signals.forced else code
+
+
+def _check(options: argparse.Namespace, signals: LaunchSignals, parameters: dict[str, str] | None = None) -> int:
+    """``--check``: load and build (``parameters``: the node's ``-p`` values), print the tree and the
+    hosting, run nothing."""
+    try:
+        spec, app = load_and_build(options, parameters)
+        plan = plan_hosting(app, _threads(options.threads), options.all_threads)
+        signals.check()
+    except CocoError as error:
+        return failure(_NAME, error)
+    print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
+    print("hosting in the ROS launcher (the launcher's process):")
+    print(describe_hosting(app, plan, options.executor_threads is None))
+    return 0
+
+
+def application_name(options: argparse.Namespace) -> str:
+    """The name the launcher's node takes from the application (``<package name=...>``, else the
+    file's stem), known before the node exists: the node's ``-p`` values may be needed to load the
+    file in full, so a file that does not load yet is named by its stem (the load that follows says
+    what is wrong)."""
+    try:
+        return load_application(find_application(options.app), parse_assignments(options.args)).name
+    except CocoError:
+        return Path(options.app).stem
 
 
 def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace,

@@ -131,3 +131,10 @@ def test_application_arguments_are_not_taken_for_ros_remap_rules() -> None:
                                "-p", "gain:=2.0", "--", "--duration", "3", "output:=out/x"])
     assert own == ["app.xml", "bag:=/tmp/session", "--duration", "3", "output:=out/x"]
     assert ros == ["--ros-args", "-r", "__node:=n", "-p", "gain:=2.0"]
+
+
+def test_a_childs_node_keeps_its_own_name_under_a_node_rename() -> None:
+    from coco_ros.child import without_node_renames
+
+    words = ["--ros-args", "-r", "__node:=mine", "--remap", "launcher:__name:=x", "-r", "chatter:=talk", "-p", "a:=1"]
+    assert without_node_renames(words) == ["--ros-args", "-r", "chatter:=talk", "-p", "a:=1"]

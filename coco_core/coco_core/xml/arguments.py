@@ -6,7 +6,10 @@ in the original launcher, and an arg with neither must be given. An arg is visib
 order (an included file's args are visible in it and after its ``<include>``). A value given from
 outside is also visible where no declaration precedes it, as in the original launcher, whose
 files use ``$(arg port)`` without declaring ``port``; only a given value that nothing declares
-or uses is an error (usually a typo on the command line). A repeated
+or uses is an error (usually a typo on the command line). Values set from a lower layer (the ROS
+launcher's node parameters, ``-p`` and ``--params-file``) rank between the command line's and the
+file's, and only for declared args: a ROS node has parameters of its own (``use_sim_time``) that no
+file declares. A repeated
 declaration may only restate a ``default=``, which does not change the value already set: that lets
 an included file declare the args it uses, so that it also loads on its own.
 """
@@ -17,6 +20,7 @@ import re
 from collections.abc import Iterator, Mapping
 
 from ..errors import ConfigError, Location, did_you_mean
+from ..model import ArgDeclaration
 from .reader import CONDITIONS, FileReader
 from .tree import Element
 
@@ -27,8 +31,11 @@ _NAME = re.compile(r"[A-Za-z0-9_.-]+")
 class Arguments:
     """The args of one load: ``values`` is what ``$(arg ...)`` sees at any point of the reading."""
 
-    def __init__(self, given: Mapping[str, str]) -> None:
+    def __init__(self, given: Mapping[str, str], parameters: Mapping[str, str] | None = None) -> None:
         self.given = dict(given)
+        self.parameters = dict(parameters or {})
+        """Values for declared args that rank below ``given`` (ROS parameters); never an error."""
+        self.declarations: dict[str, ArgDeclaration] = {}
         self.values: dict[str, str] = {}
         self._declared: dict[str, Location] = {}
         self.used_undeclared: set[str] = set()
@@ -75,6 +82,8 @@ class Arguments:
         value: str | None
         if name in self.given:
             value = self.given[name]
+        elif name in self.parameters and not fixed:
+            value = self.parameters[name]
         elif fixed:
             value = reader.attribute(element, "value")
         elif "default" in element.attributes:
@@ -87,6 +96,8 @@ class Arguments:
         if choices and value is not None and value not in choices:
             reader.error(f"arg {name!r} is {value!r}; expected one of: {', '.join(choices)}", element)
         self.values[name] = value or ""
+        self.declarations[name] = ArgDeclaration(name, self.values[name], tuple(choices),
+                                                 reader.attribute(element, "doc") or "", fixed, element.location)
 
     @staticmethod
     def _choices(reader: FileReader, element: Element) -> list[str]:

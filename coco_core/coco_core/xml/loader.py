@@ -52,11 +52,14 @@ real applications, which keeps a generated chain from exhausting the reader's re
 
 
 def load_application(
-    path: str | os.PathLike[str], args: Mapping[str, str] | None = None
+    path: str | os.PathLike[str], args: Mapping[str, str] | None = None,
+    parameters: Mapping[str, str] | None = None,
 ) -> AppSpec:
     """The application described by the file at ``path``.
 
-    ``args`` gives values to the ``<arg>`` declarations (``name:=value`` on a command line).
+    ``args`` gives values to the ``<arg>`` declarations (``name:=value`` on a command line);
+    ``parameters`` too, ranked below ``args`` and only for declared args (the ROS launcher's node
+    parameters: see :class:`.arguments.Arguments`).
     Raises :class:`ConfigError` when the file cannot be read, and :class:`ConfigErrors` with every
     error found (each pointing at a file and line) when its content is wrong.
     """
@@ -65,7 +68,7 @@ def load_application(
         data = read_regular_file(file, APPLICATION_FILE_LIMIT, "application file")
     except FileReadError as error:
         raise ConfigError(str(error)) from None
-    return _Loader(args or {}).load(data, file, os.path.dirname(file))
+    return _Loader(args or {}, parameters).load(data, file, os.path.dirname(file))
 
 
 def parse_application_string(
@@ -82,10 +85,10 @@ def parse_application_string(
 class _Loader:
     """The state of one load: errors so far, args, the draft and the chain of open includes."""
 
-    def __init__(self, given_args: Mapping[str, str]) -> None:
+    def __init__(self, given_args: Mapping[str, str], parameters: Mapping[str, str] | None = None) -> None:
         self.errors: list[ConfigError] = []
         self.warnings: list[str] = []
-        self.arguments = Arguments(given_args)
+        self.arguments = Arguments(given_args, parameters)
         self.substitutions = Substitutions(self.arguments.visible)
         self.draft = Draft()
         self.include_chain: list[tuple[str, str]] = []
@@ -118,6 +121,7 @@ class _Loader:
             processes=self.draft.processes,
             paths=self.draft.paths,
             args=dict(self.arguments.values),
+            arg_declarations=dict(self.arguments.declarations),
             on_error=on_error,
             log=self.draft.log,
             transforms=self.draft.transforms.spec if self.draft.transforms is not None else None,

@@ -140,14 +140,31 @@ class ROSInterface(Component):
             spec = route.spec
             route.entity = node.create_subscription(route.converter.message_type, spec.topic,
                                                     activity_callback(self, self._receiver(route)),
-                                                    spec.qos_profile(), callback_group=group, raw=True)
+                                                    spec.qos_profile(), callback_group=group, raw=True,
+                                                    qos_overriding_options=self._qos_overrides(node, spec.topic,
+                                                                                               "subscription"))
         for route in self._publications:
             spec = route.spec
             route.entity = node.create_publisher(route.converter.message_type, spec.topic, spec.qos_profile(),
-                                                 callback_group=group)
+                                                 callback_group=group,
+                                                 qos_overriding_options=self._qos_overrides(node, spec.topic,
+                                                                                            "publisher"))
         log.info("ROSInterface %s: subscribed %s; publishing %s", self.name,
                  ", ".join(r.spec.describe() for r in self._subscriptions) or "nothing",
                  ", ".join(r.spec.describe() for r in self._publications) or "nothing")
+
+    def _qos_overrides(self, node: Any, topic: str, kind: str) -> Any:
+        """rclpy's QoS overrides for one entity: ``-p qos_overrides./topic.publisher.reliability:=...``
+        (and ``.history``, ``.depth``: rclpy's default policies) replace what the XML's
+        ``;reliability=`` gave, as for any rclpy node. A topic that another entity of this kind in the
+        same node has already takes this component's name as its entity id
+        (``qos_overrides./topic.publisher_NAME.depth``): one parameter cannot configure two entities."""
+        from rclpy.qos_overriding_options import QoSOverridingOptions
+
+        resolved = node.resolve_topic_name(topic)
+        entities = node.publishers if kind == "publisher" else node.subscriptions
+        taken = any(entity.topic_name == resolved for entity in entities)
+        return QoSOverridingOptions.with_default_policies(entity_id=self.name if taken else None)
 
     def _receiver(self, route: _Route):
         converter, port = route.converter, route.port

@@ -1,0 +1,85 @@
+"""The profile on /diagnostics (coco_ros.diagnostics): a status per activity, component, connection
+and process, levels from what changed since the last array, thresholds changed live by ``ros2 param
+set``, the period read-only. The launcher runs as the installed script; this test is a real rclpy
+subscriber and parameter client on its own DDS domain."""
+
+from __future__ import annotations
+
+import subprocess
+import time
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import pytest
+
+from conftest import rclpy_peer
+from test_launcher_parameters import APP, launcher_command, ros_env
+
+DOMAIN = "71"
+# The recorder reads the average every 50 ms through a DATA connection (newest only) while it comes
+# at 100 Hz: the connection drops about 4 samples in 5, which must show as a WARN.
+DROPPING = APP.replace('''<connection data="BUFFER" policy="LOCKED" buffersize="64">
+      <src task="avg" port="filtered"/>''', '''<connection data="DATA" policy="LOCKED">
+      <src task="avg" port="filtered"/>''')
+
+
+@pytest.fixture
+def peer(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Any, Any]]:
+    yield from rclpy_peer(monkeypatch, DOMAIN, "diagnostics_peer")
+
+
+def test_the_profile_reaches_diagnostics_with_levels_and_live_thresholds(tmp_path: Path, peer: tuple[Any, Any]) -> None:
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+
+    assert "DATA" in DROPPING
+    node, executor = peer
+    arrays: list[Any] = []
+    node.create_subscription(DiagnosticArray, "/diagnostics", arrays.append, 10)
+    app = tmp_path / "dropping.xml"
+    app.write_text(DROPPING)
+    process = subprocess.Popen(launcher_command(str(app), f"output:={tmp_path / 'rows.csv'}", "--duration", "60",
+                                                "--ros-args", "-p", "diagnostics.period:=0.2", "-r", "__node:=diag_under_test"),
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env())
+
+    def wait_for(condition: Callable[[], Any], what: str, seconds: float = 30) -> Any:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            found = condition()
+            if found:
+                return found
+            executor.spin_once(timeout_sec=0.1)
+        raise AssertionError(f"{what} never came; last array: {arrays[-1] if arrays else None}")
+
+    def status(array: Any, name: str) -> Any:
+        return next((s for s in array.status if s.name == f"coco/param_app: {name}"), None)
+
+    connection = "connection avg.filtered -> rec.values"
+    try:
+        warned = wait_for(lambda: next((a for a in arrays if (s := status(a, connection)) is not None
+                                        and s.level == DiagnosticStatus.WARN), None), "a WARN for the dropping connection")
+        dropping = status(warned, connection)
+        assert "samples dropped since the last report" in dropping.message
+        assert {kv.key for kv in dropping.values} >= {"written", "read", "dropped", "pending"}
+        # (An activity's level depends on the machine's load: only its presence is checked.)
+        assert {kv.key for kv in status(warned, "activity sampling").values} >= {"cycles", "overruns"}
+        assert status(warned, "component avg").level == DiagnosticStatus.OK
+        assert status(warned, "process launcher") is not None
+
+        client = AsyncParameterClient(node, "diag_under_test")
+        wait_for(client.services_are_ready, "the launcher's parameter services")
+        future = client.set_parameters([Parameter("diagnostics.drops_warn", value=1_000_000)])
+        wait_for(future.done, "the answer to set diagnostics.drops_warn")
+        assert future.result().results[0].successful
+        seen = len(arrays)
+        wait_for(lambda: any(status(a, connection).level == DiagnosticStatus.OK for a in arrays[seen + 1:]),
+                 "the connection back to OK under the new threshold")
+        refused = client.set_parameters([Parameter("diagnostics.period", value=5.0)])
+        wait_for(refused.done, "the answer to set diagnostics.period")
+        assert not refused.result().results[0].successful
+        assert "read when the launcher starts" in refused.result().results[0].reason
+    finally:
+        process.terminate()
+        out, _ = process.communicate(timeout=20)
+    assert process.returncode in (0, 130, 143), out
