@@ -15,7 +15,7 @@ import pytest
 from conftest import rclpy_peer
 from test_launcher_parameters import APP, launcher_command, ros_env
 
-DOMAIN = "71"
+DOMAIN = "42"
 # The recorder reads the average every 50 ms through a DATA connection (newest only) while it comes
 # at 100 Hz: the connection drops about 4 samples in 5, which must show as a WARN.
 DROPPING = APP.replace('''<connection data="BUFFER" policy="LOCKED" buffersize="64">
@@ -41,7 +41,7 @@ def test_the_profile_reaches_diagnostics_with_levels_and_live_thresholds(tmp_pat
     app.write_text(DROPPING)
     process = subprocess.Popen(launcher_command(str(app), f"output:={tmp_path / 'rows.csv'}", "--duration", "60",
                                                 "--ros-args", "-p", "diagnostics.period:=0.2", "-r", "__node:=diag_under_test"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env())
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env(DOMAIN))
 
     def wait_for(condition: Callable[[], Any], what: str, seconds: float = 30) -> Any:
         deadline = time.monotonic() + seconds

@@ -49,7 +49,7 @@ APP = """<package name="param_app">
   </activities>
 </package>
 """
-DOMAIN = "71"
+DOMAIN = "41"
 WORKSPACE = Path(__file__).resolve().parents[2]
 LAUNCHER = WORKSPACE / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
 
@@ -60,8 +60,9 @@ def launcher_command(*words: str) -> list[str]:
     return [str(LAUNCHER), *words]
 
 
-def ros_env() -> dict[str, str]:
-    return {**os.environ, "ROS_DOMAIN_ID": DOMAIN, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+def ros_env(domain: str = DOMAIN) -> dict[str, str]:
+    """The launcher's environment: its own DDS domain (the test's), this host only."""
+    return {**os.environ, "ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
             "PYTHONUNBUFFERED": "1"}
 
 

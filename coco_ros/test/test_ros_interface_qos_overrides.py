@@ -14,7 +14,7 @@ import pytest
 from conftest import rclpy_peer
 from test_launcher_parameters import launcher_command, ros_env
 
-DOMAIN = "71"
+DOMAIN = "43"
 APP = """<package name="qos_app">
   <components>
     <component><name>bridge</name><task>ROSInterface</task><library>coco_ros</library>
@@ -50,7 +50,7 @@ def test_qos_override_parameters_replace_the_xmls_qos(tmp_path: Path, peer: tupl
                                                 "-p", "qos_overrides./qos_out.publisher.reliability:=best_effort",
                                                 "-p", "qos_overrides./qos_out.publisher.depth:=3",
                                                 "-p", "qos_overrides./qos_in.subscription.reliability:=best_effort"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env())
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env(DOMAIN))
 
     def endpoint(topic: str, publishers: bool) -> Any:
         found = (node.get_publishers_info_by_topic if publishers else node.get_subscriptions_info_by_topic)(topic)
