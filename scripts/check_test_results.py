@@ -42,8 +42,9 @@ def slowest(files: list[Path], count: int) -> list[str]:
 
 
 def has_tests(suite: str, workspace: Path) -> bool:
-    """Whether the package (or the workspace-level ``test/``) has test files that should have run."""
-    folder = workspace / "test" if suite == "workspace_tests" else workspace / suite / "test"
+    """Whether the package (or the workspace-level ``test/``, whose suites are ``workspace_*``) has test
+    files that should have run."""
+    folder = workspace / "test" if suite.startswith("workspace_") else workspace / suite / "test"
     return any(folder.glob("test_*.py"))
 
 
