@@ -1,4 +1,4 @@
-"""Display: frames per second at 640x480 headless (Mesa llvmpipe), Baxter and Baxter + a live RGB-D mesh, vs pyrender.
+"""Display: frames per second at 640x480 headless (EGL), Baxter and Baxter + a live RGB-D mesh, vs pyrender.
 
 A *frame* is what a display application does each period: the Baxter joints move (the next row of a
 real recording, ``shared/data/baxter/shake_hand.dat``, set on the transformation graph), a new RGB-D
@@ -20,7 +20,8 @@ is drawn and the colour image is read back (the render-to-texture output; it als
 
 Goal: Baxter + 640x480 RGB-D mesh at >= 30 fps. A second table gives the cost of taking in a new RGB-D
 frame, a third where the time of a CoCo frame goes (cProfile: draw calls, read-back, texture writes,
-Python).
+Python). The tables name the renderer the GL context reports (``GL_RENDERER``): Mesa's llvmpipe on a
+machine without a GPU (everything on the CPU), a GPU's driver elsewhere.
 
     .venv/bin/python bench/bench_display.py [--json PATH] [--no-plot]
 """
@@ -320,7 +321,7 @@ def same_scene(coco: CocoScene, anchor: PyrenderScene, pose: dict[str, float], r
 # --- profile --------------------------------------------------------------------------------------------
 
 CATEGORIES: list[tuple[str, Callable[[str], bool]]] = [
-    ("GL draw calls (llvmpipe: vertex processing, binning)", lambda f: "'render' of 'mgl.VertexArray'" in f),
+    ("GL draw calls", lambda f: "'render' of 'mgl.VertexArray'" in f),
     ("colour read-back (waits for rasterisation)", lambda f: "'read_into' of 'mgl.Framebuffer'" in f),
     ("texture writes (new RGB-D frame)", lambda f: "'write' of 'mgl.Texture" in f),
 ]
@@ -350,10 +351,24 @@ def fps(samples: Samples) -> float:
     return 1e9 / samples.median
 
 
+def on_llvmpipe(renderer: str) -> bool:
+    """Whether the context renders with Mesa's llvmpipe (on the CPU), whose threads the notes explain."""
+    return "llvmpipe" in renderer.lower()
+
+
+def renderer_note(renderer: str) -> str:
+    """What the renderer does on the calling thread and where rasterisation runs, for the renderer at hand."""
+    if on_llvmpipe(renderer):
+        return ("llvmpipe runs vertex processing on the calling thread and rasterises on LP_NUM_THREADS threads "
+                f"({os.environ.get('LP_NUM_THREADS', 'default: one per core')}).")
+    return (f"{renderer} renders on its own hardware: a draw call queues the work and returns, the colour "
+            "read-back waits for the GPU to finish the frame.")
+
+
 def frame_table(samples: dict[str, Samples], triangles: dict[str, int], strides: dict[str, str],
                 quality: dict[str, dict[str, float]], overlap: dict[str, float],
-                others: str) -> tuple[Table, dict[str, Any]]:
-    t = Table(f"Display - frames per second, {SIZE[0]}x{SIZE[1]} headless, llvmpipe (median of repeats)",
+                others: str, renderer: str) -> tuple[Table, dict[str, Any]]:
+    t = Table(f"Display - frames per second, {SIZE[0]}x{SIZE[1]} headless, {renderer} (median of repeats)",
               ["scene", "triangles", "RGB-D stride", "ms/frame", "fps", "vs pyrender (x faster)",
                "vs full detail: IoU", f"colour differs", f"goal >= {GOAL_FPS:g} fps"])
     results: dict[str, Any] = {}
@@ -385,9 +400,7 @@ def frame_table(samples: dict[str, Samples], triangles: dict[str, int], strides:
         "reads back colour and depth; it lights the normal-less RGB-D mesh (darker), CoCo shows it unlit. "
         f"Ratios are medians of per-round ratios ({REPEATS} interleaved rounds); every RGB-D row is compared "
         "with pyrender's full-detail scene.",
-        f"Other processes used {others} of the {os.cpu_count()} cores meanwhile; llvmpipe runs vertex "
-        "processing on the calling thread and rasterises on LP_NUM_THREADS threads "
-        f"({os.environ.get('LP_NUM_THREADS', 'default: one per core')}).",
+        f"Other processes used {others} of the {os.cpu_count()} cores meanwhile; {renderer_note(renderer)}",
     ]
     return t, results
 
@@ -406,14 +419,19 @@ def upload_table(samples: dict[str, Samples]) -> tuple[Table, dict[str, Any]]:
     return t, results
 
 
-def profile_table(breakdown: dict[str, dict[str, float]]) -> tuple[Table, dict[str, Any]]:
+def profile_table(breakdown: dict[str, dict[str, float]], renderer: str) -> tuple[Table, dict[str, Any]]:
     names = list(breakdown)
-    t = Table("Display - where a CoCo frame's time goes (cProfile, ms per frame)", ["part", *names])
+    t = Table(f"Display - where a CoCo frame's time goes on {renderer} (cProfile, ms per frame)", ["part", *names])
     for part in next(iter(breakdown.values())):
         t.add(part, *(f"{breakdown[name][part] * 1e3:.1f}" for name in names))
-    t.notes += ["Own time of the moderngl calls: a draw call returns once llvmpipe has run the vertex (and "
-                "geometry) shaders and binned the triangles on the calling thread; the read-back waits for "
-                "the rasteriser threads. The Python row is everything else in the frame."]
+    if on_llvmpipe(renderer):
+        t.notes.append("Own time of the moderngl calls: a draw call returns once llvmpipe has run the vertex (and "
+                       "geometry) shaders and binned the triangles on the calling thread; the read-back waits for "
+                       "the rasteriser threads. The Python row is everything else in the frame.")
+    else:
+        t.notes.append(f"Own time of the moderngl calls: a draw call returns once {renderer}'s driver has queued "
+                       "it; the read-back waits for the GPU to finish the frame. The Python row is everything "
+                       "else in the frame.")
     return t, breakdown
 
 
@@ -421,7 +439,7 @@ UPLOADS = ("CoCo GLRGBDImage upload", "CPU mesh (numpy)", "memcpy of the frame (
 
 
 def draw(frames: dict[str, Samples], triangles: dict[str, int],
-         quality: dict[str, dict[str, float]]) -> Callable[[Any], Any]:
+         quality: dict[str, dict[str, float]], renderer: str) -> Callable[[Any], Any]:
     def figure(plt: Any) -> Any:
         names = list(frames)
         values = [fps(frames[name]) for name in names]
@@ -436,7 +454,7 @@ def draw(frames: dict[str, Samples], triangles: dict[str, int],
             label = f"{value:.1f} fps, {triangles[name] / 1e3:.0f}k triangles" + (
                 f", IoU {q['iou']:.2f} vs full detail" if q and name not in (COCO_BAXTER, COCO_RGBD) else "")
             ax.text(value + 0.3, y, label, va="center", fontsize=7)
-        ax.set_xlabel(f"frames per second, {SIZE[0]}x{SIZE[1]} headless, Mesa llvmpipe (CPU only)")
+        ax.set_xlabel(f"frames per second, {SIZE[0]}x{SIZE[1]} headless, {renderer}")
         ax.set_title("CoCo display (GLManager) vs pyrender, same scene")
         ax.legend(loc="lower right", fontsize=8)
         ax.set_xlim(0, max(max(values) * 1.6, GOAL_FPS * 1.1))
@@ -500,14 +518,14 @@ def main() -> None:
     breakdown = {name: profile(variants[name], 10) for name in (COCO_BAXTER, COCO_RGBD, COCO_GOALS[0])}
     others = "n/a" if load.others is None else f"{load.others:.0%}"
 
-    t1, r1 = frame_table(frame_samples, triangles, strides, quality, overlap, others)
-    t2, r2 = upload_table(upload_samples)
-    t3, r3 = profile_table(breakdown)
     renderer = scenes[COCO_BAXTER].ctx.info["GL_RENDERER"]
+    t1, r1 = frame_table(frame_samples, triangles, strides, quality, overlap, others, renderer)
+    t2, r2 = upload_table(upload_samples)
+    t3, r3 = profile_table(breakdown, renderer)
     _report.emit("bench_display", args, [t1, t2, t3],
                  {"frames": r1, "uploads": r2, "profile_s_per_frame": r3, "renderer": renderer, "overlap_iou": overlap,
                   "others_cpu": load.others})
-    _report.save_plot(args, draw(frame_samples, triangles, quality))
+    _report.save_plot(args, draw(frame_samples, triangles, quality, renderer))
     # pyrender's renderers are left to the end of the process: they share EGL's default display with
     # moderngl's contexts, and once one side has released its contexts the other cannot make its current.
     for scene in scenes.values():

@@ -2,7 +2,8 @@
 
 colcon treats pytest's "no tests collected" (exit code 5) as success, and `colcon test-result` exits 0
 on an empty result set; for this project both are failures: a package with test files must run some,
-and the whole run must run at least one. Prints the closing line CI reads.
+and the whole run must run at least one. Prints the slowest tests (where the run's time goes, so that
+a test that grew slow is seen) and the closing line CI reads.
 """
 
 from __future__ import annotations
@@ -10,6 +11,9 @@ from __future__ import annotations
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
+
+SLOWEST = 10
+"""How many of the slowest tests the run names at its end."""
 
 
 def count(result_file: Path) -> tuple[int, int, int]:
@@ -24,9 +28,23 @@ def count(result_file: Path) -> tuple[int, int, int]:
     return tests, failed, skipped
 
 
+def durations(result_file: Path) -> list[tuple[float, str]]:
+    """(seconds, suite::test) of every test of one JUnit XML file: setup, call and teardown together."""
+    suite = result_file.parent.name
+    return [(float(case.get("time", 0)), f"{suite}: {case.get('classname', '')}::{case.get('name', '')}")
+            for case in ET.parse(result_file).getroot().iter("testcase")]
+
+
+def slowest(files: list[Path], count: int) -> list[str]:
+    """The lines that name the ``count`` slowest tests of all suites, slowest first."""
+    timed = sorted((timing for result_file in files for timing in durations(result_file)), reverse=True)
+    return [f"{seconds:8.1f} s  {name}" for seconds, name in timed[:count]]
+
+
 def has_tests(suite: str, workspace: Path) -> bool:
-    """Whether the package (or the workspace-level ``test/``) has test files that should have run."""
-    folder = workspace / "test" if suite == "workspace_tests" else workspace / suite / "test"
+    """Whether the package (or the workspace-level ``test/``, whose suites are ``workspace_*``) has test
+    files that should have run."""
+    folder = workspace / "test" if suite.startswith("workspace_") else workspace / suite / "test"
     return any(folder.glob("test_*.py"))
 
 
@@ -45,6 +63,9 @@ def main(build_base: str) -> int:
         total, failed, skipped = total + tests, failed + bad, skipped + skip
     if not files:
         problems.append(f"no test results under {build_base}/*/pytest.xml")
+    if files:
+        print(f"the {SLOWEST} slowest tests:")
+        print("\n".join(slowest(files, SLOWEST)))
     for problem in problems:
         print(f"error: {problem}", file=sys.stderr)
     print(f"{total - failed - skipped} passed, {failed} failed, {skipped} skipped")

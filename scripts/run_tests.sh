@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# The whole test suite: set up and build the workspace, run every package's tests with colcon and the
-# workspace-level tests in test/, print `colcon test-result --verbose`, type-check the packages with
-# mypy, and fail when any test failed, when no test ran or when mypy reports an error.
+# The whole test suite: set up and build the workspace, then, side by side, the packages' tests with
+# colcon, the workspace-level tests in test/ and the type check of the packages with mypy; print each
+# one's output whole as it ends, then `colcon test-result --verbose` and the slowest tests, and fail
+# when any test failed, when no test ran or when mypy reports an error.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=setup.sh
@@ -9,18 +10,61 @@ source "$ROOT/scripts/setup.sh"
 cd "$ROOT"
 
 export PYTEST_ADDOPTS="--timeout=300 ${PYTEST_ADDOPTS:-}"
-rm -rf build/*/pytest.xml build/workspace_tests
-status=0
+LOGS="build/test_logs"
+rm -rf build/*/pytest.xml build/workspace_tests build/workspace_apps "$LOGS"
+mkdir -p build/workspace_tests build/workspace_apps "$LOGS"
+
+# The suites are independent (each reads the built workspace, none writes it) and mostly wait: on
+# applications that run for seconds, on DDS discovery, on child processes. Run one after the other
+# they left one of the two cores idle most of the time; side by side the run takes about as long as
+# the longest of them. Each one's output goes to its own log, printed whole when it ends.
+declare -A SUITE_OF=() LABEL_OF=()
+start_suite() {  # start_suite NAME LABEL COMMAND...: its output in $LOGS/NAME.log
+    local name="$1" label="$2"
+    shift 2
+    "$@" >"$LOGS/$name.log" 2>&1 &
+    SUITE_OF[$!]="$name"
+    LABEL_OF[$name]="$label"
+    echo "started: $label"
+}
 # A test that hangs where pytest's --timeout cannot reach it (blocked in C code with the Python lock
-# held) must fail the run, not outlast the CI's limit: the package tests together get 40 minutes (about
-# 10 on a 2-core machine), then timeout ends colcon and every process it started.
-timeout --kill-after=30 2400 colcon --log-base log test --build-base build --install-base install \
-    --event-handlers console_direct+ summary+ || status=$?
-mkdir -p build/workspace_tests
-python -m pytest test -o cache_dir=build/workspace_tests/.pytest_cache \
-    --junit-xml=build/workspace_tests/pytest.xml --junit-prefix=workspace || status=$?
-colcon test-result --test-result-base build --verbose || status=$?
+# held) must fail the run, not outlast the CI's limit: the package tests get 40 minutes (about 5 on a
+# 2-core machine), then timeout ends colcon and every process it started. colcon runs a package's
+# tests after those of the packages it depends on, which nothing here needs (they only read what the
+# build installed): coco_core, the largest, runs beside the others, each colcon with its own log base.
+package_tests() {  # package_tests LOG_BASE COLCON_SELECTION...
+    local log_base="$1"
+    shift
+    timeout --kill-after=30 2400 colcon --log-base "$log_base" test --build-base build --install-base install \
+        --event-handlers console_direct+ summary+ "$@"
+}
+start_suite core "coco_core's tests (colcon test)" package_tests log/test_core --packages-select coco_core
+start_suite packages "the other packages' tests (colcon test)" package_tests log/test_packages --packages-skip coco_core
+# The workspace tests in two pytest processes: the Baxter and camera apps (they replay and render for
+# seconds each) and the rest; a new test file goes to the rest.
+APPS=(test/test_baxter_*.py test/test_camera_registration_app.py)
+start_suite apps "workspace tests: the apps (test/)" \
+    python -m pytest "${APPS[@]}" -o cache_dir=build/workspace_apps/.pytest_cache \
+    --junit-xml=build/workspace_apps/pytest.xml --junit-prefix=workspace
+start_suite workspace "workspace tests: the rest (test/)" \
+    python -m pytest test "${APPS[@]/#/--ignore=}" -o cache_dir=build/workspace_tests/.pytest_cache \
+    --junit-xml=build/workspace_tests/pytest.xml --junit-prefix=workspace
 # The type checker (mypy.ini): the five packages must stay clean, and every `type: ignore` needed.
-python -m mypy || status=$?
+start_suite mypy "type check (mypy)" python -m mypy
+
+status=0
+SECONDS=0
+while [ "${#SUITE_OF[@]}" -gt 0 ]; do
+    finished=""
+    suite_status=0
+    wait -n -p finished "${!SUITE_OF[@]}" || suite_status=$?
+    name="${SUITE_OF[$finished]}"
+    unset "SUITE_OF[$finished]"
+    echo
+    echo "===== ${LABEL_OF[$name]}: exit status $suite_status, ${SECONDS} s after the start ====="
+    cat "$LOGS/$name.log"
+    [ "$suite_status" -eq 0 ] || status=$suite_status
+done
+colcon test-result --test-result-base build --verbose || status=$?
 python scripts/check_test_results.py build || status=$?
 exit "$status"

@@ -77,7 +77,27 @@ ensure_wheel_build_paths() {
         "${files[@]}"
 }
 
+build_inputs() {
+    # What a build reads from the workspace: the name, time and size of every file of the packages
+    # (tracked or new, not ignored: no __pycache__ or numba cache; tests are not built), colcon.meta
+    # and the requirements. Prints nothing outside a git checkout: then every run builds.
+    (cd "$COCO_ROOT" && git rev-parse --is-inside-work-tree >/dev/null 2>&1 || exit 0
+     {
+         git ls-files -z --cached --others --exclude-standard -- colcon.meta coco_core coco_ros \
+             coco_mr_vision coco_mr_haptics coco_mr_display vendor ':(exclude)*/test/*' | xargs -0 -r stat -c '%n %Y %s' 2>/dev/null || true
+         cat "$VENV/.requirements.sha256" 2>/dev/null
+     } | sha256sum | cut -d' ' -f1)
+}
+
 build_workspace() {
+    # colcon build takes ~20 s even when nothing changed; the documented commands and run_app.sh set
+    # up again and again, so the build is skipped when its inputs are those of the last good build.
+    local stamp="$COCO_ROOT/build/.coco-build-inputs" inputs
+    inputs="$(build_inputs)"
+    if [ -n "$inputs" ] && [ -f "$COCO_ROOT/install/setup.bash" ] && [ "$(cat "$stamp" 2>/dev/null)" = "$inputs" ]; then
+        log "workspace up to date (no package file changed since the last build)"
+        return
+    fi
     log "colcon build"
     # The interface package vendor/tf2_msgs finds ament_cmake and the rosidl generators in the
     # venv's prefix, where the wheels install them (set for the build only).
@@ -86,6 +106,9 @@ build_workspace() {
         CMAKE_PREFIX_PATH="$VENV${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}" \
         colcon --log-base log build --build-base build --install-base install \
         --event-handlers console_direct- console_stderr- summary+ >&2)
+    if [ -n "$inputs" ]; then
+        echo "$inputs" > "$stamp"
+    fi
 }
 
 ensure_system_packages() {

@@ -25,6 +25,24 @@ def coco_launch() -> Path:
     return script
 
 
+@pytest.fixture(scope="session")
+def session(tmp_path_factory):
+    """A 12 s Baxter session, written with the installed ``baxter-session`` script, and its SessionInfo
+    (generated in-process: same seed, same layout and times). Generated once per run: the app and view
+    tests only read it."""
+    from coco_ros.baxter.session import generate_session
+
+    folder = tmp_path_factory.mktemp("baxter") / "session"
+    script = ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "baxter-session"
+    if script.exists():
+        result = run_launcher(script, str(folder), "--quiet", timeout=120)
+        assert result.returncode == 0, result.stderr
+        info = generate_session(folder.parent / "info_only", duration=12.0)
+    else:
+        info = generate_session(folder, duration=12.0)
+    return folder, info
+
+
 def run_launcher(script: Path, *args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
     """Run a launcher to completion from the workspace root, capturing its output."""
     return subprocess.run([str(script), *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout,

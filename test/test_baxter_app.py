@@ -17,21 +17,6 @@ APP = "config/baxter_teleop_replay.xml"
 URDF = "package://example-robot-data/robots/baxter_description/urdf/baxter.urdf"
 
 
-@pytest.fixture(scope="module")
-def session(tmp_path_factory):
-    """A 12 s session, written with the installed ``baxter-session`` script; its SessionInfo in-process."""
-    from coco_ros.baxter.session import generate_session
-
-    folder = tmp_path_factory.mktemp("baxter") / "session"
-    script = ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "baxter-session"
-    if script.exists():
-        result = run_launcher(script, str(folder), "--quiet", timeout=120)
-        assert result.returncode == 0, result.stderr
-        info = generate_session(folder.parent / "info_only", duration=12.0)  # same seed: same layout and times
-    else:
-        info = generate_session(folder, duration=12.0)
-    return folder, info
-
 
 def read_csv(path: Path) -> list[dict[str, str]]:
     with path.open(newline="") as handle:

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, run_launcher
-from test_baxter_app import APP, session  # noqa: F401  (the generated session, a module fixture)
+from test_baxter_app import APP
 
 cv2 = pytest.importorskip("cv2", reason="the recorded frames are decoded with OpenCV")
 
@@ -67,7 +67,7 @@ def coloured_bowl(frame: np.ndarray, pixel: tuple[int, int]) -> bool:
     return blue < 0.15 * (red + green + blue)
 
 
-def test_view_renders_the_session(coco_launch: Path, session, tmp_path: Path) -> None:  # noqa: F811
+def test_view_renders_the_session(coco_launch: Path, session, tmp_path: Path) -> None:
     folder, info = session
     output = tmp_path / "teleop"
     result = run_launcher(coco_launch, APP, f"bag:={folder}", f"output:={output}", "--profile", "100",
@@ -119,7 +119,7 @@ def test_view_renders_the_session(coco_launch: Path, session, tmp_path: Path) ->
     assert green[-1] < 0.6, f"the bowl did not leave its place: {green[-1]:.2f}"
 
 
-def test_display_off_renders_nothing(coco_launch: Path, session, tmp_path: Path) -> None:  # noqa: F811
+def test_display_off_renders_nothing(coco_launch: Path, session, tmp_path: Path) -> None:
     folder, _ = session
     output = tmp_path / "teleop"
     result = run_launcher(coco_launch, APP, f"bag:={folder}", f"output:={output}", "display:=false",

@@ -12,14 +12,19 @@ How a documented line is run (the rules a reader of a failure needs):
 - a line that runs an application until it is stopped (``coco-launch`` / ``launcher`` with an
   application file and without ``--check`` / ``--list``, or ``scripts/run_app.sh``) gets
   ``--duration 4`` (``APP_SECONDS``): right after the file for a launcher (before ``--ros-args``),
-  at the end for run_app.sh, which hands its arguments to the launcher. The launcher takes the
-  last ``--duration``, so this also shortens a documented one; an application that ends by itself
+  in place of a documented ``--duration``, at the end for run_app.sh, which hands its arguments to
+  the launcher (the launcher takes the last ``--duration``); an application that ends by itself
   (``RUN_TO_ITS_END``) runs to its end instead;
 - a file the docs name as the *user's own* (``USER_FILES``, e.g. the Baxter SDK recording
   ``shake_hand.dat``) is linked into the workspace root for the run from ``../shared/data``;
 - an output the line names under ``out/`` (e.g. ``out/shake_hand``) is made by it: one left by an
   earlier run is moved aside for the block and put back afterwards (a bag is never overwritten);
 - it must exit with status 0 within ``TIMEOUT`` seconds;
+- the blocks run once per test session, side by side (``documented_runs``): they mostly wait on
+  applications that run for seconds. A block that builds the workspace (``scripts/setup.sh``, also
+  sourced by run_app.sh) runs first and alone, as the others run what it installs; blocks that name
+  the same application file or ``out/`` path run one after the other in one worker (an application's
+  default outputs are the same in both); each block has a ROS domain of its own;
 - the lines in ``NOT_RUN`` are not run, each for the reason given there (a test checks the list
   names only lines the docs still show, so it cannot rot), nor are lines that run a benchmark script
   (``bench/*.py``: see ``not_run_reason``).
@@ -32,6 +37,7 @@ import re
 import shlex
 import shutil
 import subprocess
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -164,9 +170,13 @@ def shortened(command: str) -> str:
     if program in LAUNCHERS and not {"--check", "--list"} & set(words):
         files = [i for i, word in enumerate(words) if word.endswith(".xml")]
         if files and words[files[0]] not in RUN_TO_ITS_END:
-            words.insert(files[0] + 1, "--duration")
-            words.insert(files[0] + 2, str(APP_SECONDS))
-            return shlex.join(words)
+            # A documented --duration (before --ros-args, where the launcher reads its own options) is
+            # replaced: the launcher takes the last one, and a longer one would outlast APP_SECONDS.
+            end = words.index("--ros-args") if "--ros-args" in words else len(words)
+            kept = [word for i, word in enumerate(words[:end])
+                    if word != "--duration" and (i == 0 or words[i - 1] != "--duration")]
+            at = kept.index(words[files[0]]) + 1
+            return shlex.join([*kept[:at], "--duration", str(APP_SECONDS), *kept[at:], *words[end:]])
     return command
 
 
@@ -191,45 +201,85 @@ def test_shortened_inserts_the_duration_after_the_application_file() -> None:
     assert shortened("./scripts/run_app.sh   # main job") == f"./scripts/run_app.sh --duration {APP_SECONDS}"
     assert shortened("coco-launch config/camera_registration.xml source:=bag") == \
         "coco-launch config/camera_registration.xml source:=bag"
+    # A documented duration gives way to APP_SECONDS (the launcher takes the last one).
+    assert shortened("coco-launch config/a.xml window:=16 --duration 10 --profile 2") == \
+        f"coco-launch config/a.xml --duration {APP_SECONDS} window:=16 --profile 2"
+    assert shortened("launcher config/a.xml --duration 3 --ros-args -p duration:=9") == \
+        f"launcher config/a.xml --duration {APP_SECONDS} --ros-args -p duration:=9"
 
 
-@pytest.fixture
-def fresh_outputs(request):
-    """Moves aside, for one block, the ``out/...`` paths its lines name, and puts them back after."""
-    block: Block = request.param
-    moved: list[tuple[Path, Path]] = []
+BUILDS = re.compile(r"\bscripts/(setup|run_app)\.sh\b")
+"""A line that builds the workspace (run_app.sh sources setup.sh): its block runs before the others."""
+WORKERS = 2
+"""Blocks run side by side (on a 2-core machine they mostly wait on applications that run for seconds)."""
+DOMAIN_BASE = 120
+"""Block i runs on ROS domain DOMAIN_BASE + i: launchers of two blocks never see each other's topics."""
+
+
+@dataclass
+class BlockRun:
+    """What running one block gave: the failures, how many lines ran, and why one was not run."""
+
+    failures: list[str] = field(default_factory=list)
+    ran: int = 0
+    skipped: str | None = None
+    log: list[str] = field(default_factory=list)
+
+
+def block_id(block: Block) -> str:
+    return f"{block.path.relative_to(ROOT)}:{block.line}"
+
+
+def out_paths(block: Block) -> list[Path]:
+    """The ``out/...`` paths the block's lines name (their outputs, moved aside while the blocks run)."""
+    paths = []
     for command in block.commands:
         for word in shlex.split(command.bare):
             path = ROOT / word.partition(":=")[2 if ":=" in word else 0]
-            if path.is_relative_to(ROOT / "out") and path != ROOT / "out" and path.exists():
-                aside = path.with_name(f".{path.name}.before-test")
-                shutil.rmtree(aside, ignore_errors=True)
-                path.rename(aside)
-                moved.append((path, aside))
-    yield block
-    for path, aside in moved:
-        shutil.rmtree(path, ignore_errors=True)
-        aside.rename(path)
+            if path.is_relative_to(ROOT / "out") and path != ROOT / "out":
+                paths.append(path)
+    return paths
 
 
-@pytest.mark.parametrize("fresh_outputs", all_blocks(), indirect=True,
-                         ids=lambda block: f"{block.path.relative_to(ROOT)}:{block.line}")
-def test_documented_block_runs_as_written(fresh_outputs: Block) -> None:
-    block = fresh_outputs
-    env = fresh_terminal_env()
+def resources(block: Block) -> set[str]:
+    """What two blocks must not use at the same time: the application files and ``out/`` paths named."""
+    words = {word.partition(":=")[2] or word for command in block.commands for word in shlex.split(command.bare)}
+    return {word for word in words if word.endswith(".xml")} | {str(path) for path in out_paths(block)}
+
+
+def chains(blocks: list[Block]) -> list[list[Block]]:
+    """The blocks grouped so that blocks sharing a resource (transitively) are in one group, in order."""
+    groups: list[tuple[set[str], list[Block]]] = []
+    for block in blocks:
+        used = resources(block)
+        joined = [group for group in groups if group[0] & used]
+        merged: tuple[set[str], list[Block]] = (used, [])
+        for group in joined:
+            merged[0].update(group[0])
+            merged[1].extend(group[1])
+            groups.remove(group)
+        merged[1].append(block)
+        merged[1].sort(key=blocks.index)
+        groups.append(merged)
+    return [group[1] for group in groups]
+
+
+def run_block(block: Block, domain: int) -> BlockRun:
+    """Run a block's lines in order (the module docstring's rules), each in a fresh bash."""
+    env = {**fresh_terminal_env(), "ROS_DOMAIN_ID": str(domain)}
     sourced: list[str] = []
-    failures: list[str] = []
-    ran = 0
+    result = BlockRun()
     for command in block.commands:
         reason = not_run_reason(command.bare)
         if reason is not None:
-            print(f"not run: {command.where}: {command.bare} ({reason})")
+            result.log.append(f"not run: {command.where}: {command.bare} ({reason})")
             continue
         links = []
         for name, source in USER_FILES.items():
             if name in shlex.split(command.bare):
                 if not source.exists():
-                    pytest.skip(f"{command.where} needs {source} (the shared test data), which is absent")
+                    result.skipped = f"{command.where} needs {source} (the shared test data), which is absent"
+                    return result
                 link = ROOT / name
                 if not link.exists():
                     link.symlink_to(source)
@@ -239,17 +289,72 @@ def test_documented_block_runs_as_written(fresh_outputs: Block) -> None:
             done = subprocess.run(["bash", "-c", script], cwd=ROOT, env=env, capture_output=True, text=True,
                                   timeout=TIMEOUT)
         except subprocess.TimeoutExpired as error:
-            failures.append(f"{command.where}: `{command.text}` did not finish within {TIMEOUT} s:\n{error.stdout}")
+            result.failures.append(f"{command.where}: `{command.text}` did not finish within {TIMEOUT} s:\n"
+                                   f"{error.stdout}")
             continue
         finally:
             for link in links:
                 link.unlink()
-        ran += 1
+        result.ran += 1
         if done.returncode != 0:
-            failures.append(f"{command.where}: `{command.text}` exited with {done.returncode}:\n"
-                            f"{done.stdout[-3000:]}\n{done.stderr[-3000:]}")
+            result.failures.append(f"{command.where}: `{command.text}` exited with {done.returncode}:\n"
+                                   f"{done.stdout[-3000:]}\n{done.stderr[-3000:]}")
         if command.bare.startswith("source "):
             sourced.append(command.bare)
-    assert not failures, "\n\n".join(failures)
-    if not ran:
+    return result
+
+
+@pytest.fixture(scope="session")
+def documented_runs(request: pytest.FixtureRequest):
+    """Every block whose test is selected, run once (module docstring), by block id; the ``out/...``
+    paths they name are moved aside for the run and put back afterwards."""
+    selected = {block_id(item.callspec.params["block"]) for item in request.session.items
+                if getattr(item, "originalname", "") == "test_documented_block_runs_as_written"}
+    blocks = [block for block in all_blocks() if block_id(block) in selected]
+    moved: list[tuple[Path, Path]] = []
+    for path in dict.fromkeys(path for block in blocks for path in out_paths(block)):
+        if path.exists():
+            aside = path.with_name(f".{path.name}.before-test")
+            shutil.rmtree(aside, ignore_errors=True)
+            path.rename(aside)
+            moved.append((path, aside))
+    domains = {block_id(block): DOMAIN_BASE + i for i, block in enumerate(all_blocks())}
+    runs: dict[str, BlockRun] = {}
+
+    def run_chain(chain: list[Block]) -> None:
+        for block in chain:
+            runs[block_id(block)] = run_block(block, domains[block_id(block)])
+
+    try:
+        builders = [block for block in blocks if any(BUILDS.search(c.bare) and not not_run_reason(c.bare)
+                                                      for c in block.commands)]
+        for block in builders:
+            run_chain([block])
+        with ThreadPoolExecutor(WORKERS) as pool:
+            list(pool.map(run_chain, chains([block for block in blocks if block not in builders])))
+        yield runs
+    finally:
+        for path, aside in moved:
+            shutil.rmtree(path, ignore_errors=True)
+            aside.rename(path)
+
+
+def test_blocks_that_share_an_application_or_output_run_in_one_chain() -> None:
+    a, b, c, d = (Block(ROOT / "README.md", line) for line in (1, 2, 3, 4))
+    a.commands.append(Command(a.path, 1, "coco-launch config/x.xml"))
+    b.commands.append(Command(b.path, 2, "coco-launch config/y.xml output:=out/y"))
+    c.commands.append(Command(c.path, 3, "launcher config/x.xml --ros-args -r __node:=n"))
+    d.commands.append(Command(d.path, 4, "baxter-import a.dat out/y"))
+    assert chains([a, b, c, d]) == [[a, c], [b, d]]
+
+
+@pytest.mark.timeout(3 * TIMEOUT)  # the first block's test waits for every block (they run side by side)
+@pytest.mark.parametrize("block", all_blocks(), ids=block_id)
+def test_documented_block_runs_as_written(block: Block, documented_runs: dict[str, BlockRun]) -> None:
+    run = documented_runs[block_id(block)]
+    print("\n".join(run.log))
+    if run.skipped:
+        pytest.skip(run.skipped)
+    assert not run.failures, "\n\n".join(run.failures)
+    if not run.ran:
         pytest.skip("no line of this block is run here (reasons printed above)")

@@ -18,7 +18,6 @@ import pytest
 
 from conftest import DEMO_APP, ROOT, read_rows, start_launcher
 from test_baxter_app import APP as BAXTER_APP
-from test_baxter_app import session  # noqa: F401  (the generated session, a module fixture)
 
 DELAYS = [0.3, 0.7, 1.2, 2.0, 3.5]
 """Seconds from the start of the launcher to the signal: while the runtime is imported, while the
@@ -61,7 +60,7 @@ def test_a_signal_at_any_moment_ends_the_launch_cleanly(launcher: Path, signum: 
             assert all(row["value"] not in (None, "") for row in rows), rows[-1:]
 
 
-def test_a_second_ctrl_c_during_the_stop_keeps_the_outputs(coco_launch: Path, session, tmp_path: Path) -> None:  # noqa: F811
+def test_a_second_ctrl_c_during_the_stop_keeps_the_outputs(coco_launch: Path, session, tmp_path: Path) -> None:
     folder, _ = session
     output = tmp_path / "teleop"
     process = subprocess.Popen([str(coco_launch), BAXTER_APP, f"bag:={folder}", f"output:={output}"], cwd=ROOT,

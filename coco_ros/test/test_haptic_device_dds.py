@@ -20,7 +20,7 @@ from conftest import rclpy_peer
 
 WORKSPACE = Path(__file__).resolve().parents[2]
 LAUNCHER = WORKSPACE / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
-DOMAIN = "71"
+DOMAIN = "76"  # its own: the workspace tests (test/test_interop.py: 71) run at the same time
 STIFFNESS = 600.0
 
 APP = f"""<package name="ros_haptic_device">
