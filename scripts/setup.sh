@@ -79,11 +79,11 @@ ensure_wheel_build_paths() {
 
 build_inputs() {
     # What a build reads from the workspace: the name, time and size of every file of the packages
-    # (tracked or new, not ignored: no __pycache__ or numba cache; tests are not built), colcon.meta
-    # and the requirements. Prints nothing outside a git checkout: then every run builds.
+    # (tracked or new, not ignored: no __pycache__ or numba cache; tests are not built), config/ (coco_ros
+    # installs it to share/coco_ros/config), colcon.meta and the requirements. Prints nothing outside a git checkout: then every run builds.
     (cd "$COCO_ROOT" && git rev-parse --is-inside-work-tree >/dev/null 2>&1 || exit 0
      {
-         git ls-files -z --cached --others --exclude-standard -- colcon.meta coco_core coco_ros \
+         git ls-files -z --cached --others --exclude-standard -- colcon.meta config coco_core coco_ros \
              coco_mr_vision coco_mr_haptics coco_mr_display vendor ':(exclude)*/test/*' | xargs -0 -r stat -c '%n %Y %s' 2>/dev/null || true
          cat "$VENV/.requirements.sha256" 2>/dev/null
      } | sha256sum | cut -d' ' -f1)
