@@ -15,8 +15,6 @@ How a documented line is run (the rules a reader of a failure needs):
   in place of a documented ``--duration``, at the end for run_app.sh, which hands its arguments to
   the launcher (the launcher takes the last ``--duration``); an application that ends by itself
   (``RUN_TO_ITS_END``) runs to its end instead;
-- a file the docs name as the *user's own* (``USER_FILES``, e.g. the Baxter SDK recording
-  ``shake_hand.dat``) is linked into the workspace root for the run from ``../shared/data``;
 - an output the line names under ``out/`` (e.g. ``out/shake_hand``) is made by it: one left by an
   earlier run is moved aside for the block and put back afterwards (a bag is never overwritten);
 - it must exit with status 0 within ``TIMEOUT`` seconds;
@@ -43,7 +41,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, SHARED_DATA
+from conftest import ROOT
 
 APP_SECONDS = 4
 TIMEOUT = 300
@@ -76,10 +74,6 @@ def not_run_reason(bare: str) -> str | None:
     if BENCHMARK.search(bare):
         return "a benchmark: run by hand (minutes of load, it rewrites bench/results and docs/img), never as a test"
     return None
-
-USER_FILES: dict[str, Path] = {
-    "shake_hand.dat": SHARED_DATA / "baxter" / "shake_hand.dat",
-}
 
 LAUNCHERS = {"coco-launch", "launcher"}
 
@@ -218,11 +212,10 @@ DOMAIN_BASE = 120
 
 @dataclass
 class BlockRun:
-    """What running one block gave: the failures, how many lines ran, and why one was not run."""
+    """What running one block gave: the failures, how many lines ran, and the lines not run (why)."""
 
     failures: list[str] = field(default_factory=list)
     ran: int = 0
-    skipped: str | None = None
     log: list[str] = field(default_factory=list)
 
 
@@ -274,16 +267,6 @@ def run_block(block: Block, domain: int) -> BlockRun:
         if reason is not None:
             result.log.append(f"not run: {command.where}: {command.bare} ({reason})")
             continue
-        links = []
-        for name, source in USER_FILES.items():
-            if name in shlex.split(command.bare):
-                if not source.exists():
-                    result.skipped = f"{command.where} needs {source} (the shared test data), which is absent"
-                    return result
-                link = ROOT / name
-                if not link.exists():
-                    link.symlink_to(source)
-                    links.append(link)
         script = "\n".join(["source install/setup.bash", *sourced, shortened(command.text)])
         try:
             done = subprocess.run(["bash", "-c", script], cwd=ROOT, env=env, capture_output=True, text=True,
@@ -292,9 +275,6 @@ def run_block(block: Block, domain: int) -> BlockRun:
             result.failures.append(f"{command.where}: `{command.text}` did not finish within {TIMEOUT} s:\n"
                                    f"{error.stdout}")
             continue
-        finally:
-            for link in links:
-                link.unlink()
         result.ran += 1
         if done.returncode != 0:
             result.failures.append(f"{command.where}: `{command.text}` exited with {done.returncode}:\n"
@@ -353,8 +333,6 @@ def test_blocks_that_share_an_application_or_output_run_in_one_chain() -> None:
 def test_documented_block_runs_as_written(block: Block, documented_runs: dict[str, BlockRun]) -> None:
     run = documented_runs[block_id(block)]
     print("\n".join(run.log))
-    if run.skipped:
-        pytest.skip(run.skipped)
     assert not run.failures, "\n\n".join(run.failures)
     if not run.ran:
         pytest.skip("no line of this block is run here (reasons printed above)")
