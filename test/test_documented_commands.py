@@ -75,6 +75,7 @@ def not_run_reason(bare: str) -> str | None:
         return "a benchmark: run by hand (minutes of load, it rewrites bench/results and docs/img), never as a test"
     return None
 
+
 LAUNCHERS = {"coco-launch", "launcher"}
 
 
