@@ -84,7 +84,7 @@ build_inputs() {
     (cd "$COCO_ROOT" && git rev-parse --is-inside-work-tree >/dev/null 2>&1 || exit 0
      {
          git ls-files -z --cached --others --exclude-standard -- colcon.meta config coco_core coco_ros \
-             coco_mr_vision coco_mr_haptics coco_mr_display vendor ':(exclude)*/test/*' | xargs -0 -r stat -c '%n %Y %s' 2>/dev/null || true
+             coco_mr_vision coco_mr_haptics coco_mr_display interfaces vendor ':(exclude)*/test/*' | xargs -0 -r stat -c '%n %Y %s' 2>/dev/null || true
          cat "$VENV/.requirements.sha256" 2>/dev/null
      } | sha256sum | cut -d' ' -f1)
 }
@@ -99,7 +99,7 @@ build_workspace() {
         return
     fi
     log "colcon build"
-    # The interface package vendor/tf2_msgs finds ament_cmake and the rosidl generators in the
+    # The interface packages (vendor/tf2_msgs, interfaces/coco_interfaces) find ament_cmake and the rosidl generators in the
     # venv's prefix, where the wheels install them (set for the build only).
     (cd "$COCO_ROOT" &&
         AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}" \

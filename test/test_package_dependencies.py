@@ -28,7 +28,7 @@ DECLARED_AS = {
     "pyrealsense2": '"pyrealsense2"',
 }
 """How package.xml declares each third-party module; a ROS message package is declared by its own name."""
-WORKSPACE_PACKAGES = {*PACKAGES, "tf2_msgs"}
+WORKSPACE_PACKAGES = {*PACKAGES, "tf2_msgs", "coco_interfaces"}
 KNOWN_CYCLES = {("coco_mr_vision", "coco_ros")}
 """coco_mr_vision's bag peer imports coco_ros, which depends on coco_mr_vision: a cycle package.xml
 cannot declare; issue 21 moves that peer up into coco_ros."""

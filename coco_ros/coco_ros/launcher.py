@@ -51,6 +51,7 @@ from rclpy.node import Node
 
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
 from .diagnostics import ProfileDiagnostics
+from .operation_services import OperationServices
 from .parameters import ArgParameters, given_parameters
 from .rosout import RosoutLogging
 
@@ -199,7 +200,8 @@ def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], si
                         "from full DDS queues): prefer the default (a wait set per activity) or 1",
                         options.executor_threads)
         signals.attach(app)
-        with ProfileDiagnostics(node, app.name, processes.snapshots if processes else lambda: [snapshot(app)]):
+        with (ProfileDiagnostics(node, app.name, processes.snapshots if processes else lambda: [snapshot(app)]),
+              OperationServices(node, app, spec)):
             code = _run_hosted(app, host, executor, options, processes)
         return INTERRUPTED if signals.forced else code
 
