@@ -199,13 +199,17 @@ def stopped_by_a_failure(app: Application) -> bool:
     return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
 
 
-def load_and_build(options: argparse.Namespace) -> tuple[AppSpec, Application]:
+def load_and_build(options: argparse.Namespace, signals: LaunchSignals) -> tuple[AppSpec, Application]:
     """The application of ``options`` loaded and built; its warnings (what the file sets but this
-    version ignores, components ``--allow-unknown`` left out) are logged."""
+    version ignores, components ``--allow-unknown`` left out) are logged. A signal ends the reading
+    of the file at once (:meth:`LaunchSignals.loading`), the building at its end."""
     if options.allow_unknown and not options.check:
         raise CocoError("--allow-unknown goes with --check only: an application without some of its "
                         "components cannot run")
-    spec = load_application(options.app, parse_assignments(options.args))
+    args = parse_assignments(options.args)
+    log.debug("reading %s", options.app)
+    with signals.loading():
+        spec = load_application(options.app, args)
     app = build_application(spec, allow_unknown=options.allow_unknown)
     for warning in spec.warnings:
         log.warning("%s", warning)
@@ -224,7 +228,7 @@ def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> in
         return 2
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
     try:
-        spec, app = load_and_build(options)
+        spec, app = load_and_build(options, signals)
         signals.check()
         if options.check:
             print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))

@@ -15,7 +15,9 @@ from coco_core.transforms import TransformGraph
 from coco_core.transforms.urdf import UrdfError, load_urdf
 from coco_core.xml import load_application, parse_application_string
 from coco_core.xml.components import MAX_PEER_DEPTH
-from coco_core.xml.loader import MAX_INCLUDE_DEPTH
+from coco_core.xml import expression
+from coco_core.xml.expression import MAX_ROUND_DIGITS
+from coco_core.xml.loader import MAX_INCLUDE_DEPTH, MAX_INCLUDES
 from coco_core.xml.substitution import MAX_EXPANSION, MAX_NESTING
 
 
@@ -211,6 +213,44 @@ def test_args_that_double_each_other_stop_at_the_expansion_limit():
         f"{MAX_EXPANSION} characters",
     )
     assert len(errors) == 1
+
+
+def test_round_with_a_huge_number_of_digits_is_refused_before_it_computes():
+    # round(1, -10**18) computes 10**(10**18): one operation of Python's that never ends and no
+    # signal interrupts; 10**6 digits already cost a noticeable fraction of a second.
+    with at_most(5):
+        ((where, message),) = errors_of(lambda: parse_application_string(
+            '<package>\n<arg name="y" default="$(eval round(1, -10**6))"/>\n</package>', "app.xml"))
+    assert where == "app.xml:2"
+    assert message.endswith(f"round(): -1000000 digits; at most {MAX_ROUND_DIGITS} either way are allowed")
+    app = parse_application_string(f'<package><arg name="y" default="$(eval round(123456, -{MAX_ROUND_DIGITS}))"/></package>')
+    assert app.args["y"] == "0"
+
+
+def test_an_expression_stops_at_its_time_limit(monkeypatch):
+    monkeypatch.setattr(expression, "MAX_SECONDS", -1.0)  # any expression is past it at its first node
+    ((_, message),) = errors_of(lambda: parse_application_string(
+        '<package><arg name="y" default="$(eval 1 + 1)"/></package>', "app.xml"))
+    assert message.endswith("the expression takes more than -1 s to evaluate")
+
+
+def test_files_that_include_the_next_one_twice_stop_at_the_include_limit(tmp_path):
+    # Each file includes the next one twice: 30 files would be read 2**30 times.
+    for index in range(30):
+        includes = f"<include>f{index + 1}.xml</include>" * 2 if index + 1 < 30 else ""
+        (tmp_path / f"f{index}.xml").write_text(
+            f'<package>\n<includes>{includes}</includes>\n<arg name="a{index}" default="1"/>\n</package>\n')
+    with at_most(20):
+        ((where, message),) = errors_of(lambda: load_application(tmp_path / "f0.xml"))
+    assert where.endswith(":2")
+    assert message.startswith(f"the application includes more than {MAX_INCLUDES} files or 64 MiB in all")
+
+
+def test_an_application_of_many_includes_within_the_limit_loads(tmp_path):
+    (tmp_path / "leaf.xml").write_text('<package><arg name="leaf" default="1"/></package>')
+    includes = "<include>leaf.xml</include>" * MAX_INCLUDES
+    (tmp_path / "app.xml").write_text(f"<package><includes>{includes}</includes></package>")
+    assert load_application(tmp_path / "app.xml").args == {"leaf": "1"}
 
 
 # ----- many components --------------------------------------------------------------------------

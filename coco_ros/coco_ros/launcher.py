@@ -125,7 +125,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         return 2
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
     try:
-        spec, app = load_and_build(options)
+        spec, app = load_and_build(options, signals)
         plan = plan_hosting(app, _threads(options.threads), options.all_threads)
         wait_sets = options.executor_threads is None
         signals.check()

@@ -49,6 +49,12 @@ LOG_TYPES = ("debug", "err", "log")
 MAX_INCLUDE_DEPTH = 64
 """How many files an include chain may hold (the application file included): a limit far beyond
 real applications, which keeps a generated chain from exhausting the reader's recursion."""
+MAX_INCLUDES = 1000
+"""How many includes one load reads in all, the same file counted each time it is read: files that
+each include the next one twice would otherwise be read 2^N times (30 of them, a billion)."""
+MAX_INCLUDED_BYTES = 64 * 1024 * 1024
+"""How many bytes of included files one load reads in all (each file has the limit of an
+application file, 16 MiB): an application of many large includes stops here, not at the memory."""
 
 
 def load_application(
@@ -94,6 +100,11 @@ class _Loader:
         """Every file opened, in order: errors are reported in this order, then by line."""
         self.complete = True
         """False once a file could not be read: checks across files would then only add noise."""
+        self.includes_read = 0
+        self.included_bytes = 0
+        """The includes read so far and their bytes, against :data:`MAX_INCLUDES` and
+        :data:`MAX_INCLUDED_BYTES`; past either, no include is read any more (one error says so)."""
+        self.includes_refused = False
 
     def load(self, data: bytes | str, file: str, directory: str) -> AppSpec:
         name, on_error = Path(file).stem, "continue"
@@ -292,12 +303,25 @@ class _Loader:
             )
             self.complete = False
             return
+        if self.includes_read >= MAX_INCLUDES or self.included_bytes >= MAX_INCLUDED_BYTES:
+            if not self.includes_refused:
+                reader.error(
+                    f"the application includes more than {MAX_INCLUDES} files or "
+                    f"{MAX_INCLUDED_BYTES // (1024 * 1024)} MiB in all (files that include the same files "
+                    f"again and again?); {file} and the includes after it are not read",
+                    include,
+                )
+            self.includes_refused = True
+            self.complete = False
+            return
         try:
             data = read_regular_file(file, APPLICATION_FILE_LIMIT, "included file")
         except FileReadError as error:
             reader.error(str(error), include)
             self.complete = False
             return
+        self.includes_read += 1
+        self.included_bytes += len(data)
         root = self._parse(data, file)
         if root is None:
             return
