@@ -21,6 +21,10 @@ URDF_LIMIT = 64 * MiB
 """Largest URDF read: robot descriptions with inline geometry reach a few MB."""
 MESH_LIMIT = 512 * MiB
 """Largest mesh file read: the Baxter meshes total about 30 MB."""
+DATA_FILE_LIMIT = 64 * MiB
+"""Largest table or description a component attribute names (a hand trajectory or poses CSV, camera
+intrinsics, a TUM sequence's lists): read whole and parsed in Python, so a wrong path to a large
+file must stop here (an hour of a 1 kHz trajectory is about 150 MB: give a recording as a bag)."""
 
 
 def read_regular_file(path: str | os.PathLike[str], limit: int, what: str = "file") -> bytes:
