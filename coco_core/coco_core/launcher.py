@@ -191,10 +191,10 @@ def failure(prog: str, error: CocoError) -> int:
 
 
 def stopped_by_a_failure(app: Application) -> bool:
-    """Whether a component's error stopped the application (its ``on_error`` policy), or damaged
-    input was found (:attr:`Application.damage`, e.g. a truncated bag): the launcher then exits with
-    1, so that scripts notice."""
-    if app.damage:
+    """Whether a component's error stopped the application (its ``on_error`` policy), damaged input
+    was found (:attr:`Application.damage`, e.g. a truncated bag), or an activity failed
+    (:attr:`Activity.failure`): the launcher then exits with 1, so that scripts notice."""
+    if app.damage or any(activity.failure for activity in app.activities.values()):
         return True
     return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
 

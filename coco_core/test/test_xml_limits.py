@@ -271,3 +271,16 @@ def test_the_entry_points_are_scanned_once_for_all_components(monkeypatch):
     app = build_application(parse_application_string(f"<package><components>{components}</components></package>"))
     assert len(app.components) == 200
     assert scans == [{"group": registry.GROUP}]
+
+
+# ----- values out of range ----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("period", ["1e300", "86400001"])
+def test_a_period_beyond_a_day_is_an_error_at_the_schedule(period):
+    # 1e300 ms passed --check, then ended the activity's thread at its first sleep (exit status 0).
+    text = (f'<package>\n<activities><activity><schedule period="{period}"/>\n'
+            "<components><component>c</component></components></activity></activities></package>")
+    errors = errors_of(lambda: parse_application_string(text, "app.xml"))
+    assert ("app.xml:2", f'<schedule> attribute period="{period}": expected a period greater than 0 '
+                         "milliseconds and at most 86400000 (a day)") in errors
