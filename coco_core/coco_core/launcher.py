@@ -235,8 +235,8 @@ def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> in
             return 0
     except CocoError as error:
         return failure("coco-launch", error)
-    configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
     try:
+        configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
         with process_level(spec, app, logging.getLevelName(options.log_level)) as processes:
             signals.attach(app)
             with launcher_services(app, options, processes):

@@ -134,9 +134,9 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
             print("hosting in the ROS launcher (the launcher's process):")
             print(describe_hosting(app, plan, wait_sets))
             return 0
+        configure_logging(spec.log, logging.getLevelName(options.log_level))
     except CocoError as error:
         return failure(_NAME, error)
-    configure_logging(spec.log, logging.getLevelName(options.log_level))
 
     import rclpy
     from rclpy.node import Node

@@ -13,7 +13,8 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ..errors import ConfigError, ConfigErrors
-from ..files import APPLICATION_FILE_LIMIT, FileReadError, read_regular_file
+from ..errors import FileWriteError
+from ..files import APPLICATION_FILE_LIMIT, FileReadError, check_writable_file, read_regular_file
 from ..model import AppSpec, LogSpec
 from .activities import read_activity
 from .arguments import Arguments
@@ -238,6 +239,11 @@ class _Loader:
                 log.types = self._log_types(reader, child, text)
             elif tag == "outfile":
                 log.outfile = text
+                try:
+                    if text:
+                        check_writable_file(text, "<outfile>")
+                except FileWriteError as error:
+                    reader.error(str(error), child)
         self.draft.log = log
 
     @staticmethod
