@@ -284,3 +284,16 @@ def test_a_period_beyond_a_day_is_an_error_at_the_schedule(period):
     errors = errors_of(lambda: parse_application_string(text, "app.xml"))
     assert ("app.xml:2", f'<schedule> attribute period="{period}": expected a period greater than 0 '
                          "milliseconds and at most 86400000 (a day)") in errors
+
+
+@pytest.mark.parametrize("task", [".".join(["a"] * 5000) + ":Thing", "coco_core.demo:Not-a-name"])
+def test_a_task_path_that_cannot_name_a_class_is_an_error_not_a_traceback(task):
+    # 5,000 dotted parts exhausted the import system's recursion: a RecursionError traceback.
+    text = f"<package>\n<components><component><name>c</name><task>{task}</task></component></components></package>"
+    with pytest.raises(ConfigErrors) as raised:
+        build_application(parse_application_string(text, "app.xml"))
+    ((error),) = raised.value.errors
+    assert str(error.location) == "app.xml:2"
+    assert error.message.startswith("cannot import component ")
+    assert error.message.endswith("expected package.module:Class, Python names separated by dots (at most 32 of them)")
+    assert len(error.message) < 300
