@@ -42,6 +42,7 @@ from coco_core.processes.level import process_level
 from coco_core.processes.supervisor import ProcessSupervisor
 from coco_core.signals import INTERRUPTED, LaunchSignals, leave
 
+from .fastdds_segments import remove_abandoned
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
 
 log = logging.getLogger("coco")
@@ -142,6 +143,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
     from rclpy.node import Node
     from rclpy.signals import SignalHandlerOptions
 
+    _remove_abandoned_segments("killed ROS processes (a launcher, a child)")
     try:
         rclpy.init(args=[_NAME, *ros_args], signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # a malformed --ros-args section
@@ -172,6 +174,15 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        _remove_abandoned_segments("a child killed during the launch")
+
+
+def _remove_abandoned_segments(left_by: str) -> None:
+    """Remove the Fast DDS segment pairs that dead participants left (:mod:`.fastdds_segments`)."""
+    removed = remove_abandoned()
+    if removed:
+        log.info("removed %d Fast DDS shared-memory segment(s) that %s left: %s", len(removed), left_by,
+                 ", ".join(removed))
 
 
 def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace,
