@@ -18,8 +18,9 @@ nothing or into an abort):
 - a signal after the launch finished (:meth:`LaunchSignals.finish`, while the interpreter exits)
   leaves at once with 128 + its number. Python gives the default action back to both signals as it
   tears itself down, so they would then kill the process (a status of -2 for its parent): the last
-  thing the interpreter runs before (an ``atexit`` function) blocks them, and what comes in those
-  last milliseconds is dropped, leaving the launch's own status.
+  thing the interpreter runs before (an ``atexit`` function) has them ignored (process-wide, native
+  threads included; Python leaves an ignored signal ignored), and what comes in those last
+  milliseconds is dropped, leaving the launch's own status.
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ class LaunchSignals:
     def install(self) -> LaunchSignals:
         signal.signal(signal.SIGINT, self._handle)
         signal.signal(signal.SIGTERM, self._handle)
-        _block_at_exit()
+        _ignore_at_exit()
         return self
 
     def _handle(self, signum: int, _frame: object) -> None:
@@ -106,17 +107,22 @@ class LaunchSignals:
         return INTERRUPTED if self.forced else status
 
 
-_blocking_registered = False
+_ignoring_registered = False
 
 
-def _block_at_exit() -> None:
-    """Register, once, the blocking of SIGINT and SIGTERM as the last ``atexit`` function (they run
-    in reverse order, so the first registered runs last), just before Python gives the signals their
-    default action back."""
-    global _blocking_registered
-    if not _blocking_registered:
-        atexit.register(signal.pthread_sigmask, signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-        _blocking_registered = True
+def _ignore_at_exit() -> None:
+    """Register, once, the ignoring of SIGINT and SIGTERM as the last ``atexit`` function (they run
+    in reverse order, so the first registered runs last), just before Python would give the signals
+    their default action back."""
+    global _ignoring_registered
+    if not _ignoring_registered:
+        atexit.register(_ignore)
+        _ignoring_registered = True
+
+
+def _ignore() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 def leave(status: int) -> None:
