@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -78,3 +79,37 @@ def test_a_second_ctrl_c_during_the_stop_keeps_the_outputs(coco_launch: Path, se
     assert "terminate called" not in out and "Traceback" not in out, out
     assert (output / "contact_sheet.png").stat().st_size > 0, "the contact sheet was written"
     assert (output / "summary.json").exists(), "the summary was written"
+
+
+def slow_application(folder: Path, args: int = 1000) -> Path:
+    """An application whose file takes minutes to read: each arg's ``$(eval)`` upper-cases 20
+    strings of a million characters (well within the expression limits: a fraction of a second)."""
+    expression = "max(" + ", ".join(["len(('x' * 999999).upper())"] * 20) + ")"
+    declarations = "".join(f'<arg name="a{index}" default="$(eval {expression})"/>\n' for index in range(args))
+    path = folder / "slow.xml"
+    path.write_text(f"<package>\n{declarations}</package>\n")
+    return path
+
+
+@pytest.mark.parametrize("launcher", launchers(), ids=["coco-launch", "ros-launcher"])
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_ends_a_slow_load_at_once(launcher: Path, signum: int, tmp_path: Path) -> None:
+    process = start_launcher(launcher, str(slow_application(tmp_path)), "--log-level", "DEBUG", "--duration", "1")
+    watchdog = threading.Timer(30, process.kill)  # no 'reading' line: do not wait minutes for the load
+    watchdog.start()
+    try:
+        assert process.stdout is not None
+        lines = []
+        for line in process.stdout:  # the launcher says when it starts reading the file
+            lines.append(line)
+            if "coco: reading " in line:
+                break
+        else:
+            pytest.fail("".join(lines))
+        process.send_signal(signum)
+        out, _ = process.communicate(timeout=15)  # the load alone takes minutes
+    finally:
+        watchdog.cancel()
+        process.kill()
+    assert process.returncode == 128 + signum, out
+    assert "before the application started" in out and "Traceback" not in out, out

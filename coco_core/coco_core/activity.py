@@ -24,7 +24,7 @@ from typing import Callable, Iterable
 from .component import Component
 from .drivers import DEFAULT_SPIN, Driver, MainThreadDriver, ThreadDriver
 from .errors import ActivityError
-from .period import PeriodGrid
+from .period import PeriodGrid, check_period
 from .profiling import ActivityStats
 from .scheduling import SchedulingRequest
 
@@ -64,6 +64,8 @@ class Activity:
         self._stopping = False
         self._started = False
         self._finished = threading.Event()
+        self.failure = ""
+        """Why the activity's driver failed (see :meth:`fail`); empty while it has not."""
         for component in components:
             self.add(component)
 
@@ -190,6 +192,16 @@ class Activity:
         self._finished.set()
         self._run_pending()
 
+    def fail(self, error: BaseException) -> None:
+        """The driver could not go on (an exception outside any component's callbacks, which the
+        components' error policies handle): record it, log it, and stop the application, so that the
+        launcher exits with 1 rather than 0 with this activity silently gone."""
+        self.failure = f"{type(error).__name__}: {error}"
+        log.error("activity %s failed and ended: %s", self.name, self.failure, exc_info=error)
+        apps = {id(component.app): component.app for component in self.components if component.app is not None}
+        for app in apps.values():
+            app.request_stop(f"activity {self.name} failed: {self.failure}")
+
     def _run_pending(self) -> None:
         ops = self._ops
         while ops:
@@ -237,8 +249,7 @@ class PeriodicActivity(Activity):
 
     def __init__(self, name: str, period: float, components: Iterable[Component] = (), *,
                  spin: float = DEFAULT_SPIN, **options: object) -> None:
-        if period <= 0:
-            raise ActivityError(f"activity {name}: the period must be positive, got {period}")
+        check_period(period, f"activity {name}: ")
         super().__init__(name, components, **options)  # type: ignore[arg-type]
         self._period = period
         self.spin = spin
@@ -253,8 +264,7 @@ class PeriodicActivity(Activity):
     def set_period(self, period: float) -> None:
         """Change the period at run time: the next cycle comes ``period`` after the last one was due
         (at once if that is already past), and the time grid continues from there."""
-        if period <= 0:
-            raise ActivityError(f"activity {self.name}: the period must be positive, got {period}")
+        check_period(period, f"activity {self.name}: ")
         self._period = period
         self._driver.set_period(period)
 

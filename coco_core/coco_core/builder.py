@@ -15,7 +15,7 @@ from .activity import Activity, PeriodicActivity, TriggeredActivity
 from .application import Application
 from .attributes import AttributeValueError
 from .component import Component, ErrorPolicy
-from .errors import CocoError, ConfigError, ConfigErrors, did_you_mean
+from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, did_you_mean
 from .model import ActivitySpec, AppSpec, ComponentSpec, LogSpec
 from .policy import ConnectionPolicy
 from .processes.placement import LAUNCHER, Placement
@@ -228,6 +228,9 @@ def configure_logging(spec: LogSpec | None, default_level: int = logging.INFO) -
     level = logging.DEBUG if spec is not None and "debug" in spec.types else default_level
     logging.getLogger("coco").setLevel(level)
     if spec is not None and spec.outfile:
-        handler = logging.FileHandler(spec.outfile)
+        try:
+            handler = logging.FileHandler(spec.outfile)
+        except OSError as error:  # the loader checked it; what changed since is said as clearly
+            raise FileWriteError(f"cannot open the log file (<outfile>) {spec.outfile}: {error.strerror}") from None
         handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
         logging.getLogger("coco").addHandler(handler)

@@ -18,15 +18,16 @@ owner sets ``manages_peers`` and calls ``peer.step()`` itself, e.g. to render in
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import logging
 import time
 import traceback
 from concurrent.futures import Future
-from typing import TYPE_CHECKING, Any, Callable, ClassVar
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Iterator
 
 from .attributes import Attribute
-from .errors import CocoError, DeclarationError, UnknownNameError, did_you_mean
+from .errors import CocoError, DeclarationError, FileReadError, UnknownNameError, did_you_mean
 from . import operations as ops
 from .operations import Operation
 from .ports import InputPort, OutputPort, Port
@@ -324,6 +325,17 @@ class Component:
                 self.app.request_stop(f"component {self.name} raised in {phase}")
             elif self.activity is not None:
                 self.activity.stop()
+
+    @contextlib.contextmanager
+    def reading_attribute_file(self, name: str, expected: str) -> Iterator[None]:
+        """A block that reads the file attribute ``name`` names, with
+        :func:`~coco_core.files.read_regular_file` (a regular file of bounded size: ``/dev/zero``
+        would grow without end, a FIFO block ``on_config`` for ever); its error is raised again
+        naming the attribute, and ``expected`` (what the file should be)."""
+        try:
+            yield
+        except FileReadError as error:
+            raise FileReadError(f"attribute {self.name}.{name}: {error}; expected {expected}") from None
 
     def record_refusal(self, what: str, error: Exception) -> None:
         """Count an input sample this component refused (a malformed value: it read it, so its

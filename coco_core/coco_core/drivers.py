@@ -93,6 +93,8 @@ class ThreadDriver:
                     self._periodic(activity)
                 else:
                     self._triggered(activity)
+        except Exception as error:  # the driver's own failure: the components' errors never reach here
+            activity.fail(error)
         finally:
             activity.finish()
             set_current_activity(None)

@@ -21,7 +21,7 @@ def main(early: list[int] | None = None, launcher: str = "coco_core.launcher") -
     signals.received.extend(early or ())
     launch = importlib.import_module(launcher).main
     code: int = launch(signals=signals)
-    return code
+    return signals.finish(code)
 
 
 if __name__ == "__main__":

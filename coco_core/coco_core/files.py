@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 import stat
 
-from .errors import FileReadError
+from .errors import FileReadError, FileWriteError
 
 MiB = 1024 * 1024
 APPLICATION_FILE_LIMIT = 16 * MiB
@@ -21,6 +21,10 @@ URDF_LIMIT = 64 * MiB
 """Largest URDF read: robot descriptions with inline geometry reach a few MB."""
 MESH_LIMIT = 512 * MiB
 """Largest mesh file read: the Baxter meshes total about 30 MB."""
+DATA_FILE_LIMIT = 64 * MiB
+"""Largest table or description a component attribute names (a hand trajectory or poses CSV, camera
+intrinsics, a TUM sequence's lists): read whole and parsed in Python, so a wrong path to a large
+file must stop here (an hour of a 1 kHz trajectory is about 150 MB: give a recording as a bag)."""
 
 
 def read_regular_file(path: str | os.PathLike[str], limit: int, what: str = "file") -> bytes:
@@ -63,6 +67,25 @@ def check_regular_file(path: str | os.PathLike[str], limit: int, what: str = "fi
     except OSError as error:
         raise FileReadError(f"cannot read {what} {name}: {error.strerror}") from None
     _check(status, name, limit, what)
+
+
+def check_writable_file(path: str | os.PathLike[str], what: str = "file") -> None:
+    """Raise :class:`FileWriteError` unless ``path`` can be opened for appending: an existing file
+    (or device, such as ``/dev/null``) that may be written, or a new name in a folder that exists
+    and may be written. For ``--check``, which must find what the run would refuse, without
+    creating the file."""
+    name = os.fspath(path)
+    if os.path.exists(name):
+        if os.path.isdir(name):
+            raise FileWriteError(f"{what} {name} is a directory; expected a file name")
+        if not os.access(name, os.W_OK):
+            raise FileWriteError(f"{what} {name} cannot be written (permission denied)")
+        return
+    folder = os.path.dirname(os.path.abspath(name))
+    if not os.path.isdir(folder):
+        raise FileWriteError(f"{what} {name}: its folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise FileWriteError(f"{what} {name}: its folder {folder} cannot be written (permission denied)")
 
 
 def _check(status: os.stat_result, name: str, limit: int, what: str) -> None:

@@ -193,24 +193,28 @@ def failure(prog: str, error: CocoError) -> int:
 
 
 def stopped_by_a_failure(app: Application) -> bool:
-    """Whether a component's error stopped the application (its ``on_error`` policy), or damaged
-    input was found (:attr:`Application.damage`, e.g. a truncated bag): the launcher then exits with
-    1, so that scripts notice."""
-    if app.damage:
+    """Whether a component's error stopped the application (its ``on_error`` policy), damaged input
+    was found (:attr:`Application.damage`, e.g. a truncated bag), or an activity failed
+    (:attr:`Activity.failure`): the launcher then exits with 1, so that scripts notice."""
+    if app.damage or any(activity.failure for activity in app.activities.values()):
         return True
     return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
 
 
-def load_and_build(options: argparse.Namespace,
+def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
                    parameters: Mapping[str, str] | None = None) -> tuple[AppSpec, Application]:
     """The application of ``options`` loaded and built; its warnings (what the file sets but this
-    version ignores, components ``--allow-unknown`` left out) are logged. ``parameters``: values
-    for the file's args ranked below the command line's ``name:=value`` (the ROS launcher's node
-    parameters)."""
+    version ignores, components ``--allow-unknown`` left out) are logged. A signal ends the reading
+    of the file at once (:meth:`LaunchSignals.loading`), the building at its end. ``parameters``:
+    values for the file's args ranked below the command line's ``name:=value`` (the ROS launcher's
+    node parameters)."""
     if options.allow_unknown and not options.check:
         raise CocoError("--allow-unknown goes with --check only: an application without some of its "
                         "components cannot run")
-    spec = load_application(find_application(options.app), parse_assignments(options.args), parameters)
+    args = parse_assignments(options.args)
+    log.debug("reading %s", options.app)
+    with signals.loading():
+        spec = load_application(find_application(options.app), args, parameters)
     app = build_application(spec, allow_unknown=options.allow_unknown)
     for warning in spec.warnings:
         log.warning("%s", warning)
@@ -229,15 +233,15 @@ def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> in
         return 2
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
     try:
-        spec, app = load_and_build(options)
+        spec, app = load_and_build(options, signals)
         signals.check()
         if options.check:
             print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
             return 0
     except CocoError as error:
         return failure("coco-launch", error)
-    configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
     try:
+        configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
         with process_level(spec, app, logging.getLevelName(options.log_level)) as processes:
             signals.attach(app)
             with launcher_services(app, options, processes):

@@ -13,6 +13,19 @@ from __future__ import annotations
 from .errors import ActivityError
 from .profiling import ActivityStats
 
+MAX_PERIOD = 86_400.0
+"""The longest period, in seconds (a day): a larger one is a mistake, and one beyond what a timed wait
+takes (``threading.TIMEOUT_MAX``, about 292 years) ended the activity's thread at its first sleep."""
+
+
+def check_period(period: float, owner: str = "") -> float:
+    """``period`` (seconds) when it is a valid period: greater than 0 and at most :data:`MAX_PERIOD`
+    (NaN is neither); else :class:`ActivityError`, naming ``owner`` (``activity x: ``)."""
+    if not 0 < period <= MAX_PERIOD:
+        raise ActivityError(f"{owner}the period must be greater than 0 and at most {MAX_PERIOD:g} s "
+                            f"(a day), got {period} s")
+    return period
+
 
 class PeriodGrid:
     """Deadlines ``period`` apart from a start time; records period errors and overruns in ``stats``."""
@@ -20,9 +33,7 @@ class PeriodGrid:
     __slots__ = ("period", "deadline", "stats")
 
     def __init__(self, period: float, stats: ActivityStats) -> None:
-        if period <= 0:
-            raise ActivityError(f"the period must be positive, got {period}")
-        self.period = period
+        self.period = check_period(period)
         self.deadline = 0.0
         """The deadline of the next cycle (``time.perf_counter`` seconds)."""
         self.stats = stats
@@ -62,8 +73,7 @@ class PeriodGrid:
     def change_period(self, period: float, now: float) -> float:
         """A new period: the next cycle comes ``period`` after the last one was due (at once if that
         is already past), and the grid continues from there; returns the new next deadline."""
-        if period <= 0:
-            raise ActivityError(f"the period must be positive, got {period}")
+        check_period(period)
         self.deadline = max(self.deadline - self.period + period, now)
         self.period = period
         return self.deadline

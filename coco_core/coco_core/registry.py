@@ -19,6 +19,9 @@ from .component import Component
 from .errors import CocoError, did_you_mean, UnknownComponentError
 
 GROUP = "coco.components"
+MAX_PATH_PARTS = 32
+"""The most dotted parts a ``package.module:Class`` path may have (real ones have 2 to 6): importing a
+module 5,000 packages deep exhausts the import system's recursion before it finds nothing."""
 
 C = TypeVar("C", bound=type[Component])
 
@@ -73,9 +76,24 @@ def _import(target: str) -> type[Component]:
     return obj
 
 
+def _check_path(task: str) -> None:
+    """Refuse a ``package.module:Class`` path that cannot name a class, before importing anything."""
+    module_name, _, class_name = task.partition(":")
+    modules, classes = module_name.split("."), class_name.split(".")
+    if len(modules) + len(classes) > MAX_PATH_PARTS or not all(part.isidentifier() for part in modules + classes):
+        raise UnknownComponentError(
+            f"cannot import component {_shorten(task)}: expected package.module:Class, Python names separated "
+            f"by dots (at most {MAX_PATH_PARTS} of them)")
+
+
+def _shorten(text: str, limit: int = 120) -> str:
+    return repr(text) if len(text) <= limit else f"{text[:limit - 3]!r}... ({len(text)} characters)"
+
+
 def load(task: str, library: str = "") -> type[Component]:
     """The component class registered as ``task`` (by ``library`` when given)."""
     if ":" in task:
+        _check_path(task)
         try:
             return _import(task)
         except (ImportError, AttributeError) as error:
@@ -86,7 +104,7 @@ def load(task: str, library: str = "") -> type[Component]:
         in_library = sorted(n for n, r in known.items() if r.library == library) if library else []
         scope = f" in library {library!r} (which provides: {', '.join(in_library) or 'nothing'})" if library else ""
         raise UnknownComponentError(
-            f"unknown component {task!r}{scope}; {did_you_mean(task, list(known))}")
+            f"unknown component {_shorten(task)}{scope}; {did_you_mean(task, list(known))}")
     if library and registration.library != library:
         raise UnknownComponentError(
             f"component {task!r} is provided by library {registration.library!r}, not {library!r}")

@@ -66,3 +66,12 @@ def test_each_pose_is_held_then_the_application_stops(tmp_path):
 def test_empty_poses_attribute_is_an_error():
     with pytest.raises(ConfigError, match="the poses attribute is empty"):
         Application("x").add(JointSequence("arm"))
+
+
+def test_poses_that_are_no_regular_file_are_refused_naming_the_attribute():
+    from coco_core.errors import FileReadError
+
+    with pytest.raises(FileReadError) as raised:
+        JointSequence("arm", poses="/dev/zero").init()
+    assert str(raised.value) == ("attribute arm.poses: poses file /dev/zero is a character device, not a regular "
+                                 "file; expected a CSV file: a header of joint names, one pose per row")

@@ -230,3 +230,35 @@ def test_operations_are_called_by_name_across_processes(tmp_path: Path, reap, ca
     assert all(value % 2 == 0 for value in values), "scale(2) ran in the ticker's process"
     errors = [line for line in lines if line.startswith("error")]
     assert errors and set(errors) == {"error RemoteError ValueError"}, lines
+
+
+def test_check_finds_a_buffer_between_processes_larger_than_the_shared_memory(tmp_path, reap):
+    # buffersize=1000000 passed --check and failed at run time with ENOMEM and a traceback.
+    from coco_core.shm.segment import free_bytes
+
+    slots = free_bytes() // 4096 + 1  # each slot holds at least 4 kB: more than /dev/shm has free
+    app = write_app(tmp_path)
+    app.write_text(app.read_text().replace('buffersize="1000"', f'buffersize="{slots}"'))
+    for args in (("--check",), ("--duration", "5")):
+        process = launch(app, *args)
+        reap(process)
+        out, _ = process.communicate(timeout=60)
+        assert process.returncode == 1, out
+        assert f"app.xml:13: connection ticker.out -> sink.value (BUFFER/LOCKED[{slots}]) between processes needs" in out
+        assert "MiB free (a smaller buffersize, or both ends in one process)" in out
+        assert "Traceback" not in out, out
+
+
+@pytest.mark.parametrize("outfile", ["{tmp}", "{tmp}/missing/log.txt"])
+def test_check_finds_a_log_file_that_cannot_be_opened(tmp_path, outfile):
+    # <outfile>/tmp</outfile> passed --check and failed at run time with IsADirectoryError.
+    outfile = outfile.format(tmp=tmp_path)
+    app = write_app(tmp_path)
+    app.write_text(app.read_text().replace("<components>", f"<log><outfile>{outfile}</outfile></log>\n  <components>", 1))
+    process = launch(app, "--check")
+    out, _ = process.communicate(timeout=60)
+    assert process.returncode == 1, out
+    expected = ("is a directory; expected a file name" if outfile == str(tmp_path)
+                else f"its folder {tmp_path / 'missing'} does not exist")
+    assert f"app.xml:2: <outfile> {outfile}" in out and expected in out, out
+    assert "Traceback" not in out, out

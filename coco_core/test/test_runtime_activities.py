@@ -304,11 +304,38 @@ def test_set_period_is_refused_for_triggered_and_non_positive(make_app):
     app.add(Ticker("t2"), TriggeredActivity("triggered"))
     with pytest.raises(CocoError, match="triggered"):
         app.set_period("triggered", 0.01)
-    with pytest.raises(ValueError, match="positive"):
+    with pytest.raises(ValueError, match="greater than 0"):
         app.set_period("periodic", 0)
-    with pytest.raises(ValueError, match="positive"):
+    with pytest.raises(ValueError, match="greater than 0"):
         PeriodicActivity("bad", -1.0)
+    for absurd in (1e297, float("nan"), float("inf")):  # 1e297 s ended the activity's thread at its first sleep
+        with pytest.raises(ValueError, match=r"at most 86400 s \(a day\)"):
+            app.set_period("periodic", absurd)
+        with pytest.raises(ValueError, match=r"at most 86400 s \(a day\)"):
+            PeriodicActivity("bad", absurd)
     assert app.activity("periodic").period == 0.01
+
+
+def test_an_activity_whose_driver_fails_stops_the_application_and_is_recorded(make_app):
+    # A driver's own failure (not a component's: their policies handle those) ended the activity's
+    # thread while the application ran on, and the launcher exited 0.
+    from coco_core.drivers import ThreadDriver
+    from coco_core.launcher import stopped_by_a_failure
+
+    class FailingDriver(ThreadDriver):
+        def _triggered(self, activity):
+            raise OverflowError("timeout value is too large")
+
+    app = make_app("failing")
+    activity = TriggeredActivity("doomed")
+    activity.drive_with(FailingDriver())
+    app.add(Ticker("t"), activity)
+    app.start()
+    assert app.wait(timeout=10), "the application was not stopped"
+    assert app.stop()
+    assert activity.failure == "OverflowError: timeout value is too large"
+    assert app.stop_reason == "activity doomed failed: OverflowError: timeout value is too large"
+    assert stopped_by_a_failure(app)
 
 
 def test_periodic_activity_with_an_event_port_does_not_busy_spin(make_app, wait_until):

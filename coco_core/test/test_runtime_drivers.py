@@ -60,7 +60,7 @@ def test_grid_period_change_continues_from_the_last_deadline() -> None:
     grid.after_cycle(100.001)  # next deadline 100.01
     assert grid.change_period(0.02, 100.002) == pytest.approx(100.02)
     assert grid.change_period(0.001, 100.05) == pytest.approx(100.05), "a past deadline is now"
-    with pytest.raises(ValueError, match="positive"):
+    with pytest.raises(ValueError, match="greater than 0"):
         grid.change_period(0, 100.0)
 
 

@@ -224,7 +224,7 @@ def test_schedule_attribute_values():
         (8, '<schedule> attribute affinity="1,x": expected a core number, a comma-separated list '
             "of core numbers, or -1 for none"),
         (12, '<schedule> type="periodic" needs period= (milliseconds, greater than 0)'),
-        (16, '<schedule> attribute value="-5": expected a period greater than 0 milliseconds'),
+        (16, '<schedule> attribute value="-5": expected a period greater than 0 milliseconds and at most 86400000 (a day)'),
         (20, '<schedule> attribute activity="serial" is not valid; expected one of: parallel, sequential'),
         (24, "<schedule> has both period= and value=; they are the same setting (milliseconds): give one"),
     ]

@@ -15,7 +15,9 @@ from coco_core.transforms import TransformGraph
 from coco_core.transforms.urdf import UrdfError, load_urdf
 from coco_core.xml import load_application, parse_application_string
 from coco_core.xml.components import MAX_PEER_DEPTH
-from coco_core.xml.loader import MAX_INCLUDE_DEPTH
+from coco_core.xml import expression
+from coco_core.xml.expression import MAX_ROUND_DIGITS
+from coco_core.xml.loader import MAX_INCLUDE_DEPTH, MAX_INCLUDES
 from coco_core.xml.substitution import MAX_EXPANSION, MAX_NESTING
 
 
@@ -213,6 +215,44 @@ def test_args_that_double_each_other_stop_at_the_expansion_limit():
     assert len(errors) == 1
 
 
+def test_round_with_a_huge_number_of_digits_is_refused_before_it_computes():
+    # round(1, -10**18) computes 10**(10**18): one operation of Python's that never ends and no
+    # signal interrupts; 10**6 digits already cost a noticeable fraction of a second.
+    with at_most(5):
+        ((where, message),) = errors_of(lambda: parse_application_string(
+            '<package>\n<arg name="y" default="$(eval round(1, -10**6))"/>\n</package>', "app.xml"))
+    assert where == "app.xml:2"
+    assert message.endswith(f"round(): -1000000 digits; at most {MAX_ROUND_DIGITS} either way are allowed")
+    app = parse_application_string(f'<package><arg name="y" default="$(eval round(123456, -{MAX_ROUND_DIGITS}))"/></package>')
+    assert app.args["y"] == "0"
+
+
+def test_an_expression_stops_at_its_time_limit(monkeypatch):
+    monkeypatch.setattr(expression, "MAX_SECONDS", -1.0)  # any expression is past it at its first node
+    ((_, message),) = errors_of(lambda: parse_application_string(
+        '<package><arg name="y" default="$(eval 1 + 1)"/></package>', "app.xml"))
+    assert message.endswith("the expression takes more than -1 s to evaluate")
+
+
+def test_files_that_include_the_next_one_twice_stop_at_the_include_limit(tmp_path):
+    # Each file includes the next one twice: 30 files would be read 2**30 times.
+    for index in range(30):
+        includes = f"<include>f{index + 1}.xml</include>" * 2 if index + 1 < 30 else ""
+        (tmp_path / f"f{index}.xml").write_text(
+            f'<package>\n<includes>{includes}</includes>\n<arg name="a{index}" default="1"/>\n</package>\n')
+    with at_most(20):
+        ((where, message),) = errors_of(lambda: load_application(tmp_path / "f0.xml"))
+    assert where.endswith(":2")
+    assert message.startswith(f"the application includes more than {MAX_INCLUDES} files or 64 MiB in all")
+
+
+def test_an_application_of_many_includes_within_the_limit_loads(tmp_path):
+    (tmp_path / "leaf.xml").write_text('<package><arg name="leaf" default="1"/></package>')
+    includes = "<include>leaf.xml</include>" * MAX_INCLUDES
+    (tmp_path / "app.xml").write_text(f"<package><includes>{includes}</includes></package>")
+    assert load_application(tmp_path / "app.xml").args == {"leaf": "1"}
+
+
 # ----- many components --------------------------------------------------------------------------
 
 
@@ -231,3 +271,29 @@ def test_the_entry_points_are_scanned_once_for_all_components(monkeypatch):
     app = build_application(parse_application_string(f"<package><components>{components}</components></package>"))
     assert len(app.components) == 200
     assert scans == [{"group": registry.GROUP}]
+
+
+# ----- values out of range ----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("period", ["1e300", "86400001"])
+def test_a_period_beyond_a_day_is_an_error_at_the_schedule(period):
+    # 1e300 ms passed --check, then ended the activity's thread at its first sleep (exit status 0).
+    text = (f'<package>\n<activities><activity><schedule period="{period}"/>\n'
+            "<components><component>c</component></components></activity></activities></package>")
+    errors = errors_of(lambda: parse_application_string(text, "app.xml"))
+    assert ("app.xml:2", f'<schedule> attribute period="{period}": expected a period greater than 0 '
+                         "milliseconds and at most 86400000 (a day)") in errors
+
+
+@pytest.mark.parametrize("task", [".".join(["a"] * 5000) + ":Thing", "coco_core.demo:Not-a-name"])
+def test_a_task_path_that_cannot_name_a_class_is_an_error_not_a_traceback(task):
+    # 5,000 dotted parts exhausted the import system's recursion: a RecursionError traceback.
+    text = f"<package>\n<components><component><name>c</name><task>{task}</task></component></components></package>"
+    with pytest.raises(ConfigErrors) as raised:
+        build_application(parse_application_string(text, "app.xml"))
+    ((error),) = raised.value.errors
+    assert str(error.location) == "app.xml:2"
+    assert error.message.startswith("cannot import component ")
+    assert error.message.endswith("expected package.module:Class, Python names separated by dots (at most 32 of them)")
+    assert len(error.message) < 300

@@ -27,6 +27,7 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.errors import HapticDeviceError
+from coco_core.files import DATA_FILE_LIMIT, read_regular_file
 from coco_core.policy import NEW_DATA, NO_DATA
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamped, unstamped
@@ -40,19 +41,21 @@ class HandTrajectory:
     an optional ``buttons`` column); linear interpolation, held at the ends."""
 
     def __init__(self, path: Path) -> None:
-        with open(path, newline="") as stream:
-            reader = csv.DictReader(stream)
-            missing = {"time", "x", "y", "z"} - set(reader.fieldnames or [])
-            if missing:
-                raise HapticDeviceError(f"{path}: a hand trajectory needs the columns time,x,y,z; "
-                                        f"missing {', '.join(sorted(missing))} (found {reader.fieldnames})")
-            rows = []
-            for line, row in enumerate(reader, start=2):
-                try:
-                    rows.append((float(row["time"]), float(row["x"]), float(row["y"]), float(row["z"]),
-                                 float(row.get("buttons") or 0)))
-                except ValueError:
-                    raise HapticDeviceError(f"{path}:{line}: expected numbers, got {row}") from None
+        text = read_regular_file(path, DATA_FILE_LIMIT, "hand trajectory").decode("utf-8", errors="replace")
+        reader = csv.DictReader(text.splitlines())
+        missing = {"time", "x", "y", "z"} - set(reader.fieldnames or [])
+        if missing:
+            raise HapticDeviceError(f"{path}: a hand trajectory needs the columns time,x,y,z; "
+                                    f"missing {', '.join(sorted(missing))} (found {reader.fieldnames})")
+        rows = []
+        for line, row in enumerate(reader, start=2):
+            try:
+                rows.append((float(row["time"]), float(row["x"]), float(row["y"]), float(row["z"]),
+                             float(row.get("buttons") or 0)))
+            except (TypeError, ValueError):  # a short row gives None for its missing fields
+                raise HapticDeviceError(f"{path}:{line}: expected numbers, got {row}") from None
+            if not all(map(math.isfinite, rows[-1])):
+                raise HapticDeviceError(f"{path}:{line}: expected finite numbers, got {row}")
         if len(rows) < 2:
             raise HapticDeviceError(f"{path}: a hand trajectory needs at least 2 rows, got {len(rows)}")
         table = np.array(rows)
@@ -112,7 +115,10 @@ class SimulatedDevice(Component):
         if any(lo >= hi for lo, hi in zip(self.workspace_min, self.workspace_max)):
             raise HapticDeviceError(f"{self.name}: workspace_min {self.workspace_min} must be below "
                                     f"workspace_max {self.workspace_max} on every axis")
-        self._trajectory = HandTrajectory(Path(self.trajectory)) if self.trajectory else None
+        self._trajectory = None
+        if self.trajectory:
+            with self.reading_attribute_file("trajectory", "a CSV file time,x,y,z[,buttons]"):
+                self._trajectory = HandTrajectory(Path(self.trajectory))
         if self._trajectory is not None:
             hand, self._buttons = self._trajectory.at(0.0)
         else:

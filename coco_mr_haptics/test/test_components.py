@@ -262,3 +262,38 @@ def test_the_simulated_device_refuses_a_non_finite_force():
     device.step()
     assert device.stats.refused == 1
     assert math.isfinite(device.x + device.vx)
+
+
+@pytest.mark.parametrize("special", ["/dev/zero", "fifo"])
+def test_a_trajectory_that_is_no_regular_file_is_refused_naming_the_attribute(tmp_path, special):
+    # /dev/zero grew the process to 2.4 GB in 4 s, a FIFO blocked on_config for ever.
+    import os
+    import signal
+
+    from coco_core.errors import FileReadError
+
+    path = special
+    if special == "fifo":
+        path = str(tmp_path / "hand.csv")
+        os.mkfifo(path)
+    kind = "a FIFO" if special == "fifo" else "a character device"
+    device = SimulatedDevice("device", trajectory=path)
+    signal.signal(signal.SIGALRM, lambda *_: pytest.fail("reading the trajectory did not end"))
+    signal.setitimer(signal.ITIMER_REAL, 10)
+    try:
+        with pytest.raises(FileReadError) as raised:
+            device.on_config()
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+    assert str(raised.value) == (f"attribute device.trajectory: hand trajectory {path} is {kind}, not a regular "
+                                 "file; expected a CSV file time,x,y,z[,buttons]")
+
+
+def test_a_trajectory_with_a_short_row_or_a_non_finite_number_is_an_error_at_its_line(tmp_path):
+    from coco_core.errors import HapticDeviceError
+
+    for row, problem in (("0.1,0,0", "expected numbers"), ("0.1,0,nan,0", "expected finite numbers")):
+        path = tmp_path / "hand.csv"
+        path.write_text(f"time,x,y,z\n0,0,0,0\n{row}\n")
+        with pytest.raises(HapticDeviceError, match=rf"hand\.csv:3: {problem}"):
+            SimulatedDevice("device", trajectory=str(path)).on_config()

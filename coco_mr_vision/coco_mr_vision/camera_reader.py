@@ -142,7 +142,8 @@ class CameraReader(Component):
     def init(self) -> None:
         self._camera: CameraIntrinsics | None = None
         if self.intrinsics:
-            self._camera = CameraIntrinsics.from_json(self.intrinsics, frame_id=self.frame_id)
+            with self.reading_attribute_file("intrinsics", "a JSON file of camera intrinsics"):
+                self._camera = CameraIntrinsics.from_json(self.intrinsics, frame_id=self.frame_id)
         self.frames = 0
         """Frames delivered."""
         self.ended = False

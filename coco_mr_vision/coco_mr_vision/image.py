@@ -26,6 +26,7 @@ from typing import Any, Mapping
 
 import numpy as np
 from coco_core.errors import ImageError, UnknownNameError, WrongTypeError
+from coco_core.files import DATA_FILE_LIMIT, read_regular_file
 
 
 class ImageFormat(enum.Enum):
@@ -198,8 +199,11 @@ class CameraIntrinsics:
             origin = "the mapping"
         else:
             origin = str(source)
-            with open(source, encoding="utf-8") as stream:
-                document = json.load(stream)
+            text = read_regular_file(source, DATA_FILE_LIMIT, "intrinsics file")
+            try:
+                document = json.loads(text)
+            except ValueError as error:  # not JSON, or not UTF-8
+                raise ImageError(f"{origin}: not a JSON document ({error})") from None
         if isinstance(document, Mapping) and isinstance(document.get("camera"), Mapping):
             document = document["camera"]
         if not isinstance(document, Mapping):

@@ -25,6 +25,7 @@ import numpy as np
 from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.errors import CameraError
+from coco_core.files import DATA_FILE_LIMIT, read_regular_file
 
 from .image import CameraIntrinsics, Image, ImageFormat
 from .rgbd import RGBDFrame
@@ -109,14 +110,20 @@ class TumRgbdPeer(_FilePairs):
         folder = _folder(self.path, "TUM RGB-D sequence")
         association = folder / (self.association or "associations.txt")
         if association.exists():
+            with self.reading_attribute_file("association", "a text file of lines 'time rgb time depth'"):
+                rows = _rows(association, 4)
             pairs: list[tuple[Path, Path, float | None]] = [(folder / row[1], folder / row[3], float(row[0]))
-                     for row in _rows(association, 4)]
+                                                            for row in rows]
         elif self.association:
             raise CameraError(f"TUM association file {association} does not exist")
         else:
-            pairs = associate(_rows(folder / "rgb.txt", 2), _rows(folder / "depth.txt", 2),
-                              self.max_difference, folder)
-        return pairs, _intrinsics_file(self.intrinsics, PRIMESENSE, self.frame_id), self.depth_scale
+            with self.reading_attribute_file("path", "a TUM sequence folder whose rgb.txt and depth.txt are "
+                                             "text files of lines 'time file'"):
+                rgb, depth = _rows(folder / "rgb.txt", 2), _rows(folder / "depth.txt", 2)
+            pairs = associate(rgb, depth, self.max_difference, folder)
+        with self.reading_attribute_file("intrinsics", "a JSON file of camera intrinsics"):
+            intrinsics = _intrinsics_file(self.intrinsics, PRIMESENSE, self.frame_id)
+        return pairs, intrinsics, self.depth_scale
 
 
 def _rows(path: Path, columns: int) -> list[list[str]]:
@@ -125,7 +132,8 @@ def _rows(path: Path, columns: int) -> list[list[str]]:
         raise CameraError(f"TUM RGB-D: {path} does not exist (a TUM sequence has rgb.txt and depth.txt, "
                           "or an association file)")
     rows = []
-    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+    text = read_regular_file(path, DATA_FILE_LIMIT, "TUM list").decode("utf-8", errors="replace")
+    for number, line in enumerate(text.splitlines(), 1):
         fields = line.split()
         if not fields or fields[0].startswith("#"):
             continue
@@ -182,7 +190,9 @@ class RedwoodRgbdPeer(_FilePairs):
             found = sorted(folder.glob("*.json"))
             intrinsics_path = str(found[0]) if found else ""
         pairs = [(c, d, index / self.fps) for index, (c, d) in enumerate(zip(colors, depths))]
-        return pairs, _intrinsics_file(intrinsics_path, PRIMESENSE, self.frame_id), self.depth_scale
+        with self.reading_attribute_file("intrinsics", "a JSON file of camera intrinsics"):
+            intrinsics = _intrinsics_file(intrinsics_path, PRIMESENSE, self.frame_id)
+        return pairs, intrinsics, self.depth_scale
 
 
 class BagRgbdPeer(RgbdPeer):

@@ -105,3 +105,22 @@ def test_bad_sources_say_what_is_wrong(tmp_path):
 def test_gstreamer_pipeline_without_gstreamer_is_a_clear_error():
     with pytest.raises(CameraError, match="built without GStreamer"):
         open_source("videotestsrc ! videoconvert ! appsink")
+
+
+def test_intrinsics_that_are_no_regular_file_are_refused_naming_the_attribute(tmp_path):
+    import os
+    import signal
+
+    from coco_core.errors import FileReadError
+
+    fifo = tmp_path / "camera.json"
+    os.mkfifo(fifo)
+    signal.signal(signal.SIGALRM, lambda *_: pytest.fail("reading the intrinsics blocked"))
+    signal.setitimer(signal.ITIMER_REAL, 10)
+    try:
+        with pytest.raises(FileReadError) as raised:
+            CameraReader("cam", source=str(tmp_path / "frame_*.png"), intrinsics=str(fifo)).init()
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+    assert str(raised.value) == (f"attribute cam.intrinsics: intrinsics file {fifo} is a FIFO, not a regular "
+                                 "file; expected a JSON file of camera intrinsics")

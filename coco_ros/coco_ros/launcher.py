@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Sequence
 
 from coco_core import Application, CocoError
+from coco_core.errors import Interrupted
 from coco_core.model import AppSpec
 from coco_core.applications import find_application
 from coco_core.builder import configure_logging
@@ -49,6 +50,7 @@ from coco_core.signals import INTERRUPTED, LaunchSignals, leave
 from coco_core.xml import load_application
 from rclpy.node import Node
 
+from .fastdds_segments import remove_abandoned
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
 from .diagnostics import ProfileDiagnostics
 from .operation_services import OperationServices
@@ -142,12 +144,13 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         if options.check:
             return _check(options, signals)
         try:
-            built = load_and_build(options)
+            built = load_and_build(options, signals)
         except CocoError as error:
             return failure(_NAME, error)
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
+    _remove_abandoned_segments("killed ROS processes (a launcher, a child)")
     try:
         rclpy.init(args=[_NAME, *ros_args], signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # a malformed --ros-args section
@@ -156,7 +159,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
     node = None
     try:
         # With -p / --params-file, the node comes first: its values are the file's args too.
-        name = built[0].name if built else application_name(options)
+        name = built[0].name if built else application_name(options, signals)
         node = Node(node_name(name), automatically_declare_parameters_from_overrides=True)
         given = given_parameters(node)
         if options.check:
@@ -169,6 +172,15 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        _remove_abandoned_segments("a child killed during the launch")
+
+
+def _remove_abandoned_segments(left_by: str) -> None:
+    """Remove the Fast DDS segment pairs that dead participants left (:mod:`.fastdds_segments`)."""
+    removed = remove_abandoned()
+    if removed:
+        log.info("removed %d Fast DDS shared-memory segment(s) that %s left: %s", len(removed), left_by,
+                 ", ".join(removed))
 
 
 def sets_parameters(ros_args: Sequence[str]) -> bool:
@@ -182,7 +194,7 @@ def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], si
     """Load and build the application (``parameters``: the node's ``-p`` values) unless ``built``
     already, declare its args on ``node``, start its child processes, host its activities and run it
     to its stop."""
-    spec, app = built or load_and_build(options, parameters)
+    spec, app = built or load_and_build(options, signals, parameters)
     ArgParameters(node, spec).declare(parameters)
     signals.check()
     configure_logging(spec.log, logging.getLevelName(options.log_level))
@@ -210,7 +222,7 @@ def _check(options: argparse.Namespace, signals: LaunchSignals, parameters: dict
     """``--check``: load and build (``parameters``: the node's ``-p`` values), print the tree and the
     hosting, run nothing."""
     try:
-        spec, app = load_and_build(options, parameters)
+        spec, app = load_and_build(options, signals, parameters)
         plan = plan_hosting(app, _threads(options.threads), options.all_threads)
         signals.check()
     except CocoError as error:
@@ -221,13 +233,16 @@ def _check(options: argparse.Namespace, signals: LaunchSignals, parameters: dict
     return 0
 
 
-def application_name(options: argparse.Namespace) -> str:
+def application_name(options: argparse.Namespace, signals: LaunchSignals) -> str:
     """The name the launcher's node takes from the application (``<package name=...>``, else the
     file's stem), known before the node exists: the node's ``-p`` values may be needed to load the
     file in full, so a file that does not load yet is named by its stem (the load that follows says
     what is wrong)."""
     try:
-        return load_application(find_application(options.app), parse_assignments(options.args)).name
+        with signals.loading():
+            return load_application(find_application(options.app), parse_assignments(options.args)).name
+    except Interrupted:
+        raise
     except CocoError:
         return Path(options.app).stem
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 import pickle
 
 import numpy as np
@@ -60,3 +61,41 @@ def test_ros_time_pickles_and_prints():
     again = pickle.loads(pickle.dumps(stamp))
     assert (again, again.sec, again.nanosec) == (stamp, 12, 34)
     assert repr(stamp) == "RosTime(sec=12, nanosec=34)" and f"{stamp:.3f}" == "12.000"
+
+
+def _received_messages(stamp: Time) -> list[tuple[str, object]]:
+    """A message of each converter path that reads a header stamp: rclpy messages (PoseStamped) and
+    the converters that read the CDR bytes themselves (JointState, TFMessage, /tf_static)."""
+    from geometry_msgs.msg import PoseStamped, TransformStamped
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Header
+    from tf2_msgs.msg import TFMessage
+
+    header = Header(stamp=stamp, frame_id="world")
+    transform = TransformStamped(header=header, child_frame_id="tool")
+    transform.transform.rotation.w = 1.0
+    pose = PoseStamped(header=header)
+    pose.pose.orientation.w = 1.0
+    return [("geometry_msgs/msg/PoseStamped", pose),
+            ("sensor_msgs/msg/JointState", JointState(header=header, name=["a"], position=[0.5])),
+            ("tf2_msgs/msg/TFMessage", TFMessage(transforms=[transform]))]
+
+
+@pytest.mark.parametrize("sec, nanosec, problem", [
+    (2**31 - 1, 0, r"the stamp sec=2147483647 is \d+ s ahead of this machine's clock \(at most 86400\)"),
+    (1_700_000_000, 1_000_000_000, "the stamp's nanosec=1000000000 is not between 0 and 999999999"),
+    (-5, 0, "the stamp sec=-5 is before 1970"),
+])
+def test_a_received_stamp_that_is_no_acquisition_time_is_refused(sec, nanosec, problem):
+    # sec=2**31-1 was accepted and put 447,483,647 s into a CSV's time column.
+    from coco_core.errors import MessageError
+    from coco_ros.convert import converter_for
+    from rclpy.serialization import serialize_message
+
+    for type_name, message in _received_messages(Time(sec=sec, nanosec=nanosec)):
+        converter = converter_for(type_name)
+        with pytest.raises(MessageError, match=problem):
+            converter.from_cdr(serialize_message(message))
+    now = Time(sec=int(time.time()) + 60, nanosec=5)  # a sender's clock a minute ahead: accepted
+    for type_name, message in _received_messages(now):
+        converter_for(type_name).from_cdr(serialize_message(message))

@@ -9,11 +9,15 @@ are in different processes *crosses*: it becomes a shared-memory channel with th
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 
 from ..errors import ConfigError
+from ..files import MiB
 from ..model import AppSpec, ConnectionSpec, ProcessSpec
-from ..policy import SyncPolicy
+from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from ..shm import layout, ring_size
+from ..shm.segment import SHM_DIR, free_bytes
 
 LAUNCHER = ""
 """The name of the launcher's own process in a placement."""
@@ -63,9 +67,23 @@ class Placement:
         return [connection for connection in spec.connections if self.crosses(connection)]
 
     def problems(self, spec: AppSpec) -> list[ConfigError]:
-        """What cannot run across processes: an UNSYNC connection between two processes."""
+        """What cannot run across processes: an UNSYNC connection between two processes, and rings
+        (a BUFFER's values, each in a slot) larger than the shared memory left: found by ``--check``
+        too, not by the kernel's ENOMEM when the launcher makes them."""
         errors = []
+        free, needed = free_bytes(), 0
         for connection in self.crossing(spec):
+            if connection.data is not BufferPolicy.POOL:  # a pool's control segment is a few kB
+                policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
+                size = ring_size(*layout(policy, None))
+                needed += size
+                if needed > free:
+                    errors.append(ConfigError(
+                        f"connection {connection.src} -> {connection.dest} ({policy}) between processes needs "
+                        f"{size / MiB:.1f} MiB of shared memory, and the connections between processes up to "
+                        f"it {needed / MiB:.1f} MiB; {SHM_DIR} has {free / MiB:.1f} MiB free (a smaller "
+                        "buffersize, or both ends in one process)", connection.location))
+                    free = sys.maxsize  # one error says it
             if connection.policy is SyncPolicy.UNSYNC:
                 src, dest = self.process_of(connection.src.component), self.process_of(connection.dest.component)
                 errors.append(ConfigError(

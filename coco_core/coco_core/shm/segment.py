@@ -20,6 +20,13 @@ SHM_DIR = Path("/dev/shm")
 PREFIX = "coco."
 
 
+def free_bytes() -> int:
+    """Bytes that new segments may still take (``/dev/shm``'s free space): a segment is sparse until
+    written, so one larger than this is made, then fails when its pages are touched."""
+    status = os.statvfs(SHM_DIR)
+    return status.f_bavail * status.f_frsize
+
+
 def segment_name(launch: str, index: int | str) -> str:
     """The name of a launch's segment (without the leading slash shm_open takes)."""
     return f"{PREFIX}{launch}.{index}"

@@ -23,17 +23,13 @@ import numpy as np
 from ..attributes import Attribute
 from ..component import Component
 from ..errors import ConfigError, Location
-from ..files import read_regular_file
+from ..files import DATA_FILE_LIMIT, read_regular_file
 from ..ports import OutputPort
 from .samples import JointSample
 
-POSES_LIMIT = 16 * 1024 * 1024
-"""Bytes of a poses file read at most (a file of poses is small; a wrong path to a large one is not)."""
-
-
 def read_poses(path: Path) -> tuple[tuple[str, ...], np.ndarray]:
     """(joint names, one row of values per pose) of a poses CSV; errors name the file and line."""
-    text = read_regular_file(path, POSES_LIMIT, "poses").decode("utf-8")
+    text = read_regular_file(path, DATA_FILE_LIMIT, "poses file").decode("utf-8")
     rows = [(number, row) for number, row in enumerate(csv.reader(text.splitlines()), start=1)
             if row and not row[0].lstrip().startswith("#")]
     if not rows:
@@ -70,7 +66,8 @@ class JointSequence(Component):
     def init(self) -> None:
         if str(self.poses) in ("", "."):
             raise ConfigError(f"component {self.name}: the poses attribute is empty; give a CSV file of poses")
-        self.names, self.values = read_poses(self.poses)
+        with self.reading_attribute_file("poses", "a CSV file: a header of joint names, one pose per row"):
+            self.names, self.values = read_poses(self.poses)
         self.pose = 0
         """Index of the pose being held."""
         self._started: float | None = None

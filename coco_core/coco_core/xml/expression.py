@@ -6,8 +6,11 @@ The original launcher (``xcoco_launcher.py``) hands the text to Python's ``eval`
 contains, so the expression is parsed and interpreted here over a whitelist: literals, arithmetic,
 comparisons, ``and``/``or``/``not``, ``x if c else y``, indexing and slicing, a few string methods,
 ``int``/``float``/``str``/``bool``/``abs``/``min``/``max``/``round``/``len``, and the argument
-lookups (``arg('name')``, or the bare name of an arg, as ROS 1 roslaunch allows). Sizes are
-bounded, so that an expression cannot build a huge number or string.
+lookups (``arg('name')``, or the bare name of an arg, as ROS 1 roslaunch allows). Sizes and time
+are bounded, so that an expression cannot build a huge number or string, nor keep the load busy: a
+single operation of Python's runs to its end whatever signal comes (``round(1, -10**18)`` computes
+``10**(10**18)``), so the operations whose cost grows with their operands are refused before they
+run, and the whole evaluation stops after :data:`MAX_SECONDS`.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from __future__ import annotations
 import ast
 import operator
 import os
+import time
 from collections.abc import Callable, Mapping
 from typing import Any
 from ..errors import ExpressionError
@@ -27,6 +31,11 @@ MAX_BITS = 4096
 """Largest integer an expression may compute (bits)."""
 MAX_STRING = 1_000_000
 """Longest string an expression may compute (characters); the same as a substitution's result."""
+MAX_ROUND_DIGITS = 1300
+"""Most digits ``round`` may keep or drop: ``round(x, -n)`` computes ``10**n``, and 4,096 bits hold
+1,233 decimal digits, so a larger ``n`` can only give 0 or a number beyond :data:`MAX_BITS`."""
+MAX_SECONDS = 1.0
+"""Longest time one expression may take to evaluate; real ones take microseconds."""
 
 _BINARY: dict[type[ast.operator], Callable[[Any, Any], Any]] = {
     ast.Add: operator.add,
@@ -73,15 +82,17 @@ def evaluate(text: str, args: Mapping[str, str]) -> str:
     except (SyntaxError, ValueError, MemoryError, RecursionError) as error:
         reason = error.msg if isinstance(error, SyntaxError) else "too deeply nested"
         raise ExpressionError(f"{text.strip()!r} is not a valid expression: {reason}") from None
-    value = _Interpreter(args).value(tree.body, 0)
+    value = _Interpreter(args, time.monotonic() + MAX_SECONDS).value(tree.body, 0)
     if isinstance(value, str) and len(value) > MAX_STRING:
         raise ExpressionError(f"the result has more than {MAX_STRING} characters")
     return str(value)
 
 
 class _Interpreter:
-    def __init__(self, args: Mapping[str, str]) -> None:
+    def __init__(self, args: Mapping[str, str], deadline: float) -> None:
         self.args = args
+        self.deadline = deadline
+        """``time.monotonic()`` past which the evaluation stops (checked at every node)."""
         self.functions: dict[str, Callable[..., Any]] = {
             **_BUILTINS, "arg": self._arg, "env": _env, "optenv": _optenv,
         }
@@ -89,6 +100,8 @@ class _Interpreter:
     def value(self, node: ast.expr, depth: int) -> Any:
         if depth > MAX_DEPTH:
             raise ExpressionError(f"the expression nests more than {MAX_DEPTH} deep")
+        if time.monotonic() > self.deadline:
+            raise ExpressionError(f"the expression takes more than {MAX_SECONDS:g} s to evaluate")
         depth += 1
         if isinstance(node, ast.Constant) and isinstance(node.value, (str, int, float, bool, type(None))):
             return _bounded(node.value)
@@ -136,6 +149,8 @@ class _Interpreter:
     def _call(self, node: ast.Call, depth: int) -> Any:
         arguments = [self.value(argument, depth) for argument in node.args]
         if isinstance(node.func, ast.Name) and node.func.id in self.functions:
+            if node.func.id == "round":
+                _check_round(arguments)
             return _bounded(_apply(self.functions[node.func.id], *arguments))
         if isinstance(node.func, ast.Attribute) and node.func.attr in STRING_METHODS:
             target = self.value(node.func.value, depth)
@@ -190,6 +205,12 @@ def _check_operands(op: ast.operator, left: Any, right: Any) -> None:
         for text, count in ((left, right), (right, left)):
             if isinstance(text, (str, tuple)) and isinstance(count, int) and len(text) * count > MAX_STRING:
                 raise ExpressionError(f"the repeated string would have more than {MAX_STRING} characters")
+
+
+def _check_round(arguments: list[Any]) -> None:
+    """Refuse ``round(x, n)`` with ``|n|`` beyond :data:`MAX_ROUND_DIGITS`, before it computes ``10**|n|``."""
+    if len(arguments) == 2 and isinstance(arguments[1], int) and abs(arguments[1]) > MAX_ROUND_DIGITS:
+        raise ExpressionError(f"round(): {arguments[1]} digits; at most {MAX_ROUND_DIGITS} either way are allowed")
 
 
 def _bounded(value: Any) -> Any:

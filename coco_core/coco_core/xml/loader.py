@@ -13,7 +13,8 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ..errors import ConfigError, ConfigErrors
-from ..files import APPLICATION_FILE_LIMIT, FileReadError, read_regular_file
+from ..errors import FileWriteError
+from ..files import APPLICATION_FILE_LIMIT, FileReadError, check_writable_file, read_regular_file
 from ..model import AppSpec, LogSpec
 from .activities import read_activity
 from .arguments import Arguments
@@ -49,6 +50,12 @@ LOG_TYPES = ("debug", "err", "log")
 MAX_INCLUDE_DEPTH = 64
 """How many files an include chain may hold (the application file included): a limit far beyond
 real applications, which keeps a generated chain from exhausting the reader's recursion."""
+MAX_INCLUDES = 1000
+"""How many includes one load reads in all, the same file counted each time it is read: files that
+each include the next one twice would otherwise be read 2^N times (30 of them, a billion)."""
+MAX_INCLUDED_BYTES = 64 * 1024 * 1024
+"""How many bytes of included files one load reads in all (each file has the limit of an
+application file, 16 MiB): an application of many large includes stops here, not at the memory."""
 
 
 def load_application(
@@ -97,6 +104,11 @@ class _Loader:
         """Every file opened, in order: errors are reported in this order, then by line."""
         self.complete = True
         """False once a file could not be read: checks across files would then only add noise."""
+        self.includes_read = 0
+        self.included_bytes = 0
+        """The includes read so far and their bytes, against :data:`MAX_INCLUDES` and
+        :data:`MAX_INCLUDED_BYTES`; past either, no include is read any more (one error says so)."""
+        self.includes_refused = False
 
     def load(self, data: bytes | str, file: str, directory: str) -> AppSpec:
         name, on_error = Path(file).stem, "continue"
@@ -231,6 +243,11 @@ class _Loader:
                 log.types = self._log_types(reader, child, text)
             elif tag == "outfile":
                 log.outfile = text
+                try:
+                    if text:
+                        check_writable_file(text, "<outfile>")
+                except FileWriteError as error:
+                    reader.error(str(error), child)
         self.draft.log = log
 
     @staticmethod
@@ -296,12 +313,25 @@ class _Loader:
             )
             self.complete = False
             return
+        if self.includes_read >= MAX_INCLUDES or self.included_bytes >= MAX_INCLUDED_BYTES:
+            if not self.includes_refused:
+                reader.error(
+                    f"the application includes more than {MAX_INCLUDES} files or "
+                    f"{MAX_INCLUDED_BYTES // (1024 * 1024)} MiB in all (files that include the same files "
+                    f"again and again?); {file} and the includes after it are not read",
+                    include,
+                )
+            self.includes_refused = True
+            self.complete = False
+            return
         try:
             data = read_regular_file(file, APPLICATION_FILE_LIMIT, "included file")
         except FileReadError as error:
             reader.error(str(error), include)
             self.complete = False
             return
+        self.includes_read += 1
+        self.included_bytes += len(data)
         root = self._parse(data, file)
         if root is None:
             return

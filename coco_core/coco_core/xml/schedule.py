@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from ..errors import AttributeValueError
 from ..model import ScheduleSpec
+from ..period import MAX_PERIOD
 from .reader import FileReader
 from .tree import Element
 from .values import parse_bool, parse_cores, parse_int, parse_number
@@ -71,10 +72,10 @@ def _activation(
                 f'<{element.tag}> type="periodic" needs period= (milliseconds, greater than 0)',
                 element,
             )
-        elif period is not None and period <= 0:
+        elif period is not None and not 0 < period <= MAX_PERIOD * 1e3:
             reader.error(
                 f'<{element.tag}> attribute {attribute}="{values[attribute]}": '
-                "expected a period greater than 0 milliseconds",
+                f"expected a period greater than 0 milliseconds and at most {MAX_PERIOD * 1e3:.0f} (a day)",
                 element,
             )
     elif attribute is not None:

@@ -15,6 +15,7 @@ from typing import Any
 
 import yaml
 from coco_core.errors import BagError
+from coco_core.files import DATA_FILE_LIMIT, read_regular_file
 
 from .qos import dump_profiles, parse_profiles
 from .topic import TopicInfo
@@ -59,7 +60,7 @@ def read_metadata(folder: str | Path) -> BagMetadata | None:
     if not path.is_file():
         return None
     try:
-        document = yaml.safe_load(path.read_text(encoding="utf-8"))
+        document = yaml.safe_load(read_regular_file(path, DATA_FILE_LIMIT, "bag metadata").decode("utf-8"))
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
         raise BagError(path, f"cannot read it as YAML: {error}") from None
     info = document.get("rosbag2_bagfile_information") if isinstance(document, dict) else None

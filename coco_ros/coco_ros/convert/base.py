@@ -10,7 +10,7 @@ import numpy as np
 from coco_core.errors import MessageError, WrongTypeError
 from std_msgs.msg import Header
 
-from .stamps import seconds_to_time, time_to_seconds
+from .stamps import received_time, seconds_to_time
 
 M = TypeVar("M")
 V = TypeVar("V")
@@ -85,7 +85,10 @@ def make_header(stamp: float | None, frame_id: str) -> Header:
 
 
 def header_stamp(header: Header) -> float | None:
-    return time_to_seconds(header.stamp)
+    """The stamp of a received message's header, checked (:func:`~.stamps.received_time`); None when
+    unset (zero)."""
+    stamp = header.stamp
+    return None if stamp.sec == 0 and stamp.nanosec == 0 else received_time(stamp.sec, stamp.nanosec)
 
 
 def typed_array(values: np.ndarray, typecode: str) -> array.array:

@@ -27,7 +27,7 @@ from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, T
 
 from .base import Converter, header_stamp, make_header, message_class
 from .cdr_writer import align, with_header
-from .stamps import RosTime
+from .stamps import received_time
 
 
 def matrix_of(translation: Any, rotation: Any) -> np.ndarray:
@@ -143,9 +143,9 @@ def _tf_samples_from_cdr(data: bytes, static: bool) -> list[TransformSample]:
             raise GeometryError(f"quaternion {(qx, qy, qz, qw)} is zero: not a rotation")
         matrix = se3.from_pose((tx, ty, tz), (qx, qy, qz, qw))
         if static:
-            samples.append(TransformSample(parent, child, matrix, RosTime(sec, nanosec), static=True))
+            samples.append(TransformSample(parent, child, matrix, received_time(sec, nanosec), static=True))
         else:
-            stamp = None if sec == 0 and nanosec == 0 else RosTime(sec, nanosec)
+            stamp = None if sec == 0 and nanosec == 0 else received_time(sec, nanosec)
             samples.append(TransformSample(parent, child, matrix, stamp))
     return samples
 
@@ -156,7 +156,7 @@ def static_sample(msg: TransformStamped) -> TransformSample:
     stamp = msg.header.stamp
     return TransformSample(msg.header.frame_id, msg.child_frame_id,
                            matrix_of(transform.translation, transform.rotation),
-                           RosTime(stamp.sec, stamp.nanosec), static=True)
+                           received_time(stamp.sec, stamp.nanosec), static=True)
 
 
 def transform_stamped(value: TransformSample | FramePose) -> TransformStamped:

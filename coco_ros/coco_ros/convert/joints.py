@@ -19,7 +19,7 @@ from coco_core.transforms.samples import JointSample
 from sensor_msgs.msg import JointState
 
 from .base import Converter, header_stamp, make_header, typed_array
-from .stamps import RosTime
+from .stamps import received_time
 
 _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
@@ -131,7 +131,7 @@ def _joint_state_from_cdr(data: bytes) -> JointStateSample:
                                       for values, label, required in zip(arrays, ("position", "velocity", "effort"),
                                                                          (True, False, False)))
     assert positions is not None  # required: refused rather than None
-    stamp = None if sec == 0 and nanosec == 0 else RosTime(sec, nanosec)
+    stamp = None if sec == 0 and nanosec == 0 else received_time(sec, nanosec)
     return JointStateSample(names_tuple, positions, stamp, velocities, efforts)
 
 

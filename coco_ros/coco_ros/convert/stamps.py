@@ -12,11 +12,18 @@ ROS's exact-time synchronisers need; any arithmetic on it yields a plain float, 
 nearest nanosecond on the way out.
 
 A zero ``Time`` (ROS's "unset", also tf2's "latest") maps to ``None``, and ``None`` back to zero.
+
+A stamp that arrives in a message's header is an acquisition time (:func:`received_time`): not before 1970,
+``nanosec`` below 10^9, and not more than :data:`FUTURE_LIMIT` ahead of this machine's clock. The
+rest (``sec=2**31-1``, builtin_interfaces' largest time, put 447,483,647 s into a CSV's time column)
+is refused: the converter raises :class:`MessageError`, and the ROSInterface counts the message
+among its route's conversion errors.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 from builtin_interfaces.msg import Time
@@ -24,6 +31,9 @@ from coco_core.errors import MessageError
 
 _NS = 1_000_000_000
 _INT32 = 2**31
+FUTURE_LIMIT = 86_400.0
+"""Seconds a received stamp may lie ahead of this machine's clock (a day: clocks of machines that
+exchange data agree far better; a sender's wrong clock or a sentinel does not)."""
 
 
 class RosTime(float):
@@ -57,6 +67,20 @@ def time_to_seconds(stamp: Time) -> RosTime | None:
     if stamp.sec == 0 and stamp.nanosec == 0:
         return None
     return RosTime(stamp.sec, stamp.nanosec)
+
+
+def received_time(sec: int, nanosec: int) -> RosTime:
+    """The :class:`RosTime` of a stamp received in a message, checked as an acquisition time (see the
+    module); :class:`MessageError` says what is wrong with it."""
+    if not 0 <= nanosec < _NS:
+        raise MessageError(f"the stamp's nanosec={nanosec} is not between 0 and 999999999")
+    if sec < 0:
+        raise MessageError(f"the stamp sec={sec} is before 1970")
+    ahead = sec - time.time()
+    if ahead > FUTURE_LIMIT:
+        raise MessageError(f"the stamp sec={sec} is {ahead:.0f} s ahead of this machine's clock (at most "
+                           f"{FUTURE_LIMIT:.0f}): not a time of acquisition")
+    return RosTime(sec, nanosec)
 
 
 def seconds_to_time(seconds: float | None) -> Time:
