@@ -99,7 +99,7 @@ class ChildProcess:
             self.link.send("error", text=str(error))
             return 1
         app.add_stop_listener(self._stop_requested_here)
-        app.gate.hold(lambda: self.link.send("configured"))  # the launcher's word opens it
+        app.gate.hold(self._configured)  # the launcher's word ("run") opens it
         app.router = self
         self.link.send("built")
         while True:  # every process builds, then all start: wait for the word
@@ -133,6 +133,10 @@ class ChildProcess:
         host (the ROS launcher's node and executor) runs its children with a subclass."""
         app.run()
         return app.stop()
+
+    def _configured(self) -> None:
+        """Every activity of this process is configured: tell the launcher, whose gate counts them."""
+        self.link.send("configured")
 
     def _stop_requested_here(self, reason: str) -> None:
         """A stop that began in this process (a component's error policy) stops the whole application."""
