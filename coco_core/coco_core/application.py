@@ -220,7 +220,10 @@ class Application:
 
     # --- running --------------------------------------------------------------------------------
     def start(self) -> None:
-        """Start every activity but the main one (see :meth:`run`)."""
+        """Start every activity but the main one (see :meth:`run`). Each configures at once, in its
+        driver's thread, and cycles once every activity is configured (:attr:`gate`): the main
+        one too, so with a main activity nothing cycles before :meth:`run` (or
+        ``main.run_here()``) configured it."""
         if self._started:
             raise CocoError(f"application {self.name} was already started")
         problems = self.problems()

@@ -101,16 +101,6 @@ class StartGate:
                 return
         callback()
 
-    @property
-    def is_open(self) -> bool:
-        return self._opened.is_set()
-
-    @property
-    def waiting(self) -> list[str]:
-        """The activities not configured yet (for a start that takes long)."""
-        with self._lock:
-            return sorted(self._waiting)
-
 
 def cpu_seconds(pid: int) -> float:
     """CPU seconds (user + system) used so far by process ``pid``; 0 when it is gone."""
