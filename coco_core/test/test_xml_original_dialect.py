@@ -295,8 +295,9 @@ def test_the_original_sample_with_an_unknown_element_loads_with_a_warning(tmp_pa
     # <package>, which the C++ parser ignores and the original Python launcher expands.
     sample = WORKSPACE / "test" / "data" / "coco_original" / "config_arg_streamer.xml"
     args = {"radius": "2", "port": "9000", "kinect": "True"}
-    # What this project still refuses in it (docs/xml_format.md says so): its connections and an
-    # activity name the camera by its task, CameraInterfaceTask, while its <name> is $(anon camera).
+    # What this project still refuses in it (docs/xml_format.md says so; the original C++ loader too):
+    # its connections and an activity name the camera by its task, CameraInterfaceTask, while its
+    # <name> is $(anon camera).
     with pytest.raises(ConfigErrors) as raised:
         load_application(sample, args)
     assert [(e.location.line, e.message.split(";")[0]) for e in raised.value.errors] == [
