@@ -38,9 +38,10 @@ component must know whose thread they are in). The first callback of an activity
 components; its cycles begin with the first callback after the application's start gate opened
 (:mod:`coco_core.lifecycle`: every activity of every process configured), which the gate's opening
 triggers, so no callback ever waits for the others; the activity's last callback runs ``finish``
-(``on_stop``), inside its group, after the application asked for a stop. ``on_config``, ``on_update`` and ``on_stop`` of a hosted activity may
-therefore run on *different* threads (never at the same time): a component that holds a thread-bound
-resource (an OpenGL context, a thread-affine device SDK) needs a dedicated thread.
+(``on_stop``), inside its group, after the application asked for a stop. ``on_config``,
+``on_update`` and ``on_stop`` of a hosted activity may therefore run on *different* threads (never
+at the same time): a component that holds a thread-bound resource (an OpenGL context, a
+thread-affine device SDK) needs a dedicated thread.
 
 Which activities get their own thread (coco_core's loop: ``Activity.start``) instead is decided by
 :func:`dedicated_reason`; see ``docs/ros.md`` for the rule and the measured numbers behind it.
