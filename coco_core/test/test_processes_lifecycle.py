@@ -339,6 +339,9 @@ def test_a_signal_during_a_long_natural_stop_still_stops_within_a_second(tmp_pat
     os.killpg(launcher.pid, signal.SIGINT)
     out, _ = launcher.communicate(timeout=30)
     assert time.monotonic() - sent < 2.5, out  # 1 s to stop, plus the interpreter's exit
-    assert launcher.returncode == 128 + signal.SIGINT, out  # Ctrl-C during a stop: leave at once
+    # 130: a Ctrl-C during a stop leaves at once; 1 when it came as the stop began (a hard stop)
+    assert launcher.returncode in (1, 128 + signal.SIGINT), out
     assert "did not stop within 1.0 s" in out, out
+    # the child was told the stop became hard, and bounded its own flush
+    assert "coco[worker]: activity near did not stop within 1.0 s" in out, out
     assert not (tmp_path / "far.txt").exists()

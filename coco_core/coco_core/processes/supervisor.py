@@ -96,6 +96,8 @@ class Child:
     last: ProfileSnapshot | None = None
     """The child's final profile, sent when it stopped."""
     stop_sent: bool = False
+    hard_stop_sent: bool = False
+    """The child was told that the stop is hard (a signal or a fault came during a natural stop)."""
 
 
 class ProcessDriver:
@@ -278,12 +280,14 @@ class ProcessSupervisor:
 
     def stop_child(self, child: Child, reason: str) -> None:
         """Tell ``child`` to stop, once (every stand-in of its activities asks, when the application
-        stops them)."""
+        stops them), and once more when a natural stop becomes hard, so that the child too ends it
+        within a second."""
+        hard = self.app.stop_is_hard
         with self._lock:
-            if child.stop_sent:
+            if child.stop_sent and (child.hard_stop_sent or not hard):
                 return
-            child.stop_sent = True
-        child.link.send("stop", reason=reason, hard=self.app.stop_is_hard)
+            child.stop_sent, child.hard_stop_sent = True, hard
+        child.link.send("stop", reason=reason, hard=hard)
 
     def call(self, process: str, component: str, operation: str, args: tuple[Any, ...],
              kwargs: dict[str, Any]) -> Future[Any]:
