@@ -90,10 +90,7 @@ def test_at_full_speed_every_joint_state_that_moves_the_gripper_is_one_row(
     """``rate:=0`` replays the recording far faster than the graph, the distance and the summary take
     it (and, with the display, while the view renders): still one CSV row per joint state that moved
     the right gripper, in order, and nothing dropped on the way to the summary."""
-    from coco_core.transforms.urdf import UrdfModel
-
     from coco_ros.baxter.importer import read_recording
-    from coco_ros.baxter.joints import BAXTER_JOINT_NAMES
 
     output = tmp_path / "teleop"
     result = run_launcher(coco_launch, APP, f"bag:={imported}", f"output:={output}", "fixed_bowl:=true",
@@ -107,14 +104,7 @@ def test_at_full_speed_every_joint_state_that_moves_the_gripper_is_one_row(
     assert "replayed (813 messages)" in result.stderr, result.stderr
 
     recording = read_recording(RECORDING)
-    robot = UrdfModel.load(URDF)
-    moved, previous = [], None
-    for positions in recording.positions:
-        robot.set_positions(dict(zip(BAXTER_JOINT_NAMES, positions)))
-        gripper = robot.placement("right_gripper").copy()
-        if previous is None or not np.array_equal(gripper, previous):
-            moved.append(float(np.linalg.norm(gripper[:3, 3] - BOWL)))
-        previous = gripper
+    moved = moved_distances()
     assert 100 < len(moved) <= len(recording)
 
     with (output / "distance.csv").open(newline="") as handle:
@@ -127,8 +117,30 @@ def test_at_full_speed_every_joint_state_that_moves_the_gripper_is_one_row(
     if display == "false":  # with the display, whether a frame is drawn before this fast replay ends
         assert summary["display_latency_ms"]["frames"] == 0  # is a race: test_baxter_view checks it
 
-    # The profile's connection table: nothing dropped between the replay and the summary.
-    profile = result.stdout + result.stderr
+    check_nothing_dropped(result.stdout + result.stderr)
+
+
+def moved_distances() -> list[float]:
+    """The gripper-to-bowl distance of every recorded joint state that moves the right gripper (an
+    independent forward kinematics of the recording: one CSV row each)."""
+    from coco_core.transforms.urdf import UrdfModel
+
+    from coco_ros.baxter.importer import read_recording
+    from coco_ros.baxter.joints import BAXTER_JOINT_NAMES
+
+    robot = UrdfModel.load(URDF)
+    moved, previous = [], None
+    for positions in read_recording(RECORDING).positions:
+        robot.set_positions(dict(zip(BAXTER_JOINT_NAMES, positions)))
+        gripper = robot.placement("right_gripper").copy()
+        if previous is None or not np.array_equal(gripper, previous):
+            moved.append(float(np.linalg.norm(gripper[:3, 3] - BOWL)))
+        previous = gripper
+    return moved
+
+
+def check_nothing_dropped(profile: str) -> None:
+    """The profile's connection table: nothing dropped between the replay and the summary."""
     for connection in ("replay.robot_joint_states -> tf.joints", "tf.gripper -> distance.gripper",
                        "distance.distance -> summary.distance", "distance.color -> summary.color"):
         line = next((line for line in profile.splitlines() if connection in line), None)
@@ -136,3 +148,49 @@ def test_at_full_speed_every_joint_state_that_moves_the_gripper_is_one_row(
         cells = [cell.strip() for cell in line.split("|") if cell.strip()] if "|" in line else line.split()
         written, read, dropped = (int(cell) for cell in cells[-4:-1])
         assert dropped == 0 and written == read, line
+
+
+LAYOUTS = {
+    "coco-launch": ("coco_core", "coco-launch", ()),
+    "ros-wait-sets": ("coco_ros", "launcher", ()),
+    "ros-executor-1": ("coco_ros", "launcher", ("--executor-threads", "1")),
+    "ros-executor-3": ("coco_ros", "launcher", ("--executor-threads", "3")),
+    # the view in a <process> of its own: its configuration (an OpenGL context, the URDF's meshes)
+    # takes long, and the replay must not begin before it is done
+    "ros-view-process": ("coco_ros", "launcher", ("display:=true", "display_process:=true", "frames_format:=png")),
+}
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_every_launcher_and_hosting_gives_the_same_rows_from_the_first_sample(
+        imported: Path, tmp_path: Path, layout: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every activity of every process is configured before any starts (configure all, then start
+    all): so with any launcher and hosting, the replay emits nothing before the tf and the distance
+    are configured, the fixed bowl that tf publishes in on_config comes before every gripper pose,
+    and the CSV has one row per joint state that moved the gripper, from the recording's first
+    (the ROS launcher's hostings configured each activity in its first callback: with one executor
+    thread the replay emitted hundreds of joint states first, which the distance merged into one row,
+    silently)."""
+    monkeypatch.setenv("ROS_DOMAIN_ID", "67")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    package, name, options = LAYOUTS[layout]
+    script = ROOT / "install" / package / "lib" / package / name
+    output = tmp_path / "teleop"
+    result = run_launcher(script, APP, f"bag:={imported}", f"output:={output}", "fixed_bowl:=true",
+                          f"bowl_xyz:={' '.join(map(str, BOWL))}", "arm:=right", f"time_origin:={START}",
+                          "rate:=0", "display:=false", *options, "--profile", "100", "--duration", "120",
+                          timeout=180)
+    assert result.returncode == 0, result.stderr
+    moved = moved_distances()
+    with (output / "distance.csv").open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == len(moved), f"{len(rows)} rows for {len(moved)} joint states that moved the gripper"
+    assert [float(row["distance"]) for row in rows] == pytest.approx(moved, abs=2e-6)
+    from coco_ros.baxter.importer import read_recording
+
+    assert abs(float(rows[0]["time"]) - read_recording(RECORDING).times[0]) < 1e-4  # its first joint state
+    profile = result.stdout + result.stderr
+    check_nothing_dropped(profile)
+    header = next(line for line in profile.splitlines() if " component " in f" {line}" and " merged " in line)
+    row = next(line for line in profile.splitlines() if "distance" in line.split()[:2] and "teleop" in line.split())
+    assert row[header.index(" merged ") + 1:].split()[0] == "0", row  # no pose superseded unseen

@@ -24,6 +24,7 @@ from typing import Callable, Iterable
 from .component import Component
 from .drivers import DEFAULT_SPIN, Driver, MainThreadDriver, ThreadDriver
 from .errors import ActivityError
+from .lifecycle import StartGate
 from .period import PeriodGrid, check_period
 from .profiling import ActivityStats
 from .scheduling import SchedulingRequest
@@ -66,6 +67,10 @@ class Activity:
         self._finished = threading.Event()
         self.failure = ""
         """Why the activity's driver failed (see :meth:`fail`); empty while it has not."""
+        self._may_run = threading.Event()
+        """Set when the application's :class:`~coco_core.lifecycle.StartGate` opens, or on a stop."""
+        self.gate: StartGate | None = None
+        """The start gate of the application (set by ``Application.start``); None: none to wait for."""
         for component in components:
             self.add(component)
 
@@ -166,11 +171,36 @@ class Activity:
 
     # The three steps of an activity's life: every driver calls them, in the driver's thread.
     def configure(self) -> None:
-        """Configure the components, in order, unless a stop was asked meanwhile."""
+        """Configure the components, in order, unless a stop was asked meanwhile; then tell the
+        start gate (every driver calls it, then :meth:`when_may_run` or :meth:`wait_may_run` before
+        the first cycle: no activity of the application cycles before all are configured)."""
         self._started = True
         for component in self.components:
             if not self._stopping:
                 component.configure()
+        if self.gate is None:
+            self._may_run.set()
+        else:
+            self.gate.when_open(self._may_run.set)
+            self.gate.configured(self.name)
+
+    @property
+    def may_run(self) -> bool:
+        """Whether the first cycle may run: every activity of the application is configured (or a
+        stop was asked, which :meth:`cycle`'s callers check)."""
+        return self._may_run.is_set()
+
+    def wait_may_run(self) -> None:
+        """Block until :attr:`may_run` (a thread driver, between ``configure`` and its first cycle)."""
+        self._may_run.wait()
+
+    def when_may_run(self, callback: Callable[[], None]) -> None:
+        """Call ``callback`` once :attr:`may_run` (now, if it is): a driver that must not block its
+        thread (an rclpy executor's) resumes from it."""
+        if self.gate is None or self._may_run.is_set():
+            callback()
+        else:
+            self.gate.when_open(callback)
 
     def cycle(self) -> None:
         """One activation: queued operation calls, then every component in order."""
@@ -226,6 +256,7 @@ class Activity:
     def stop(self) -> None:
         """Ask the activity to finish its current cycle and stop; returns at once."""
         self._stopping = True
+        self._may_run.set()  # an activity waiting for the start gate finishes instead
         self._driver.stop()
 
     def join(self, timeout: float | None = None) -> bool:

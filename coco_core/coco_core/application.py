@@ -16,6 +16,7 @@ from .activity import Activity, PeriodicActivity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
 from .errors import CocoError, WiringError, did_you_mean
+from .lifecycle import STOP_TIMEOUT, Progress, StartGate
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from .operations import Operation
 from .ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
@@ -25,8 +26,6 @@ from .transforms.graph import TransformGraph
 
 log = logging.getLogger("coco")
 
-STOP_TIMEOUT = 1.0
-"""Seconds every activity gets, together, to finish its cycle and run ``on_stop``."""
 
 
 def types_compatible(source: object, sink: object) -> bool:
@@ -79,6 +78,13 @@ class Application:
         self.started_at = 0.0
         self.transforms = TransformGraph()
         """The application's transformation graph, shared by every component (thread-safe)."""
+        self._hard_at: float | None = None
+        """When a hard stop (a signal, a fault) was first asked; None while the stop is natural."""
+        self.progress = Progress()
+        """What a natural stop waits on (:mod:`coco_core.lifecycle`)."""
+        self.gate = StartGate()
+        """Configure all, then start all (:mod:`coco_core.lifecycle`): what every driver waits for
+        between an activity's ``configure`` and its first cycle."""
         self.damage: list[str] = []
         """Damaged input found while running (e.g. a truncated bag), one line each: the launchers
         exit non-zero and summaries report it, although the application ran on what was readable."""
@@ -214,7 +220,10 @@ class Application:
 
     # --- running --------------------------------------------------------------------------------
     def start(self) -> None:
-        """Start every activity but the main one (see :meth:`run`)."""
+        """Start every activity but the main one (see :meth:`run`). Each configures at once, in its
+        driver's thread, and cycles once every activity is configured (:attr:`gate`): the main
+        one too, so with a main activity nothing cycles before :meth:`run` (or
+        ``main.run_here()``) configured it."""
         if self._started:
             raise CocoError(f"application {self.name} was already started")
         problems = self.problems()
@@ -223,12 +232,14 @@ class Application:
         self._started = True
         self.started_at = time.perf_counter()
         reserved = self._exclusive_cores()
+        self.gate.expect(self.activities)
         for component in self.unscheduled():
             log.warning("component %s is in no activity: it is configured and serves operations, "
                         "but on_update never runs", component.name)
             component.configure()
         for activity in self.activities.values():
             activity.reserved_cores = reserved - set(activity.scheduling.affinity)
+            activity.gate = self.gate
             activity.start()
 
     def _exclusive_cores(self) -> set[int]:
@@ -267,14 +278,22 @@ class Application:
         """Record damaged input (see :attr:`damage`); list.append is atomic, any thread may call it."""
         self.damage.append(what)
 
-    def request_stop(self, reason: str = "stop requested") -> None:
-        """Ask every activity to stop; returns at once (safe from signal handlers and components)."""
+    def request_stop(self, reason: str = "stop requested", hard: bool = False) -> None:
+        """Ask every activity to stop; returns at once (safe from signal handlers and components).
+
+        ``hard``: a signal or a fault, after which :meth:`stop` waits :data:`STOP_TIMEOUT` seconds at
+        most; otherwise the application asks itself (its work is done) and the activities get what
+        their work needs to finish and flush (:mod:`coco_core.lifecycle`). A hard request during a
+        natural stop bounds it from then on."""
         first = not self._stop_requested.is_set()
+        if hard and self._hard_at is None:
+            self._hard_at = time.monotonic()
         if first:
             self.stop_reason = reason
             self._stop_requested_at = time.monotonic()
             log.info("stopping application %s: %s", self.name, reason)
         self._stop_requested.set()
+        self.gate.open()  # nothing waits for a start that will not come
         for activity in self.activities.values():
             activity.stop()
         if first:
@@ -302,24 +321,43 @@ class Application:
     def stop_requested(self) -> bool:
         return self._stop_requested.is_set()
 
+    @property
+    def stop_is_hard(self) -> bool:
+        """Whether a signal or a fault asked the stop (see :meth:`request_stop`)."""
+        return self._hard_at is not None
+
+    def stop_deadline(self, begun: float, timeout: float = STOP_TIMEOUT) -> float | None:
+        """The monotonic time by which a wait that began at ``begun`` must end: ``timeout`` after it
+        (or after the hard request, when that came later) for a hard stop; None for a natural one,
+        which waits while it progresses (:class:`~coco_core.lifecycle.Progress`)."""
+        return None if self._hard_at is None else max(begun, self._hard_at) + timeout
+
     def wait(self, timeout: float | None = None) -> bool:
         """Block until a stop is requested; False on timeout."""
         return self._stop_requested.wait(timeout)
 
     def stop(self, timeout: float = STOP_TIMEOUT) -> bool:
-        """Stop every activity, waiting at most ``timeout`` seconds in total; False if one hung."""
+        """Stop every activity; False if one hung. After a hard stop (see :meth:`request_stop`) they
+        get ``timeout`` seconds in total; after a natural one, as long as the application progresses,
+        and ``timeout`` seconds without progress."""
         if self._stopped:
             return self._clean
         self._stopped = True
         self.request_stop(self.stop_reason or "stop requested")
-        deadline = time.monotonic() + timeout
+        begun = time.monotonic()
         clean = True
         for activity in self.activities.values():
-            if not activity.join(max(0.0, deadline - time.monotonic())):
-                clean = False
-                where = f" (inside {activity.current.name}.on_update)" if activity.current else ""
+            if self.progress.wait(activity.join, lambda: self.stop_deadline(begun, timeout)):
+                self.progress.advance()
+                continue
+            clean = False
+            where = f" (inside {activity.current.name}.on_update)" if activity.current else ""
+            if self.stop_is_hard:
                 log.error("activity %s did not stop within %.1f s%s; abandoning its thread",
                           activity.name, timeout, where)
+            else:
+                log.error("activity %s did not stop: no progress for %.1f s after the application's own stop "
+                          "request%s; abandoning its thread", activity.name, timeout, where)
         for component in self.unscheduled():
             component.stop()
         self._clean = clean

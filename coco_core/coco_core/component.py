@@ -322,7 +322,7 @@ class Component:
             log.error("component %s is stopped after its error in %s", self.name, phase)
         if policy is ErrorPolicy.STOP_APP:
             if self.app is not None:
-                self.app.request_stop(f"component {self.name} raised in {phase}")
+                self.app.request_stop(f"component {self.name} raised in {phase}", hard=True)
             elif self.activity is not None:
                 self.activity.stop()
 
@@ -345,6 +345,12 @@ class Component:
             self._refusals_reported.add(type(error))
             log.error("component %s refused %s: %s (further refusals are counted in the profile)",
                       self.name, what, error)
+
+    def record_merged(self, count: int = 1) -> None:
+        """Count ``count`` input samples this component read but folded into a later output (or
+        none) instead of giving one of their own: a reader that makes one output per input sample
+        says where the rows went, and the profile reports the count."""
+        self.stats.merged += count
 
     def record_latency(self, stamp: Stamp) -> None:
         """Record the age of ``stamp`` now: call when this component outputs what the stamped data

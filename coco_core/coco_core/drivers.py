@@ -86,6 +86,7 @@ class ThreadDriver:
             for warning in apply_to_current_thread(activity.scheduling, activity.reserved_cores):
                 log.warning("activity %s: %s", activity.name, warning)
             activity.configure()
+            activity.wait_may_run()  # every activity of the application configured (or a stop)
             if not activity.stopping:
                 from .activity import PeriodicActivity
 

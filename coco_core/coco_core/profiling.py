@@ -46,7 +46,7 @@ class RunningStats:
 class ComponentStats:
     """Execution profile of one component."""
 
-    __slots__ = ("compute", "service", "latency", "errors", "refused", "_last_start")
+    __slots__ = ("compute", "service", "latency", "errors", "refused", "merged", "_last_start")
 
     def __init__(self) -> None:
         self.compute = RunningStats()
@@ -57,6 +57,10 @@ class ComponentStats:
         self.refused = 0
         """Input samples the component read and refused (malformed values), see
         :meth:`Component.record_refusal`: the connection counts them as read, so they are shown here."""
+        self.merged = 0
+        """Input samples the component read and folded into a later output instead of giving one of
+        their own (superseded, or merged with the next), see :meth:`Component.record_merged`: read
+        for the connection, yet no output shows them alone, so they are shown here."""
         self._last_start: float | None = None
 
     def record(self, start: float, end: float) -> None:

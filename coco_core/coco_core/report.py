@@ -83,7 +83,7 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
                     str(stats.executions), _ms(stats.compute.total),
                     _us(stats.compute.mean), _us(stats.compute.std),
                     _ms(stats.service.mean), _ms(stats.service.std),
-                    str(stats.errors), str(stats.refused),
+                    str(stats.errors), str(stats.refused), str(stats.merged),
                     f"{_ms(latency.mean)} / {_ms(latency.max)}" if latency.count else "-",
                 ])
                 for port in component.outputs.values():
@@ -126,7 +126,7 @@ def render(name: str, snapshots: list[ProfileSnapshot]) -> str:
     parts.append(_table([*where, "activity", "schedule", "cycles", "overruns", "period error p50/p99/max us"],
                         rows("activities")))
     parts.append(_table([*where, "component", "activity", "execs", "total ms", "compute mean us", "compute std us",
-                         "service mean ms", "service std ms", "errors", "refused", "latency mean/max ms"],
+                         "service mean ms", "service std ms", "errors", "refused", "merged", "latency mean/max ms"],
                         rows("components")))
     connections = rows("connections")
     if connections:

@@ -77,7 +77,7 @@ class LaunchSignals:
         if app.stop_requested and signum == signal.SIGINT:
             self.forced = True
             print("coco: stopping (at most 1 s), then leaving at once", file=sys.stderr, flush=True)
-        app.request_stop(f"received {signal.Signals(signum).name}")
+        app.request_stop(f"received {signal.Signals(signum).name}", hard=True)
 
     def check(self) -> None:
         """Raise :class:`Interrupted` when a signal came before the application runs."""

@@ -262,3 +262,118 @@ def test_check_finds_a_log_file_that_cannot_be_opened(tmp_path, outfile):
                 else f"its folder {tmp_path / 'missing'} does not exist")
     assert f"app.xml:2: <outfile> {outfile}" in out and expected in out, out
     assert "Traceback" not in out, out
+
+
+GATED = """<package name="gated">
+  <components>
+    <component><name>ticker</name><task>process_components:Ticker</task>
+      <attributes><attribute name="first_update_file" value="{tmp}/first_update.txt"/></attributes></component>
+    <component><name>slow</name><task>process_components:SlowConfig</task>
+      <attributes><attribute name="delay" value="1.0"/>
+        <attribute name="path" value="{tmp}/configured.txt"/></attributes></component>
+  </components>
+  <activities>
+    <process name="worker">
+      <activity name="{in_child}"><schedule type="periodic" period="5"/>
+        <components><component name="{in_child}"/></components></activity>
+    </process>
+    <activity name="{in_launcher}"><schedule type="periodic" period="5"/>
+      <components><component name="{in_launcher}"/></components></activity>
+  </activities>
+</package>
+"""
+
+
+@pytest.mark.parametrize("slow_in", ["launcher", "worker"])
+def test_no_process_cycles_before_every_process_is_configured(tmp_path: Path, reap, slow_in: str) -> None:
+    """Configure all, then start all, across processes: the ticker's first update comes after the
+    slow component's on_config ended, whichever process runs which."""
+    names = {"in_child": "slow", "in_launcher": "ticker"} if slow_in == "worker" else \
+        {"in_child": "ticker", "in_launcher": "slow"}
+    app = tmp_path / "app.xml"
+    app.write_text(GATED.format(tmp=tmp_path, **names))
+    launcher = launch(app, "--duration", "3")
+    reap(launcher)
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 0, out
+    configured = float((tmp_path / "configured.txt").read_text())
+    first_update = float((tmp_path / "first_update.txt").read_text())
+    assert first_update >= configured, f"the ticker ran {configured - first_update:.3f} s before all were configured"
+
+
+FLUSHING = """<package name="flushing">
+  <components>
+    <component><name>ticker</name><task>process_components:Ticker</task>
+      <attributes><attribute name="stop_after" value="50"/></attributes></component>
+    <component><name>near</name><task>process_components:Flusher</task>
+      <attributes><attribute name="flush_cpu" value="{cpu}"/><attribute name="path" value="{tmp}/near.txt"/></attributes></component>
+    <component><name>far</name><task>process_components:Flusher</task>
+      <attributes><attribute name="flush_cpu" value="{cpu}"/><attribute name="path" value="{tmp}/far.txt"/></attributes></component>
+  </components>
+  <connections>
+    <connection data="BUFFER" policy="LOCKED" buffersize="1000"><src task="ticker" port="out"/><dest task="near" port="value"/></connection>
+    <connection data="BUFFER" policy="LOCKED" buffersize="1000"><src task="ticker" port="out"/><dest task="far" port="value"/></connection>
+  </connections>
+  <activities>
+    <process name="worker">
+      <activity name="ticks"><schedule type="periodic" period="10"/><components><component name="ticker"/></components></activity>
+      <activity name="near"><schedule type="triggered"/><components><component name="near"/></components></activity>
+    </process>
+    <activity name="far"><schedule type="triggered"/><components><component name="far"/></components></activity>
+  </activities>
+</package>
+"""
+
+
+@pytest.fixture
+def loaded_machine():
+    """A CPU burner on every core for the test's duration (killed at its end)."""
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
+    yield
+    for burner in burners:
+        burner.kill()
+        burner.wait()
+
+
+def test_a_natural_stop_on_a_loaded_machine_lets_every_activity_flush(tmp_path: Path, reap, loaded_machine) -> None:
+    """The application stops itself (the ticker's last value, as the end of a bag): every activity of
+    every process finishes its work, here 1.5 CPU seconds of flushing each, which take longer than a
+    second of wall time under the burners, and the launcher exits 0 with everything written (it gave
+    every activity 1 s in all and then exited 1, killing the child before its flush was written)."""
+    app = tmp_path / "app.xml"
+    app.write_text(FLUSHING.format(tmp=tmp_path, cpu=1.5))
+    launcher = launch(app, "--duration", "120")
+    reap(launcher)
+    out, _ = launcher.communicate(timeout=120)
+    assert launcher.returncode == 0, out
+    assert "ticker: 50 values written" in out, out
+    expected = " ".join(str(value) for value in range(50))
+    assert (tmp_path / "near.txt").read_text() == expected
+    assert (tmp_path / "far.txt").read_text() == expected
+
+
+def test_a_signal_during_a_long_natural_stop_still_stops_within_a_second(tmp_path: Path, reap) -> None:
+    """The hard bound stays for signals: Ctrl-C during a flush that would take a minute ends the
+    stop within a second, and the launcher says which activities it abandoned."""
+    app = tmp_path / "app.xml"
+    app.write_text(FLUSHING.format(tmp=tmp_path, cpu=60))
+    launcher = launch(app, "--duration", "120")
+    reap(launcher)
+    assert launcher.stdout is not None
+    seen = []
+    for line in launcher.stdout:  # the natural stop has begun: the flushes run
+        seen.append(line)
+        if "stopping application flushing: ticker: 50 values written" in line:
+            break
+    else:
+        raise AssertionError("".join(seen))
+    sent = time.monotonic()
+    os.killpg(launcher.pid, signal.SIGINT)
+    out, _ = launcher.communicate(timeout=30)
+    assert time.monotonic() - sent < 2.5, out  # 1 s to stop, plus the interpreter's exit
+    # 130: a Ctrl-C during a stop leaves at once; 1 when it came as the stop began (a hard stop)
+    assert launcher.returncode in (1, 128 + signal.SIGINT), out
+    assert "did not stop within 1.0 s" in out, out
+    # the child was told the stop became hard, and bounded its own flush
+    assert "coco[worker]: activity near did not stop within 1.0 s" in out, out
+    assert not (tmp_path / "far.txt").exists()

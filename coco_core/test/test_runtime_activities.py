@@ -578,3 +578,47 @@ def test_data_for_a_stage_the_cycle_already_ran_gets_a_cycle_of_its_own(make_app
     time.sleep(0.1)
     assert first.seen == [95, 97, 99] and second.seen == [96, 98, 100]
     assert activity.stats.cycles == 3
+
+
+@pytest.mark.parametrize("main", [False, True])
+def test_no_activity_cycles_before_every_activity_is_configured(make_app, main):
+    """Configure all, then start all (the paper's and RTT's life cycle): a fast periodic activity
+    configured first does not cycle while another activity (here the main one, or one on its own
+    thread) is still configuring, e.g. loading a model or opening a device."""
+
+    class SlowConfig(Lifecycle):
+        def init(self):
+            super().init()
+            self.peer: Lifecycle | None = None
+            self.updates_seen = -1
+
+        def on_config(self):
+            super().on_config()
+            assert self.peer is not None and self.peer.configured.wait(5.0)
+            # Give the other activity the chance to cycle (it would at once, every millisecond).
+            deadline = time.monotonic() + 0.3
+            while self.peer.updates == 0 and time.monotonic() < deadline:
+                time.sleep(0.005)
+            self.updates_seen = self.peer.updates
+
+    app = make_app("configure-all")
+    fast = app.add(Lifecycle("fast"), PeriodicActivity("fast", 0.001))
+    slow = app.add(SlowConfig("slow"), TriggeredActivity("slow", main=main))
+    slow.peer = fast
+    if main:
+        runner = threading.Thread(target=app.run)
+        runner.start()
+    else:
+        app.start()
+    try:
+        assert slow.configured.wait(5.0) and fast.configured.wait(5.0)
+        deadline = time.monotonic() + 5.0
+        while fast.updates == 0 and time.monotonic() < deadline:  # then it starts
+            time.sleep(0.005)
+        assert slow.updates_seen == 0, "an activity cycled before the others were configured"
+        assert fast.updates > 0
+    finally:
+        app.request_stop("test over")
+        if main:
+            runner.join(5.0)
+        app.stop()

@@ -102,7 +102,7 @@ def test_errors_in_an_included_file_carry_its_name_and_line(tmp_path):
   <includes><include>bad.xml</include><include>broken.xml</include></includes>
   <components>{component("A")}</components>
 </package>""",
-        "bad.xml": """<package>
+        "bad.xml": """<package on_error="continue">
   <components>
     <component><task>B</task><colour/></component>
   </components>

@@ -35,10 +35,13 @@ Either way:
 Every callback makes the activity the thread's *current activity* while it runs (executor threads
 are shared, and a chained cycle runs in another activity's thread, so operations called from a
 component must know whose thread they are in). The first callback of an activity configures its
-components; the activity's last callback runs ``finish`` (``on_stop``), inside its group, after the
-application asked for a stop. ``on_config``, ``on_update`` and ``on_stop`` of a hosted activity may
-therefore run on *different* threads (never at the same time): a component that holds a thread-bound
-resource (an OpenGL context, a thread-affine device SDK) needs a dedicated thread.
+components; its cycles begin with the first callback after the application's start gate opened
+(:mod:`coco_core.lifecycle`: every activity of every process configured), which the gate's opening
+triggers, so no callback ever waits for the others; the activity's last callback runs ``finish``
+(``on_stop``), inside its group, after the application asked for a stop. ``on_config``,
+``on_update`` and ``on_stop`` of a hosted activity may therefore run on *different* threads (never
+at the same time): a component that holds a thread-bound resource (an OpenGL context, a
+thread-affine device SDK) needs a dedicated thread.
 
 Which activities get their own thread (coco_core's loop: ``Activity.start``) instead is decided by
 :func:`dedicated_reason`; see ``docs/ros.md`` for the rule and the measured numbers behind it.
@@ -177,6 +180,8 @@ class ExecutorDriver:
         the node's executor runs the group's callbacks."""
         self.started = False
         self.configured = False
+        self.running = False
+        """Configured, and the application's start gate open: cycles run."""
         self.pending = False
         """A wake-up (data, a queued operation) not yet served by a cycle."""
         self.closed = False
@@ -216,7 +221,7 @@ class ExecutorDriver:
         if self.inside or not self.started:
             return
         queue = getattr(_CHAIN, "queue", None)
-        if queue is not None and self.chained and self.configured:
+        if queue is not None and self.chained and self.running:
             queue.append(self)  # the callback running in this thread runs the cycle before it returns
         else:
             self._trigger()
@@ -246,7 +251,7 @@ class ExecutorDriver:
             if activity.stopping:  # the timer stays parked
                 return
             self.timer.timer_period_ns = int(round(period * 1e9))
-            if self.configured:
+            if self.running:
                 self.timer.reset()  # the timer's next call is one new period from now: so is the grid's
                 activity.grid.begin(time.perf_counter() + period)
         # the current wait was computed with the old period
@@ -269,7 +274,7 @@ class ExecutorDriver:
         set_current_activity(None)
         self.inside = False
         self.busy.release()
-        if self.pending:
+        if self.pending and self.running:  # before the start gate opens, its opening triggers
             self._trigger()
 
     def _trigger(self) -> None:
@@ -292,9 +297,14 @@ class ExecutorDriver:
             if not self.configured:
                 self.configured = True
                 activity.configure()
-                if activity.stopping:
-                    activity.finish()
-                    return
+                activity.when_may_run(self._trigger)  # the callback that runs the first cycle
+            if activity.stopping:
+                activity.finish()
+                return
+            if not self.running:
+                if not activity.may_run:
+                    return  # data written meanwhile stays pending for the first cycle
+                self.running = True
                 if isinstance(activity, PeriodicActivity):
                     self._begin_grid(activity)  # and run the first cycle now, as a thread driver does
                     activity.cycle()
@@ -374,7 +384,7 @@ class ExecutorDriver:
         self._enter()
         try:
             callback(*args)
-            if self.configured:
+            if self.running:
                 try:
                     self._serve()
                 except Exception:  # components isolate their own errors; this is a bug guard
@@ -391,7 +401,7 @@ class ExecutorDriver:
     def _on_timer(self) -> None:
         now = time.perf_counter()
         activity = self.activity
-        if not self.configured or activity.stopping:
+        if not self.running or activity.stopping:
             return
         assert isinstance(activity, PeriodicActivity)
         with self._lock:
@@ -408,7 +418,7 @@ class ExecutorDriver:
     def _crashed(self) -> None:
         log.exception("activity %s: its executor callback failed; stopping the application", self.activity.name)
         app = self.host.app
-        app.request_stop(f"activity {self.activity.name} failed")
+        app.request_stop(f"activity {self.activity.name} failed", hard=True)
 
     def close(self) -> None:
         """End the wait set's thread, then destroy the timer and the guard condition (after the
@@ -457,7 +467,8 @@ class ExecutorHost:
                 self.groups[name] = MutuallyExclusiveCallbackGroup()
             elif wait_sets:
                 group = self.groups[name] = WaitSetGroup()
-                server = ActivityWaitSet(group, node.context, name, on_error=app.request_stop)
+                server = ActivityWaitSet(group, node.context, name,
+                                         on_error=functools.partial(app.request_stop, hard=True))
                 self.hosted[name] = ExecutorDriver(self, activity, group, server)
             else:
                 self.groups[name] = MutuallyExclusiveCallbackGroup()

@@ -24,6 +24,7 @@ import logging
 import re
 import sys
 import threading
+from functools import partial
 from pathlib import Path
 from typing import Sequence
 
@@ -266,7 +267,7 @@ def run_hosted(app: Application, host: ExecutorHost, executor: object, duration:
     wait for a stop (or ``duration`` seconds), then stop cleanly while the executor still spins, so
     that hosted activities finish in their groups; whether the stop was clean. The launcher and its
     child processes (``coco_ros.child``) run their part of the application this way."""
-    spinner = ExecutorThread(executor, on_error=app.request_stop)  # type: ignore[arg-type]
+    spinner = ExecutorThread(executor, on_error=partial(app.request_stop, hard=True))  # type: ignore[arg-type]
     timer = None
     try:
         app.start()

@@ -207,3 +207,52 @@ def test_every_pose_that_changed_gives_one_sample_even_when_they_wait_together()
     assert [sample.value for sample in sink.got] == pytest.approx([0.5, 0.4, 0.3, 0.2])
     assert [sample.stamp.seq for sample in sink.got] == [1, 2, 3, 4]
     assert gripper.counters() == {"written": 5, "read": 5, "dropped": 0, "pending": 0}
+
+
+class LateBowlFeeder(Component):
+    """Writes gripper poses and then a bowl pose stamped after them (a bowl pose published at the
+    configuration by a reader configured after the replay began): only the last gripper pose can
+    reach the first sample."""
+
+    gripper = OutputPort(Stamped)
+    bowl = OutputPort(Stamped)
+    xs = (0.5, 0.4, 0.3, 0.2)
+
+    def init(self) -> None:
+        self.done = False
+
+    def on_update(self) -> None:
+        if not self.done:
+            self.done = True
+            for seq, x in enumerate(self.xs, start=1):
+                self.gripper.write(Stamped(pose(x, source="gripper"), Stamp.now(seq, "/robot/joint_states")))
+            self.bowl.write(Stamped(pose(0.0, source="bowl"), Stamp.now(0, "tf")))
+
+
+def test_poses_superseded_before_a_sample_are_counted_as_merged_in_the_profile():
+    from coco_core.report import profile_report
+
+    app = Application("late_bowl")
+    feeder = app.add(LateBowlFeeder("feeder"))
+    distance = app.add(EndEffectorDistance("distance"))
+    sink = app.add(StampedSink("sink"))
+    app.connect("feeder.gripper", "distance.gripper", BUFFER)
+    app.connect("feeder.bowl", "distance.bowl", BUFFER)
+    app.connect("distance.distance", "sink.values", BUFFER)
+    activity = PeriodicActivity("loop", 0.005)
+    for component in (feeder, distance, sink):
+        app.schedule(component, activity)
+    app.start()
+    try:
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and not sink.got:
+            time.sleep(0.01)
+    finally:
+        app.stop()
+    assert [sample.value for sample in sink.got] == pytest.approx([0.2])
+    assert distance.stats.merged == 3  # 0.5, 0.4 and 0.3: read, never shown; four poses, one row
+    report = profile_report(app).splitlines()
+    header = next(line for line in report if line.startswith("component "))
+    row = next(line for line in report if line.startswith("distance "))
+    column = header.index(" merged ") + 1
+    assert row[column:].split()[0] == "3"

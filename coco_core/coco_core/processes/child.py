@@ -1,7 +1,9 @@
 """A child process of the launcher: ``python -m coco_core.processes.child FD PARENT_PID``.
 
 It receives the application model over its control link (descriptor ``FD``), builds only the
-components of its ``<process>``, says so, waits for the word to start, and runs its activities until
+components of its ``<process>``, says so, waits for the word to start, configures its activities,
+says so, waits for the word that every process is configured (``run``: the application's
+:class:`~coco_core.lifecycle.StartGate`), and runs its activities until
 the launcher (or one of its components) asks for a stop; then every activity runs ``on_stop`` in its
 own thread and the child sends its final profile. It is a plain CoCo process: the same builder,
 activities and drivers as the launcher's.
@@ -97,6 +99,7 @@ class ChildProcess:
             self.link.send("error", text=str(error))
             return 1
         app.add_stop_listener(self._stop_requested_here)
+        app.gate.hold(self._configured)  # the launcher's word ("run") opens it
         app.router = self
         self.link.send("built")
         while True:  # every process builds, then all start: wait for the word
@@ -131,10 +134,15 @@ class ChildProcess:
         app.run()
         return app.stop()
 
+    def _configured(self) -> None:
+        """Every activity of this process is configured: tell the launcher, whose gate counts them."""
+        self.link.send("configured")
+
     def _stop_requested_here(self, reason: str) -> None:
         """A stop that began in this process (a component's error policy) stops the whole application."""
         if not reason.startswith("launcher:"):
-            self.link.send("stop_request", reason=reason)
+            assert self.app is not None  # it is the app that calls its stop listeners
+            self.link.send("stop_request", reason=reason, hard=self.app.stop_is_hard)
 
     def _serve(self) -> None:
         app = self.app
@@ -144,15 +152,17 @@ class ChildProcess:
                 message = self.link.receive()
             except EOFError:  # the launcher is gone
                 self.link.abandon("the launcher is gone")
-                app.request_stop("launcher: gone")
+                app.request_stop("launcher: gone", hard=True)
                 return
             if message is not None:
                 self._handle(app, message)
 
     def _handle(self, app: Application, message: dict[str, Any]) -> None:
         kind = message["kind"]
-        if kind == "stop":
-            app.request_stop(f"launcher: {message['reason']}")
+        if kind == "run":
+            app.gate.open()
+        elif kind == "stop":
+            app.request_stop(f"launcher: {message['reason']}", hard=message.get("hard", True))
         elif kind == "profile":
             self.link.send("result", id=message["id"], ok=True, value=snapshot(app, app.process))
         elif kind == "call":
@@ -176,7 +186,7 @@ def main(argv: list[str] | None = None, kind: type[ChildProcess] = ChildProcess)
     def terminate(_signum: int, _frame: object) -> None:
         if child.app is None:
             sys.exit(1)
-        child.app.request_stop("launcher: SIGTERM")
+        child.app.request_stop("launcher: SIGTERM", hard=True)
 
     signal.signal(signal.SIGTERM, terminate)
     try:

@@ -2,7 +2,8 @@
 
 A ``socketpair`` made by the launcher; the child inherits its end as a file descriptor. Messages are
 dicts with a ``kind`` (``config``, ``built``, ``start``, ``stop``, ``profile``, ``call``, ...) sent
-with :mod:`multiprocessing.connection`'s framing. Data never goes this way: connections between
+with :mod:`multiprocessing.connection`'s framing (``configured`` and ``run`` carry the start gate
+across processes: :mod:`coco_core.lifecycle`). Data never goes this way: connections between
 processes are shared-memory channels; this link carries only the life cycle, profiles, period
 changes and operation calls.
 """

@@ -18,7 +18,8 @@ def process_level(spec: AppSpec, app: Application, log_level: int = logging.INFO
                   **options: Any) -> Iterator[ProcessSupervisor | None]:
     """Start the children of ``spec`` around a run of ``app`` (the launcher's part); None when the
     application has no ``<process>``. Raises :class:`ProcessError` when a child cannot be built. At
-    the end, children still running are given the rest of the stop time, then killed, and every
+    the end, children still running are given the stop time (:meth:`ProcessSupervisor.join`: a
+    second after a hard stop, what their work needs after a natural one), then killed, and every
     resource of the launch is released. ``options`` go to :class:`ProcessSupervisor`."""
     if not spec.processes:
         yield None
@@ -29,6 +30,6 @@ def process_level(spec: AppSpec, app: Application, log_level: int = logging.INFO
         yield supervisor
     finally:
         if not app.stop_requested:  # the launcher ends early (an error): the children too
-            app.request_stop("launcher ends")
-        supervisor.join(1.0)
+            app.request_stop("launcher ends", hard=True)
+        supervisor.join()
         supervisor.close()

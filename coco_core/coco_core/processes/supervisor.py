@@ -4,7 +4,9 @@ The launcher builds its own part of the application (its components and activiti
 of every child's activity), then a :class:`ProcessSupervisor` starts the children. Each child gets
 the application model over its control link, builds only its own components and says so: the
 application starts only once *every* process was built (one wrong component anywhere and nothing
-runs). Then every process starts its activities together.
+runs). Then every process configures its activities and says so; once every activity of every
+process is configured (the launcher's :class:`~coco_core.lifecycle.StartGate` opens), every process
+runs their first cycles.
 
 Faults: a child that dies (an exception at start, ``kill -9``, a segfault) is reported by process
 name and exit signal or status, and the application stops cleanly (exit status 1). Children die with
@@ -32,6 +34,7 @@ from ..activity import Activity
 from ..application import Application
 from ..drivers import EventfdDriver, eventfd_pending
 from ..errors import ProcessError
+from ..lifecycle import STOP_TIMEOUT
 from ..model import AppSpec
 from ..report import ProfileSnapshot, render, snapshot
 from .control import ControlLink, failed
@@ -62,6 +65,15 @@ def exit_description(code: int | None) -> str:
     return f"exit status {code}"
 
 
+def _exited(popen: subprocess.Popen[bytes], timeout: float) -> bool:
+    """Whether ``popen`` exited within ``timeout`` seconds."""
+    try:
+        popen.wait(timeout)
+    except subprocess.TimeoutExpired:
+        return False
+    return True
+
+
 def _deliver(future: Future[Any], message: dict[str, Any]) -> None:
     """A child's answer to a request, into the future the launcher waits on."""
     future.set_result(message.get("value"))
@@ -84,6 +96,8 @@ class Child:
     last: ProfileSnapshot | None = None
     """The child's final profile, sent when it stopped."""
     stop_sent: bool = False
+    hard_stop_sent: bool = False
+    """The child was told that the stop is hard (a signal or a fault came during a natural stop)."""
 
 
 class ProcessDriver:
@@ -166,12 +180,14 @@ class ProcessSupervisor:
             attach(self.app, self.plans, self._wakes)
             for name in self.placement.processes:
                 self.children[name] = self._spawn(name)
+                self.app.progress.pids.append(self.children[name].popen.pid)  # a natural stop sees its work
             for child in self.children.values():
                 self._wait_built(child)
         except BaseException:
             self.kill_all()
             self.close()
             raise
+        self.app.gate.when_open(self._start_all)
         for child in self.children.values():
             for name in child.activities:
                 ProcessDriver(self, child, self.app.activities[name], self._wakes.get(name))
@@ -211,8 +227,17 @@ class ProcessSupervisor:
             if time.monotonic() > deadline:
                 raise ProcessError(f"process {child.name} did not build its components within {BUILD_TIMEOUT:g} s")
 
+    def _start_all(self) -> None:
+        """Every activity of every process is configured (or the application stops): let the
+        children run their first cycles (not when it stops: they get the word to stop instead)."""
+        if self.app.stop_requested:
+            return
+        for child in self.children.values():
+            child.link.send("run")
+
     def start_child(self, child: Child) -> None:
-        """Tell ``child`` to start its activities, once: every process was built by now."""
+        """Tell ``child`` to start (configure) its activities, once: every process was built by now;
+        it says ``configured`` when it is done, and runs them on the word ``run``."""
         with self._lock:
             if child.started:
                 return
@@ -230,16 +255,20 @@ class ProcessSupervisor:
             if message is None:
                 continue
             kind = message["kind"]
-            if kind == "stopped":
+            if kind == "configured":
+                for name in child.activities:
+                    self.app.gate.configured(name)
+            elif kind == "stopped":
                 child.clean, child.failed, child.last = message["clean"], message["failed"], message["snapshot"]
             elif kind == "stop_request":
-                self.app.request_stop(f"process {child.name}: {message['reason']}")
+                self.app.request_stop(f"process {child.name}: {message['reason']}", hard=message.get("hard", True))
             elif kind == "result":
                 child.link.answered(message)
             elif kind == "call":
                 self._route(child, message)
         code = child.popen.wait()
         child.stopped.set()
+        self.app.progress.advance()
         child.link.abandon(f"process {child.name} ended ({exit_description(code)}) before it answered")
         if child.last is not None and code == 0:
             return  # it stopped as asked
@@ -247,16 +276,18 @@ class ProcessSupervisor:
         log.error("process %s (pid %d) died: %s", child.name, child.popen.pid, what)
         with self._lock:
             self.failure = self.failure or f"process {child.name} died: {what}"
-        self.app.request_stop(f"process {child.name} died ({what})")
+        self.app.request_stop(f"process {child.name} died ({what})", hard=True)
 
     def stop_child(self, child: Child, reason: str) -> None:
         """Tell ``child`` to stop, once (every stand-in of its activities asks, when the application
-        stops them)."""
+        stops them), and once more when a natural stop becomes hard, so that the child too ends it
+        within a second."""
+        hard = self.app.stop_is_hard
         with self._lock:
-            if child.stop_sent:
+            if child.stop_sent and (child.hard_stop_sent or not hard):
                 return
-            child.stop_sent = True
-        child.link.send("stop", reason=reason)
+            child.stop_sent, child.hard_stop_sent = True, hard
+        child.link.send("stop", reason=reason, hard=hard)
 
     def call(self, process: str, component: str, operation: str, args: tuple[Any, ...],
              kwargs: dict[str, Any]) -> Future[Any]:
@@ -313,15 +344,17 @@ class ProcessSupervisor:
         return bool(self.failure) or any(child.failed for child in self.children.values())
 
     # --- end ------------------------------------------------------------------------------------
-    def join(self, timeout: float) -> bool:
-        """Wait for every child to exit; the ones still there after ``timeout`` are killed."""
-        deadline = time.monotonic() + timeout
+    def join(self, timeout: float = STOP_TIMEOUT) -> bool:
+        """Wait for every child to exit, as :meth:`Application.stop` waits for activities: after a
+        hard stop, ``timeout`` seconds in all; after a natural one, while they progress
+        (:mod:`coco_core.lifecycle`). The ones still there then are killed."""
+        begun = time.monotonic()
         clean = True
         for child in self.children.values():
-            try:
-                child.popen.wait(max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                log.error("process %s did not stop within %.1f s; killing it", child.name, timeout)
+            if not self.app.progress.wait(partial(_exited, child.popen), lambda: self.app.stop_deadline(begun, timeout)):
+                how = (f"within {timeout:.1f} s" if self.app.stop_is_hard else
+                       f"(no progress for {timeout:.1f} s after the application's own stop request)")
+                log.error("process %s did not stop %s; killing it", child.name, how)
                 child.popen.kill()
                 child.popen.wait()
                 clean = False

@@ -108,7 +108,7 @@ class Arguments:
         choices = []
         for child in element.children:
             if child.tag != "choice":
-                reader.error(f"unexpected element <{child.tag}> in <arg>; expected <choice value=.../>", child)
+                reader.unexpected(child, f"unexpected element <{child.tag}> in <arg>; expected <choice value=.../>")
                 continue
             reader.check_attributes(child, ("value",), required=("value",))
             reader.empty(child)

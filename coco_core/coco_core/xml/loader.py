@@ -20,6 +20,7 @@ from .activities import read_activity
 from .arguments import Arguments
 from .components import ON_ERROR, read_component
 from .connections import read_connection
+from .dialect import extension_of
 from .draft import Draft
 from .farm import read_farm
 from .pipeline import read_pipeline
@@ -114,7 +115,8 @@ class _Loader:
         name, on_error = Path(file).stem, "continue"
         root = self._parse(data, file)
         if root is not None:
-            reader = FileReader(directory, self.substitutions, self.errors, self.warnings)
+            reader = FileReader(directory, self.substitutions, self.errors, self.warnings,
+                                original=extension_of(root) is None)
             self.include_chain.append((_identity(file), file))
             values = self._package(reader, root, "", top=True)
             name = values.get("name", "").strip() or name
@@ -336,7 +338,8 @@ class _Loader:
         if root is None:
             return
         self.include_chain.append((identity, file))
-        included = FileReader(os.path.dirname(file), self.substitutions, self.errors, self.warnings)
+        included = FileReader(os.path.dirname(file), self.substitutions, self.errors, self.warnings,
+                              original=extension_of(root) is None)
         self._package(included, root, on_error)
         self.include_chain.pop()
 

@@ -2,8 +2,9 @@
 
 Every value the loader takes from the tree goes through a :class:`FileReader`, which is where the
 dialect's general rules live: unknown elements and attributes are errors that name what was
-expected, ``$(...)`` is expanded in every attribute value and element text, ``if``/``unless`` drop
-an element, and an empty attribute value means the attribute's default. Errors are recorded, not
+expected (in a file of the original CoCo's dialect, warnings: see :mod:`.dialect`), ``$(...)`` is
+expanded in every attribute value and element text, ``if``/``unless`` drop an element, and an empty
+attribute value means the attribute's default. Errors are recorded, not
 raised, so that one run of the loader reports everything that is wrong with a file.
 """
 
@@ -36,11 +37,15 @@ class FileReader:
         substitutions: Substitutions,
         errors: list[ConfigError],
         warnings: list[str],
+        original: bool = False,
     ) -> None:
         self.directory = directory
         self.substitutions = substitutions
         self.errors = errors
         self.warnings = warnings
+        self.original = original
+        """Whether the file is in the original CoCo's dialect (:mod:`.dialect`): unknown elements
+        are then ignored with a warning instead of being errors."""
 
     def error(self, message: str, element: Element) -> None:
         """Record an error at ``element``'s line."""
@@ -135,12 +140,26 @@ class FileReader:
             if child.tag in allowed:
                 found.append(child)
             else:
-                self.error(
-                    f"unexpected element <{child.tag}> in <{element.tag}>; "
-                    f"expected one of: {', '.join(sorted(allowed))}",
-                    child,
-                )
+                self.unexpected(child, f"unexpected element <{child.tag}> in <{element.tag}>; "
+                                       f"expected one of: {', '.join(sorted(allowed))}")
         return found
+
+    def unexpected(self, element: Element, message: str) -> None:
+        """An element the dialect does not know at this place: an error, or in the original CoCo's
+        dialect a warning, after the substitutions in it were expanded as the original launcher
+        does (so a wrong one is still an error)."""
+        if not self.original:
+            self.error(message, element)
+            return
+        self.warn(f"{message}; ignored, as the original CoCo ignores it (this file uses none of this "
+                  "project's extensions, so it is read in the original dialect)", element)
+        pending = [element]
+        while pending:
+            current = pending.pop()
+            for name in current.attributes:
+                self.attribute(current, name)
+            self._expand(current, f"text {current.text.strip()!r}", current.text)
+            pending.extend(current.children)
 
     def container(self, element: Element, allowed: Sequence[str]) -> list[Element]:
         """:meth:`children` of an element that has no attributes of its own."""
@@ -153,17 +172,13 @@ class FileReader:
             self.error(f"unexpected text {_shorten(element.text.strip())!r} in <{element.tag}>; "
                        "it has attributes only", element)
         for child in element.children:
-            self.error(
-                f"unexpected element <{child.tag}> in <{element.tag}>; it has attributes only", child
-            )
+            self.unexpected(child, f"unexpected element <{child.tag}> in <{element.tag}>; it has attributes only")
 
     def text(self, element: Element, allowed_attributes: Sequence[str] = ()) -> str:
         """The stripped, expanded text of an element that holds text only."""
         self.check_attributes(element, allowed_attributes)
         for child in element.children:
-            self.error(
-                f"unexpected element <{child.tag}> in <{element.tag}>; it contains text only", child
-            )
+            self.unexpected(child, f"unexpected element <{child.tag}> in <{element.tag}>; it contains text only")
         value = self._expand(element, f"text {element.text.strip()!r}", element.text)
         return "" if value is None else value.strip()
 

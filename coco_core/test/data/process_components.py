@@ -18,6 +18,8 @@ class Ticker(Component):
     pid_file = Attribute(str, "", "where to write this process's pid")
     fault = Attribute(str, "", "after `fault_after` updates: `segfault`, `exit` or `raise_init` (at init)")
     fault_after = Attribute(int, 5, "updates before the fault")
+    first_update_file = Attribute(str, "", "where to write the monotonic time of the first update")
+    stop_after = Attribute(int, 0, "updates after which the application stops itself (0: never)")
     out = OutputPort(Stamped)
 
     def init(self) -> None:
@@ -30,6 +32,12 @@ class Ticker(Component):
             Path(self.pid_file).write_text(str(os.getpid()))
 
     def on_update(self) -> None:
+        if self.count == 0 and self.first_update_file:
+            Path(self.first_update_file).write_text(repr(time.monotonic()))
+        if self.stop_after and self.count == self.stop_after:
+            if self.app is not None and not self.app.stop_requested:
+                self.app.request_stop(f"{self.name}: {self.count} values written")
+            return
         self.out.write(Stamped(self.count))
         self.count += 1
         if self.fault and self.count == self.fault_after:
@@ -66,6 +74,41 @@ class Sink(Component):
     def on_stop(self) -> None:
         self.file.write("stopped\n")
         self.file.close()
+
+
+class SlowConfig(Component):
+    """Takes ``delay`` seconds to configure (a model to load, a device to open), then writes the
+    monotonic time at which it was done to ``path``."""
+
+    delay = Attribute(float, 0.5, "seconds on_config takes")
+    path = Attribute(str, "configured.txt", "where the end of on_config is written")
+
+    def on_config(self) -> None:
+        time.sleep(self.delay)
+        Path(self.path).write_text(repr(time.monotonic()))
+
+
+class Flusher(Component):
+    """Counts the values it reads; its on_stop works ``flush_cpu`` CPU seconds (a video encoder's
+    last frames) and then writes the count to ``path``: on a loaded machine that takes longer than a
+    second of wall time."""
+
+    flush_cpu = Attribute(float, 1.0, "CPU seconds of work in on_stop")
+    path = Attribute(str, "flushed.txt", "where the count is written at the stop")
+    value = InputPort(Stamped, event=True)
+
+    def init(self) -> None:
+        self.values: list[int] = []
+
+    def on_update(self) -> None:
+        self.values += [sample.value for sample in self.value.read_all()]
+
+    def on_stop(self) -> None:
+        self.values += [sample.value for sample in self.value.read_all()]
+        end = time.thread_time() + self.flush_cpu
+        while time.thread_time() < end:
+            pass
+        Path(self.path).write_text(" ".join(map(str, self.values)))
 
 
 class Busy(Component):

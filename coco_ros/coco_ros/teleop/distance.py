@@ -10,7 +10,11 @@ Inputs (event ports, a triggered activity runs the component whenever either cha
 Every sample (the paper's "for every change"): each input pose read is one change, taken in order
 of emission (the ports are drained, the values of both merged by their stamps' ``time``), and each
 change that alters a pose gives one sample once both poses are known. A pose equal to the one it
-replaces (e.g. a joint state that moved only the other arm) changes nothing and gives no sample. The
+replaces (e.g. a joint state that moved only the other arm) changes nothing and gives no sample. A
+pose that a newer one replaces before any sample showed it (gripper poses before the first bowl
+pose: only the last of them reaches the first sample) is counted as *merged* in the profile
+(:meth:`~coco_core.component.Component.record_merged`), as is a change no sample showed by the stop,
+so that the CSV's rows and the poses read always add up. The
 connections into this component must therefore keep every pose (BUFFER, sized for the backlog a
 fast replay builds up); with a DATA or CIRCULAR connection the poses it discards are counted as
 dropped in the profile, never silently lost.
@@ -90,6 +94,8 @@ class EndEffectorDistance(Component):
         self._seq = 0
         self._unshown: Stamp | None = None
         """The oldest origin among the changes no sample has shown yet (a gripper pose before the first bowl pose)."""
+        self._unshown_poses: set[str] = set()
+        """The inputs (``_gripper``, ``_bowl``) whose current pose no sample has shown yet."""
         self._warned = False
         self.last_distance = math.nan
 
@@ -112,7 +118,15 @@ class EndEffectorDistance(Component):
                 continue
             if self._unshown is None or origin.time < self._unshown.time:
                 self._unshown = origin
+            if attr in self._unshown_poses:  # the pose it replaces was never shown
+                self.record_merged()
+            self._unshown_poses.add(attr)
             self._sample()
+
+    def on_stop(self) -> None:
+        if self._unshown_poses:  # changes no sample showed: the other pose never came
+            self.record_merged(len(self._unshown_poses))
+            self._unshown_poses.clear()
 
     def _sample(self) -> None:
         """One sample from the current poses, stamped with the oldest change it is the first to show."""
@@ -120,6 +134,7 @@ class EndEffectorDistance(Component):
         if gripper is None or bowl is None or origin is None:
             return
         self._unshown = None
+        self._unshown_poses.clear()
         if gripper.target != bowl.target and not self._warned:
             self._warned = True
             log.warning("component %s: gripper pose is in %r but bowl pose in %r; the distance assumes one frame",
