@@ -49,6 +49,8 @@ class HapticRecorder(Component):
         self.energy_in = self.energy_out = 0.0
         self._previous: HapticSample | None = None
         self.renderers: dict[str, int] = {}
+        self.unready: dict[str, int] = {}
+        """Samples in which each renderer had no surface (see HapticSample.unready)."""
 
     def on_update(self) -> None:
         lines = []
@@ -69,6 +71,9 @@ class HapticRecorder(Component):
         if sample.contact:
             self.contact_rows += 1
             self.renderers[sample.renderer] = self.renderers.get(sample.renderer, 0) + 1
+        if sample.unready:
+            for name in sample.unready.split(","):
+                self.unready[name] = self.unready.get(name, 0) + 1
         self.max_depth = max(self.max_depth, sample.depth)
         fx, fy, fz = sample.force
         self.max_force = max(self.max_force, (fx * fx + fy * fy + fz * fz) ** 0.5)
@@ -96,6 +101,8 @@ class HapticRecorder(Component):
             "energy_in_j": self.energy_in,
             "energy_out_j": self.energy_out,
             "passive": self.energy_out <= self.energy_in,
+            "samples_without_surface": self.unready,
+            "surfaces_ready": not any(count == self.rows for count in self.unready.values()) and self.rows > 0,
             "csv": self.path,
         }
 
@@ -106,6 +113,9 @@ class HapticRecorder(Component):
         log.info("%s: %d haptic samples at %.1f Hz, max penetration %.2f mm, energy in %.4f J, out %.4f J",
                  self.name, report["samples"], report["rate_hz"], 1e3 * self.max_depth, self.energy_in,
                  self.energy_out)
+        for name, count in self.unready.items():
+            log.warning("%s: renderer %s had no surface in %d of %d samples%s", self.name, name, count,
+                        self.rows, " (never had one: this run touched nothing)" if count == self.rows else "")
         if self.summary:
             Path(self.summary).parent.mkdir(parents=True, exist_ok=True)
             Path(self.summary).write_text(json.dumps(report, indent=2) + "\n")

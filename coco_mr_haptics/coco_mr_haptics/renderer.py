@@ -130,6 +130,11 @@ class SurfaceRenderer(Component):
         The force, proxy and depth are then on :attr:`proxy_object`."""
         raise NotImplementedError
 
+    @property
+    def ready(self) -> bool:
+        """Whether there is a surface to render (a HapticCloud has none before its first structure)."""
+        return True
+
     def prepare(self) -> None:
         """Read this renderer's own inputs before a cycle (a new structure, a moved frame)."""
 
@@ -202,10 +207,12 @@ class HapticRenderer(Component):
                 touching, proxy = renderer.name, god.proxy
                 if first:
                     break
+        unready = "" if all(r.ready for r in self.renderers) else ",".join(
+            r.name for r in self.renderers if not r.ready)
         magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)
         if magnitude > self.max_force:
             scale = self.max_force / magnitude
             fx, fy, fz = fx * scale, fy * scale, fz * scale
         self.force.write(HapticForce(workspace.to_frame((fx, fy, fz)), state.stamp))
         self.sample.write(HapticSample(time.perf_counter(), (x, y, z), proxy, (fx, fy, fz), bool(touching),
-                                       touching, depth))
+                                       touching, depth, unready))
