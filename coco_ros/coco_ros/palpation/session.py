@@ -149,7 +149,10 @@ def hand_plan(duration: float) -> list[tuple[str, float, float, np.ndarray, np.n
     """The hand's fingertip path in ``table``: (phase, start, end, from, to); strokes move along x."""
     if duration < 0.5 * NOMINAL_DURATION:
         raise SessionError(f"duration must be at least {0.5 * NOMINAL_DURATION:.1f} s, got {duration}")
-    scale = duration / NOMINAL_DURATION
+    # The touch is held for its full second whatever the length (a calibration needs its rest); the
+    # other phases share the rest of the session.
+    held = dict(PHASES)["calibration_touch"] + 0.3
+    scale = (duration - held) / (NOMINAL_DURATION - held)
     marker = marker_pose()[:3, 3]
     above = marker + (0.0, 0.0, 0.03)
     start = marker + (0.12, -0.10, 0.25)
@@ -163,8 +166,9 @@ def hand_plan(duration: float) -> list[tuple[str, float, float, np.ndarray, np.n
     }
     plan, t = [], 0.0
     for name, nominal in PHASES:
-        plan.append((name, t, t + nominal * scale, *targets[name]))
-        t += nominal * scale
+        length = nominal if name == "calibration_touch" else nominal * scale
+        plan.append((name, t, t + length, *targets[name]))
+        t += length
     return plan
 
 
