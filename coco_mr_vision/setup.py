@@ -22,6 +22,7 @@ setup(
             "RealSenseRgbdPeer = coco_mr_vision.rgbd_peers:RealSenseRgbdPeer",
             "MarkerTracker = coco_mr_vision.marker_tracker:MarkerTracker",
             "MarkerRegistration = coco_mr_vision.marker_registration:MarkerRegistration",
+            "TouchRegistration = coco_mr_vision.touch_registration:TouchRegistration",
             "SimulatedCamera = coco_mr_vision.simulated_camera:SimulatedCamera",
             "MeshReconstructor = coco_mr_vision.mesh_reconstructor:MeshReconstructor",
             "StreamingServer = coco_mr_vision.streaming:StreamingServer",

@@ -45,6 +45,7 @@ setup(
         "console_scripts": [
             "baxter-import = coco_ros.baxter.importer:main",
             "baxter-session = coco_ros.baxter.session:main",
+            "palpation-session = coco_ros.palpation.session:main",
             "coco-replay = coco_ros.replay.cli:main",
         ],
         "coco.components": [

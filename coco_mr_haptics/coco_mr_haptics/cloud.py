@@ -60,15 +60,23 @@ class UniformGrid:
     @classmethod
     def of(cls, points: np.ndarray, cell: float) -> tuple[UniformGrid, np.ndarray]:
         """The grid of ``points`` (N x 3, float64) and the points in cell order (a compiled counting
-        sort: O(N + cells))."""
+        sort: O(N + cells)).
+
+        ``cell`` is the size asked for; a cloud whose extent would need more than
+        ``max(8 N, 1e6)`` cells of it (a real depth frame: 1-3 m deep and wide, 10 mm cells, 7e6
+        cells for 270k points) gets the smallest larger cell that stays within that, so that any
+        cloud gets a grid of a bounded size; the fits read the cell from the grid."""
         if len(points) == 0:
             raise StructureError("no point of the cloud passed the filters: nothing to build a grid of")
         origin, upper = bounds(points)
-        dims = (np.floor((upper - origin) / cell) + 1).astype(np.int64)
-        cells = float(dims[0]) * float(dims[1]) * float(dims[2])
-        if cells > max(8.0 * len(points), 1e6):
-            raise StructureError(f"a grid of {cell} m cells over this cloud's extent has {cells:.3g} cells for "
-                                 f"{len(points)} points; use a larger cell, a max_distance filter, or kdtree")
+        limit = max(8.0 * len(points), 1e6)
+        extent = upper - origin
+        while True:
+            dims = (np.floor(extent / cell) + 1).astype(np.int64)
+            cells = float(dims[0]) * float(dims[1]) * float(dims[2])
+            if cells <= limit:
+                break
+            cell *= max(1.01, (cells / limit) ** (1.0 / 3.0))
         ordered, keys, starts, ends = sort_into_cells(points, origin, float(cell), dims)
         return cls(keys, starts, ends, origin, float(cell), dims), ordered
 
@@ -174,7 +182,8 @@ class KDTreeBuilder(Component):
     voxel = Attribute(float, 0.0, "m: one point per voxel of this size (makes the cloud unorganised); "
                       "0: off", min=0.0)
     intrinsics: Attribute[list[float]] = Attribute(list[float], [], "fx fy cx cy of an organised cloud; empty: estimated from it")
-    cell = Attribute(float, 0.01, "m: cell of the uniform grid (about HapticCloud's support)", min=1e-4)
+    cell = Attribute(float, 0.01, "m: cell of the uniform grid (about HapticCloud's support); a cloud "
+                     "too large for it gets the smallest larger cell that bounds the grid", min=1e-4)
 
     cloud = InputPort(PointCloud | np.ndarray | Slot, event=True,
                       doc="PointCloud, an N x 3 array, or a MeshReconstructor's mesh slot (its vertices)")
@@ -184,6 +193,7 @@ class KDTreeBuilder(Component):
         if self.intrinsics and len(self.intrinsics) != 4:
             raise SetupError(f"{self.name}: intrinsics are fx fy cx cy, got {self.intrinsics}")
         self._known: tuple[tuple[int, ...], tuple[float, float, float, float]] | None = None
+        self._enlarged = False
         self.built = 0
 
     def on_update(self) -> None:
@@ -217,6 +227,10 @@ class KDTreeBuilder(Component):
         elif kind == "grid":
             points = self._unorganised(points)
             cells, points = UniformGrid.of(points, self.cell)
+            if cells.cell != self.cell and not self._enlarged:
+                self._enlarged = True
+                log.info("%s: a grid of %g m cells would be too large for this cloud's extent: built with "
+                         "%.3g m cells", self.name, self.cell, cells.cell)
             structure = {"kind": "grid", "points": points, "cells": cells, "valid": len(points)}
         else:
             structure = self._kdtree(self._unorganised(points))
@@ -282,11 +296,23 @@ class KDTreeBuilder(Component):
 class HapticCloud(SurfaceRenderer):
     """The proxy of HapticImplicitSurf over the MLS plane of the cloud near it, refitted as it moves.
 
+    Why the support grows with depth: a depth camera quantises depth in steps that grow with the
+    square of the distance; a neighbourhood smaller than a few steps sees one terrace of the staircase
+    where the sensor meets an oblique surface, not the surface: the fitted plane tilts with each
+    terrace (forces up to 150 degrees off the floor's normal on a real PrimeSense frame at 1.2 m, with
+    a 10 mm support) and the proxy falls off the terrace's edge. ``support_steps`` steps of
+    ``depth_resolution`` at the query's distance average the staircase back into the surface.
+
     A new structure replaces the old between two cycles; a proxy in contact is put back on the new
     local surface from where it was (the kernel projects it), so it does not jump."""
 
-    support = Attribute(float, 0.01, "m: radius of the neighbourhood the local surface is fitted to",
+    support = Attribute(float, 0.01, "m: least radius of the neighbourhood the local surface is fitted to",
                         min=1e-5)
+    depth_resolution = Attribute(float, 3.7e-3, "m: the sensor's depth step at 1 m, which grows with the "
+                                 "square of the distance (PrimeSense / Kinect v1: 3.7 mm, 5.5 mm at 1.2 m); "
+                                 "0: points without quantisation (the support stays fixed)", min=0.0)
+    support_steps = Attribute(float, 4.0, "the support spans at least this many depth steps at the "
+                              "query's distance from the viewpoint", min=0.0)
     viewpoint = Attribute(list[float], [0.0, 0.0, 0.0], "where the cloud was seen from (cloud frame): "
                           "the free side of the surface")
 
@@ -312,16 +338,31 @@ class HapticCloud(SurfaceRenderer):
         self._fit = np.zeros(7)
         self._old_fit = np.zeros(7)
         self._moments = np.zeros(11)
+        self._radius = self.support
         self._cloud_frame: FrameLink | None = None
         self._fitted_at: tuple[float, float, float] | None = None
         """Where the current fit was made (cloud frame); None: refit at the next cycle."""
         self.fits = 0
+        self.blind_cycles = 0
+        """Cycles rendered before the first structure arrived (no surface: no force)."""
         self.previous: CloudStructure | None = None
         """The structure being blended out after a swap (None once the blend is over)."""
         self._blended = 0
 
+    @property
+    def ready(self) -> bool:
+        return self.current is not None
+
     def on_stop(self) -> None:
         log.info("%s: %d local fits, %d structure swaps", self.name, self.fits, self.swaps)
+        if self.current is None and self.blind_cycles:
+            # Not a perfect run with no contact: the device went wherever the hand went, through
+            # whatever the camera saw. The launcher's exit status carries it.
+            message = (f"{self.name}: no cloud structure ever arrived on {self.structure.qualified_name}: "
+                       f"{self.blind_cycles} haptic cycles rendered no surface")
+            log.error("%s", message)
+            if self.app is not None:
+                self.app.report_damage(message)
 
     def prepare(self) -> None:
         status, structure = self.structure.read()
@@ -344,6 +385,7 @@ class HapticCloud(SurfaceRenderer):
         structure, god = self.current, self.proxy_object
         assert god is not None  # made in on_config, before the device's loop calls render
         if structure is None:
+            self.blind_cycles += 1
             god.reset()
             return False
         frame = self._cloud_frame
@@ -360,7 +402,8 @@ class HapticCloud(SurfaceRenderer):
             # The plane fitted a fraction of a millimetre away still holds (its error on a curved
             # surface is d^2 / 2R: 1 um for d = 0.5 mm, R = 0.1 m); only the proxy step runs.
             return god.step(x, y, z, vx, vy, vz)
-        self.neighbours = structure.fit(cx, cy, cz, self.support, self.viewpoint, fit, self._moments)
+        self._radius = self.support_at(cx, cy, cz)
+        self.neighbours = structure.fit(cx, cy, cz, self._radius, self.viewpoint, fit, self._moments)
         self._fitted_at = (cx, cy, cz) if self.neighbours else None
         self.fits += 1
         if self.previous is not None:
@@ -377,6 +420,13 @@ class HapticCloud(SurfaceRenderer):
             row[kernel.SHAPE:kernel.SHAPE + 4] = (nx, ny, nz, nx * px + ny * py + nz * pz)
         return god.step(x, y, z, vx, vy, vz)
 
+    def support_at(self, x: float, y: float, z: float) -> float:
+        """The support radius (m) at ``(x, y, z)`` in the cloud's frame: ``support``, or
+        ``support_steps`` depth steps at that distance from the viewpoint when wider."""
+        vx, vy, vz = self.viewpoint
+        squared = (x - vx) ** 2 + (y - vy) ** 2 + (z - vz) ** 2
+        return max(self.support, self.support_steps * self.depth_resolution * squared)
+
     def _blend(self, cx: float, cy: float, cz: float) -> None:
         """Move the fit from the old structure's towards the new one's: a new cloud may place the
         surface a millimetre elsewhere (noise, a moved camera), which held for one cycle would be a
@@ -384,7 +434,7 @@ class HapticCloud(SurfaceRenderer):
         self._blended += 1
         old = self._old_fit
         assert self.previous is not None  # render blends only while there is one
-        found = self.previous.fit(cx, cy, cz, self.support, self.viewpoint, old, self._moments)
+        found = self.previous.fit(cx, cy, cz, self._radius, self.viewpoint, old, self._moments)
         if self._blended >= self.blend or not found or not self.neighbours:
             self.previous = None
             return

@@ -53,6 +53,8 @@ class HapticRecorder(Component):
         self.energy_in = self.energy_out = 0.0
         self._previous: HapticSample | None = None
         self.renderers: dict[str, int] = {}
+        self.unready: dict[str, int] = {}
+        """Samples in which each renderer had no surface (see HapticSample.unready)."""
 
     def on_update(self) -> None:
         lines = []
@@ -74,6 +76,9 @@ class HapticRecorder(Component):
             self.contact_rows += 1
             self.renderers[sample.renderer] = self.renderers.get(sample.renderer, 0) + 1
         self.force_faults += sample.fault
+        if sample.unready:
+            for name in sample.unready.split(","):
+                self.unready[name] = self.unready.get(name, 0) + 1
         self.max_depth = max(self.max_depth, sample.depth)
         fx, fy, fz = sample.force
         self.max_force = max(self.max_force, (fx * fx + fy * fy + fz * fz) ** 0.5)
@@ -102,6 +107,8 @@ class HapticRecorder(Component):
             "energy_out_j": self.energy_out,
             "passive": self.energy_out <= self.energy_in,
             "force_faults": self.force_faults,
+            "samples_without_surface": self.unready,
+            "surfaces_ready": not any(count == self.rows for count in self.unready.values()) and self.rows > 0,
             "csv": self.path,
         }
 
@@ -115,6 +122,9 @@ class HapticRecorder(Component):
         if self.force_faults:
             log.error("%s: %d haptic cycles had a non-finite force (zero force sent instead)", self.name,
                       self.force_faults)
+        for name, count in self.unready.items():
+            log.warning("%s: renderer %s had no surface in %d of %d samples%s", self.name, name, count,
+                        self.rows, " (never had one: this run touched nothing)" if count == self.rows else "")
         if self.summary:
             Path(self.summary).parent.mkdir(parents=True, exist_ok=True)
             Path(self.summary).write_text(json.dumps(report, indent=2) + "\n")

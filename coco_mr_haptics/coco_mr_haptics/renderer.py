@@ -28,7 +28,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import HapticDeviceError, SetupError
+from coco_core.errors import HapticDeviceError, SetupError, TransformError
 from coco_core.policy import NO_DATA
 from coco_core.ports import InputPort, OutputPort
 
@@ -68,6 +68,11 @@ class FrameLink:
             self._seen = pose
             self.r = tuple(float(v) for v in pose[:3, :3].reshape(-1))
             self.t = (float(pose[0, 3]), float(pose[1, 3]), float(pose[2, 3]))
+
+    @property
+    def joined(self) -> bool:
+        """Whether the frame was ever found from the render frame (always, for the render frame)."""
+        return not self.frame or self.frame == self.render_frame or self._seen is not None
 
     def to_render(self, v: Vector, point: bool) -> Vector:
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = self.r
@@ -172,6 +177,11 @@ class SurfaceRenderer(Component):
         The force, proxy and depth are then on :attr:`proxy_object`."""
         raise NotImplementedError
 
+    @property
+    def ready(self) -> bool:
+        """Whether there is a surface to render (a HapticCloud has none before its first structure)."""
+        return True
+
     def prepare(self) -> None:
         """Read this renderer's own inputs before a cycle (a new structure, a moved frame)."""
 
@@ -221,10 +231,34 @@ class HapticRenderer(Component):
         self._workspace = FrameLink(self, self.frame, self.device_frame)
         self.force_faults = 0
         """Cycles in which a renderer's force or the combined force was not finite (zero sent instead)."""
+        self.unjoined_cycles = 0
+        """Cycles in which the device's workspace was not yet joined to the render frame."""
+
+    def _unjoined(self, error: TransformError) -> None:
+        """The device's workspace frame is not joined to the render frame yet (a calibration, such as
+        the palpation's touch on a marker, has not run): nothing can be rendered where the device
+        is, so the force is zero and no sample is written, until the graph joins them."""
+        if not self.unjoined_cycles:
+            log.info("%s: the device's workspace %s is not joined to %s yet (%s): zero force until it is",
+                     self.name, self.device_frame, self.frame, error)
+        self.unjoined_cycles += 1
+        self.force.write(HapticForce(_ZERO, time.perf_counter()))
+
+    def on_stop(self) -> None:
+        if self.unjoined_cycles and not self._workspace.joined:
+            message = (f"{self.name}: the device's workspace {self.device_frame} was never joined to {self.frame}: "
+                       f"{self.unjoined_cycles} haptic cycles rendered nothing")
+            log.error("%s", message)
+            if self.app is not None:
+                self.app.report_damage(message)
 
     def on_update(self) -> None:
         workspace = self._workspace
-        reading = workspace.read(self.device, self.force)
+        try:
+            reading = workspace.read(self.device, self.force)
+        except TransformError as error:
+            self._unjoined(error)
+            return
         if reading is None:
             return
         state, (x, y, z), (vx, vy, vz) = reading
@@ -249,6 +283,8 @@ class HapticRenderer(Component):
                 touching, proxy = renderer.name, god.proxy
                 if first:
                     break
+        unready = "" if all(r.ready for r in self.renderers) else ",".join(
+            r.name for r in self.renderers if not r.ready)
         magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)
         if magnitude > self.max_force:
             scale = self.max_force / magnitude
@@ -259,4 +295,4 @@ class HapticRenderer(Component):
         self.force_faults += fault
         self.force.write(HapticForce(out, state.stamp))
         self.sample.write(HapticSample(time.perf_counter(), (x, y, z), proxy, (fx, fy, fz), bool(touching),
-                                       touching, depth, fault))
+                                       touching, depth, unready, fault))

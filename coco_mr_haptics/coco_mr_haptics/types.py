@@ -46,5 +46,8 @@ class HapticSample(NamedTuple):
     """Name of the renderer in contact ("" when none; the first one when several)."""
     depth: float
     """Penetration along the normal (m), the deepest among the renderers in contact."""
+    unready: str = ""
+    """Renderers (comma-separated) with no surface to render this cycle: a HapticCloud before its
+    first cloud structure; a run where they stay unready touched nothing it was meant to."""
     fault: bool = False
     """A renderer's force (or the sum) was not finite this cycle: it was left out (zero sent)."""

@@ -346,3 +346,105 @@ def test_cloud_in_a_camera_frame_renders_in_the_world():
     assert len(contact) > 250
     assert np.abs(forces[contact, 0] - forces[contact, 1]).max() < 800.0 * 1e-5
     assert np.linalg.norm(forces[contact[-1], 0]) == pytest.approx(800.0 * 0.003, rel=1e-3)
+
+
+def real_points(index):
+    """The valid points of a Redwood frame, unorganised (as a MeshReconstructor's vertices come)."""
+    cloud = load_cloud(index)
+    return cloud, cloud.points[np.isfinite(cloud.points).all(axis=1)]
+
+
+def test_a_real_frame_gets_a_grid_with_the_default_cell():
+    """A real PrimeSense frame (1-2.7 m deep, 2.4 m wide) needs 6.7e6 cells of 10 mm for 267k
+    points: the builder takes the smallest larger cell that bounds the grid, and keeps every point."""
+    _, points = real_points(0)
+    builder = KDTreeBuilder("builder")
+    builder.configure()
+    structure = builder.build(points)
+    cells = structure.cells
+    assert structure.kind == "grid" and structure.valid == len(points)
+    assert 0.01 < cells.cell < 0.02
+    assert float(np.prod(cells.dims.astype(float))) <= 8 * len(points)
+    assert np.all((structure.points >= cells.origin) & (structure.points < cells.origin + cells.dims * cells.cell))
+    # An explicit cell that fits is kept as it is.
+    coarse = KDTreeBuilder("coarse", cell=0.05)
+    coarse.configure()
+    assert coarse.build(points).cells.cell == 0.05
+
+
+@pytest.mark.parametrize("kind", ["projective", "grid"])
+@pytest.mark.parametrize("pixel", [(420, 240), (400, 320), (460, 80)])
+def test_pushing_along_an_oblique_viewing_ray_into_a_real_floor(kind, pixel):
+    """The Redwood floor seen at 60-75 degrees from its normal, with its depth in PrimeSense steps
+    (5.5 mm at 1.2 m): the device pushed along the viewing ray 6 mm under the floor, then stroked.
+    With the default support, the force stays within a few degrees of the floor's normal, contact is
+    never released while the device is more than 2 mm under the floor, and the proxy stays on it."""
+    cloud, points = real_points(0)
+    builder = KDTreeBuilder("builder", structure_kind=kind)
+    renderer = HapticCloud("cloud", stiffness=500.0, damping=0.0)
+    app = Application("floor")
+    app.add(builder)
+    app.add(renderer)
+    app.connect("builder.structure", "cloud.structure")
+    builder.configure()
+    renderer.configure()
+    builder.structure.write(builder.build(cloud if kind == "projective" else points))
+    renderer.prepare()
+    target = cloud.points.reshape(480, 640, 3)[pixel].astype(float)
+    normal, centre = patch_plane(cloud, target, radius=0.05)
+    ray = centre / np.linalg.norm(centre)
+    assert np.degrees(np.arccos(abs(ray @ normal))) > 55, "an oblique view of the floor"
+    path = [centre - 0.03 * ray + s * ray for s in np.linspace(0.0, 0.03 + 0.006 / abs(ray @ normal), 600)]
+    side = np.cross(normal, ray)
+    path += [path[-1] + s * side / np.linalg.norm(side) for s in np.linspace(0.0, 0.04, 400)]
+    released, angles, behind = 0, [], []
+    for p in path:
+        touching = renderer.render(*p, 0.0, 0.0, 0.0)
+        under = normal @ (centre - p)
+        if not touching:
+            released += under > 0.002
+            continue
+        force = np.array(renderer.proxy_object.force)
+        if np.linalg.norm(force) > 0.5:  # 1 mm deep
+            angles.append(np.degrees(np.arccos(np.clip(force @ normal / np.linalg.norm(force), -1, 1))))
+        behind.append(normal @ (centre - np.array(renderer.proxy_object.proxy)))
+    assert released == 0
+    assert len(angles) > 500 and max(angles) < 6.0
+    assert max(behind) < 1.5e-3, "the proxy stays on the floor (within the depth step's noise)"
+
+
+def test_a_haptic_loop_that_never_received_a_structure_is_not_a_perfect_run(tmp_path):
+    """No cloud ever reached the HapticCloud (a builder that failed, a camera that never started):
+    the recorder's summary says so and the application records it, so that the launcher exits 1."""
+    from coco_core.launcher import stopped_by_a_failure
+    from coco_mr_haptics.recorder import HapticRecorder
+    from coco_mr_haptics.renderer import HapticRenderer
+    from coco_mr_haptics.simulated_device import SimulatedDevice
+
+    (tmp_path / "hand.csv").write_text("time,x,y,z\n0,0,0,0.05\n0.5,0,0,-0.05\n")
+    app = Application("blind")
+    device = SimulatedDevice("device", trajectory=str(tmp_path / "hand.csv"), time_step=1e-3)
+    renderer = HapticRenderer("renderer")
+    cloud_renderer = HapticCloud("cloud")
+    renderer.add_peer(cloud_renderer)
+    builder = KDTreeBuilder("builder")
+    recorder = HapticRecorder("recorder", path=str(tmp_path / "h.csv"), summary=str(tmp_path / "s.json"))
+    for component in (device, renderer, builder, recorder):
+        app.add(component)
+    app.connect("builder.structure", "cloud.structure")
+    app.connect("device.state", "renderer.device")
+    app.connect("renderer.force", "device.force")
+    app.connect("renderer.sample", "recorder.samples", ConnectionPolicy(BufferPolicy.BUFFER, size=1000))
+    for component in (device, renderer, builder, recorder):
+        component.configure()
+    for _ in range(500):
+        device.step()
+        renderer.step()
+    recorder.step()
+    recorder.stop()
+    renderer.stop()
+    summary = recorder.report()
+    assert summary["samples_without_surface"] == {"cloud": 500} and summary["surfaces_ready"] is False
+    assert cloud_renderer.blind_cycles == 500
+    assert app.damage and "no cloud structure ever arrived on cloud.structure" in app.damage[0]
+    assert stopped_by_a_failure(app)

@@ -297,3 +297,36 @@ def test_a_trajectory_with_a_short_row_or_a_non_finite_number_is_an_error_at_its
         path.write_text(f"time,x,y,z\n0,0,0,0\n{row}\n")
         with pytest.raises(HapticDeviceError, match=rf"hand\.csv:3: {problem}"):
             SimulatedDevice("device", trajectory=str(path)).on_config()
+
+
+def test_a_workspace_not_yet_joined_renders_zero_force_until_it_is(tmp_path):
+    """The palpation application's device is registered to the scene only by the touch on the
+    marker: until the graph joins the device's workspace to the render frame, the loop keeps its
+    rate with zero force and no sample, then renders as soon as the edge is there. A workspace
+    never joined is recorded as damage (the launcher exits 1)."""
+    plane = HapticImplicitSurf("plane", surface="plane()", stiffness=800.0)
+    device, renderer, recorder, run = loop(tmp_path, [(0, 0, 0, 0.05), (0.2, 0, 0, -0.01), (5, 0, 0, -0.01)],
+                                           [plane], renderer_attributes={"device_frame": "workspace"})
+    run(0.5)
+    assert renderer.unjoined_cycles == 500 and device.force.read()[1].force == (0.0, 0.0, 0.0)
+    assert recorder.report()["samples"] == 0 and device.z < -0.009, "the hand went through: nothing rendered"
+    renderer.app.transforms.add_static("world", "workspace")
+    run(0.5)
+    assert renderer.unjoined_cycles == 500 and recorder.report()["samples"] == 500
+    assert plane.proxy_object.contact and device.force.read()[1].force[2] > 1.0
+    renderer.stop()
+    assert not renderer.app.damage
+    never = HapticRenderer("never", device_frame="elsewhere")
+    never_app = Application("never")
+    never_app.add(never)
+    never.configure()
+    never.step()
+    never.stop()
+    assert never.unjoined_cycles == 0, "no device state: nothing to render, nothing counted"
+    (tmp_path / "blind").mkdir()
+    blind_device, blind, _, blind_run = loop(tmp_path / "blind", [(0, 0, 0, 0.05), (1, 0, 0, 0.05)],
+                                             [HapticImplicitSurf("p2", surface="plane()")],
+                                             renderer_attributes={"device_frame": "elsewhere"})
+    blind_run(0.1)
+    blind.stop()
+    assert any("was never joined to world" in damage for damage in blind.app.damage)

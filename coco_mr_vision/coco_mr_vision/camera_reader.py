@@ -47,6 +47,9 @@ def has_gstreamer() -> bool:
 class _Frames:
     """What a source delivers: BGR frames, each with its media time (seconds) or None."""
 
+    unreadable: list[str]
+    """Files passed over because they could not be read (an image sequence's)."""
+
     def read(self) -> tuple[np.ndarray | None, float | None]:
         raise NotImplementedError
 
@@ -61,6 +64,7 @@ class _Frames:
 class _Capture(_Frames):
     def __init__(self, capture: cv2.VideoCapture, live: bool) -> None:
         self.capture, self.live = capture, live
+        self.unreadable = []
 
     def read(self) -> tuple[np.ndarray | None, float | None]:
         ok, frame = self.capture.read()
@@ -76,18 +80,23 @@ class _Capture(_Frames):
 
 
 class _Sequence(_Frames):
+    """The files of a glob in order. A file that is not an image (truncated, a stray text file) is
+    passed over and listed in :attr:`unreadable`: one bad file must not stop the files after it."""
+
     def __init__(self, files: list[str], fps: float) -> None:
         self.files, self.period, self.index = files, 1.0 / fps, 0
+        self.unreadable: list[str] = []
+        """Files passed over, in the order met (again on each loop)."""
 
     def read(self) -> tuple[np.ndarray | None, float | None]:
-        if self.index >= len(self.files):
-            return None, None
-        path = self.files[self.index]
-        frame = cv2.imread(path, cv2.IMREAD_COLOR)
-        if frame is None:
-            raise CameraError(f"image sequence: cannot read {path} as an image")
-        self.index += 1
-        return frame, (self.index - 1) * self.period
+        while self.index < len(self.files):
+            path = self.files[self.index]
+            self.index += 1
+            frame = cv2.imread(path, cv2.IMREAD_COLOR)
+            if frame is not None:
+                return frame, (self.index - 1) * self.period
+            self.unreadable.append(path)
+        return None, None
 
     def rewind(self) -> bool:
         self.index = 0
@@ -148,6 +157,9 @@ class CameraReader(Component):
         """Frames delivered."""
         self.ended = False
         """True once a recording ran out (and ``loop`` is off)."""
+        self.skipped = 0
+        """Files of an image sequence that could not be read as images (passed over; each is also
+        counted as a refused input in the profile)."""
 
     def on_config(self) -> None:
         self._frames, self.kind = open_source(self.source, self.fps)
@@ -163,6 +175,7 @@ class CameraReader(Component):
             if frame is None and self.loop and self._frames.rewind():
                 self._start = None
                 frame, media_time = self._frames.read()
+            self._count_unreadable()
             if frame is None:
                 self.ended = True
                 log.info("%s: %s %r ended after %d frames", self.name, self.kind, self.source, self.frames)
@@ -181,5 +194,16 @@ class CameraReader(Component):
         image = Image(frame, ImageFormat.BGR8, time.time(), self.frame_id, self._camera).to(self.format)
         self.image.write(Stamped(image, Stamp(now, self._seq, self.name)))
 
+    def _count_unreadable(self) -> None:
+        unreadable = self._frames.unreadable
+        while self.skipped < len(unreadable):
+            path = unreadable[self.skipped]
+            self.skipped += 1
+            self.record_refusal(f"image {path}", CameraError(f"image sequence: cannot read {path} as an image; "
+                                                             "passed over"))
+
     def on_stop(self) -> None:
+        if self.skipped:
+            log.warning("%s: %d files of %r could not be read and were passed over", self.name, self.skipped,
+                        self.source)
         self._frames.close()

@@ -26,6 +26,7 @@ from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamped, unstamped
 
 from .image import CameraIntrinsics, Image, ImageFormat
+from .rgbd import RGBDFrame
 
 log = logging.getLogger("coco.vision")
 
@@ -88,7 +89,8 @@ class MarkerTracker(Component):
                              "else 'camera')")
     marker_frame = Attribute(str, "marker_{id}", "name of a marker's frame; {id} is replaced by its id")
 
-    image = InputPort(Image | Stamped, event=True, doc="camera images (any colour format), with intrinsics")
+    image = InputPort(Image | RGBDFrame | Stamped, event=True, doc="camera images (any colour format), with "
+                      "intrinsics, or RGB-D frames (their colour image and intrinsics: a streamed RGB-D camera)")
     camera_info = InputPort(CameraIntrinsics, doc="the camera's intrinsics, for images that carry none (a ROS "
                             "Image topic with its camera_info topic beside it); the newest is used")
     markers = OutputPort(Stamped, "Stamped(MarkerDetections), with the image's stamp when it had one")
@@ -127,6 +129,9 @@ class MarkerTracker(Component):
         status, info = self.camera_info.read_newest()
         for value in self.image.read_all():
             image, stamp = unstamped(value)
+            if isinstance(image, RGBDFrame):
+                color = image.color
+                image = Image(color.data, color.format, color.stamp, color.frame_id, image.intrinsics)
             if image.intrinsics is None and status:
                 image = Image(image.data, image.format, image.stamp, image.frame_id, info)
             detections = self.detect(image)

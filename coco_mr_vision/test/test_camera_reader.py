@@ -124,3 +124,22 @@ def test_intrinsics_that_are_no_regular_file_are_refused_naming_the_attribute(tm
         signal.setitimer(signal.ITIMER_REAL, 0)
     assert str(raised.value) == (f"attribute cam.intrinsics: intrinsics file {fifo} is a FIFO, not a regular "
                                  "file; expected a JSON file of camera intrinsics")
+
+
+def test_an_unreadable_file_in_a_sequence_is_passed_over_and_counted(tmp_path, photos):
+    """A truncated image among real ones: the files after it are still delivered, the bad one is
+    counted (in the profile's refusals too) once per pass, and the reader goes on."""
+    for index, photo in enumerate(photos):
+        cv2.imwrite(str(tmp_path / f"frame_{2 * index:03d}.jpg"), photo)
+    good = (tmp_path / "frame_000.jpg").read_bytes()
+    (tmp_path / "frame_001.jpg").write_bytes(good[:200])  # cut off after the JPEG header
+    reader = CameraReader("cam", source=str(tmp_path / "frame_*.jpg"))
+    sink = rig(reader)
+    got = drain(reader, sink, 5)
+    assert len(got) == len(photos) and reader.ended
+    assert np.abs(got[1].value.data.astype(int) - photos[1].astype(int)).mean() < 4, "the photo after the bad file"
+    assert reader.skipped == 1 and reader.stats.refused == 1 and reader.stats.errors == 0
+    looping = CameraReader("loop", source=str(tmp_path / "frame_*.jpg"), loop=True)
+    sink = rig(looping)
+    assert len(drain(looping, sink, 2 * len(photos))) == 2 * len(photos)
+    assert looping.skipped == 2, "met again on the second pass"

@@ -111,3 +111,18 @@ def test_id_filter_and_images_without_intrinsics(tag):
 def test_unknown_dictionary_lists_the_valid_ones():
     with pytest.raises(AttributeValueError, match="unknown marker dictionary 'DICT_5X5_1001'.*DICT_5X5_1000"):
         MarkerTracker("tracker", dictionary="DICT_5X5_1001")
+
+
+def test_rgbd_frames_are_searched_in_their_colour_image(tag):
+    """A streamed RGB-D camera (StreamingReceiver.rgbd) feeds the tracker directly: the colour image
+    with the frame's intrinsics, the same detection as of the image itself."""
+    from coco_mr_vision.rgbd import RGBDFrame
+
+    image, document = tag
+    app, camera, tracker, _ = rig(dictionary=document["dictionary"], marker_length=document["marker_length_m"])
+    colour = Image(image.data, image.format, image.stamp, image.frame_id)  # the intrinsics are the frame's
+    depth = Image(np.full(image.data.shape[:2], 1000, np.uint16), ImageFormat.DEPTH16, image.stamp, image.frame_id)
+    camera.image.write(Stamped(RGBDFrame(colour, depth, image.intrinsics), Stamp(1.0, 1, "camera")))
+    tracker.on_update()
+    assert tracker.frames == 1 and tracker.without_intrinsics == 0
+    assert np.allclose(app.transforms.lookup("usb_cam", "marker_1"), tracker.detect(image).pose(1))

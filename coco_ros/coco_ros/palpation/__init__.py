@@ -1,0 +1,1 @@
+"""The remote palpation application (the CoCo paper's section 6.1): its generated session."""
