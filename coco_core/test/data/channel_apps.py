@@ -79,8 +79,10 @@ def generate(seed: int, count: int = 200) -> Case:
     size = {"int": 0, "frame": rng.choice((64, 8192, 300_000))}.get(kind, rng.choice((64, 6000, 300_000)))
     buffersize = rng.choice((1, 4, 16, count, count))
     readers = []
+    refusing = policy == "BUFFER" and buffersize < count
     for _ in range(rng.randint(1, 3)):
-        triggered = rng.random() < 0.5
+        # A value a full BUFFER refuses wakes nobody: a triggered reader would wait for good.
+        triggered = rng.random() < 0.5 and not refusing
         modes = ("read_all", "read_newest") if triggered else ("read", "read_all", "read_newest")
         readers.append(ReaderCase(rng.choice(modes), triggered, rng.choice(PLACES),
                                   hold=rng.choice((0, 0, 1)) if frames else 0))
@@ -98,7 +100,7 @@ def xml(case: Case, folder: Path, processes: bool) -> str:
     parts = [f'<package name="channels">\n  <components>\n'
              f'    <component><name>src</name><task>channel_components:{source}</task><attributes>'
              f'<attribute name="count" value="{case.count}"/><attribute name="batch" value="{case.batch}"/>'
-             f'<attribute name="size" value="{case.size}"/>'
+             f'<attribute name="size" value="{case.size}"/><attribute name="done" value="{folder}/src.done"/>'
              + ("" if frames else f'<attribute name="kind" value="{case.kind}"/>')
              + (f'<attribute name="path" value="{folder}/pool.txt"/>' if frames else "")
              + '</attributes></component>\n']
@@ -109,6 +111,7 @@ def xml(case: Case, folder: Path, processes: bool) -> str:
                      f'<attribute name="size" value="{case.size}"/><attribute name="hold" value="{reader.hold}"/>'
                      f'<attribute name="path" value="{folder}/r{index}.txt"/>'
                      f'<attribute name="die" value="{str(reader.die).lower()}"/>'
+                     f'<attribute name="source_done" value="{folder}/src.done"/>'
                      f'<attribute name="watch" value="{str(reader.watch).lower()}"/></attributes></component>\n')
     parts.append("  </components>\n  <connections>\n")
     for index in range(len(case.readers)):

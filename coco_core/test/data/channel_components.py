@@ -46,12 +46,15 @@ def same(a: Any, b: Any) -> bool:
 
 
 class Source(Component):
-    """Writes values 0 .. count-1, ``batch`` per update, then nothing; each is ``(number, payload)``."""
+    """Writes values 0 .. count-1, ``batch`` per update, then nothing; each is ``(number, payload)``.
+    Once the last write returned it makes the file ``done`` (a connection counts a value as written
+    before it stores it, so ``written`` alone does not say that the last one is in)."""
 
     count = Attribute(int, 100, "values to write")
     batch = Attribute(int, 1, "values per update")
     kind = Attribute(str, "int", "payload: int, array or records")
     size = Attribute(int, 0, "payload bytes (array, records)")
+    done = Attribute(str, "", "file made once every value was written")
     out = OutputPort(object)
 
     def init(self) -> None:
@@ -61,6 +64,8 @@ class Source(Component):
         for _ in range(min(self.batch, self.count - self.next)):
             self.out.write((self.next, payload(self.kind, self.size, self.next)))
             self.next += 1
+            if self.next == self.count and self.done:
+                Path(self.done).touch()
 
 
 class FrameSource(Component):
@@ -72,6 +77,7 @@ class FrameSource(Component):
     batch = Attribute(int, 1, "frames per update")
     size = Attribute(int, 64, "bytes per frame")
     path = Attribute(str, "", "where the slot states go at stop")
+    done = Attribute(str, "", "file made once every frame was published")
     frames = PooledOutputPort()
 
     def init(self) -> None:
@@ -86,6 +92,8 @@ class FrameSource(Component):
             slot.stamp = self.next
             self.frames.write(slot)
             self.next += 1
+            if self.next == self.count and self.done:
+                Path(self.done).touch()
 
     def on_stop(self) -> None:
         if self.path:
@@ -101,9 +109,10 @@ class FrameSource8(FrameSource):
 
 class _Reader(Component):
     """Reads its ``value`` input by ``mode`` (read, read_all, read_newest), checks every payload and,
-    once the writer wrote ``count`` and nothing is pending, releases what it holds and writes
-    ``path``: the numbers it got, one a line, then ``old``, ``bad``, and (with ``watch``) the
-    launch's /dev/shm bytes at the end, once everything was read."""
+    once it got the last value (or, as a BUFFER may refuse that one, once the writer is done:
+    ``source_done`` exists, and nothing is pending), releases what it holds and writes ``path``: the
+    numbers it got, one a line, then ``old``, ``bad``, and (with ``watch``) the launch's /dev/shm
+    bytes at the end, once everything was read."""
 
     count = Attribute(int, 100, "values the writer writes")
     mode = Attribute(str, "read_all", "read, read_all or read_newest")
@@ -113,6 +122,7 @@ class _Reader(Component):
     path = Attribute(str, "reader.txt", "where the result goes")
     watch = Attribute(bool, False, "record the launch's /dev/shm use once everything was read")
     die = Attribute(bool, False, "kill this process (SIGKILL) once done")
+    source_done = Attribute(str, "", "the file the writer makes once it wrote everything")
 
     def init(self) -> None:
         self.got: list[int] = []
@@ -134,7 +144,8 @@ class _Reader(Component):
         for value in values:
             self._check(value)
         connection = port.connections[0]
-        if connection.written == self.count and not connection.pending:
+        last = bool(self.got) and self.got[-1] == self.count - 1
+        if last or (connection.written == self.count and Path(self.source_done).exists() and not connection.pending):
             self._finish()
 
     def _check(self, value: Any) -> None:
