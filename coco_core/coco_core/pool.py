@@ -24,6 +24,10 @@ from .errors import PoolError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 
 
+DEFAULT_SLOTS = 4
+"""Slots of a pooled output that does not say (one written, one or two read, one spare)."""
+
+
 class SlotState(enum.Enum):
     """Life cycle of one slot: FREE -> WRITING -> READY -> READING -> (READY or FREE)."""
 
@@ -165,6 +169,19 @@ class PoolConnection(Connection):
         self._seen = slot.seq
         self.read += 1
         return slot
+
+    def pop_newest(self) -> Any:
+        """The newest frame; a frame published while this one was taken replaces it, and the one it
+        replaces is released (a skipped slot held by nobody would be lost to the writer) and
+        counted as dropped."""
+        newest = self.pop()
+        if newest is EMPTY:
+            return EMPTY
+        while (slot := self.pop()) is not EMPTY:
+            self.skip()
+            newest.release()
+            newest = slot
+        return newest
 
     @property
     def pending(self) -> int:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, Callable
 from .connections import EMPTY, Connection
 from .errors import PolicyError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
-from .pool import FramePool, PoolConnection, Slot
+from .pool import DEFAULT_SLOTS, FramePool, PoolConnection, Slot
 
 if TYPE_CHECKING:
     from .component import Component
@@ -119,7 +119,7 @@ class PooledOutputPort(OutputPort):
     manager). ``slots`` should be at least 2 + the number of readers that hold a frame at once.
     """
 
-    def __init__(self, slots: int = 4, doc: str = "") -> None:
+    def __init__(self, slots: int = DEFAULT_SLOTS, doc: str = "") -> None:
         super().__init__(Slot, doc)
         self.slots = slots
         self.pool = FramePool(slots)

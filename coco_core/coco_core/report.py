@@ -16,10 +16,12 @@ from __future__ import annotations
 import os
 import resource
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from .activity import PeriodicActivity
 from .application import Application
+from .connections import Connection
 from .ports import PooledOutputPort
 
 
@@ -91,12 +93,18 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
                         pool = port.pool
                         shot.pools.append([port.qualified_name, str(len(pool.slots)), str(pool.published),
                                            str(pool.stalls)])
-    for connection in app.connections:
-        counters = connection.counters()
-        shot.connections.append([
-            connection.label, str(connection.policy), str(counters["written"]), str(counters["read"]),
-            str(counters["dropped"]), str(counters["pending"])])
+    shot.connections = connection_rows(app.connections)
     return shot
+
+
+def connection_rows(connections: Iterable[Connection]) -> list[list[str]]:
+    """The profile's rows of ``connections``: label, policy and flow counters."""
+    rows = []
+    for connection in connections:
+        counters = connection.counters()
+        rows.append([connection.label, str(connection.policy), str(counters["written"]), str(counters["read"]),
+                     str(counters["dropped"]), str(counters["pending"])])
+    return rows
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:

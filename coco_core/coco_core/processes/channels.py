@@ -1,27 +1,32 @@
 """Connections between processes: the shared-memory channels of the process level.
 
 The launcher plans one channel per connection that crosses processes (:func:`plan_channels`),
-before any child starts: the segment, the policy, whether it carries pooled frames, and whether a
-write wakes the reader's activity (whose eventfd the launcher made and every process inherits).
+before any child starts: the segment, the policy, whether it carries pooled frames (one pool in
+shared memory per pooled output, with its declared slots, for all its readers), and whether a write
+wakes the reader's activity (whose eventfd the launcher made and every process inherits; for an
+input made in ``init()``, which the launcher cannot see, the reader's process says so at attach).
 Then each process attaches its own ends (:func:`attach`): the writer's process an
-:class:`~coco_core.shm.ShmWriter` on the output port (and, for a pooled output, a pool in shared
+:class:`~coco_core.shm.ShmWriter` on the output port (and, for a pooled output, the pool in shared
 memory), the reader's process an :class:`~coco_core.shm.ShmReader` on the input port. Everything
 else about the ports stays as it is: read status, round-robin over several connections, counters in
-the profile (reported once, by the reader's process).
+the profile (reported by the reader's process; by the launcher, from shared memory, when that
+process died).
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from collections import Counter
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any, Callable
 
 from .. import registry
 from ..errors import ConfigError
 from ..model import AppSpec, ComponentSpec
-from ..policy import BufferPolicy, ConnectionPolicy
+from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from ..connections import Connection
 from ..ports import InputPort, OutputPort, PooledOutputPort
+from ..pool import DEFAULT_SLOTS
 from .placement import Placement
 
 if TYPE_CHECKING:
@@ -39,13 +44,18 @@ class ChannelPlan:
     src_process: str
     dest_process: str
     channel: Any
-    """The shared-memory channel's description (:class:`coco_core.shm.ChannelSpec`)."""
+    """The shared-memory channel's description (:class:`coco_core.shm.ChannelSpec`); every
+    connection of one pooled output has the same pool (its own label and reader number)."""
     frames: bool
     """Pooled frames (a :class:`PooledOutputPort`'s slots in shared memory) rather than values."""
     event: bool | None
     """The connection's own ``event`` setting; None: the input port decides."""
     wakes: str
-    """The reader's activity woken by a write (through its eventfd); empty: none."""
+    """The reader's activity that a write may wake (through its eventfd); empty: none."""
+    asks: int = -1
+    """Where the reader's process says whether a write wakes it (a word of the launch's flags
+    segment), when only the built component knows: an input port made in ``init()`` is not on the
+    class the launcher reads; -1: the plan knows (a write wakes ``wakes`` if set)."""
 
 
 def _declared(spec: ComponentSpec | None, port: str) -> Any:
@@ -61,27 +71,53 @@ def _declared(spec: ComponentSpec | None, port: str) -> Any:
 
 
 def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[ChannelPlan]:
-    """One channel for every connection of ``spec`` that crosses processes."""
+    """One channel for every connection of ``spec`` that crosses processes; one frame pool for
+    every pooled output read from another process, with the slots the port declares, shared by all
+    its readers (as in one process, where they all read the port's one pool)."""
     components = {component.name: component for component in spec.all_components()}
     activity_of = {name: activity for activity in spec.activities for name in activity.components}
+    crossing = placement.crossing(spec)
+    outputs = {str(c.src): _declared(components.get(c.src.component), c.src.port) for c in crossing}
+    pooled = [c for c in crossing if isinstance(outputs[str(c.src)], PooledOutputPort) or c.data is BufferPolicy.POOL]
+    readers = Counter(str(c.src) for c in pooled)
+    pools: dict[str, Any] = {}
+    taken: Counter[str] = Counter()
     plans = []
-    for connection in placement.crossing(spec):
-        out = _declared(components.get(connection.src.component), connection.src.port)
+    asks = 0
+    for connection in crossing:
+        label = f"{connection.src}->{connection.dest}"
+        frames = connection in pooled
         into = _declared(components.get(connection.dest.component), connection.dest.port)
-        frames = isinstance(out, PooledOutputPort) or connection.data is BufferPolicy.POOL
-        if frames and connection.data not in (BufferPolicy.DATA, BufferPolicy.POOL):
-            raise ConfigError(f"{connection.src} is a pooled output: connect it with data=POOL (latest frame, "
-                              f"no copy), not {connection.data.value}", connection.location)
-        event = connection.event if connection.event is not None else bool(isinstance(into, InputPort) and into.event)
+        event = connection.event if connection.event is not None else (into.event if isinstance(into, InputPort)
+                                                                        else None)
         activity = activity_of.get(placement.top_of.get(connection.dest.component, connection.dest.component))
-        wakes = activity.name if event and activity is not None and activity.schedule.type == "triggered" else ""
-        policy = ConnectionPolicy(BufferPolicy.POOL if frames else connection.data, connection.policy,
-                                  max(1, connection.buffersize))
-        channel = arena.channel(policy, f"{connection.src}->{connection.dest}", frames=frames)
+        triggered = activity is not None and activity.schedule.type == "triggered"
+        wakes = activity.name if triggered and event is not False and activity is not None else ""
+        ask = -1
+        if wakes and event is None:  # an input made in init(): the reader's process says
+            ask, asks = asks, asks + 1
+        if frames:
+            if connection.data not in (BufferPolicy.DATA, BufferPolicy.POOL):
+                raise ConfigError(f"{connection.src} is a pooled output: connect it with data=POOL (latest frame, "
+                                  f"no copy), not {connection.data.value}", connection.location)
+            source = str(connection.src)
+            out = outputs[source]
+            number = taken[source]
+            taken[source] += 1
+            if not number:
+                slots = out.slots if isinstance(out, PooledOutputPort) else DEFAULT_SLOTS
+                pools[source] = arena.channel(ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, slots), label,
+                                              frames=True, readers=readers[source])
+            channel = replace(pools[source], label=label, reader=number)
+        else:
+            channel = arena.channel(ConnectionPolicy(connection.data, connection.policy,
+                                                     max(1, connection.buffersize)), label)
         plans.append(ChannelPlan(str(connection.src), str(connection.dest),
                                  placement.process_of(connection.src.component),
                                  placement.process_of(connection.dest.component), channel, frames,
-                                 connection.event, wakes))
+                                 connection.event, wakes, ask))
+    if asks:
+        arena.flags(asks)
     return plans
 
 
@@ -94,6 +130,7 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
     from ..shm import ShmFrameNotifier, ShmFramePool, ShmPoolReader, ShmReader, ShmWriter
 
     process = app.process
+    flags = _flags(app, plans)
     for plan in plans:
         if plan.src_process == process:
             component, _, port_name = plan.src.rpartition(".")
@@ -105,6 +142,10 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
                 if not isinstance(out, PooledOutputPort):
                     raise ConfigError(f"{plan.src} is not a pooled output: a POOL connection needs one")
                 if not isinstance(out.pool, ShmFramePool):  # one shared pool for every reader process
+                    if len(out.pool.slots) != plan.channel.slots:
+                        raise ConfigError(f"{plan.src} has {len(out.pool.slots)} slots, its class declares "
+                                          f"{plan.channel.slots}: a pooled output read from another process "
+                                          "keeps the slot count of its declaration")
                     out.pool = ShmFramePool(plan.channel)  # type: ignore[assignment]  # FramePool's interface, in shared memory
                     for local in out.connections:  # readers in this process read the shared pool too
                         if isinstance(local, PoolConnection):
@@ -115,8 +156,7 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
             out.add_connection(writer)
             app.outgoing.append(writer)
             if plan.wakes:
-                fd = wakes[plan.wakes]
-                writer.trigger = lambda fd=fd: os.eventfd_write(fd, 1)
+                writer.trigger = _waker(wakes[plan.wakes], flags, plan.asks)
         if plan.dest_process == process:
             component, _, port_name = plan.dest.rpartition(".")
             into = app.component(component).port(port_name)
@@ -125,8 +165,41 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
             reader: Connection = ShmPoolReader(plan.channel) if plan.frames else ShmReader(plan.channel)
             into.add_connection(reader, plan.event)
             app.connections.append(reader)
+            if plan.asks >= 0 and flags is not None:
+                flags[plan.asks] = int(into.event)
+
+
+def _flags(app: Application, plans: list[ChannelPlan]) -> memoryview | None:
+    """This process's mapping of the launch's flags segment, when a plan asks a reader."""
+    if all(plan.asks < 0 for plan in plans):
+        return None
+    from ..shm import Segment, flags_name
+
+    return Segment(flags_name(plans[0].channel)).view.cast("q")
+
+
+def _waker(fd: int, flags: memoryview | None, ask: int) -> Callable[[], None]:
+    """What a write calls to wake the reader's activity: its eventfd, or, where the reader's
+    process decides (``ask``), its eventfd if that process said so."""
+    if ask < 0 or flags is None:
+        return lambda: os.eventfd_write(fd, 1)
+
+    def wake_if_asked() -> None:
+        if flags[ask]:
+            os.eventfd_write(fd, 1)
+
+    return wake_if_asked
+
+
+def reader_stats(plans: list[ChannelPlan], process: str) -> list[Connection]:
+    """Read-only views of the counters of the connections that ``process`` reads, from shared
+    memory: what the launcher reports for a process that can no longer report them itself."""
+    from ..shm import ChannelStats, FrameStats
+
+    return [FrameStats(plan.channel) if plan.frames else ChannelStats(plan.channel)
+            for plan in plans if plan.dest_process == process]
 
 
 def wake_targets(plans: list[ChannelPlan]) -> set[str]:
-    """The activities that a write in another process wakes."""
+    """The activities that a write in another process may wake."""
     return {plan.wakes for plan in plans if plan.wakes}

@@ -36,9 +36,9 @@ from ..drivers import EventfdDriver, eventfd_pending
 from ..errors import ProcessError
 from ..lifecycle import STOP_TIMEOUT
 from ..model import AppSpec
-from ..report import ProfileSnapshot, render, snapshot
+from ..report import ProfileSnapshot, connection_rows, render, snapshot
 from .control import ControlLink, failed
-from .channels import ChannelPlan, attach, plan_channels, wake_targets
+from .channels import ChannelPlan, attach, plan_channels, reader_stats, wake_targets
 from .placement import LAUNCHER, Placement
 from .remote import serve_call, settle
 
@@ -331,8 +331,15 @@ class ProcessSupervisor:
                     shot = future.result(max(0.0, deadline - time.monotonic()))
                 except FutureTimeout:
                     shot = None
-            shots.append(shot if shot is not None else ProfileSnapshot(child.name, child.popen.pid, 0.0, 0.0, 0))
+            shots.append(shot if shot is not None else self._silent(child))
         return shots
+
+    def _silent(self, child: Child) -> ProfileSnapshot:
+        """The profile of a child that sent none (it died, or did not answer in time): no figures
+        of its own, but the counters of the connections it reads, which live in shared memory."""
+        shot = ProfileSnapshot(child.name, child.popen.pid, 0.0, 0.0, 0)
+        shot.connections = connection_rows(reader_stats(self.plans, child.name))
+        return shot
 
     def report(self) -> str:
         """The profile of the whole application, every process in one report."""

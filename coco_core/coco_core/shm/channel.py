@@ -20,8 +20,18 @@ The policies keep their in-process meaning:
 
 ``dropped`` is derived, as in-process: offered - read - pending. Values cross as pickles (protocol 5)
 whose arrays are written out of band, straight from their memory into the slot (numpy arrays are not
-first pickled into bytes); one larger than a slot goes to that slot's overflow segment. Frames do not go this way: a pooled
-output's slots live in shared memory and are read in place (:mod:`coco_core.shm.frames`).
+first pickled into bytes). Frames do not go this way: a pooled output's slots live in shared memory
+and are read in place (:mod:`coco_core.shm.frames`).
+
+A value larger than a slot goes to a segment of its own (``<channel>.v<item index>``), written with
+one ``pwritev`` and read with one ``preadv`` (no mapping, no page faults in Python). Once the reader
+has its copy the segment becomes one of two *spares* (a rename), which the writer renames back for a
+later large value, so that its pages are reused rather than allocated and zeroed by the kernel
+again; a spare replaced by a newer one goes. The writer unlinks an item nobody read when it
+overwrites it (CIRCULAR, DATA). So /dev/shm holds the pending large values and two spares, whatever
+the size of the ring: a reader that keeps up keeps it at the ring plus the two last values. When
+/dev/shm (or the process's file-size limit) cannot take a value, the write fails with a
+:class:`ChannelError` saying so, and the value counts as dropped; nothing is left half-written.
 
 The stores are ordered payload, then stamp, then counter, and the loads the other way round; on
 x86-64 (total store order) that is all the ordering needed. CPython does not expose memory fences,
@@ -32,7 +42,9 @@ common case.
 from __future__ import annotations
 
 import copyreg
+import errno
 import io
+import os
 import pickle
 import struct
 from dataclasses import dataclass
@@ -43,17 +55,19 @@ import numpy as np
 from ..connections import EMPTY, Connection
 from ..errors import ChannelError, CocoError
 from ..policy import BufferPolicy, ConnectionPolicy
-from .segment import Segment, unlink
+from .segment import SHM_DIR, Segment, rename, shm_open, unlink
 
 HEADER = 64
 OFFERED, STORED, READ, CURSOR, SLOTS, CAPACITY = range(6)
 SLOT_HEADER = 32
-"""Per slot: stamp, length, overflow generation (0: the value is in the slot), unused."""
+"""Per slot: stamp, length, where the value is (0: in the slot, 1: in a segment of its own), unused."""
 RETRIES = 10_000
 """Reads of a slot that keeps changing before the reader gives up for this call (a writer that died
 half-way through a slot would otherwise keep it spinning)."""
 DEFAULT_CAPACITY = 4 * 1024
-"""Bytes of one slot (larger values go to the slot's overflow segment)."""
+"""Bytes of one slot (larger values go to a segment of their own)."""
+IOV_MAX = 1024
+"""Buffers one ``pwritev`` takes (Linux's limit)."""
 
 
 @dataclass(frozen=True)
@@ -67,11 +81,25 @@ class ChannelSpec:
     slots: int
     capacity: int
     frames: bool = False
+    readers: int = 0
+    """Frames: the readers in other processes than the writer's, each with its counter in the pool's
+    control segment (one pool for every reader of a pooled output)."""
+    reader: int = 0
+    """Frames: this connection's reader number, its counter's place."""
 
 
-def overflow_name(spec: ChannelSpec, index: int, generation: int) -> str:
-    """The segment of slot ``index``'s large values, generation ``generation``."""
-    return f"{spec.segment}.o{index}.g{generation}"
+def large_name(spec: ChannelSpec, index: int) -> str:
+    """The segment of item ``index``'s value, when it is larger than a slot."""
+    return f"{spec.segment}.v{index}"
+
+
+SPARES = 2
+"""Segments of large values already read, kept for their pages (item ``i`` becomes spare ``i % 2``
+once read, and item ``i`` is written into that spare if there is one)."""
+
+
+def spare_name(spec: ChannelSpec, index: int) -> str:
+    return f"{spec.segment}.spare{index % SPARES}"
 
 
 def layout(policy: ConnectionPolicy, capacity: int | None) -> tuple[int, int]:
@@ -151,28 +179,39 @@ class ShmConnection(Connection):
 class ShmWriter(ShmConnection):
     """The writer's end of a value channel (in the writer's process, on its output port).
 
-    A value larger than a slot goes into the slot's *overflow* segment, made (or made larger, as a
-    new generation) when a value first needs it: a camera image on a plain output port crosses too,
-    at the price of one copy each way; frames without copies are what pooled outputs are for."""
+    A value larger than a slot goes into a segment of its own, a spare one once read (see the
+    module's docstring): a camera image on a plain output port crosses too, at the price of one copy
+    each way and a few system calls; frames without copies are what pooled outputs are for."""
 
-    __slots__ = ("_overflows",)
+    __slots__ = ()
 
-    def __init__(self, spec: ChannelSpec) -> None:
-        super().__init__(spec)
-        self._overflows: dict[int, tuple[int, Segment]] = {}
-        """slot -> (generation, segment) of its overflow segment."""
+    def _store_large(self, index: int, parts: list[Any], size: int) -> None:
+        """Item ``index``'s value (``parts``, ``size`` bytes) in a segment of its own; a
+        :class:`ChannelError` when it cannot be stored whole (nothing of it is left then)."""
+        name = large_name(self.ring.spec, index)
+        try:
+            fd = shm_open(name) if rename(spare_name(self.ring.spec, index), name) else shm_open(name, create=True)
+        except OSError as error:
+            unlink(name)
+            raise self._unstored(size, error) from None
+        try:
+            os.ftruncate(fd, size)  # a spare of a larger value gives back what this one does not use
+            _write_all(fd, parts)
+        except OSError as error:
+            unlink(name)
+            raise self._unstored(size, error) from None
+        finally:
+            os.close(fd)
 
-    def _overflow(self, index: int, size: int) -> int:
-        """The generation of slot ``index``'s overflow segment, made large enough for ``size`` bytes."""
-        generation, segment = self._overflows.get(index, (0, None))
-        if segment is None or segment.size < size:
-            if segment is not None:
-                segment.close()
-                unlink(overflow_name(self.ring.spec, index, generation))
-            generation += 1
-            segment = Segment(overflow_name(self.ring.spec, index, generation), 1 << (size - 1).bit_length())
-            self._overflows[index] = (generation, segment)
-        return generation
+    def _unstored(self, size: int, error: OSError) -> ChannelError:
+        try:
+            stats = os.statvfs(SHM_DIR)
+            free = f"{stats.f_bavail * stats.f_frsize / 2**20:.1f} MiB free there"
+        except OSError:
+            free = "free space unknown"
+        return ChannelError(f"connection {self.ring.spec.label}: a value of {size / 2**20:.1f} MiB does not fit in "
+                            f"{SHM_DIR} ({free}; {error.strerror}): it was dropped. Values larger than a slot "
+                            f"wait there until read: read faster, send less, or use a pooled output")
 
     def push(self, value: Any) -> None:
         ring = self.ring
@@ -194,23 +233,25 @@ class ShmWriter(ShmConnection):
         stored = counters[STORED]
         if self.mode is BufferPolicy.BUFFER and stored - counters[CURSOR] >= ring.slots:
             return  # full: the new value is refused, as an in-process BUFFER refuses it
+        large = size > ring.capacity
+        if large:  # stored before the slot changes: a value that does not fit leaves the ring as it was
+            self._store_large(stored, [table, data, *raws], size)
         index = stored % ring.slots
         words, word = ring.words, index * ring.slot_words
+        if words[word + 2] and words[word] > counters[CURSOR]:  # a large item nobody read: its segment goes
+            unlink(large_name(ring.spec, words[word] - 1))
         words[word] = 0  # being written: a reader of this slot retries
         words[word + 1] = size
-        if size <= ring.capacity:
-            words[word + 2] = 0
+        words[word + 2] = large
+        if not large:
             target, at = ring.map, HEADER + index * ring.stride + SLOT_HEADER
-        else:  # a large value (a camera image on a plain port): the slot's overflow segment holds it
-            words[word + 2] = self._overflow(index, size)
-            target, at = self._overflows[index][1].map, 0
-        target[at:at + len(table)] = table
-        at += len(table)
-        target[at:at + len(data)] = data
-        at += len(data)
-        for raw in raws:  # arrays go from their own memory into the slot: one copy
-            target[at:at + raw.nbytes] = raw
-            at += raw.nbytes
+            target[at:at + len(table)] = table
+            at += len(table)
+            target[at:at + len(data)] = data
+            at += len(data)
+            for raw in raws:  # arrays go from their own memory into the slot: one copy
+                target[at:at + raw.nbytes] = raw
+                at += raw.nbytes
         words[word] = stored + 1
         counters[STORED] = stored + 1
         trigger = self.trigger
@@ -221,27 +262,40 @@ class ShmWriter(ShmConnection):
         raise CocoError(f"connection {self.ring.spec.label}: the writer's end cannot be read")
 
 
+def _write_all(fd: int, parts: list[Any]) -> None:
+    """Write ``parts`` one after the other from the start of file ``fd``: one ``pwritev`` unless
+    the kernel takes less (then again from there, so that a refusal comes with its own errno)."""
+    pending = [view for view in (memoryview(part).cast("B") for part in parts) if view.nbytes]
+    offset = 0
+    while pending:
+        done = os.pwritev(fd, pending[:IOV_MAX], offset)
+        if not done:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        offset += done
+        while pending and done >= pending[0].nbytes:
+            done -= pending.pop(0).nbytes
+        if done:
+            pending[0] = pending[0][done:]
+
+
 class ShmReader(ShmConnection):
     """The reader's end of a value channel (in the reader's process, on its input port)."""
 
-    __slots__ = ("_overflows",)
+    __slots__ = ()
 
-    def __init__(self, spec: ChannelSpec) -> None:
-        super().__init__(spec)
-        self._overflows: dict[int, tuple[int, Segment]] = {}
-
-    def _large(self, index: int, generation: int, size: int) -> bytearray | None:
-        """The bytes of a large value in slot ``index``'s overflow segment; None when the writer
-        replaced that segment meanwhile (the value was overwritten)."""
-        known = self._overflows.get(index)
-        if known is None or known[0] != generation:
-            if known is not None:
-                known[1].close()
-            try:
-                known = self._overflows[index] = (generation, Segment(overflow_name(self.ring.spec, index, generation)))
-            except FileNotFoundError:
-                return None
-        return bytearray(known[1].view[:size])
+    def _large(self, index: int, size: int) -> memoryview | None:
+        """A copy of item ``index``'s value from its own segment, in memory that is not zeroed first
+        (the kernel's copy is the only pass over it); None when the writer overwrote the item
+        meanwhile (its segment is gone, or was being replaced)."""
+        try:
+            fd = shm_open(large_name(self.ring.spec, index), write=False)
+        except FileNotFoundError:
+            return None
+        try:
+            data = np.empty(size, np.uint8).data
+            return data if os.preadv(fd, [data], 0) == size else None
+        finally:
+            os.close(fd)
 
     def push(self, value: Any) -> None:
         raise CocoError(f"connection {self.ring.spec.label}: the reader's end cannot be written")
@@ -270,12 +324,12 @@ class ShmReader(ShmConnection):
             before = words[word]
             if before != index + 1:  # being written, or already overwritten: look again
                 continue
-            size, generation = words[word + 1], words[word + 2]
-            if generation:
-                large = self._large(slot, generation, size)
-                if large is None:
+            size, large = words[word + 1], words[word + 2]
+            data: bytearray | memoryview | None
+            if large:
+                data = self._large(index, size)
+                if data is None:
                     continue
-                data = large
             else:
                 start = HEADER + slot * ring.stride + SLOT_HEADER
                 data = bytearray(ring.map[start:start + size])
@@ -283,6 +337,12 @@ class ShmReader(ShmConnection):
                 continue
             counters[CURSOR] = index + 1
             counters[READ] += 1
+            if large:  # read: its segment is a spare now, its pages kept for a later value
+                rename(large_name(ring.spec, index), spare_name(ring.spec, index))
+            if self.mode is BufferPolicy.DATA:  # the item before, if skipped, will never be read either
+                other = (index - 1) % slots * ring.slot_words
+                if words[other] == index and words[other + 2]:
+                    unlink(large_name(ring.spec, index - 1))
             return _decode(data)
         return EMPTY  # the writer stopped in the middle of a slot (it died): nothing to read
 
@@ -292,19 +352,31 @@ def _array(buffer: Any, dtype: str, shape: tuple[int, ...]) -> np.ndarray:
     return np.frombuffer(buffer, dtype).reshape(shape)
 
 
+def _typed_array(buffer: Any, dtype: np.dtype, shape: tuple[int, ...]) -> np.ndarray:
+    """An array of a dtype that its code does not describe whole (fields, datetimes, byte order):
+    its bytes viewed as that dtype."""
+    return np.frombuffer(buffer, np.uint8).view(dtype).reshape(shape)
+
+
 def _reduce_array(array: np.ndarray) -> Any:
     """A contiguous array as its raw memory (out of band), its dtype's code and shape: numpy's own
-    reduction pickles the dtype object, which costs most of a small sample's encoding."""
+    reduction pickles the dtype object, which costs most of a small sample's encoding. Only the
+    built-in dtypes go by code; any other (a structured array's fields, datetime64, which no buffer
+    may carry) goes as the dtype itself, over the array's bytes."""
     if array.flags.c_contiguous and not array.dtype.hasobject:
-        return _array, (pickle.PickleBuffer(array),  # type: ignore[arg-type]  # an ndarray is a buffer
-                        array.dtype.str, array.shape)
+        dtype = array.dtype
+        if dtype.isbuiltin == 1:
+            return _array, (pickle.PickleBuffer(array),  # type: ignore[arg-type]  # an ndarray is a buffer
+                            dtype.str, array.shape)
+        return _typed_array, (pickle.PickleBuffer(array.reshape(-1).view(np.uint8)),  # type: ignore[arg-type]
+                              dtype, array.shape)
     return array.__reduce_ex__(5)
 
 
 _DISPATCH = {**copyreg.dispatch_table, np.ndarray: _reduce_array}
 
 
-def _decode(data: bytearray) -> Any:
+def _decode(data: bytearray | memoryview) -> Any:
     """A value from its slot's bytes: the pickle, then the arrays' memory, which the value's arrays
     keep using (they are writable, as the writer's were)."""
     count = struct.unpack_from("<I", data)[0]

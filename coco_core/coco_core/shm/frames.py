@@ -1,8 +1,11 @@
 """Pooled frames between processes: a pooled output's slots in shared memory, read without a copy.
 
 The same protocol as :class:`coco_core.pool.FramePool` (FREE -> WRITING -> READY -> READING ->
-release), kept in a *control* segment that every process of the channel maps: per slot its state,
-reader count, sequence number, the shape and dtype of its frame and its stamp. A slot's pixels live in
+release), kept in a *control* segment that every process of the pool maps: per slot its state,
+reader count, sequence number, the shape and dtype of its frame and its stamp; then, per reader in
+another process, its ``read`` counter (in shared memory, so that the launcher still has a reader's
+figures when that reader's process died). One pool serves every reader of a pooled output, in any
+process, with the slot count the port declares, as the in-process pool does. A slot's pixels live in
 a segment of their own, made by the writer when the frame size first needs it (and made anew, under a
 new generation number, when the size changes: readers that still hold the old one keep their
 mapping). A reader gets a numpy array *over* the slot's segment: no copy, whatever the frame size.
@@ -20,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from ..connections import EMPTY, Connection
+from ..connections import Connection
 from ..errors import CocoError, PoolError
-from ..pool import Slot, SlotState
+from ..pool import PoolConnection, Slot, SlotState
 from .channel import ChannelSpec
 from .segment import Segment, unlink
 
@@ -39,8 +42,8 @@ STATES = [SlotState.FREE, SlotState.WRITING, SlotState.READY, SlotState.READING]
 CODE = {state: code for code, state in enumerate(STATES)}
 
 
-def control_size(slots: int) -> int:
-    return HEADER + slots * RECORD
+def control_size(slots: int, readers: int) -> int:
+    return HEADER + slots * RECORD + readers * 8
 
 
 class _Locked:
@@ -68,6 +71,9 @@ class ShmFramePool:
         self.control = Segment(spec.segment)
         self.header = self.control.view[:HEADER].cast("q")
         self.count = int(self.header[SLOTS])
+        at = HEADER + self.count * RECORD
+        self.reads = self.control.view[at:at + spec.readers * 8].cast("q")
+        """The ``read`` counter of every reader in another process (each has one writer: its reader)."""
         self._locked = _Locked(self.control.fd)
         self._data: dict[tuple[int, int], Segment] = {}
         """(slot, generation) -> its mapped pixel segment, in this process."""
@@ -244,22 +250,25 @@ class ShmFramePool:
             segment.close()
         self._data.clear()
         self.header.release()
+        self.reads.release()
         self.control.close()
 
 
-class ShmPoolReader(Connection):
-    """The reader's end of a pooled channel: the newest frame, once, as a slot over shared memory."""
+class ShmPoolReader(PoolConnection):
+    """The reader's end of a pooled channel: the newest frame, once, as a slot over shared memory.
+    A :class:`PoolConnection` in all but where its pool and its ``read`` counter live, so that the
+    input port treats it as one (no OLD_DATA of a released slot; skipped frames released)."""
 
-    __slots__ = ("pool", "_seen", "_read")
+    __slots__ = ("spec",)
 
     def __init__(self, spec: ChannelSpec) -> None:  # noqa: D107 - counters are properties
         self.policy = spec.policy
         self.source = None
         self.sink = None
         self.trigger = None
-        self.pool = ShmFramePool(spec)
+        self.spec = spec
+        self.pool = ShmFramePool(spec)  # type: ignore[assignment]  # FramePool's interface, in shared memory
         self._seen = 0
-        self._read = 0
 
     @property
     def written(self) -> int:  # type: ignore[override]  # the counter lives in shared memory
@@ -267,32 +276,51 @@ class ShmPoolReader(Connection):
 
     @property
     def label(self) -> str:
-        source, _, sink = self.pool.spec.label.partition("->")
+        source, _, sink = self.spec.label.partition("->")
         return f"{source} -> {sink}"
 
     @property
-    def read(self) -> int:  # type: ignore[override]  # the counter lives in shared memory
-        return self._read
+    def read(self) -> int:  # the counter lives in shared memory
+        return int(self.pool.reads[self.spec.reader])  # type: ignore[attr-defined]
+
+    @read.setter
+    def read(self, value: int) -> None:
+        self.pool.reads[self.spec.reader] = value  # type: ignore[attr-defined]
 
     def push(self, value: Any) -> None:
-        raise CocoError(f"connection {self.pool.spec.label}: the reader's end cannot be written")
+        raise CocoError(f"connection {self.spec.label}: the reader's end cannot be written")
 
-    def skip(self, count: int = 1) -> None:
-        """Frames taken but discarded unused count as dropped (the counting contract of Connection)."""
-        self._read -= count
+
+class FrameStats(Connection):
+    """A read-only view of one pooled channel's counters, for the launcher when the reader's process
+    died: frames published, the reader's ``read`` from shared memory, nothing pending (the reader
+    is gone)."""
+
+    __slots__ = ("spec",)
+
+    def __init__(self, spec: ChannelSpec) -> None:
+        super().__init__(spec.policy)
+        self.spec = spec
+        pool = ShmFramePool(spec)
+        try:
+            self.written, self.read = pool.published, int(pool.reads[spec.reader])
+        finally:
+            pool.close()
+
+    @property
+    def label(self) -> str:
+        source, _, sink = self.spec.label.partition("->")
+        return f"{source} -> {sink}"
+
+    def push(self, value: Any) -> None:
+        raise CocoError("a FrameStats view cannot be written")
 
     def pop(self) -> Any:
-        slot = self.pool.take(self._seen)
-        if slot is None:
-            return EMPTY
-        self._seen = slot.seq
-        self._read += 1
-        return slot
+        raise CocoError("a FrameStats view cannot be read")
 
     @property
     def pending(self) -> int:
-        newest = self.pool.newest
-        return 1 if newest is not None and newest.seq > self._seen else 0
+        return 0
 
 
 class ShmFrameNotifier(Connection):

@@ -17,6 +17,8 @@ from pathlib import Path
 import _posixshmem
 
 SHM_DIR = Path("/dev/shm")
+SHM_PATH = "/dev/shm/"
+"""The same, for building paths on the large values' path (pathlib costs microseconds)."""
 PREFIX = "coco."
 
 
@@ -67,6 +69,22 @@ class Segment:
         if self.fd >= 0:
             os.close(self.fd)
             self.fd = -1
+
+
+def shm_open(name: str, create: bool = False, write: bool = True) -> int:
+    """A descriptor of segment ``name``: a new one (it must not exist yet), or an existing one."""
+    flags = (os.O_CREAT | os.O_EXCL if create else 0) | (os.O_RDWR if write else os.O_RDONLY)
+    return _posixshmem.shm_open("/" + name, flags, mode=0o600)
+
+
+def rename(old: str, new: str) -> bool:
+    """Give segment ``old`` the name ``new`` (replacing a segment of that name); False when there
+    is no ``old``."""
+    try:
+        os.rename(SHM_PATH + old, SHM_PATH + new)
+    except FileNotFoundError:
+        return False
+    return True
 
 
 def unlink(name: str) -> None:
