@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from tf2_msgs.msg import TFMessage
 
-from coco_ros.bag import BagWriter
+from coco_ros.bag import BagReader, BagWriter
 
 T0 = 1_700_000_000_000_000_000
 MS = 1_000_000
@@ -125,6 +125,47 @@ def test_bag_cut_at_a_record_boundary_exits_1_naming_what_is_lost(chatter_bag, t
     assert result.returncode == 1, result.stderr
     assert f"{folder / 'metadata.yaml'}: the storage files hold fewer messages" in result.stderr, result.stderr
     assert "are lost" in result.stderr
+
+
+def test_damaged_bags_that_exited_0_exit_1_naming_file_and_byte(chatter_bag, tmp_path):
+    """Issue 23's damage that coco-replay published without a word (or, cut before any topic, refused
+    without naming the damage): each exits 1 with the file and the byte, after publishing what is
+    readable, and each message at most once."""
+    from mcap.reader import make_reader
+
+    mcap = chatter_bag / "chatter_0.mcap"
+    data = mcap.read_bytes()
+    with mcap.open("rb") as stream:
+        chunks = sorted(make_reader(stream).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    middle = chunks[len(chunks) // 2]
+    start, end = middle.chunk_start_offset, middle.chunk_start_offset + middle.chunk_length
+    kinds = {  # name: (the .mcap file's bytes, with metadata.yaml, the byte named)
+        "cut at a chunk boundary, no metadata.yaml": (data[:start], False, start),
+        "a duplicated chunk": (data[:end] + data[start:end] + data[end:], True, end),
+        "cut before any topic": (data[:chunks[0].chunk_start_offset + 40], False, chunks[0].chunk_start_offset),
+        "an uncompressed chunk cut in the middle": (data[:start + middle.chunk_length // 2], True, None),
+    }
+    for index, (name, (content, with_metadata, byte)) in enumerate(kinds.items()):
+        folder = tmp_path / f"kind{index}"
+        folder.mkdir()
+        (folder / mcap.name).write_bytes(content)
+        if with_metadata:
+            (folder / "metadata.yaml").write_text((chatter_bag / "metadata.yaml").read_text())
+        result = cli(str(folder), "--fast", "--delay", "0")
+        assert result.returncode == 1, (name, result.stderr)
+        named = f"{folder / mcap.name} at byte {byte if byte is not None else ''}"
+        assert named in result.stderr, (name, result.stderr)
+        if name == "cut before any topic":
+            assert "no topic can be published: the bag is damaged" in result.stderr, result.stderr
+            continue
+        published = int(result.stderr.split(" messages published")[0].rsplit(" ", 1)[-1])
+        assert 0 < published <= COUNT + 1, (name, result.stderr)
+        if name == "a duplicated chunk":
+            assert published == COUNT + 1, result.stderr
+        if name == "an uncompressed chunk cut in the middle":  # more than the chunks before the cut hold
+            with BagReader(chatter_bag) as reader:
+                before = sum(1 for m in reader.messages() if m.log_time < middle.message_start_time)
+            assert published > before, result.stderr
 
 
 SUBSCRIBER = """

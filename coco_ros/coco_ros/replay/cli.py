@@ -100,7 +100,9 @@ def _publishers(reader: BagReader, player: Player, node, depth: int | None, fast
 def _replay(args, reader: BagReader, player: Player, node) -> int:
     publishers = _publishers(reader, player, node, args.depth, args.fast)
     if not publishers:
-        print(f"coco-replay: error: {reader.path}: no topic can be published", file=sys.stderr)
+        damage = "; ".join(str(error) for error in reader.errors)
+        why = f": the bag is damaged: {damage}" if damage else ""
+        print(f"coco-replay: error: {reader.path}: no topic can be published{why}", file=sys.stderr)
         return 1
     _wait_for_discovery(args, publishers)
     clock_publish = _clock_publisher(node, player, args.clock)

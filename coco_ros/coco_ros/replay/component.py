@@ -148,9 +148,10 @@ class BagReplay(Component):
         self._routes: dict[str, tuple[OutputPort, Any]] = {}
         for topic in selected:
             if topic not in self._reader.topics:
-                known = ", ".join(self._reader.topics)
+                known = ", ".join(self._reader.topics) or "none"
+                damage = "; ".join(str(error) for error in self._reader.errors)
                 raise BagError(self._reader.path, f"component {self.name}: no topic {topic!r} in the bag "
-                                                  f"(topics: {known})")
+                                                  f"(topics: {known})" + (f"; the bag is damaged: {damage}" if damage else ""))
             type_name = self._reader.topics[topic].type
             out_topic = self._remaps.get(topic, topic)
             given = options.pop(out_topic, None) or options.pop(topic, {})
