@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -190,6 +191,8 @@ if mode in ("stream", "stuck"):  # subscribers that want every message: reliable
     every = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=0)
     node.create_subscription(TFMessage, "/tf", counter("/tf"), every)
     node.create_subscription(Odometry, "/odom", counter("/odom"), every)
+elif mode == "shallow":  # rclpy's usual subscriber: reliable, KEEP_LAST 10
+    node.create_subscription(TFMessage, "/tf", counter("/tf"), QoSProfile(depth=10))
 else:  # a late subscriber of a transient-local topic, deeper than the recording's depth 1
     while node.count_publishers("/amcl_pose") == 0:
         rclpy.spin_once(node, timeout_sec=0.05)
@@ -245,8 +248,8 @@ def replay_to_subscriber(bag: Path, mode: str) -> tuple[subprocess.CompletedProc
     subscriber = start_subscriber(mode, 25.0, transports)
     try:
         assert subscriber.stdout.readline().strip() == "ready"
-        result = cli(str(bag), "--fast", "--wait-subscribers", "2", "--topics", "/tf", "/odom", timeout=60,
-                     transports=transports)
+        result = cli(str(bag), "--fast", "--wait-subscribers", "1" if mode == "shallow" else "2", "--topics", "/tf",
+                     "/odom", timeout=60, transports=transports)
         if mode == "stuck":
             return result, []
         return result, subscriber.communicate(timeout=30)[0].split()
@@ -271,6 +274,24 @@ def test_fast_replay_reports_a_stuck_reliable_subscriber(robot_bag):
     result, _ = replay_to_subscriber(robot_bag, "stuck")
     assert result.returncode == 0, result.stderr
     assert "did not acknowledge every message" in result.stderr and "/tf" in result.stderr, result.stderr
+
+
+def test_fast_replay_names_subscribers_whose_history_may_be_shallower_than_a_topic(robot_bag):
+    """An rclpy subscriber in another process with KEEP_LAST 10 on /tf, which --fast sends 3000 messages
+    in a burst: its own history overwrites what it cannot take in time, which no publisher can see
+    (issue 23: 166-258 of 5,422 delivered, the replay silent). The replay names it, at the start and in
+    its final report, and says what to do. (DDS discovery does not carry the history: rmw_fastrtps
+    announces it as unknown, which is named as such.)"""
+    result, _ = replay_to_subscriber(robot_bag, "shallow")
+    assert result.returncode == 0, result.stderr
+    start, _, end = result.stderr.partition(" messages published")
+    assert end, result.stderr
+    for part in (start, end):
+        assert "warning:" in part, result.stderr
+        assert re.search(r"/tf \(3000 messages\) to /counting_subscriber \((KEEP_LAST 10|history unknown)", part), \
+            result.stderr
+        assert "--rate" in part and "deeper history" in part, result.stderr
+    assert "/odom" not in result.stderr.replace("--topics", ""), result.stderr  # nobody subscribes to it
 
 
 def test_replay_offers_the_recorded_depth_to_late_transient_local_subscribers(robot_bag):
