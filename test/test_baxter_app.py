@@ -147,3 +147,70 @@ def test_a_truncated_bag_makes_the_app_exit_1_with_the_damage_in_its_summary(coc
     assert summary["samples"] > 0 and len(summary["input_damage"]) == 1, summary
     assert "metadata.yaml" in summary["input_damage"][0] and "are lost" in summary["input_damage"][0]
     assert "DAMAGED INPUT" in describe(summary)
+
+
+def copy_with_malformed_messages(folder: Path, copy: Path, joint_states: set[int], bowl_poses: set[int]) -> None:
+    """``folder``'s bag written again into ``copy`` with the given joint states (by index) one position
+    short of their names and the given bowl poses' quaternions zero (even index) or NaN (odd)."""
+    from rclpy.serialization import serialize_message
+
+    from coco_ros.bag import BagReader, BagWriter
+
+    with BagReader(folder) as reader, BagWriter(copy) as writer:
+        for name, info in reader.topics.items():
+            writer.add_topic(name, info.type, info.offered_qos_profiles)
+        index: dict[str, int] = {}
+        for message in reader.messages():
+            i = index[message.topic] = index.get(message.topic, -1) + 1
+            data = message.data
+            if message.topic == "/robot/joint_states" and i in joint_states:
+                msg = message.message
+                msg.position = list(msg.position)[:-1]
+                data = serialize_message(msg)
+            elif message.topic == "/bowl/pose" and i in bowl_poses:
+                msg = message.message
+                q = msg.pose.orientation
+                q.x, q.y, q.z, q.w = (0.0, 0.0, 0.0, 0.0) if i % 2 == 0 else (q.x, q.y, q.z, float("nan"))
+                data = serialize_message(msg)
+            writer.write(message.topic, data, message.log_time, message.type, publish_time_ns=message.publish_time)
+
+
+def connection_counts(report: str, connection: str) -> tuple[int, int, int]:
+    """(written, read, dropped) of a connection in a profile report."""
+    line = re.search(rf"^{re.escape(connection)}\s.*$", report, re.M)
+    assert line, f"no connection {connection} in:\n{report}"
+    written, read, dropped = line.group(0).split()[-4:-1]
+    return int(written), int(read), int(dropped)
+
+
+@pytest.mark.parametrize("rate", ["0", "4"])
+def test_a_malformed_message_in_the_bag_costs_only_itself(coco_launch: Path, session, tmp_path: Path,
+                                                          rate: str) -> None:
+    """Issue 23: one JointState with a position fewer than names cost the replay's whole read batch (96
+    joint states at rate:=0), silently and with exit 0. Now each malformed message (one joint state,
+    a zero and a NaN bowl quaternion) is refused alone, counted in the profile's refused column and
+    the summary, named in input_damage, and the launcher exits with 1."""
+    from coco_ros.teleop.summary import describe
+
+    folder, info = session
+    damaged = tmp_path / "malformed"
+    copy_with_malformed_messages(folder, damaged, joint_states={600}, bowl_poses={250, 301})
+    output = tmp_path / "teleop"
+    result = run_launcher(coco_launch, APP, f"bag:={damaged}", f"output:={output}", "display:=false",
+                          f"rate:={rate}", "--profile", "100", "--duration", "60", timeout=120)
+    assert result.returncode == 1, result.stderr
+    report = result.stdout
+    joints, poses = info.counts["/robot/joint_states"], info.counts["/bowl/pose"]
+    assert connection_counts(report, "replay.robot_joint_states -> tf.joints") == (joints - 1, joints - 1, 0), report
+    assert connection_counts(report, "replay.bowl_pose -> tf.transform") == (poses - 2, poses - 2, 0), report
+    refused = re.search(r"^replay\s+replay\s.*$", report, re.M).group(0).split()[-2]
+    assert refused == "3", report
+    summary = json.loads((output / "summary.json").read_text())
+    written = connection_counts(report, "distance.distance -> summary.distance")[0]
+    assert summary["samples"] == written == len(read_csv(output / "distance.csv"))
+    assert summary["input_refused"] == {"replay": 3}, summary
+    damage = summary["input_damage"]
+    assert len(damage) == 3, damage
+    assert "/robot/joint_states message 6.000 s into the bag" in damage[0] and "21 names but 20 position" in damage[0]
+    assert "/bowl/pose" in damage[1] and "zero" in damage[1] and "/bowl/pose" in damage[2] and "nan" in damage[2]
+    assert "REFUSED INPUT: replay refused 3 malformed samples" in describe(summary)

@@ -57,6 +57,30 @@ def read_all(path: Path) -> tuple[list[tuple[str, int, str]], BagError | None, B
     return got, None, reader
 
 
+def readable_before(data: bytes, messages, chunks, cut: int) -> int:
+    """Messages a file cut at ``cut`` still holds whole: those of the chunks before the cut and, when
+    the cut goes through an uncompressed chunk, its message records that end before the cut."""
+    import struct
+
+    complete = [c for c in chunks if c.chunk_start_offset + c.chunk_length <= cut]
+    count = sum(1 for _, t, _ in messages if any(c.message_start_time <= t <= c.message_end_time for c in complete))
+    cut_through = [c for c in chunks if c.chunk_start_offset < cut < c.chunk_start_offset + c.chunk_length]
+    if not cut_through or cut_through[0].compression != "":
+        return count
+    # The Chunk record: opcode and length (9), start, end, size, CRC, compression name, records length.
+    position = cut_through[0].chunk_start_offset + 9 + 28
+    if position + 4 > cut:
+        return count
+    position += 4 + struct.unpack_from("<I", data, position)[0] + 8
+    while position + 9 <= cut:
+        opcode, length = struct.unpack_from("<BQ", data, position)
+        position += 9 + length
+        if position > cut:
+            break
+        count += opcode == 0x05  # a Message record
+    return count
+
+
 def cut_positions(chunks) -> list[tuple[str, int]]:
     """Named cut points in the data section: inside the header, inside chunks, between chunks."""
     middle = chunks[len(chunks) // 2]
@@ -81,10 +105,7 @@ def test_truncated_files_yield_everything_before_the_cut_then_name_file_and_byte
     for name, cut in cut_positions(chunks):
         damaged = tmp_path / f"cut_{cut}.mcap"
         damaged.write_bytes(data[:cut])
-        complete = [c for c in chunks if c.chunk_start_offset + c.chunk_length <= cut]
-        readable = sum(
-            1 for _, t, _ in messages if any(c.message_start_time <= t <= c.message_end_time for c in complete)
-        )
+        readable = readable_before(data, messages, chunks, cut)
         got, error, reader = read_all(damaged)
         assert got == messages[:readable], f"cut {name} at byte {cut}: {len(got)} messages, expected {readable}"
         assert error is not None, f"cut {name} at byte {cut}: no error"
@@ -243,14 +264,20 @@ def stop(child: subprocess.Popen, signal_number: int) -> None:
 
 
 def test_a_killed_writer_leaves_a_bag_that_reads_up_to_its_last_flush(tmp_path):
+    """Everything flushed is read; that the data section ends without its DataEnd record is damage
+    (the messages written after the last flush are lost, and no metadata.yaml says how many)."""
     folder = tmp_path / "killed"
     child, flushed, _ = start_writer(folder)
     stop(child, signal.SIGKILL)
     assert not (folder / "metadata.yaml").exists()
-    with BagReader(folder) as reader:  # no metadata.yaml: the folder's .mcap is found
+    reported: list[BagError] = []
+    with BagReader(folder, on_error=reported.append) as reader:  # no metadata.yaml: the folder's .mcap is found
         values = [int(m.message.data) for m in reader.messages()]
-        assert reader.errors == [] and any("no MCAP footer" in note for note in reader.notes)
+        assert any("no MCAP footer" in note for note in reader.notes)
     assert values == list(range(flushed))
+    size = (folder / "killed_0.mcap").stat().st_size
+    assert len(reported) == 1 and reported[0].offset == size, reported
+    assert "without its DataEnd record" in str(reported[0]) and f"the {flushed} messages before" in str(reported[0])
 
 
 def test_ctrl_c_closes_the_bag_completely(tmp_path):
@@ -327,3 +354,116 @@ def test_a_bag_cut_at_a_record_boundary_names_each_topic_s_shortfall(intact, tmp
     assert error is not None and error.path == str(folder / "metadata.yaml")
     assert f"/a: {got_a} of {on_a}" in str(error) and f"{COUNT - len(got)} are lost" in str(error)
     assert reader.damaged
+
+
+# --- damage that was read without a word (issue 23) ---------------------------------------------------
+
+def bag_folder(tmp_path: Path, name: str, content: bytes, metadata: str | None) -> Path:
+    """A bag folder holding ``content`` as its .mcap file, with ``metadata`` as metadata.yaml (None: none)."""
+    folder = tmp_path / name
+    folder.mkdir()
+    (folder / "bag_0.mcap").write_bytes(content)
+    if metadata is not None:
+        (folder / "metadata.yaml").write_text(metadata)
+    return folder
+
+
+def test_a_folder_cut_at_a_chunk_boundary_without_metadata_is_damage(intact, tmp_path):
+    """No byte of a record is cut and metadata.yaml is gone: the data section ends without its DataEnd
+    record, which no finished recording does. The chunks before the cut are read, then an error names
+    the file and the byte where the data ends (it was a note, and a replay exited 0)."""
+    path, messages, chunks = intact
+    data = path.read_bytes()
+    cut = chunks[2].chunk_start_offset
+    folder = bag_folder(tmp_path, "cut", data[:cut], None)
+    got, error, reader = read_all(folder)
+    reader.close()
+    assert got == messages[:readable_before(data, messages, chunks, cut)] and got
+    assert error is not None and error.path == str(folder / "bag_0.mcap") and error.offset == cut, error
+    assert f"at byte {cut}" in str(error) and "without its DataEnd record" in str(error)
+    assert f"the {len(got)} messages before this point are readable" in str(error)
+
+
+def test_a_file_that_ends_before_its_data_end_loses_nothing_when_metadata_counts_say_so(intact, tmp_path):
+    """The same end of the data (every chunk there, DataEnd and summary gone) with metadata.yaml's counts
+    all readable: nothing is missing, so it is a note."""
+    path, messages, chunks = intact
+    data = path.read_bytes()
+    data_end = next(offset for offset, opcode in top_level_records(data) if opcode == 0x0F)
+    folder = bag_folder(tmp_path, "complete", data[:data_end], (path.parent / "metadata.yaml").read_text())
+    got, error, reader = read_all(folder)
+    assert got == messages and error is None
+    assert any("no message is missing" in note for note in reader.notes), reader.notes
+    reader.close()
+
+
+def test_a_duplicated_chunk_is_read_once_and_reported(intact, tmp_path):
+    """A chunk stored twice (a copy tool that wrote a block again): its messages are delivered once and
+    an error names the copy's byte, with or without metadata.yaml (4,649 messages of 2,417 were published)."""
+    path, messages, chunks = intact
+    data = path.read_bytes()
+    chunk = chunks[2]
+    end = chunk.chunk_start_offset + chunk.chunk_length
+    doubled = data[:end] + data[chunk.chunk_start_offset:end] + data[end:]
+    metadata = (path.parent / "metadata.yaml").read_text()
+    for name, meta in (("with_metadata", metadata), ("without_metadata", None)):
+        folder = bag_folder(tmp_path, name, doubled, meta)
+        for target in (folder, folder / "bag_0.mcap"):
+            got, error, reader = read_all(target)
+            reader.close()
+            assert got == messages, (name, target, len(got))
+            assert error is not None and error.offset == end and error.path == str(folder / "bag_0.mcap"), error
+            assert f"repeats the one at byte {chunk.chunk_start_offset}" in str(error)
+
+
+def test_more_messages_than_metadata_declares_is_damage(intact, tmp_path):
+    """Data that is not a byte-for-byte copy of a chunk, but more than the recorder wrote, shows only
+    in the counts: an error naming metadata.yaml and the topic."""
+    path, messages, _ = intact
+    on_a = sum(1 for m in messages if m[0] == "/a")
+    metadata = (path.parent / "metadata.yaml").read_text()
+    assert f"message_count: {on_a}\n" in metadata
+    folder = bag_folder(tmp_path, "surplus", path.read_bytes(), metadata.replace(
+        f"message_count: {on_a}\n", f"message_count: {on_a - 5}\n"))
+    got, error, reader = read_all(folder)
+    reader.close()
+    assert got == messages
+    assert error is not None and error.path == str(folder / "metadata.yaml")
+    assert f"more messages than it declares (/a: {on_a} of {on_a - 5} readable): 5 are not" in str(error), error
+
+
+def test_a_half_cut_single_file_reads_what_it_holds_and_names_the_byte(intact, tmp_path):
+    path, messages, chunks = intact
+    data = path.read_bytes()
+    half = tmp_path / "half.mcap"
+    half.write_bytes(data[: len(data) // 2])
+    got, error, reader = read_all(half)
+    reader.close()
+    assert got == messages[:readable_before(data, messages, chunks, len(data) // 2)] and got
+    assert error is not None and error.path == str(half) and 8 <= error.offset < len(data) // 2
+    assert "truncated" in str(error) and f"at byte {error.offset}" in str(error)
+
+
+def test_an_uncompressed_chunk_cut_in_the_middle_gives_its_complete_records(intact, tmp_path):
+    """The records of an uncompressed chunk before a cut are intact: they are read (a cut at 679 kB of
+    the 1.19 MB session gave 0 readable of its big chunk), and the error names the byte of the first
+    record the cut breaks. A compressed chunk cut short gives nothing (its data no longer checks)."""
+    path, messages, chunks = intact
+    data = path.read_bytes()
+    chunk = chunks[3]
+    cut = chunk.chunk_start_offset + chunk.chunk_length * 2 // 3
+    damaged = tmp_path / "cut.mcap"
+    damaged.write_bytes(data[:cut])
+    got, error, reader = read_all(damaged)
+    reader.close()
+    before = sum(1 for m in messages if m[1] < chunk.message_start_time)
+    in_chunk = sum(1 for m in messages if chunk.message_start_time <= m[1] <= chunk.message_end_time)
+    assert error is not None and error.path == str(damaged)
+    if chunk.compression == "":
+        assert before < len(got) < before + in_chunk
+        assert got == messages[:len(got)] == messages[:readable_before(data, messages, chunks, cut)]
+        assert chunk.chunk_start_offset < error.offset < cut
+        assert f"the Chunk record at byte {chunk.chunk_start_offset}" in str(error)
+        assert f"{len(got) - before} of its messages, the complete records before this byte, are read" in str(error)
+    else:
+        assert got == messages[:before] and error.offset == chunk.chunk_start_offset

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -13,7 +14,7 @@ from pathlib import Path
 import pytest
 from tf2_msgs.msg import TFMessage
 
-from coco_ros.bag import BagWriter
+from coco_ros.bag import BagReader, BagWriter
 
 T0 = 1_700_000_000_000_000_000
 MS = 1_000_000
@@ -127,6 +128,47 @@ def test_bag_cut_at_a_record_boundary_exits_1_naming_what_is_lost(chatter_bag, t
     assert "are lost" in result.stderr
 
 
+def test_damaged_bags_that_exited_0_exit_1_naming_file_and_byte(chatter_bag, tmp_path):
+    """Issue 23's damage that coco-replay published without a word (or, cut before any topic, refused
+    without naming the damage): each exits 1 with the file and the byte, after publishing what is
+    readable, and each message at most once."""
+    from mcap.reader import make_reader
+
+    mcap = chatter_bag / "chatter_0.mcap"
+    data = mcap.read_bytes()
+    with mcap.open("rb") as stream:
+        chunks = sorted(make_reader(stream).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    middle = chunks[len(chunks) // 2]
+    start, end = middle.chunk_start_offset, middle.chunk_start_offset + middle.chunk_length
+    kinds = {  # name: (the .mcap file's bytes, with metadata.yaml, the byte named)
+        "cut at a chunk boundary, no metadata.yaml": (data[:start], False, start),
+        "a duplicated chunk": (data[:end] + data[start:end] + data[end:], True, end),
+        "cut before any topic": (data[:chunks[0].chunk_start_offset + 40], False, chunks[0].chunk_start_offset),
+        "an uncompressed chunk cut in the middle": (data[:start + middle.chunk_length // 2], True, None),
+    }
+    for index, (name, (content, with_metadata, byte)) in enumerate(kinds.items()):
+        folder = tmp_path / f"kind{index}"
+        folder.mkdir()
+        (folder / mcap.name).write_bytes(content)
+        if with_metadata:
+            (folder / "metadata.yaml").write_text((chatter_bag / "metadata.yaml").read_text())
+        result = cli(str(folder), "--fast", "--delay", "0")
+        assert result.returncode == 1, (name, result.stderr)
+        named = f"{folder / mcap.name} at byte {byte if byte is not None else ''}"
+        assert named in result.stderr, (name, result.stderr)
+        if name == "cut before any topic":
+            assert "no topic can be published: the bag is damaged" in result.stderr, result.stderr
+            continue
+        published = int(result.stderr.split(" messages published")[0].rsplit(" ", 1)[-1])
+        assert 0 < published <= COUNT + 1, (name, result.stderr)
+        if name == "a duplicated chunk":
+            assert published == COUNT + 1, result.stderr
+        if name == "an uncompressed chunk cut in the middle":  # more than the chunks before the cut hold
+            with BagReader(chatter_bag) as reader:
+                before = sum(1 for m in reader.messages() if m.log_time < middle.message_start_time)
+            assert published > before, result.stderr
+
+
 SUBSCRIBER = """
 import os, signal, sys, time
 import rclpy
@@ -149,6 +191,8 @@ if mode in ("stream", "stuck"):  # subscribers that want every message: reliable
     every = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=0)
     node.create_subscription(TFMessage, "/tf", counter("/tf"), every)
     node.create_subscription(Odometry, "/odom", counter("/odom"), every)
+elif mode == "shallow":  # rclpy's usual subscriber: reliable, KEEP_LAST 10
+    node.create_subscription(TFMessage, "/tf", counter("/tf"), QoSProfile(depth=10))
 else:  # a late subscriber of a transient-local topic, deeper than the recording's depth 1
     while node.count_publishers("/amcl_pose") == 0:
         rclpy.spin_once(node, timeout_sec=0.05)
@@ -204,8 +248,8 @@ def replay_to_subscriber(bag: Path, mode: str) -> tuple[subprocess.CompletedProc
     subscriber = start_subscriber(mode, 25.0, transports)
     try:
         assert subscriber.stdout.readline().strip() == "ready"
-        result = cli(str(bag), "--fast", "--wait-subscribers", "2", "--topics", "/tf", "/odom", timeout=60,
-                     transports=transports)
+        result = cli(str(bag), "--fast", "--wait-subscribers", "1" if mode == "shallow" else "2", "--topics", "/tf",
+                     "/odom", timeout=60, transports=transports)
         if mode == "stuck":
             return result, []
         return result, subscriber.communicate(timeout=30)[0].split()
@@ -230,6 +274,24 @@ def test_fast_replay_reports_a_stuck_reliable_subscriber(robot_bag):
     result, _ = replay_to_subscriber(robot_bag, "stuck")
     assert result.returncode == 0, result.stderr
     assert "did not acknowledge every message" in result.stderr and "/tf" in result.stderr, result.stderr
+
+
+def test_fast_replay_names_subscribers_whose_history_may_be_shallower_than_a_topic(robot_bag):
+    """An rclpy subscriber in another process with KEEP_LAST 10 on /tf, which --fast sends 3000 messages
+    in a burst: its own history overwrites what it cannot take in time, which no publisher can see
+    (issue 23: 166-258 of 5,422 delivered, the replay silent). The replay names it, at the start and in
+    its final report, and says what to do. (DDS discovery does not carry the history: rmw_fastrtps
+    announces it as unknown, which is named as such.)"""
+    result, _ = replay_to_subscriber(robot_bag, "shallow")
+    assert result.returncode == 0, result.stderr
+    start, _, end = result.stderr.partition(" messages published")
+    assert end, result.stderr
+    for part in (start, end):
+        assert "warning:" in part, result.stderr
+        assert re.search(r"/tf \(3000 messages\) to /counting_subscriber \((KEEP_LAST 10|history unknown)", part), \
+            result.stderr
+        assert "--rate" in part and "deeper history" in part, result.stderr
+    assert "/odom" not in result.stderr.replace("--topics", ""), result.stderr  # nobody subscribes to it
 
 
 def test_replay_offers_the_recorded_depth_to_late_transient_local_subscribers(robot_bag):

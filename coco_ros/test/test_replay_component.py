@@ -318,3 +318,51 @@ def test_tf_static_from_a_bag_becomes_static_edges_for_timed_lookups(tmp_path):
     at = 1_700_000_000 + 0.0105
     np.testing.assert_allclose(graph.lookup("odom", "laser", at)[:3, 3], [0.105 + 0.2, 0.0, 0.0], atol=1e-9)
     assert interface.stats.refused == 0
+
+
+@pytest.fixture(scope="module")
+def malformed_bag(tmp_path_factory) -> Path:
+    """30 joint states and 30 bowl poses, 10 ms apart, of which three are malformed: joint state 7 has
+    one position fewer than names, pose 12 a zero quaternion, pose 21 a NaN one."""
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import PoseStamped
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Header
+
+    folder = tmp_path_factory.mktemp("replay_component") / "malformed"
+    with BagWriter(folder) as writer:
+        for i in range(30):
+            header = Header(stamp=Time(sec=1_700_000_000, nanosec=i * 10 * MS), frame_id="base")
+            positions = [0.1 * i, -0.1 * i][: 1 if i == 7 else 2]
+            writer.write("/joints", JointState(header=header, name=["a", "b"], position=positions), T0 + i * 10 * MS)
+            pose = PoseStamped(header=header)
+            pose.pose.position.x, pose.pose.orientation.w = 0.01 * i, float("nan") if i == 21 else 1.0
+            if i == 12:
+                pose.pose.orientation.w = 0.0
+            writer.write("/bowl/pose", pose, T0 + i * 10 * MS + 1)
+    return folder
+
+
+@pytest.mark.parametrize("rate", [0.0, 20.0, 1.0], ids=["as-fast-as-possible", "fast", "real-time"])
+def test_a_malformed_message_is_refused_alone_counted_and_reported(malformed_bag, rate):
+    """A message the converter refuses costs only itself, at every rate: the rest of its batch is
+    delivered (issue 23: one bad JointState lost the whole batch of 256, silently), the profile's refused
+    column counts it and the application's damage names it (the launcher then exits with 1)."""
+    app = Application("malformed")
+    replay = app.add(BagReplay("replay", bag=malformed_bag, rate=rate, stop_at_end=True,
+                               options=["/bowl/pose;child_frame=bowl"]))
+    joints, poses = app.add(Sink("joints")), app.add(Sink("poses"))
+    app.connect("replay.joints", "joints.values", BUFFER)
+    app.connect("replay.bowl_pose", "poses.values", BUFFER)
+    activity = PeriodicActivity("loop", 0.002)
+    for component in (replay, joints, poses):
+        app.schedule(component, activity)
+    run(app)
+    assert [round(v.positions[0] * 10) for v in joints.got] == [i for i in range(30) if i != 7]
+    assert [round(v.transform[0, 3] * 100) for v in poses.got] == [i for i in range(30) if i not in (12, 21)]
+    assert replay.stats.refused == 3 and replay.refused_messages == 3
+    assert len(app.damage) == 3, app.damage
+    assert "/joints message 0.070 s into the bag" in app.damage[0] and "2 names but 1 position" in app.damage[0]
+    assert "/bowl/pose message 0.120 s into the bag" in app.damage[1] and "zero" in app.damage[1]
+    assert "/bowl/pose message 0.210 s into the bag" in app.damage[2] and "nan" in app.damage[2]
+    assert all(entry.startswith(f"replay: {malformed_bag}:") for entry in app.damage)

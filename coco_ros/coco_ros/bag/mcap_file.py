@@ -13,6 +13,12 @@ with its log-time range and channels:
   back when a recording was interrupted. The scan stops at the first record that is cut or whose
   framing is broken; a chunk that is complete but cannot be decoded (bad compression or CRC) is
   skipped and the scan goes on after it, since its length still says where the next record starts.
+  A chunk cut by the end of the file still gives its complete records when it is uncompressed (its
+  records are plain bytes up to the cut). A chunk that repeats an earlier one byte for byte (a
+  duplicated copy) is skipped and reported, so that no message is delivered twice. A data section
+  that ends without its DataEnd record (cut exactly at a record boundary, or a writer killed) is
+  recorded in :attr:`McapFile.unfinished_at`: only the bag's ``metadata.yaml`` can tell whether
+  anything is missing, so :class:`~.reader.BagReader` decides whether it is damage.
 
 Messages are then merged across blocks in log-time order (blocks are loaded lazily, when the next
 message could come from them), so a replay holds one or two chunks in memory, not the file.
@@ -219,7 +225,12 @@ class McapFile:
         """What was recovered without loss, e.g. a summary rebuilt by scanning."""
         self.indexed_by = ""
         """'summary' or 'scan': where the block table came from."""
+        self.unfinished_at: int | None = None
+        """Byte where the data section ends without a DataEnd record (None: it has one, or the scan
+        stopped at damage that :attr:`errors` reports)."""
         self._header_length = 0
+        self._chunks_seen: dict[tuple[int, int, int, str, int], int] = {}
+        """Scanned chunks by (times, size, compression, CRC of the stored bytes) -> their offset."""
         try:
             self._fd = os.open(self.path, os.O_RDONLY)
         except OSError as error:
@@ -409,7 +420,7 @@ class McapFile:
         while True:
             raw = self._read(_RECORD_HEAD.size, position)
             if not raw:
-                self.notes.append(f"the data section ends at byte {position} without a DataEnd record")
+                self.unfinished_at = position
                 break
             if len(raw) < _RECORD_HEAD.size:
                 cut = f"the record header is cut after {len(raw)} of 9 bytes"
@@ -419,14 +430,13 @@ class McapFile:
             body_start = position + _RECORD_HEAD.size
             available = self.size - body_start
             if length > available:
-                self._damage(
-                    position,
-                    self._cut(
-                        position,
-                        f"a {opcode_name(opcode)} record declares {length} bytes but the file ends "
-                        f"{available} bytes later",
-                    ),
-                )
+                cut = f"a {opcode_name(opcode)} record declares {length} bytes but the file ends {available} bytes later"
+                salvaged, stopped_at = self._salvage_cut_chunk(body_start, available) if opcode == Opcode.CHUNK \
+                    else (0, 0)
+                if salvaged:  # named where reading stopped: the first record of the chunk that is cut
+                    cut = (f"the Chunk record at byte {position} declares {length} bytes but the file ends {available} "
+                           f"bytes later ({salvaged} of its messages, the complete records before this byte, are read)")
+                self._damage(stopped_at or position, self._cut(stopped_at or position, cut))
                 break
             next_position = body_start + length
             if opcode == Opcode.MESSAGE:
@@ -482,6 +492,16 @@ class McapFile:
     def _scan_chunk(self, position: int, length: int, body_start: int) -> None:
         try:
             chunk = _chunk(self._read(length, body_start))
+            key = (chunk.message_start_time, chunk.message_end_time, chunk.uncompressed_size, chunk.compression,
+                   zlib.crc32(chunk.data))
+            original = self._chunks_seen.setdefault(key, position)
+            if original != position:
+                self._damage(
+                    position,
+                    f"this Chunk record ({length} bytes) repeats the one at byte {original} byte for byte "
+                    "(a duplicated copy); skipped it, so that its messages are delivered once",
+                )
+                return
             payload = _chunk_payload(chunk)
             messages = []
             for _, op, body in _records(memoryview(payload), 0):
@@ -511,6 +531,48 @@ class McapFile:
                 len(self.blocks),
             )
         )
+
+    def _salvage_cut_chunk(self, body_start: int, available: int) -> tuple[int, int]:
+        """Index the complete records of an uncompressed chunk that the end of the file cuts, as a
+        block of loose records: (messages found, byte where the first incomplete record starts).
+        (0, 0) when the chunk is compressed (a compressed stream cut short does not check against its
+        size and CRC) or holds no complete message."""
+        raw = memoryview(self._read(available, body_start))
+        try:
+            name_length = _CHUNK_HEAD.unpack_from(raw)[4]
+            compression = bytes(raw[_CHUNK_HEAD.size:_CHUNK_HEAD.size + name_length]).decode("utf-8")
+        except (struct.error, UnicodeDecodeError):
+            return 0, 0
+        records_start = body_start + _CHUNK_HEAD.size + name_length + 8
+        if compression != "" or records_start > body_start + available:
+            return 0, 0
+        messages: list[RawMessage] = []
+        end = records_start
+        try:
+            for offset, op, body in _records(raw[records_start - body_start:], records_start):
+                if op in (Opcode.SCHEMA, Opcode.CHANNEL):
+                    self._register(op, body)
+                elif op == Opcode.MESSAGE:
+                    messages.append(_message(body))
+                end = offset + _RECORD_HEAD.size + len(body)
+        except (_Damage, ValueError):
+            pass  # the cut (or the first broken record): what precedes it is complete
+        if not messages:
+            return 0, 0
+        for message in messages:
+            self._count(message)
+        self.blocks.append(
+            Block(
+                records_start,
+                end - records_start,
+                min(m.log_time for m in messages),
+                max(m.log_time for m in messages),
+                frozenset(m.channel_id for m in messages),
+                False,
+                len(self.blocks),
+            )
+        )
+        return len(messages), end
 
     # -- messages --------------------------------------------------------------------------------
 

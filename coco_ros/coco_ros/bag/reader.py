@@ -11,7 +11,10 @@ and reported by :meth:`BagReader.messages` *after* the last readable message: ra
 handed to the ``on_error`` callback given to the reader (then nothing is raised). A file that is not
 MCAP at all fails at once, when the reader is made. Fewer readable messages than the recorder's
 ``metadata.yaml`` declares (a file cut exactly at a record boundary leaves no other trace) is damage
-too, reported the same way, per topic.
+too, reported the same way, per topic, and so are more (data copied twice that is not a byte-for-byte
+copy of a chunk, which the file reader skips itself). A data section that ends without its DataEnd
+record (a file cut at a record boundary, a recorder killed) is damage unless ``metadata.yaml``'s
+counts show that nothing is missing: without them nothing says how much was written.
 """
 
 from __future__ import annotations
@@ -130,7 +133,11 @@ class BagReader:
         self._build_topics()
         self._lost: dict[str, tuple[int, int]] = {}
         """Topic -> (declared, readable) where metadata.yaml declares more messages than are readable."""
-        self._check_declared_counts()
+        self._excess: dict[str, tuple[int, int]] = {}
+        """Topic -> (declared, readable) where more messages are readable than metadata.yaml declares."""
+        self._unfinished: list[BagError] = []
+        """Files whose data section ends without a DataEnd record while something may be missing."""
+        self._check_unfinished(self._check_declared_counts())
 
     # -- opening ---------------------------------------------------------------------------------
 
@@ -228,38 +235,70 @@ class BagReader:
             where = f"{self.path} topic {name}"
             self._decoders[name] = _TopicDecoder(self._resolver, self.topics[name], where)
 
-    def _check_declared_counts(self) -> None:
-        """Compare what is readable with what the recorder declared in metadata.yaml.
+    def _check_declared_counts(self) -> bool:
+        """Compare what is readable with what the recorder declared in metadata.yaml; whether there
+        was a declaration to compare with.
 
         A file cut at a record boundary, or one whose whole data section is gone, is indistinguishable
         from a recording that was stopped there: only the recorder's own count tells. A folder is
         compared topic by topic; a single ``.mcap`` file with the folder's metadata.yaml beside it,
-        with that file's entry. Each shortfall is a :class:`BagError` reported like any other damage.
+        with that file's entry. Each shortfall (and each excess: messages stored twice) is a
+        :class:`BagError` reported like any other damage.
         """
         meta, where = self.metadata, self._metadata_path
         if meta is None and self.path.is_file():
             try:
                 meta = read_metadata(self.path.parent)
             except BagError:
-                return
+                return False
             names = [Path(name).name for name in meta.relative_file_paths] if meta is not None else []
             if meta is None or self.path.name not in names:
-                return  # not this file's folder
+                return False  # not this file's folder
             declared = {Path(f.path).name: f.message_count for f in meta.files}
             if len(names) > 1:  # one file of several: its own entry, when the metadata has one
                 expected = declared.get(self.path.name)
-                if expected is not None and expected > self.message_count:
+                if expected is None:
+                    return False
+                if expected > self.message_count:
                     self._lost[""] = (expected, self.message_count)
                     self._record(self._shortfall(where))
-                return
+                elif expected < self.message_count:
+                    self._excess[""] = (expected, self.message_count)
+                    self._record(self._surplus(where))
+                return True
         if meta is None:
-            return
+            return False
         for record in meta.topics:
             readable = self.topics[record.name].message_count if record.name in self.topics else 0
             if record.message_count > readable:
                 self._lost[record.name] = (record.message_count, readable)
+            elif record.message_count < readable:
+                self._excess[record.name] = (record.message_count, readable)
         if self._lost:
             self._record(self._shortfall(where))
+        if self._excess:
+            self._record(self._surplus(where))
+        return True
+
+    def _check_unfinished(self, declared: bool) -> None:
+        """A file whose data section ends without its DataEnd record was cut at a record boundary or
+        not closed by its writer: a note when metadata.yaml's counts (``declared``) show that nothing
+        is missing, else damage named at the byte where the data ends."""
+        for file in self._files:
+            at = file.unfinished_at
+            if at is None:
+                continue
+            if declared and not self._lost:
+                self._notes.append(f"{file.path}: the data section ends at byte {at} without a DataEnd record; "
+                                   "metadata.yaml's counts show that no message is missing")
+                continue
+            unknown = "" if declared else " (no metadata.yaml beside it says how many were written)"
+            error = BagError(file.path, "the data section ends here without its DataEnd record and the file has no "
+                                        "MCAP footer: the file is cut at a record boundary or its writer was killed; "
+                                        f"the {file.message_count} messages before this point are readable, whatever "
+                                        f"followed is lost{unknown}", at)
+            self._unfinished.append(error)
+            self._record(error)
 
     @property
     def _metadata_path(self) -> Path:
@@ -271,6 +310,13 @@ class BagReader:
         shown = "; ".join(f"{t or 'this file'}: {self._lost[t][1]} of {self._lost[t][0]}" for t in selected)
         return BagError(where, f"the storage files hold fewer messages than it declares ({shown} readable): "
                                f"{lost} are lost (the bag is truncated or damaged)")
+
+    def _surplus(self, where: Path, topics: Iterable[str] | None = None) -> BagError:
+        selected = [t for t in self._excess if topics is None or t == "" or t in topics]
+        extra = sum(self._excess[t][1] - self._excess[t][0] for t in selected)
+        shown = "; ".join(f"{t or 'this file'}: {self._excess[t][1]} of {self._excess[t][0]}" for t in selected)
+        return BagError(where, f"the storage files hold more messages than it declares ({shown} readable): "
+                               f"{extra} are not the recording's (data stored twice, or another recording's)")
 
     # -- summary ---------------------------------------------------------------------------------
 
@@ -406,6 +452,9 @@ class BagReader:
         asked = None if topics is None else names  # all: the declared topics without a channel too
         if any(topic == "" or asked is None or topic in asked for topic in self._lost):
             problems.append(self._shortfall(self._metadata_path, asked))
+        if any(topic == "" or asked is None or topic in asked for topic in self._excess):
+            problems.append(self._surplus(self._metadata_path, asked))
+        problems.extend(self._unfinished)
         if not problems:
             return
         if self._on_error is not None:

@@ -4,8 +4,10 @@ The CDR bytes of the bag are published as they are (``publisher.publish(bytes)``
 deserialized; each topic is offered the QoS its recorded publishers offered, history depth included
 (:func:`coco_ros.bag.qos.for_replay`; ``--depth`` overrides the depth). ``--fast`` offers volatile
 topics with KEEP_ALL history, so the publisher overwrites nothing before every reliable subscriber
-has it, and topics whose messages a reliable subscriber did not acknowledge by the end are reported
-(:mod:`coco_ros.replay.flow`). ``/tf`` and ``/tf_static`` are published like any other
+has it, and topics whose messages a reliable subscriber did not acknowledge by the end are reported;
+it also names, at the start and in the final report, each matched subscriber whose own history may
+be shallower than a topic's count (what it cannot take in time, it overwrites unseen), with what to
+do (:mod:`coco_ros.replay.flow`). ``/tf`` and ``/tf_static`` are published like any other
 topic (tf2_msgs is built in the workspace, ``vendor/tf2_msgs``). Exit status: 0, or 1 with the
 error (file and byte offset) when the bag is damaged, after replaying what was readable; Ctrl-C
 stops within a fraction of a second.
@@ -22,7 +24,7 @@ from coco_core.errors import BagError
 
 from ..bag import BagReader
 from ..bag.qos import for_replay
-from .flow import ACK_TIMEOUT, as_fast_as_possible, unacknowledged
+from .flow import ACK_TIMEOUT, SHALLOW_ADVICE, as_fast_as_possible, shallow_subscribers, unacknowledged
 from .player import Player, parse_remaps
 
 
@@ -100,9 +102,17 @@ def _publishers(reader: BagReader, player: Player, node, depth: int | None, fast
 def _replay(args, reader: BagReader, player: Player, node) -> int:
     publishers = _publishers(reader, player, node, args.depth, args.fast)
     if not publishers:
-        print(f"coco-replay: error: {reader.path}: no topic can be published", file=sys.stderr)
+        damage = "; ".join(str(error) for error in reader.errors)
+        why = f": the bag is damaged: {damage}" if damage else ""
+        print(f"coco-replay: error: {reader.path}: no topic can be published{why}", file=sys.stderr)
         return 1
     _wait_for_discovery(args, publishers)
+    counts = {player.out_topic(topic): reader.topics[topic].message_count for topic in publishers}
+    shallow = shallow_subscribers(node, counts) if args.fast else []
+    if shallow:
+        print("coco-replay: warning: --fast sends each topic as fast as possible, faster than a subscriber may "
+              "take it, and a subscriber with a KEEP_LAST history keeps only its last messages: "
+              f"{'; '.join(s.describe() for s in shallow)}; {SHALLOW_ADVICE}", file=sys.stderr)
     clock_publish = _clock_publisher(node, player, args.clock)
     progress = None
     if not args.no_progress:
@@ -129,6 +139,12 @@ def _replay(args, reader: BagReader, player: Player, node) -> int:
         progress.close()
     late = unacknowledged(publishers)
     print(f"coco-replay: {count} messages published from {reader.path}", file=sys.stderr)
+    if args.fast:  # those seen at the start, and those that joined during the replay
+        shallow = list(dict.fromkeys([*shallow, *shallow_subscribers(node, counts)]))
+        if shallow:
+            print("coco-replay: warning: sent as fast as possible to subscribers whose history may be shallower "
+                  f"than what they were sent, so they may have lost messages: "
+                  f"{'; '.join(s.describe() for s in shallow)}; {SHALLOW_ADVICE}", file=sys.stderr)
     if late:
         print(f"coco-replay: warning: a reliable subscriber of {', '.join(late)} did not acknowledge every "
               f"message within {ACK_TIMEOUT:g} s after the end (gone or stuck): the last messages may be lost "

@@ -51,6 +51,12 @@ delivered messages. A damaged bag (cut, corrupt, or holding fewer messages than 
 declares) is replayed as far as it is readable, then its error (file and byte offset, or what is
 lost) is logged once and reported to the application (:meth:`Application.report_damage`): the
 launcher exits with 1 and a summary that reads ``app.damage`` shows it.
+
+A message its converter refuses (a JointState with fewer positions than names, a zero or NaN
+quaternion, CDR that does not decode) is damaged input too, but it costs only itself: it is counted
+in the profile's ``refused`` column (:meth:`~coco_core.component.Component.record_refusal`), the
+first ``REFUSALS_LISTED`` are each reported to the application (topic, bag time and
+reason: the launcher exits with 1) and the messages after it are delivered as usual, at every rate.
 """
 
 from __future__ import annotations
@@ -82,6 +88,8 @@ DRAIN_TIMEOUT = 2.0
 """Seconds ``stop_at_end`` waits at most for the downstream connections to empty."""
 DRAIN_CHECK = 0.01
 """Seconds between two checks of the connections in a triggered activity (a periodic one checks every update)."""
+REFUSALS_LISTED = 10
+"""Refused messages reported one by one to the application's damage; the profile counts every one."""
 
 
 def port_name_for(topic: str) -> str:
@@ -140,9 +148,10 @@ class BagReplay(Component):
         self._routes: dict[str, tuple[OutputPort, Any]] = {}
         for topic in selected:
             if topic not in self._reader.topics:
-                known = ", ".join(self._reader.topics)
+                known = ", ".join(self._reader.topics) or "none"
+                damage = "; ".join(str(error) for error in self._reader.errors)
                 raise BagError(self._reader.path, f"component {self.name}: no topic {topic!r} in the bag "
-                                                  f"(topics: {known})")
+                                                  f"(topics: {known})" + (f"; the bag is damaged: {damage}" if damage else ""))
             type_name = self._reader.topics[topic].type
             out_topic = self._remaps.get(topic, topic)
             given = options.pop(out_topic, None) or options.pop(topic, {})
@@ -163,6 +172,8 @@ class BagReplay(Component):
                             f"replayed (replayed: {shown})")
         self._selected = selected
         self._seq = 0
+        self.refused_messages = 0
+        """Messages whose converter refused them (malformed), over every pass."""
         self._player: Player | None = None
         self._timer: threading.Timer | None = None
         self._ended = False
@@ -223,7 +234,9 @@ class BagReplay(Component):
         if player.finished:
             if not self._ended:
                 self._ended, self._ended_at, self._idle_checks = True, time.monotonic(), 0
-                log.info("component %s: bag %s replayed (%d messages)", self.name, self.bag, player.delivered)
+                refused = f", {self.refused_messages} refused" if self.refused_messages else ""
+                log.info("component %s: bag %s replayed (%d messages%s)", self.name, self.bag, player.delivered,
+                         refused)
             if self.stop_at_end and self.app is not None and not self.app.stop_requested:
                 if self._drained():
                     self.app.request_stop(f"{self.name}: bag {self.bag} replayed")
@@ -245,16 +258,32 @@ class BagReplay(Component):
     def _deliver(self, played: Played) -> None:
         port, converter = self._routes[played.message.topic]
         value: Any
-        if self.output == "bag":
-            value = played.message
-        elif converter is not None:  # from the CDR bytes: a converter may skip the rclpy message
-            value = converter.from_cdr(played.message.data)
-        else:
-            value = played.message.message
+        try:
+            if self.output == "bag":
+                value = played.message
+            elif converter is not None:  # from the CDR bytes: a converter may skip the rclpy message
+                value = converter.from_cdr(played.message.data)
+            else:
+                value = played.message.message
+        except Exception as error:  # a malformed message must cost itself only, not the messages after it
+            self._refuse(played, error)
+            return
         if self.stamped:
             self._seq += 1
             value = Stamped(value, Stamp.now(self._seq, played.topic))
         port.write(value)
+
+    def _refuse(self, played: Played, error: Exception) -> None:
+        """Count a message that cannot be converted (profile) and report it as damaged input."""
+        message = played.message
+        self.refused_messages += 1
+        offset = (message.log_time - self._reader.start_time) / 1e9
+        what = f"the {message.topic} message {offset:.3f} s into the bag (log time {message.log_time} ns)"
+        self.record_refusal(what, error)
+        if self.app is not None and self.refused_messages <= REFUSALS_LISTED:
+            more = (f"; further refused messages are only counted (the profile's refused column of {self.name})"
+                    if self.refused_messages == REFUSALS_LISTED else "")
+            self.app.report_damage(f"{self.name}: {self.bag}: {what} refused: {error}{more}")
 
     def _wake_in(self, delay: float) -> None:
         """In a triggered activity, arrange an update in ``delay`` seconds (a periodic one needs nothing)."""

@@ -16,11 +16,18 @@ its callbacks are slower than the replay happens on its side, after the acknowle
 cannot see it. Such a subscriber needs a deeper history (or KEEP_ALL), or the replay a ``--rate``.
 Transient-local topics keep the recorded depth (what a late subscriber gets), see
 :func:`~coco_ros.bag.qos.for_replay`.
+
+What the replay can do is say so, before and after: :func:`shallow_subscribers` lists the matched
+subscriptions (``get_subscriptions_info_by_topic``) that may keep fewer messages than a topic sends
+in one burst: KEEP_LAST with a depth below the topic's count, and those whose history the middleware
+does not announce. DDS discovery carries reliability and durability but not history: rmw_fastrtps
+reports a subscriber in another process as history UNKNOWN, depth 0, so such a subscriber is named
+too (rclpy's default, KEEP_LAST 10, is the usual case), with what to do about it.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 from ..bag.qos import Qos
@@ -53,3 +60,46 @@ def unacknowledged(publishers: dict[str, Any], timeout: float = ACK_TIMEOUT) -> 
         if not publisher.wait_for_all_acked(Duration(seconds=remaining)):
             late.append(topic)
     return late
+
+
+@dataclass(frozen=True)
+class ShallowSubscriber:
+    """A subscription that may keep fewer messages than a topic sends as fast as possible."""
+
+    topic: str
+    node: str
+    """Its node's fully qualified name."""
+    depth: int | None
+    """Its KEEP_LAST depth; None when the middleware does not announce its history."""
+    count: int
+    """Messages the replay sends on the topic (per pass)."""
+
+    def describe(self) -> str:
+        history = (f"KEEP_LAST {self.depth}" if self.depth is not None
+                   else "history unknown: DDS discovery does not announce it; rclpy's default is KEEP_LAST 10")
+        return f"{self.topic} ({self.count} messages) to {self.node} ({history})"
+
+
+def shallow_subscribers(node: Any, counts: dict[str, int]) -> list[ShallowSubscriber]:
+    """The subscriptions matched on each topic of ``counts`` (topic -> messages sent per pass) whose
+    history may be shallower than that count: KEEP_LAST with a smaller depth, or not announced."""
+    from rclpy.qos import HistoryPolicy
+
+    found = []
+    for topic, count in counts.items():
+        for info in node.get_subscriptions_info_by_topic(topic):
+            qos = info.qos_profile
+            if qos.history == HistoryPolicy.KEEP_ALL:
+                continue
+            known = qos.history == HistoryPolicy.KEEP_LAST
+            if known and qos.depth >= count:
+                continue
+            namespace = info.node_namespace.rstrip("/")
+            found.append(ShallowSubscriber(topic, f"{namespace}/{info.node_name}", qos.depth if known else None,
+                                           count))
+    return found
+
+
+SHALLOW_ADVICE = ("replay at a pace they can follow (--rate, e.g. --rate 1) or give them a deeper history "
+                  "(KEEP_ALL, or a KEEP_LAST depth of at least the topic's count)")
+"""What to do about shallow subscribers: the same words at the start and in the final report."""

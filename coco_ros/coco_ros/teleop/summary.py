@@ -18,7 +18,10 @@ distance is below ``near``, or null), ``near``, ``time_origin``, ``final_bowl_ta
 (null without ``bowl``/``target``), ``latency_ms`` (mean, max), ``display_latency_ms`` (``frames``,
 ``mean``, ``median``, ``p90``, ``max``: sensor-to-display latency; nulls without a display),
 ``input_damage`` (the application's :attr:`~coco_core.application.Application.damage`: e.g. a
-truncated bag; empty when the inputs were whole).
+truncated bag, a message the replay could not convert; empty when the inputs were whole),
+``input_refused`` (component -> input samples it refused as malformed, the profile's ``refused``
+column, for the components of this process that refused any: a replay lists only its first refused
+messages in ``input_damage``, this is the count).
 
 :func:`describe` puts a JSON summary in a few lines: ``python -m coco_ros.teleop summary.json`` (what
 ``scripts/run_app.sh`` shows after the run).
@@ -157,6 +160,8 @@ class TeleopSummary(Component):
             "display_latency_ms": _milliseconds(self._display),
             "csv": str(self.csv),
             "input_damage": list(self.app.damage) if self.app is not None else [],
+            "input_refused": {name: component.stats.refused for name, component in self.app.components.items()
+                              if component.stats.refused} if self.app is not None else {},
         }
 
     def on_stop(self) -> None:
@@ -183,6 +188,9 @@ def describe(summary: dict[str, Any]) -> str:
                 if summary["final_bowl_target_distance"] is not None else "")]
     for damage in summary.get("input_damage") or ():
         lines.append(f"DAMAGED INPUT (the run used what was readable): {damage}")
+    for name, count in (summary.get("input_refused") or {}).items():
+        lines.append(f"REFUSED INPUT: {name} refused {count} malformed sample{'s' if count != 1 else ''} "
+                     "(the profile's refused column)")
     latency = summary["latency_ms"]
     if latency["mean"] is not None:
         lines.append(f"latency, replay emission -> CSV row: mean {latency['mean']:.2f} ms, max {latency['max']:.2f} ms")
