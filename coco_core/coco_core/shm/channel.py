@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from ..connections import EMPTY, Connection
-from ..errors import ChannelError, CocoError
+from ..errors import ChannelError, CocoError, FileWriteError
 from ..policy import BufferPolicy, ConnectionPolicy
 from .segment import SHM_DIR, Segment, rename, shm_open, unlink
 
@@ -269,8 +269,8 @@ def _write_all(fd: int, parts: list[Any]) -> None:
     offset = 0
     while pending:
         done = os.pwritev(fd, pending[:IOV_MAX], offset)
-        if not done:
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        if not done:  # the kernel took nothing: as full as ENOSPC says (caught by _store_large)
+            raise FileWriteError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         offset += done
         while pending and done >= pending[0].nbytes:
             done -= pending.pop(0).nbytes
