@@ -259,11 +259,7 @@ class Application:
         The main activity, if any, runs in the calling thread.
         """
         self.start()
-        timer = None
-        if duration is not None:
-            timer = threading.Timer(duration, self.request_stop, args=(f"duration of {duration:g} s reached",))
-            timer.daemon = True
-            timer.start()
+        timer = self.stop_after(duration) if duration is not None else None
         try:
             main = self.main_activity
             if main is not None:
@@ -273,6 +269,16 @@ class Application:
             if timer is not None:
                 timer.cancel()
             self.stop()
+
+    def stop_after(self, duration: float) -> threading.Timer:
+        """Ask for a stop ``duration`` seconds after the application starts running: from the opening
+        of its gate (every activity of every process configured), so that a slow configuration (an
+        OpenGL context, a URDF, on a loaded machine) does not eat into the time asked for (``--duration
+        3`` once ran no cycle at all). Cancel the returned timer when the run ends first."""
+        timer = threading.Timer(duration, self.request_stop, args=(f"duration of {duration:g} s reached",))
+        timer.daemon = True
+        self.gate.when_open(timer.start)
+        return timer
 
     def report_damage(self, what: str) -> None:
         """Record damaged input (see :attr:`damage`); list.append is atomic, any thread may call it."""

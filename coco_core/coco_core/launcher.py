@@ -52,7 +52,8 @@ def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
                         help="application XML file, package:// URL, or the name of an installed application "
                              "(e.g. demo_pipeline: share/<package>/config/demo_pipeline.xml)")
     parser.add_argument("args", nargs="*", metavar="name:=value", help="values for the file's <arg>s")
-    parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    parser.add_argument("--duration", type=float, metavar="S",
+                        help="stop S seconds after the application started running (every activity configured)")
     parser.add_argument("--profile", type=float, metavar="S",
                         help="print the profile (per component and activity timing) every S seconds and at exit")
     parser.add_argument("--check", action="store_true",

@@ -388,6 +388,25 @@ def test_main_activity_runs_in_the_calling_thread(make_app):
     assert app.activity("main").finished and app.activity("side").finished
 
 
+class SlowToConfigure(Lifecycle):
+    """Takes 0.6 s to configure, as an OpenGL context or a URDF can on a loaded machine."""
+
+    def on_config(self):
+        time.sleep(0.6)  # the component's own work, not the test waiting
+        super().on_config()
+
+
+def test_a_duration_counts_from_the_start_of_the_run_not_from_the_configuration(make_app):
+    # With configure-all-then-start-all, --duration 3 once ended a display app before its first cycle.
+    app = make_app("duration")
+    slow = app.add(SlowToConfigure("slow"), PeriodicActivity("slow", 0.01))
+    ticks = app.add(Ticker("ticks"), PeriodicActivity("ticks", 0.01))
+    t0 = time.monotonic()
+    app.run(duration=0.3)
+    assert time.monotonic() - t0 >= 0.85  # 0.6 s of configuration, then 0.3 s of run
+    assert slow.updates >= 5 and ticks.updates >= 5, (slow.updates, ticks.updates)
+
+
 def test_main_activity_stops_when_stopped_from_another_thread(make_app):
     app = make_app("main-stop")
     main = app.add(Lifecycle("main_comp"), TriggeredActivity("main", main=True))

@@ -23,7 +23,6 @@ import argparse
 import logging
 import re
 import sys
-import threading
 from functools import partial
 from pathlib import Path
 from typing import Sequence
@@ -274,9 +273,7 @@ def run_hosted(app: Application, host: ExecutorHost, executor: object, duration:
         host.start()
         spinner.start()
         if duration is not None:
-            timer = threading.Timer(duration, app.request_stop, args=(f"duration of {duration:g} s reached",))
-            timer.daemon = True
-            timer.start()
+            timer = app.stop_after(duration)
         main = app.main_activity
         if main is not None:
             main.run_here()
