@@ -77,6 +77,8 @@ def not_run_reason(bare: str) -> str | None:
 
 
 LAUNCHERS = {"coco-launch", "launcher"}
+ENVIRONMENT = re.compile(r"((?:[A-Za-z_][A-Za-z0-9_]*=\S*\s+)*)(.*)", re.S)
+"""A command line: its leading environment assignments (raw), and the rest."""
 
 
 @dataclass
@@ -156,12 +158,14 @@ def fresh_terminal_env() -> dict[str, str]:
 
 
 def shortened(command: str) -> str:
-    """The command with ``--duration APP_SECONDS`` where it runs an application (module docstring)."""
-    bare = re.sub(r"\s+#\s.*$", "", command).strip()
+    """The command with ``--duration APP_SECONDS`` where it runs an application (module docstring).
+    Leading ``NAME=value`` words (``PYTHONPATH=$PWD/...:$PYTHONPATH launcher ...``) are kept as
+    written, for the shell to expand."""
+    assignments, bare = ENVIRONMENT.match(re.sub(r"\s+#\s.*$", "", command).strip()).groups()  # type: ignore[union-attr]  # always matches
     words = shlex.split(bare)
     program = Path(words[0]).name if words else ""
     if program == "run_app.sh":
-        return f"{bare} --duration {APP_SECONDS}"
+        return f"{assignments}{bare} --duration {APP_SECONDS}"
     if program in LAUNCHERS and not {"--check", "--list"} & set(words):
         files = [i for i, word in enumerate(words) if word.endswith(".xml")]
         if files and words[files[0]] not in RUN_TO_ITS_END:
@@ -171,7 +175,7 @@ def shortened(command: str) -> str:
             kept = [word for i, word in enumerate(words[:end])
                     if word != "--duration" and (i == 0 or words[i - 1] != "--duration")]
             at = kept.index(words[files[0]]) + 1
-            return shlex.join([*kept[:at], "--duration", str(APP_SECONDS), *kept[at:], *words[end:]])
+            return assignments + shlex.join([*kept[:at], "--duration", str(APP_SECONDS), *kept[at:], *words[end:]])
     return command
 
 
@@ -201,6 +205,9 @@ def test_shortened_inserts_the_duration_after_the_application_file() -> None:
         f"coco-launch config/a.xml --duration {APP_SECONDS} window:=16 --profile 2"
     assert shortened("launcher config/a.xml --duration 3 --ros-args -p duration:=9") == \
         f"launcher config/a.xml --duration {APP_SECONDS} --ros-args -p duration:=9"
+    # Environment assignments before the launcher stay as written, for the shell to expand.
+    assert shortened("PYTHONPATH=$PWD/x:$PYTHONPATH launcher x/a.xml g:=3 --ros-args -r __ns:=/lab") == \
+        f"PYTHONPATH=$PWD/x:$PYTHONPATH launcher x/a.xml --duration {APP_SECONDS} g:=3 --ros-args -r __ns:=/lab"
 
 
 BUILDS = re.compile(r"\bscripts/(setup|run_app)\.sh\b")
