@@ -27,13 +27,19 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import CameraError
+from coco_core.errors import CameraError, FileReadError
+from coco_core.files import check_regular_file, read_regular_file
 from coco_core.ports import OutputPort
 from coco_core.stamps import Stamp, Stamped
 
 from .image import CameraIntrinsics, Image, ImageFormat
 
 log = logging.getLogger("coco.vision")
+
+IMAGE_FILE_LIMIT = 256 * 2**20
+"""Bytes one file of an image sequence may have (a 16k x 16k 8-bit PNG stays under it)."""
+VIDEO_FILE_LIMIT = 64 * 2**30
+"""Bytes a video file may have: only a bound against a device or /dev/zero named as a video."""
 
 
 def has_gstreamer() -> bool:
@@ -92,7 +98,12 @@ class _Sequence(_Frames):
         while self.index < len(self.files):
             path = self.files[self.index]
             self.index += 1
-            frame = cv2.imread(path, cv2.IMREAD_COLOR)
+            try:  # bounded, and never blocked by a FIFO that a glob matched
+                data = read_regular_file(path, IMAGE_FILE_LIMIT, "image")
+            except FileReadError:
+                self.unreadable.append(path)
+                continue
+            frame = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
             if frame is not None:
                 return frame, (self.index - 1) * self.period
             self.unreadable.append(path)
@@ -128,6 +139,11 @@ def open_source(source: str, fps: float = 30.0) -> tuple[_Frames, str]:
     if not Path(text).exists() and "://" not in text:
         raise CameraError(f"video file {text!r} does not exist (a source is a device index, a video file, "
                           "an image glob or a GStreamer pipeline)")
+    if "://" not in text:
+        try:  # a FIFO or a device would block OpenCV's open, /dev/zero would never end
+            check_regular_file(text, VIDEO_FILE_LIMIT, "video file")
+        except FileReadError as error:
+            raise CameraError(f"source: {error}") from None
     capture = cv2.VideoCapture(text)
     if not capture.isOpened():
         raise CameraError(f"OpenCV cannot open {text!r} as a video")

@@ -143,3 +143,26 @@ def test_an_unreadable_file_in_a_sequence_is_passed_over_and_counted(tmp_path, p
     sink = rig(looping)
     assert len(drain(looping, sink, 2 * len(photos))) == 2 * len(photos)
     assert looping.skipped == 2, "met again on the second pass"
+
+
+def test_a_fifo_in_a_sequence_or_as_a_video_never_blocks(tmp_path, photos):
+    """Files named by the source go through the bounded regular-file reader: a FIFO the glob matches
+    is passed over and counted (OpenCV's imread blocked on it for ever), one named as a video is refused."""
+    import os
+    import signal
+
+    cv2.imwrite(str(tmp_path / "frame_000.jpg"), photos[0])
+    os.mkfifo(tmp_path / "frame_001.jpg")
+    cv2.imwrite(str(tmp_path / "frame_002.jpg"), photos[1])
+    signal.signal(signal.SIGALRM, lambda *_: pytest.fail("reading the source blocked"))
+    signal.setitimer(signal.ITIMER_REAL, 10)
+    try:
+        reader = CameraReader("cam", source=str(tmp_path / "frame_*.jpg"))
+        sink = rig(reader)
+        assert len(drain(reader, sink, 4)) == 2 and reader.skipped == 1
+        with pytest.raises(CameraError, match="is a FIFO, not a regular file"):
+            open_source(str(tmp_path / "frame_001.jpg"))
+        with pytest.raises(CameraError, match="is a character device, not a regular file"):
+            open_source("/dev/zero")
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
