@@ -1,7 +1,7 @@
 """``launcher`` of ``coco_ros``: run a CoCo application file inside one rclpy node.
 
     ros2 run coco_ros launcher app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown]] [--list]
-                               [--threads NAME[,NAME]] [--all-threads] [--executor-threads N]
+                               [--threads NAME[,NAME]] [--all-threads] [--executor-threads N] [--managed]
                                [--ros-args -r __node:=NAME -p param:=value ...]
 
 The command line is ``coco-launch``'s (same file format, same ``name:=value`` arguments, same
@@ -52,6 +52,7 @@ from rclpy.node import Node
 
 from .fastdds_segments import remove_abandoned
 from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
+from .managed import ManagedApplication, ManagedLauncherNode
 from .diagnostics import ProfileDiagnostics
 from .operation_services import OperationServices
 from .parameters import ArgParameters, given_parameters
@@ -76,6 +77,9 @@ def make_ros_parser() -> argparse.ArgumentParser:
                         help="run these activities on threads of their own instead of the executor")
     parser.add_argument("--all-threads", action="store_true",
                         help="run every activity on its own thread (as coco-launch does)")
+    parser.add_argument("--managed", action="store_true",
+                        help="a managed (lifecycle) node: the application configures on the configure transition and "
+                             "runs on activate; deactivate, cleanup or shutdown stop it (coco_ros.managed)")
     parser.add_argument("--executor-threads", type=_positive_int, metavar="N",
                         help="host the activities as callback groups of one executor with N threads (1: a "
                         "SingleThreadedExecutor) instead of a wait set on a thread of its own for each")
@@ -137,6 +141,10 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         print(f"{_NAME}: an application file is needed (or --list)", file=sys.stderr)
         return 2
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
+    if options.managed and options.executor_threads is not None:
+        print(f"{_NAME}: --managed needs the default hosting (a wait set per activity): with --executor-threads the "
+              "activities would configure in the executor that serves the configure transition", file=sys.stderr)
+        return 2
     built = None
     if not sets_parameters(ros_args):
         # No -p / --params-file: the file is loaded and built before rclpy starts, so a wrong one is
@@ -160,7 +168,8 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
     try:
         # With -p / --params-file, the node comes first: its values are the file's args too.
         name = built[0].name if built else application_name(options, signals)
-        node = Node(node_name(name), automatically_declare_parameters_from_overrides=True)
+        node_type = ManagedLauncherNode if options.managed else Node
+        node = node_type(node_name(name), automatically_declare_parameters_from_overrides=True)
         given = given_parameters(node)
         if options.check:
             return _check(options, signals, given)
@@ -214,7 +223,10 @@ def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], si
         signals.attach(app)
         with (ProfileDiagnostics(node, app.name, processes.snapshots if processes else lambda: [snapshot(app)]),
               OperationServices(node, app, spec)):
-            code = _run_hosted(app, host, executor, options, processes)
+            managed = None
+            if isinstance(node, ManagedLauncherNode):
+                managed = node.managed = ManagedApplication(app, host)
+            code = _run_hosted(app, host, executor, options, processes, managed)
         return INTERRUPTED if signals.forced else code
 
 
@@ -248,10 +260,11 @@ def application_name(options: argparse.Namespace, signals: LaunchSignals) -> str
 
 
 def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace,
-                processes: ProcessSupervisor | None = None) -> int:
-    """Start ``app`` with ``host``, spin ``executor`` until a stop is asked, stop cleanly."""
+                processes: ProcessSupervisor | None = None, managed: ManagedApplication | None = None) -> int:
+    """Start ``app`` with ``host`` (at the lifecycle's configure and activate when ``managed``), spin
+    ``executor`` until a stop is asked, stop cleanly."""
     with launcher_services(app, options, processes):
-        clean = run_hosted(app, host, executor, options.duration)
+        clean = run_hosted(app, host, executor, options.duration, managed)
     if not clean:
         # A hung on_update keeps an executor worker (or a daemon thread) busy; Python would wait for
         # the worker at exit, so the entry point leaves at once (see main).
@@ -261,29 +274,46 @@ def _run_hosted(app: Application, host: ExecutorHost, executor: object, options:
     return 1 if failed else 0
 
 
-def run_hosted(app: Application, host: ExecutorHost, executor: object, duration: float | None = None) -> bool:
+def run_hosted(app: Application, host: ExecutorHost, executor: object, duration: float | None = None,
+               managed: ManagedApplication | None = None) -> bool:
     """Start ``app``, spin ``executor`` in a thread of its own, run the main activity (if any) here,
     wait for a stop (or ``duration`` seconds), then stop cleanly while the executor still spins, so
     that hosted activities finish in their groups; whether the stop was clean. The launcher and its
-    child processes (``coco_ros.child``) run their part of the application this way."""
+    child processes (``coco_ros.child``) run their part of the application this way. ``managed``:
+    the lifecycle's configure transition starts the application instead (:mod:`.managed`), and a
+    stop before it stops nothing that ran."""
     spinner = ExecutorThread(executor, on_error=partial(app.request_stop, hard=True))  # type: ignore[arg-type]
     timer = None
+    started = managed is None
     try:
-        app.start()
-        host.start()
+        if managed is None:
+            app.start()
+            host.start()
         spinner.start()
-        if duration is not None:
-            timer = app.stop_after(duration)
-        main = app.main_activity
-        if main is not None:
-            main.run_here()
+        if managed is not None:
+            started = _wait_for_configure(app, managed)
+        if started:
+            if duration is not None:
+                timer = app.stop_after(duration)
+            main = app.main_activity
+            if main is not None:
+                main.run_here()
         app.wait()
     finally:
         if timer is not None:
             timer.cancel()
-        clean = app.stop()  # the executor still spins: hosted activities finish in their groups
+        clean = app.stop() if started else True  # the executor still spins: hosted activities finish in their groups
         spinner.stop()  # then the node is destroyed and rclpy shut down
     return clean
+
+
+def _wait_for_configure(app: Application, managed: ManagedApplication) -> bool:
+    """Managed: wait here, in the main thread (the main activity's), until the configure transition
+    started the application; False when a stop came first."""
+    while not managed.started.wait(0.1):
+        if app.stop_requested:
+            return False
+    return True
 
 
 def main(argv: Sequence[str] | None = None, signals: LaunchSignals | None = None) -> int:

@@ -5,15 +5,13 @@ subscriber and parameter client on its own DDS domain."""
 
 from __future__ import annotations
 
-import subprocess
-import time
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import pytest
 
 from conftest import rclpy_peer
-from test_launcher_parameters import APP, launcher_command, ros_env
+from test_launcher_parameters import APP, spin_until, start_launcher
 
 DOMAIN = "42"
 # The recorder reads the average every 50 ms through a DATA connection (newest only) while it comes
@@ -37,20 +35,11 @@ def test_the_profile_reaches_diagnostics_with_levels_and_live_thresholds(tmp_pat
     node, executor = peer
     arrays: list[Any] = []
     node.create_subscription(DiagnosticArray, "/diagnostics", arrays.append, 10)
-    app = tmp_path / "dropping.xml"
-    app.write_text(DROPPING)
-    process = subprocess.Popen(launcher_command(str(app), f"output:={tmp_path / 'rows.csv'}", "--duration", "60",
-                                                "--ros-args", "-p", "diagnostics.period:=0.2", "-r", "__node:=diag_under_test"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env(DOMAIN))
+    process = start_launcher(tmp_path / "dropping.xml", DROPPING, f"output:={tmp_path / 'rows.csv'}", "--duration", "60",
+                             "--ros-args", "-p", "diagnostics.period:=0.2", "-r", "__node:=diag_under_test", domain=DOMAIN)
 
-    def wait_for(condition: Callable[[], Any], what: str, seconds: float = 30) -> Any:
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            found = condition()
-            if found:
-                return found
-            executor.spin_once(timeout_sec=0.1)
-        raise AssertionError(f"{what} never came; last array: {arrays[-1] if arrays else None}")
+    def wait_for(condition: Callable[[], Any], what: str) -> Any:
+        return spin_until(executor, condition, what)
 
     def status(array: Any, name: str) -> Any:
         return next((s for s in array.status if s.name == f"coco/param_app: {name}"), None)

@@ -13,7 +13,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 import pytest
 
@@ -64,6 +64,25 @@ def ros_env(domain: str = DOMAIN) -> dict[str, str]:
     """The launcher's environment: its own DDS domain (the test's), this host only."""
     return {**os.environ, "ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
             "PYTHONUNBUFFERED": "1"}
+
+
+def start_launcher(app: Path, text: str, *words: str, domain: str) -> subprocess.Popen[str]:
+    """Write the application ``text`` to ``app`` and start the installed launcher on it with
+    ``words``, on DDS ``domain`` (the test's peer's)."""
+    app.write_text(text)
+    return subprocess.Popen(launcher_command(str(app), *words), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, env=ros_env(domain))
+
+
+def spin_until(executor: Any, condition: Callable[[], Any], what: str, seconds: float = 30) -> Any:
+    """Spin the test's peer until ``condition()`` gives something true (returned), or fail naming ``what``."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        found = condition()
+        if found:
+            return found
+        executor.spin_once(timeout_sec=0.1)
+    raise AssertionError(f"{what} never came within {seconds:g} s")
 
 
 @pytest.fixture

@@ -5,15 +5,13 @@ script; this test is a real rclpy service client on its own DDS domain."""
 
 from __future__ import annotations
 
-import subprocess
-import time
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Iterator
 
 import pytest
 
 from conftest import rclpy_peer
-from test_launcher_parameters import launcher_command, ros_env
+from test_launcher_parameters import spin_until, start_launcher
 
 DOMAIN = "46"
 APP = """<package name="ops_app">
@@ -54,28 +52,19 @@ def test_operations_are_services_of_the_launchers_node(tmp_path: Path, peer: tup
     from std_srvs.srv import Trigger
 
     node, executor = peer
-    app = tmp_path / "ops_app.xml"
-    app.write_text(APP)
-    process = subprocess.Popen(launcher_command(str(app), "--duration", "60", "--ros-args", "-r", "__node:=ops_under_test"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env(DOMAIN))
+    process = start_launcher(tmp_path / "ops_app.xml", APP, "--duration", "60", "--ros-args", "-r",
+                             "__node:=ops_under_test", domain=DOMAIN)
     call = node.create_client(CallOperation, "/ops_under_test/call_operation")
     counts = node.create_client(Trigger, "/ops_under_test/bridge/counts")
 
-    def wait_for(condition: Callable[[], Any], what: str, seconds: float = 30) -> Any:
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            if condition():
-                return
-            executor.spin_once(timeout_sec=0.1)
-        raise AssertionError(f"{what} never came")
-
     def answer(client: Any, request: Any) -> Any:
         future = client.call_async(request)
-        wait_for(future.done, f"an answer to {request}")
+        spin_until(executor, future.done, f"an answer to {request}")
         return future.result()
 
     try:
-        wait_for(lambda: call.service_is_ready() and counts.service_is_ready(), "the launcher's operation services")
+        spin_until(executor, lambda: call.service_is_ready() and counts.service_is_ready(),
+                   "the launcher's operation services")
         # An operation of a component in the child process, with an argument: it returns the old window.
         done = answer(call, CallOperation.Request(component="avg", operation="set_window", arguments="[3]"))
         assert done.success and done.result == "4" and not done.error, done

@@ -4,15 +4,13 @@ test's node reads the QoS the launcher's entities offer and request through the 
 
 from __future__ import annotations
 
-import subprocess
-import time
 from pathlib import Path
 from typing import Any, Iterator
 
 import pytest
 
 from conftest import rclpy_peer
-from test_launcher_parameters import launcher_command, ros_env
+from test_launcher_parameters import spin_until, start_launcher
 
 DOMAIN = "43"
 APP = """<package name="qos_app">
@@ -44,24 +42,19 @@ def test_qos_override_parameters_replace_the_xmls_qos(tmp_path: Path, peer: tupl
     from rclpy.qos import ReliabilityPolicy
 
     node, executor = peer
-    app = tmp_path / "qos_app.xml"
-    app.write_text(APP)
-    process = subprocess.Popen(launcher_command(str(app), "--duration", "60", "--ros-args", "-r", "__node:=qos_under_test",
-                                                "-p", "qos_overrides./qos_out.publisher.reliability:=best_effort",
-                                                "-p", "qos_overrides./qos_out.publisher.depth:=3",
-                                                "-p", "qos_overrides./qos_in.subscription.reliability:=best_effort"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env(DOMAIN))
+    process = start_launcher(tmp_path / "qos_app.xml", APP, "--duration", "60", "--ros-args", "-r", "__node:=qos_under_test",
+                             "-p", "qos_overrides./qos_out.publisher.reliability:=best_effort",
+                             "-p", "qos_overrides./qos_out.publisher.depth:=3",
+                             "-p", "qos_overrides./qos_in.subscription.reliability:=best_effort", domain=DOMAIN)
 
     def endpoint(topic: str, publishers: bool) -> Any:
         found = (node.get_publishers_info_by_topic if publishers else node.get_subscriptions_info_by_topic)(topic)
         return next((info for info in found if info.node_name == "qos_under_test"), None)
 
     try:
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and (endpoint("/qos_out", True) is None or endpoint("/qos_in", False) is None):
-            executor.spin_once(timeout_sec=0.1)
+        spin_until(executor, lambda: endpoint("/qos_out", True) and endpoint("/qos_in", False),
+                   "the launcher's publisher and subscription")
         published, subscribed = endpoint("/qos_out", True), endpoint("/qos_in", False)
-        assert published is not None and subscribed is not None, "the launcher's entities never appeared"
         assert published.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
         assert subscribed.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
     finally:

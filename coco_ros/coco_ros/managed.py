@@ -1,0 +1,109 @@
+"""The launcher as a managed (lifecycle) node: ``launcher app.xml --managed``.
+
+ROS 2's managed nodes let a system (a launch file's lifecycle events, ``ros2 lifecycle set``, nav2's
+lifecycle manager) bring many nodes up in step: configure all, then activate all. CoCo already has
+that rule inside an application (:mod:`coco_core.lifecycle`: configure every activity of every
+process, then start them all); with ``--managed`` the lifecycle transitions drive it:
+
+=============  ==================================================================================
+transition     what the application does
+=============  ==================================================================================
+configure      every activity of every process starts and configures its components (``on_config``,
+               in its own thread); the transition ends once all have, and nothing cycles yet
+activate       the start gate opens: every activity runs (``--duration`` counts from here)
+deactivate,    a natural stop: every activity finishes its work and flushes, then the launcher ends
+cleanup,       (an application runs once: a stopped one cannot be activated again; start the
+shutdown       launcher again for that)
+=============  ==================================================================================
+
+Without ``--managed`` the launcher configures and activates at once, as before. The built
+application, its child processes and the node exist from the start (state *unconfigured*), so the
+node's parameters and services answer before ``configure``. A configure that fails (a component's
+``on_config`` raising under ``on_error="stop_app"``, a signal) answers FAILURE and the launcher
+stops. Managed hosting needs the default wait sets: with ``--executor-threads`` the activities
+would configure in the executor that serves the very transition waiting for them.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import Any
+
+from coco_core import Application
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+
+log = logging.getLogger("coco")
+
+
+class ManagedApplication:
+    """What the lifecycle transitions do to ``app`` (hosted by ``host``): see the module docstring."""
+
+    def __init__(self, app: Application, host: Any) -> None:
+        self.app = app
+        self.host = host
+        self.started = threading.Event()
+        """Set by configure once the activities started: the main thread may run the main activity."""
+        self._configured = threading.Event()
+
+    def configure(self) -> bool:
+        """Start every activity with the gate held; True once all configured, False on a stop."""
+        if self.started.is_set() or self.app.stop_requested:
+            log.error("configure: application %s %s", self.app.name,
+                      "was configured already (it runs once)" if self.started.is_set() else "is stopping")
+            return False
+        self.app.gate.hold(self._configured.set)  # all configured: tell this object, do not open
+        self.app.start()
+        self.host.start()
+        self.started.set()
+        while not self._configured.wait(0.1):
+            if self.app.stop_requested:
+                return False
+        log.info("application %s configured (every activity of every process): waiting for activate", self.app.name)
+        return True
+
+    def activate(self) -> bool:
+        if not self._configured.is_set() or self.app.stop_requested:
+            log.error("activate: application %s %s", self.app.name,
+                      "is stopping or stopped (it runs once: start the launcher again)" if self.app.stop_requested
+                      else "is not configured")
+            return False
+        self.app.gate.open()
+        return True
+
+    def end(self, transition: str) -> bool:
+        """deactivate, cleanup, shutdown: a natural stop (every activity flushes), then the launcher ends."""
+        self.app.request_stop(f"lifecycle transition {transition}")
+        return True
+
+
+class ManagedLauncherNode(LifecycleNode):
+    """The launcher's node with the lifecycle services; :attr:`managed` (set once the application is
+    built) does what each transition asks."""
+
+    def __init__(self, name: str, **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        self.managed: ManagedApplication | None = None
+
+    def _answer(self, done: bool) -> TransitionCallbackReturn:
+        return TransitionCallbackReturn.SUCCESS if done else TransitionCallbackReturn.FAILURE
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        return self._answer(self.managed is not None and self.managed.configure())
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        return self._answer(self.managed is not None and self.managed.activate())
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        return self._answer(self.managed is not None and self.managed.end("deactivate"))
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        return self._answer(self.managed is not None and self.managed.end("cleanup"))
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        return self._answer(self.managed is not None and self.managed.end("shutdown"))
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        if self.managed is not None:
+            self.managed.app.request_stop("lifecycle error", hard=True)
+        return TransitionCallbackReturn.SUCCESS
