@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 from pathlib import Path
 
 import pytest
@@ -76,3 +78,7 @@ def test_list_shows_installed_components(coco_launch: Path) -> None:
     assert "MovingAverage  (coco_core.demo.moving_average:MovingAverage)" in result.stdout
     assert "operation set_window" in result.stdout
     assert "attribute window: int = 8" in result.stdout
+    # Ports a component makes from its attributes are described too (a ROSInterface's, one per topic).
+    found = re.search(r"^ROSInterface  \(.*?(?=^\S)", result.stdout, re.M | re.S)
+    rosinterface = found.group(0) if found else ""
+    assert "ports one output per subscribe spec" in rosinterface and "JointState -> JointSample" in rosinterface

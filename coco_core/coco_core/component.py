@@ -71,6 +71,10 @@ class Component:
     is current in one thread only): its activity must then run every cycle in one thread, which a host
     that spreads callbacks over a thread pool (the ROS launcher's executor) has to honour."""
 
+    dynamic_ports: ClassVar[str] = ""
+    """Which ports ``init`` makes from the attributes (a ROSInterface's, one per topic): what
+    ``--list`` shows of a component whose ports are not all declared on its class."""
+
     _attribute_decls: ClassVar[dict[str, Attribute]] = {}
     _port_decls: ClassVar[dict[str, Port]] = {}
     _operation_decls: ClassVar[dict[str, str]] = {}

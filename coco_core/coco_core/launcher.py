@@ -84,6 +84,8 @@ def list_components() -> str:
         for port in cls._port_decls.values():
             kind = "input" if isinstance(port, InputPort) else "output"
             lines.append(f"    {kind} {port.name}: {getattr(port.type, '__name__', port.type)}  {port.doc}".rstrip())
+        if cls.dynamic_ports:
+            lines.append(f"    ports {cls.dynamic_ports}")
         for op in cls._operation_decls:
             lines.append(f"    operation {op}")
     return "\n".join(lines)

@@ -108,6 +108,11 @@ class _Route:
 class ROSInterface(Component):
     """Subscribes ROS topics into output ports and publishes input ports to ROS topics."""
 
+    dynamic_ports = ("one output per subscribe spec, one event input per publish spec, named by the spec, of the "
+                     "converter's CoCo type: JointState -> JointSample, Image -> Image, CameraInfo -> CameraIntrinsics, "
+                     "PoseStamped -> FramePose, TransformStamped -> TransformSample, PointCloud2 -> PointCloud, "
+                     "Float64 -> float, *MultiArray -> numpy array, TFMessage -> list of TransformSample")
+
     subscribe: Attribute[list[str]] = Attribute(list[str], [], f"topics received into output ports: {SYNTAX}", check=check_specs)
     publish: Attribute[list[str]] = Attribute(list[str], [], f"input (event) ports published to topics: {SYNTAX}", check=check_specs)
 
