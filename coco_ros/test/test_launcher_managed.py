@@ -14,7 +14,7 @@ from typing import Any, Iterator
 import pytest
 
 from conftest import rclpy_peer
-from test_launcher_parameters import APP, launcher_command, ros_env, spin_until, start_launcher
+from test_launcher_parameters import APP, call_service, launcher_command, ros_env, spin_until, start_launcher
 
 DOMAIN = "47"
 # The recorder in a child process: configure and activate reach every process.
@@ -44,9 +44,7 @@ def test_configure_then_activate_then_deactivate(tmp_path: Path, peer: tuple[Any
     change = node.create_client(ChangeState, "/managed_under_test/change_state")
 
     def answer(client: Any, request: Any) -> Any:
-        future = client.call_async(request)
-        spin_until(executor, future.done, f"an answer to {request}")
-        return future.result()
+        return call_service(executor, client, request)
 
     def state() -> str:
         return answer(get_state, GetState.Request()).current_state.label

@@ -85,6 +85,13 @@ def spin_until(executor: Any, condition: Callable[[], Any], what: str, seconds: 
     raise AssertionError(f"{what} never came within {seconds:g} s")
 
 
+def call_service(executor: Any, client: Any, request: Any) -> Any:
+    """The launcher's answer to ``request`` on the service ``client`` serves, the peer spinning meanwhile."""
+    future = client.call_async(request)
+    spin_until(executor, future.done, f"an answer to {request}")
+    return future.result()
+
+
 @pytest.fixture
 def app_file(tmp_path: Path) -> Path:
     path = tmp_path / "param_app.xml"

@@ -11,7 +11,7 @@ from typing import Any, Iterator
 import pytest
 
 from conftest import rclpy_peer
-from test_launcher_parameters import spin_until, start_launcher
+from test_launcher_parameters import call_service, spin_until, start_launcher
 
 DOMAIN = "46"
 APP = """<package name="ops_app">
@@ -58,9 +58,7 @@ def test_operations_are_services_of_the_launchers_node(tmp_path: Path, peer: tup
     counts = node.create_client(Trigger, "/ops_under_test/bridge/counts")
 
     def answer(client: Any, request: Any) -> Any:
-        future = client.call_async(request)
-        spin_until(executor, future.done, f"an answer to {request}")
-        return future.result()
+        return call_service(executor, client, request)
 
     try:
         spin_until(executor, lambda: call.service_is_ready() and counts.service_is_ready(),
