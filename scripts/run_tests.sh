@@ -10,6 +10,9 @@ source "$ROOT/scripts/setup.sh"
 cd "$ROOT"
 
 export PYTEST_ADDOPTS="--timeout=300 ${PYTEST_ADDOPTS:-}"
+# Fast DDS segments that ROS processes killed by an earlier run left in /dev/shm: an abandoned port
+# makes every later participant on it hang while it is created (coco_ros/fastdds_segments.py).
+python -m coco_ros.fastdds_segments
 LOGS="build/test_logs"
 rm -rf build/*/pytest.xml build/workspace_tests build/workspace_apps "$LOGS"
 mkdir -p build/workspace_tests build/workspace_apps "$LOGS"

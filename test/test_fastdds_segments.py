@@ -72,3 +72,30 @@ def test_the_next_launcher_removes_what_a_killed_launcher_left_and_no_living_pai
                 except subprocess.TimeoutExpired:
                     process.kill()
                     process.communicate()
+
+
+def test_abandoned_ports_are_removed_and_live_ones_kept(tmp_path: Path) -> None:
+    """A port segment left without a lock file, or with one nobody holds, made every later participant
+    on that port hang in create_node; the test command removes such ports before its suites."""
+    import fcntl
+
+    from coco_ros.fastdds_segments import remove_abandoned_ports
+
+    for port in ("7001", "7002", "7003", "7004"):
+        (tmp_path / f"fastrtps_port{port}").write_bytes(b"\0" * 64)
+        (tmp_path / f"sem.fastrtps_port{port}_mutex").write_bytes(b"\0" * 32)
+    for port in ("7002", "7003", "7004"):
+        (tmp_path / f"fastrtps_port{port}_el").touch()
+    old = time.time() - 60
+    for path in tmp_path.iterdir():
+        if "7004" not in path.name:  # 7004: just made, within the grace period
+            os.utime(path, (old, old))
+    held = os.open(tmp_path / "fastrtps_port7003_el", os.O_RDONLY)
+    fcntl.flock(held, fcntl.LOCK_EX)  # 7003: its listener lives
+    try:
+        assert remove_abandoned_ports(folder=tmp_path) == ["fastrtps_port7001", "fastrtps_port7002"]
+    finally:
+        os.close(held)
+    assert sorted(path.name for path in tmp_path.iterdir()) == [
+        "fastrtps_port7003", "fastrtps_port7003_el", "fastrtps_port7004", "fastrtps_port7004_el",
+        "sem.fastrtps_port7003_mutex", "sem.fastrtps_port7004_mutex"]
