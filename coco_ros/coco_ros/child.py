@@ -16,7 +16,7 @@ from coco_core.processes.child import ChildProcess, main
 
 from .hosting import ExecutorHost
 from .launcher import node_name, run_hosted
-from .parameters import ArgParameters, given_parameters
+from .parameters import ArgParameters
 from .rosout import RosoutLogging
 
 
@@ -51,9 +51,9 @@ class RosChildProcess(ChildProcess):
         node = None
         try:
             node = Node(f"{config['node']}_{node_name(app.process)}", automatically_declare_parameters_from_overrides=True)
-            # The launcher resolved the args (its -p values included): a child's node shows them and
-            # refuses changes as the launcher's does.
-            ArgParameters(node, config["spec"]).declare(given_parameters(node))
+            # The launcher resolved the args (its -p values included) and reported the -p values no arg
+            # takes: a child's node shows the args and refuses changes as the launcher's does.
+            ArgParameters(node, config["spec"]).declare({})
             host = ExecutorHost(node, app, config["threads"], config["all_threads"])
             executor = host.create_executor()
             executor.add_node(node)

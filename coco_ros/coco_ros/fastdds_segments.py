@@ -48,24 +48,18 @@ def remove_abandoned(grace: float = GRACE, folder: Path = SHM_DIR) -> list[str]:
         if not _PARTICIPANT.fullmatch(name):
             continue
         try:
-            descriptor = os.open(lock_file, os.O_RDONLY | os.O_CLOEXEC)
+            if now - lock_file.stat().st_mtime < grace:
+                continue
         except OSError:
             continue
+        if not _unheld(lock_file):  # held: its participant lives
+            continue
         try:
-            if now - os.fstat(descriptor).st_mtime < grace:
-                continue
-            try:
-                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:  # held: its participant lives
-                continue
-            try:
-                (folder / name).unlink(missing_ok=True)
-                lock_file.unlink(missing_ok=True)
-            except OSError:
-                continue
-            removed.append(name)
-        finally:
-            os.close(descriptor)
+            (folder / name).unlink(missing_ok=True)
+            lock_file.unlink(missing_ok=True)
+        except OSError:
+            continue
+        removed.append(name)
     return removed
 
 

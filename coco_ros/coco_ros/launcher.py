@@ -291,7 +291,7 @@ def run_hosted(app: Application, host: ExecutorHost, executor: object, duration:
             host.start()
         spinner.start()
         if managed is not None:
-            started = _wait_for_configure(app, managed)
+            started = managed.wait_started()
         if started:
             if duration is not None:
                 timer = app.stop_after(duration)
@@ -305,15 +305,6 @@ def run_hosted(app: Application, host: ExecutorHost, executor: object, duration:
         clean = app.stop() if started else True  # the executor still spins: hosted activities finish in their groups
         spinner.stop()  # then the node is destroyed and rclpy shut down
     return clean
-
-
-def _wait_for_configure(app: Application, managed: ManagedApplication) -> bool:
-    """Managed: wait here, in the main thread (the main activity's), until the configure transition
-    started the application; False when a stop came first."""
-    while not managed.started.wait(0.1):
-        if app.stop_requested:
-            return False
-    return True
 
 
 def main(argv: Sequence[str] | None = None, signals: LaunchSignals | None = None) -> int:

@@ -56,10 +56,21 @@ class ManagedApplication:
         self.app.start()
         self.host.start()
         self.started.set()
-        while not self._configured.wait(0.1):
+        if not self._until(self._configured):
+            return False
+        log.info("application %s configured (every activity of every process): waiting for activate", self.app.name)
+        return True
+
+    def wait_started(self) -> bool:
+        """Wait (the launcher's main thread, the main activity's) until configure started the
+        application; False when a stop came first."""
+        return self._until(self.started)
+
+    def _until(self, event: threading.Event) -> bool:
+        """Wait for ``event``, or a stop of the application (then False)."""
+        while not event.wait(0.1):
             if self.app.stop_requested:
                 return False
-        log.info("application %s configured (every activity of every process): waiting for activate", self.app.name)
         return True
 
     def activate(self) -> bool:
