@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -194,19 +195,22 @@ def test_log_lines_reach_rosout_with_their_severity_and_each_processs_node_name(
         '<activity name="recording">', '<process name="worker"><activity name="recording">').replace(
         '<components><component name="rec"/></components></activity>',
         '<components><component name="rec"/></components></activity></process>'))
-    process = subprocess.Popen(launcher_command(str(in_process), f"output:={tmp_path / 'rows.csv'}", "--duration", "2",
-                                                "--ros-args", "-p", "gian:=3", "-r", "__node:=logs_under_test"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ros_env())
+    process = start_launcher(in_process, in_process.read_text(), f"output:={tmp_path / 'rows.csv'}", "--duration", "60",
+                             "--ros-args", "-p", "gian:=3", "-r", "__node:=logs_under_test", domain=DOMAIN)
 
     def names() -> set[str]:
         return {message.name for message in received}
 
+    def worker_publishes() -> bool:
+        return any(info.node_name == "logs_under_test_worker" for info in node.get_publishers_info_by_topic("/rosout"))
+
     try:
-        deadline = time.monotonic() + 40
-        while time.monotonic() < deadline and not (
-                "logs_under_test.coco.parameters" in names() and "logs_under_test.coco" in names()
-                and any(name.startswith("logs_under_test_worker.") for name in names())):
-            executor.spin_once(timeout_sec=0.1)
+        spin_until(executor, lambda: "logs_under_test.coco.parameters" in names() and worker_publishes(),
+                   "the launcher's warning and the child's /rosout publisher")
+        # The child's lines come when the application stops: stop it once both ends know each other.
+        process.send_signal(signal.SIGINT)
+        spin_until(executor, lambda: any(name.startswith("logs_under_test_worker.") for name in names()),
+                   "the child's log lines")
     finally:
         out, _ = process.communicate(timeout=30)
     assert process.returncode == 0, out
