@@ -55,6 +55,17 @@ def start_launcher(script: Path, *args: str) -> subprocess.Popen[str]:
                             text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
 
 
+def activity_cycles(report: str, process: str, activity: str) -> int:
+    """The cycles an activity ran, from the profile's activity table (``process activity schedule cycles ...``).
+
+    Tests count what a run produced against this instead of against wall time: how many cycles a
+    periodic activity gets depends on the machine's load, what each cycle must produce does not."""
+    pattern = rf"^{re.escape(process)}\s+{re.escape(activity)}\s+(?:periodic [0-9.]+ m?s|triggered)\s+(\d+)\s"
+    match = re.search(pattern, report, re.M)
+    assert match, f"no activity {activity} of process {process} in the profile:\n{report}"
+    return int(match.group(1))
+
+
 DEMO_APP = "config/demo_pipeline.xml"
 
 

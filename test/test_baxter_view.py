@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import ROOT, run_launcher
+from conftest import ROOT, activity_cycles, run_launcher
 from test_baxter_app import APP
 
 cv2 = pytest.importorskip("cv2", reason="the recorded frames are decoded with OpenCV")
@@ -78,8 +78,11 @@ def test_view_renders_the_session(coco_launch: Path, session, tmp_path: Path) ->
         assert connection in result.stdout, result.stdout
 
     frames = read_video(output / "frames.mp4")
-    duration = info.duration
-    assert 0.5 * duration / PERIOD <= len(frames) <= duration / PERIOD + 40, len(frames)  # 20 Hz, some skipped
+    # One frame a cycle of the display (20 Hz at most; a loaded machine renders fewer, counted as
+    # overruns), every one of them in the video.
+    cycles = activity_cycles(result.stdout, "view", "display")
+    assert len(frames) == cycles, (len(frames), result.stdout)
+    assert 20 <= len(frames) <= info.duration / PERIOD + 40, len(frames)
     assert all(frame.shape == (HEIGHT, WIDTH, 3) for frame in frames)
     sheet = cv2.imread(str(output / "contact_sheet.png"))
     assert sheet is not None and sheet.shape[0] > 200 and sheet.shape[1] > 400, "no readable contact sheet"
@@ -115,7 +118,8 @@ def test_view_renders_the_session(coco_launch: Path, session, tmp_path: Path) ->
     held = int(np.argmax(green[reached:] <= 0.9)) or len(green) - reached
     closing = info.grasp_time - summary["grasp_time"]
     assert closing > 0.6, (summary, info.grasp_time)
-    assert held * PERIOD >= 0.5 * closing, f"green for {held} frames only, the grasp takes {closing:.2f} s"
+    interval = max(PERIOD, info.duration / len(frames))  # a loaded machine renders less often
+    assert held * interval >= 0.5 * closing, f"green for {held} frames only, the grasp takes {closing:.2f} s"
     assert green[-1] < 0.6, f"the bowl did not leave its place: {green[-1]:.2f}"
 
 

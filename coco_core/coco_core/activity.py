@@ -63,6 +63,10 @@ class Activity:
         self._ops: deque[Callable[[], None]] = deque()
         self._driver: Driver = MainThreadDriver() if main else ThreadDriver()
         self._stopping = False
+        self._drain = False
+        """Whether the stop is natural and this activity's feeders have finished: see :meth:`stop`."""
+        self._configured = False
+        """Whether :meth:`configure` configured every component (no stop came first)."""
         self._started = False
         self._finished = threading.Event()
         self.failure = ""
@@ -178,6 +182,7 @@ class Activity:
         for component in self.components:
             if not self._stopping:
                 component.configure()
+        self._configured = not self._stopping
         if self.gate is None:
             self._may_run.set()
         else:
@@ -215,7 +220,10 @@ class Activity:
         self.stats.cycles += 1
 
     def finish(self) -> None:
-        """Run what was queued, stop the components (``on_stop``) and mark the activity finished."""
+        """Run the cycles that the data waiting on its event inputs asks for (a natural stop only,
+        see :meth:`stop`), run what was queued, stop the components (``on_stop``) and mark the
+        activity finished."""
+        self._drain_inputs()
         self._run_pending()
         for component in self.components:
             component.stop()
@@ -231,6 +239,23 @@ class Activity:
         apps = {id(component.app): component.app for component in self.components if component.app is not None}
         for app in apps.values():
             app.request_stop(f"activity {self.name} failed: {self.failure}")
+
+    def _drain_inputs(self) -> None:
+        """After a natural stop, cycle while data waits on the connections that wake this activity:
+        the last values its feeders wrote before they finished (the last frame a display rendered,
+        for its writer) are processed instead of being left pending. Stops when a cycle takes none
+        (a component that does not read its input) and as soon as the stop becomes hard."""
+        if not (self.wakes_on_data and self._drain and self._configured):
+            return
+        triggering = [connection for component in self.components for member in component.walk()
+                      for port in member.inputs.values() for connection in port.triggering]
+        waiting = sum(connection.pending for connection in triggering)
+        while waiting and self._drain:
+            self.cycle()
+            left = sum(connection.pending for connection in triggering)
+            if left >= waiting:
+                break
+            waiting = left
 
     def _run_pending(self) -> None:
         ops = self._ops
@@ -253,8 +278,13 @@ class Activity:
         """Ask a triggered activity for one more cycle (what event ports call on new data)."""
         self._driver.wake()
 
-    def stop(self) -> None:
-        """Ask the activity to finish its current cycle and stop; returns at once."""
+    def stop(self, drain: bool = False) -> None:
+        """Ask the activity to finish its current cycle and stop; returns at once.
+
+        ``drain``: the stop is natural and every activity of this process that feeds this one has
+        finished, so nothing more will come: a triggered activity first processes what waits on its
+        event inputs (:meth:`finish`). A later call without it (the stop became hard) cancels that."""
+        self._drain = drain
         self._stopping = True
         self._may_run.set()  # an activity waiting for the start gate finishes instead
         self._driver.stop()

@@ -300,8 +300,14 @@ class Application:
             log.info("stopping application %s: %s", self.name, reason)
         self._stop_requested.set()
         self.gate.open()  # nothing waits for a start that will not come
-        for activity in self.activities.values():
-            activity.stop()
+        if self.stop_is_hard:
+            for activity in self.activities.values():
+                activity.stop()
+        else:  # the others once their feeders have finished (stop)
+            order, fed = self.stop_order()
+            for activity in order:
+                if activity.name not in fed:
+                    activity.stop(drain=True)
         if first:
             for listener in self._stop_listeners:
                 listener(reason)
@@ -310,6 +316,36 @@ class Application:
         """Call ``listener(reason)`` once, when a stop is first requested (the process level tells the
         other processes of the application)."""
         self._stop_listeners.append(listener)
+
+    def stop_order(self) -> tuple[list[Activity], set[str]]:
+        """The order in which a natural stop stops the activities, feeders first, and the names of
+        those that wait for their feeders: an activity is *fed* by another of this process when a
+        component of the other writes to one of its components. A triggered activity stopped with
+        its feeders still running would leave their last values pending (the last frame a display
+        rendered, for the writer that records it); stopped after them, it drains what waits
+        (:meth:`Activity.stop`). Activities on a cycle of feeders do not wait for each other, nor does
+        the main activity (the thread that runs it is the one that stops the others); feeders in
+        other processes are not known here (each process orders its own part)."""
+        activities = list(self.activities.values())
+        known = {id(activity) for activity in activities}
+        feeders: dict[str, set[str]] = {activity.name: set() for activity in activities}
+        for connection in self.connections:
+            source, sink = connection.source, connection.sink
+            writer = source.owner.activity if source is not None and source.owner is not None else None
+            reader = sink.owner.activity if sink is not None and sink.owner is not None else None
+            if writer is not None and reader is not None and writer is not reader and {id(writer), id(reader)} <= known:
+                feeders[reader.name].add(writer.name)
+        order: list[Activity] = []
+        placed: set[str] = set()
+        while True:
+            ready = [a for a in activities if a.name not in placed and feeders[a.name] <= placed]
+            if not ready:
+                break
+            order += ready
+            placed.update(a.name for a in ready)
+        fed = {a.name for a in order if feeders[a.name] and not a.main}  # main: it holds the thread that stops
+        order += [a for a in activities if a.name not in placed]  # on a cycle: stopped at once
+        return order, fed
 
     def in_flight(self, besides: Activity | None = None) -> bool:
         """Whether data is still moving through the application: an activity (other than ``besides``,
@@ -352,7 +388,10 @@ class Application:
         self.request_stop(self.stop_reason or "stop requested")
         begun = time.monotonic()
         clean = True
-        for activity in self.activities.values():
+        order, fed = self.stop_order()
+        for activity in order:  # feeders first: every feeder of an activity has finished when it stops
+            if activity.name in fed and not self.stop_is_hard:
+                activity.stop(drain=True)
             if self.progress.wait(activity.join, lambda: self.stop_deadline(begun, timeout)):
                 self.progress.advance()
                 continue

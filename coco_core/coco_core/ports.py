@@ -196,6 +196,11 @@ class InputPort(Port):
         """Whether any connection into this port wakes the component's activity."""
         return bool(self._triggering)
 
+    @property
+    def triggering(self) -> list[Connection]:
+        """The connections into this port whose writes wake the component's activity."""
+        return list(self._triggering)
+
     def read(self) -> tuple[ReadStatus, Any]:
         """``(NEW_DATA, value)``, ``(OLD_DATA, last value)`` or ``(NO_DATA, None)``; never blocks.
 
