@@ -68,6 +68,6 @@ def test_a_recording_without_the_marker_at_rest_fails_clearly(coco_launch, tmp_p
     a non-zero exit that says why."""
     poses = tmp_path / "poses.csv"
     poses.write_text("left_s0,left_s1,left_e1,left_w1,left_w2\n0.30,-0.30,1.50,0.80,0.00\n0.15,-0.20,1.40,0.90,0.30\n")
-    result = run_launcher(coco_launch, APP, f"poses:={poses}", "hold:=0.05", f"output:={tmp_path}", timeout=120)
+    result = run_launcher(coco_launch, APP, f"poses:={poses}", "hold:=0.05", "rest_frames:=0", f"output:={tmp_path}", timeout=120)
     assert result.returncode == 1, result.stdout + result.stderr
     assert "nothing registered" in result.stderr and not (tmp_path / "registration.json").exists()

@@ -299,8 +299,9 @@ class Application:
             self._stop_requested_at = time.monotonic()
             log.info("stopping application %s: %s", self.name, reason)
         self._stop_requested.set()
+        running = self.gate.is_open  # before it: no cycle ran, nothing to drain, nothing configures
         self.gate.open()  # nothing waits for a start that will not come
-        if self.stop_is_hard:
+        if self.stop_is_hard or not running:
             for activity in self.activities.values():
                 activity.stop()
         else:  # the others once their feeders have finished (stop)
@@ -390,7 +391,7 @@ class Application:
         clean = True
         order, fed = self.stop_order()
         for activity in order:  # feeders first: every feeder of an activity has finished when it stops
-            if activity.name in fed and not self.stop_is_hard:
+            if activity.name in fed and not activity.stopping:
                 activity.stop(drain=True)
             if self.progress.wait(activity.join, lambda: self.stop_deadline(begun, timeout)):
                 self.progress.advance()

@@ -93,6 +93,11 @@ class StartGate:
         for callback in callbacks:
             callback()
 
+    @property
+    def is_open(self) -> bool:
+        """Whether the activities may cycle (see :meth:`open`)."""
+        return self._opened.is_set()
+
     def when_open(self, callback: Callable[[], None]) -> None:
         """Call ``callback`` when the gate opens (now, if it is open)."""
         with self._lock:

@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from coco_core import Application, Component, InputPort
+from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort, SyncPolicy
 from coco_core.errors import ConfigError
 from coco_core.transforms.joint_sequence import JointSequence, read_poses
 from coco_core.transforms.samples import JointSample
@@ -75,3 +75,37 @@ def test_poses_that_are_no_regular_file_are_refused_naming_the_attribute():
         JointSequence("arm", poses="/dev/zero").init()
     assert str(raised.value) == ("attribute arm.poses: poses file /dev/zero is a character device, not a regular "
                                  "file; expected a CSV file: a header of joint names, one pose per row")
+
+
+class Measurement(Component):
+    """What measures the poses: one value per call of ``measure`` (a tracker's detections)."""
+
+    out = OutputPort(object)
+
+    def measure(self) -> None:
+        self.out.write("detections")
+
+
+def test_with_frames_a_pose_waits_for_the_measurement_however_long_the_clock_says(tmp_path):
+    """A loaded machine: the measurement lags far behind the clock; each pose is still held until it
+    was measured ``frames`` times (and for ``hold`` seconds)."""
+    path = tmp_path / "poses.csv"
+    path.write_text("j1\n1\n2\n")
+    app = Application("paced")
+    arm = app.add(JointSequence("arm", poses=str(path), hold=0.01, frames=3, stop_at_end=True))
+    sink = app.add(Joints("sink"))
+    camera = app.add(Measurement("camera"))
+    app.connect(arm.joints, sink.joints)
+    app.connect(camera.out, arm.seen, ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 16))
+    poses = []
+    for cycle in range(40):  # the clock alone would have ended the sequence long before
+        if cycle % 5 == 4:
+            camera.measure()  # one measurement every five updates
+        time.sleep(0.012)
+        arm.on_update()
+        poses.append(arm.pose)
+        if app.stop_reason:
+            break
+    assert "the last of 2 poses was held" in app.stop_reason
+    # Pose 0 for the first three measurements (15 updates), pose 1 for the next three.
+    assert poses.count(0) >= 14 and poses.count(1) >= 14, poses

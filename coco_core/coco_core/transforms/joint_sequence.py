@@ -7,6 +7,13 @@ publisher at once: every update writes the current pose (a real robot publishes 
 continuously, whether it moves or not), and the pose changes every ``hold`` seconds. At the end it
 keeps the last pose, or stops the application (``stop_at_end``).
 
+What measures a pose may lag behind the wall clock: a software-rendered camera on a loaded machine
+takes one frame where a quiet one takes five, and a pose held a fixed time then gives it too few
+frames to see the arm at rest. With ``frames`` and the ``seen`` input connected to what the
+measurement produces (a marker tracker's detections, one per processed image), a pose is held
+``hold`` seconds *and* until ``frames`` values arrived on ``seen`` since it began, so the sequence
+paces itself by the measurement instead of by the clock.
+
 The poses are a CSV file: a header of joint names, one pose per row (radians or metres), ``#``
 comments. A joint the rows do not name keeps its value in the graph.
 """
@@ -24,7 +31,7 @@ from ..attributes import Attribute
 from ..component import Component
 from ..errors import ConfigError, Location
 from ..files import DATA_FILE_LIMIT, read_regular_file
-from ..ports import OutputPort
+from ..ports import InputPort, OutputPort
 from .samples import JointSample
 
 def read_poses(path: Path) -> tuple[tuple[str, ...], np.ndarray]:
@@ -60,8 +67,11 @@ class JointSequence(Component):
     poses = Attribute(Path, Path(""), "CSV file: a header of joint names, one pose per row")
     hold = Attribute(float, 1.0, "seconds each pose is held", min=1e-3)
     stop_at_end = Attribute(bool, False, "request the application stop once the last pose was held")
+    frames = Attribute(int, 0, "values that must arrive on `seen` during each pose before the next (0: the clock "
+                       "alone)", min=0)
 
     joints = OutputPort(JointSample, "the current pose, every update (stamped with the wall clock)")
+    seen = InputPort(object, doc="what measures the poses (e.g. marker detections): counted against `frames`")
 
     def init(self) -> None:
         if str(self.poses) in ("", "."):
@@ -70,17 +80,22 @@ class JointSequence(Component):
             self.names, self.values = read_poses(self.poses)
         self.pose = 0
         """Index of the pose being held."""
-        self._started: float | None = None
+        self._since: float | None = None
+        """When the pose being held began (None before the first update)."""
+        self._seen = 0
+        """Values read on ``seen`` since then."""
 
     def on_update(self) -> None:
         now = time.time()
-        if self._started is None:
-            self._started = now
-        index = int((now - self._started) / self.hold)
-        if index >= len(self.values):
+        self._seen += len(self.seen.read_all())
+        if self._since is None:
+            self._since = now
+        elif now - self._since >= self.hold and self._seen >= self.frames and self.pose < len(self.values):
+            self.pose += 1
+            self._since, self._seen = now, 0
+        if self.pose >= len(self.values):
             if self.stop_at_end and self.app is not None:
                 self.app.request_stop(f"{self.name}: the last of {len(self.values)} poses was held")
                 return
-            index = len(self.values) - 1
-        self.pose = index
-        self.joints.write(JointSample(self.names, self.values[index].copy(), now))
+            self.pose = len(self.values) - 1  # kept from now on
+        self.joints.write(JointSample(self.names, self.values[self.pose].copy(), now))
