@@ -32,13 +32,13 @@ from __future__ import annotations
 import csv
 import json
 import math
-import statistics
 import time
 from pathlib import Path
 from typing import IO, Any
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.histogram import DurationHistogram
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
 from coco_core.stamps import Stamped, unstamped
@@ -51,14 +51,14 @@ def _finite(value: float) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
 
 
-def _milliseconds(seconds: list[float]) -> dict[str, Any]:
-    """Count, mean, median, 90th percentile and max in milliseconds (nulls when empty)."""
-    if not seconds:
+def _milliseconds(seconds: DurationHistogram) -> dict[str, Any]:
+    """Count, mean, median, 90th percentile and max in milliseconds (nulls when empty; the quantiles
+    to the histogram's 0.5 %)."""
+    if not seconds.count:
         return {"frames": 0, "mean": None, "median": None, "p90": None, "max": None}
-    ordered = sorted(seconds)
-    return {"frames": len(seconds), "mean": statistics.fmean(seconds) * 1e3,
-            "median": statistics.median(seconds) * 1e3, "p90": ordered[int(0.9 * (len(ordered) - 1))] * 1e3,
-            "max": ordered[-1] * 1e3}
+    return {"frames": seconds.count, "mean": seconds.total / seconds.count * 1e3,
+            "median": seconds.quantile(0.5) * 1e3, "p90": seconds.quantile(0.9) * 1e3,
+            "max": seconds.max * 1e3}
 
 
 class TeleopSummary(Component):
@@ -90,8 +90,9 @@ class TeleopSummary(Component):
         self._min = (math.inf, math.nan)
         self._final = math.nan
         self._grasp: float | None = None
-        self._latencies: list[float] = []
-        self._display: list[float] = []
+        self._latency_total, self._latency_max = 0.0, -math.inf  # over self.rows samples
+        self._display = DurationHistogram()
+        """Sensor-to-display latencies: a histogram, so that a run of any length keeps its size."""
         self._bowl: FramePose | None = None
         self._target: FramePose | None = None
 
@@ -104,7 +105,8 @@ class TeleopSummary(Component):
             self._colors[sample.stamp.seq] = sample.value
         for sample in self.bag_time.read_all():
             self._times[sample.stamp.seq] = sample.value
-        self._display.extend(float(sample.value) for sample in self.display_latency.read_all())
+        for sample in self.display_latency.read_all():
+            self._display.record(max(float(sample.value), 0.0))
         for port, attr in ((self.bowl, "_bowl"), (self.target, "_target")):
             status, value = port.read_newest()  # only the last pose matters; older ones count as dropped
             if status is NEW_DATA:
@@ -133,7 +135,8 @@ class TeleopSummary(Component):
         self._writer.writerow([sample.stamp.seq, f"{t:.4f}", f"{distance:.6f}",
                                *(f"{c:.4f}" for c in color), f"{latency * 1e3:.3f}"])
         self.record_latency(sample.stamp)
-        self._latencies.append(latency)
+        self._latency_total += latency
+        self._latency_max = max(self._latency_max, latency)
         self.rows += 1
         self._final = distance
         if distance < self._min[0]:
@@ -145,7 +148,6 @@ class TeleopSummary(Component):
         bowl_target = None
         if self._bowl is not None and self._target is not None:
             bowl_target = frame_distance(self._bowl, self._target)
-        lat = self._latencies
         return {
             "samples": self.rows,
             "min_distance": _finite(self._min[0]),
@@ -155,8 +157,8 @@ class TeleopSummary(Component):
             "near": self.near,
             "time_origin": self._origin,
             "final_bowl_target_distance": bowl_target,
-            "latency_ms": {"mean": sum(lat) / len(lat) * 1e3 if lat else None,
-                           "max": max(lat) * 1e3 if lat else None},
+            "latency_ms": {"mean": self._latency_total / self.rows * 1e3 if self.rows else None,
+                           "max": self._latency_max * 1e3 if self.rows else None},
             "display_latency_ms": _milliseconds(self._display),
             "csv": str(self.csv),
             "input_damage": list(self.app.damage) if self.app is not None else [],
