@@ -188,3 +188,19 @@ def test_the_touch_on_the_marker_registers_the_hand_tracker(session, tmp_path):
     never.configure()
     never.stop()
     assert any("nothing registered" in damage for damage in app.damage)
+
+
+def test_the_hand_never_jumps():
+    """Each phase starts where the last one left the hand: a press ended 2 cm over its point but the
+    next press (and the stroke) started from the previous press's bottom, 8 mm inside the body, so
+    the hand jumped 3 cm down and slid inside the body from one press to the next (the palpation
+    app's device then slid over the belly between the presses instead of lifting)."""
+    plan = hand_plan(DURATION)
+    times = np.arange(0.0, DURATION, 1e-3)
+    path = np.array([hand_at(plan, t) for t in times])
+    steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    assert steps.max() < 2e-3, f"a jump of {steps.max() * 1e3:.1f} mm at {times[int(np.argmax(steps))]:.3f} s"
+    for name, start, end, *_ in plan:
+        if name.startswith("press"):  # lifted off the body between two presses
+            at = hand_at(plan, start)
+            assert at[2] > belly_height(at[0], at[1]) + 0.01, (name, at)
