@@ -182,7 +182,12 @@ def test_the_touch_on_the_marker_registers_the_hand_tracker(session, tmp_path):
     # error against the truth is bounded by the marker's depth error (2 % of 1 m, see above).
     assert registration.rms < 3e-3
     assert np.linalg.norm(registration.installed[:3, 3] - truth[:3, 3]) < 0.025
-    assert json.loads((tmp_path / "touch.json").read_text())["residual_m"] == pytest.approx(registration.rms)
+    report = json.loads((tmp_path / "touch.json").read_text())
+    assert report["residual_m"] == pytest.approx(registration.rms)
+    # When, in the recording's time: the newest detection sampled, once the hand had rested, at the
+    # latest the message that completed the samples.
+    assert report["stamp"] == registration.installed_stamp
+    assert start + touch[1] + registration.still_time <= report["stamp"] <= start + installed_at + 1e-6
     never = TouchRegistration("never", marker_id=MARKER_ID)
     app.add(never)
     never.configure()
