@@ -20,10 +20,12 @@ APP = ROOT / "config" / "palpation_replay.xml"
 DURATION = 4.5
 """The shortest session palpation-session makes: every phase, in a short test."""
 
-BEHIND_BOUND = 3e-3
+BEHIND_BOUND = 5e-3
 """m: how far the proxy may be behind the true surface of the body. The proxy lies on the surface
 reconstructed from the sensor's depth, whose steps are ~3 mm at the body's 0.9 m, with a third of a
-step of noise; measured: under 1 mm."""
+step of noise: measured under 1.5 mm in most runs, 3.5 mm in one sample of one run (the device
+free, above the reconstructed surface where it lies lowest). A device through the body would be
+as deep as the hand: 8 mm in the presses."""
 
 RESIDUAL_BOUND = 3e-3
 """m: the calibration touch's RMS residual (the marker's detections against the touch mapped by the
@@ -35,7 +37,8 @@ PLACES = ("press_1", "press_2", "press_3", "stroke")
 JOIN_DELAY = 0.3
 """s from the detection that completes the registration (its stamp, the recording's time) to the
 haptic loop rendering with it: the detection's way through the tracker, the registration's edge to
-the haptic process, and the hand's replay and the camera's each paced by a clock of its own."""
+the haptic process, and the hand's replay and the camera's each paced by a clock of its own (with
+the hand at half speed, the hand reaches a stamp well after the camera)."""
 
 
 def free_port() -> int:
@@ -56,8 +59,15 @@ def palpation_session(tmp_path_factory) -> Path:
     return folder
 
 
+HAND_RATE = 0.5
+"""The hand replayed at half speed (the camera keeps its own: the body does not move). These tests
+check where the device touches the body, not how a loaded 2-core machine keeps up with five
+processes: there, at full speed, the hand's replay (which decompresses every camera chunk of the
+bag to find the hand's poses) stalled for over a second at times and a press went by untouched."""
+
+
 def run_app(coco_launch: Path, app: Path, bag: Path, output: Path, *args: str):
-    result = run_launcher(coco_launch, str(app), f"bag:={bag}", f"output:={output}",
+    result = run_launcher(coco_launch, str(app), f"bag:={bag}", f"output:={output}", f"rate:={HAND_RATE}",
                           f"stream:=tcp://127.0.0.1:{free_port()}", *args, "--profile", "100", "--duration", "60",
                           timeout=240)
     assert result.returncode == 0, result.stderr[-6000:]
