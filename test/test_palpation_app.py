@@ -164,13 +164,19 @@ def test_palpation_app_end_to_end(coco_launch: Path, palpation_session: Path, tm
     assert summary["stream"]["frames"] >= 10, summary
     assert summary["input_damage"] == []
 
-    # The view: one video frame per display cycle, and a contact sheet.
+    # The view: one video frame per display cycle, and a contact sheet; the hand (the only saturated
+    # colour in the scene) green out of contact, redder in it (OpenCV hues: green 60, yellow 30, red 0).
     cv2 = pytest.importorskip("cv2", reason="the recorded frames are decoded with OpenCV")
     capture = cv2.VideoCapture(str(output / "frames.mp4"))
-    frames = 0
-    while capture.read()[0]:
+    frames, hues = 0, []
+    while (frame := capture.read())[0]:
         frames += 1
+        hsv = cv2.cvtColor(frame[1], cv2.COLOR_BGR2HSV)
+        hand = (hsv[:, :, 1] > 150) & (hsv[:, :, 2] > 120)
+        if hand.sum() > 500:
+            hues.append(float(np.median(hsv[:, :, 0][hand])))
     assert frames == activity_cycles(report, "view", "display") >= 3, frames
+    assert hues and max(hues) >= 55 and min(hues) <= 48, hues
     assert (output / "contact_sheet.png").stat().st_size > 0
 
 
