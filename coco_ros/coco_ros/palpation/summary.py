@@ -33,6 +33,8 @@ from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.ports import InputPort
 from coco_core.stamps import Stamped, unstamped
+from coco_mr_haptics.cloud import CloudStructure
+from coco_mr_haptics.types import HapticSample
 
 
 def _stats_ms(seconds: list[float]) -> dict[str, float | None]:
@@ -50,9 +52,9 @@ class PalpationSummary(Component):
     period = Attribute(float, 0.001, "s: the haptic loop's nominal period (its period error is measured against it)",
                        min=1e-6)
 
-    samples = InputPort(object, doc="HapticRenderer.sample (HapticSample), through a BUFFER connection")
-    structures = InputPort(object, event=True, doc="KDTreeBuilder.structure (CloudStructure), through a BUFFER connection")
-    frames = InputPort(Stamped | object, event=True, doc="StreamingReceiver.rgbd: Stamped frames with the server's sequence numbers")
+    samples = InputPort(HapticSample, doc="HapticRenderer.sample, through a BUFFER connection")
+    structures = InputPort(CloudStructure, event=True, doc="KDTreeBuilder.structure, through a BUFFER connection")
+    frames = InputPort(Stamped, event=True, doc="StreamingReceiver.rgbd: frames stamped with the server's sequence numbers")
     residual = InputPort(float, doc="TouchRegistration.residual (m)")
 
     def on_config(self) -> None:
