@@ -55,6 +55,7 @@ setup(
             "TFBridge = coco_ros.tf.bridge:TFBridge",
             "EndEffectorDistance = coco_ros.teleop.distance:EndEffectorDistance",
             "TeleopSummary = coco_ros.teleop.summary:TeleopSummary",
+            "PalpationSummary = coco_ros.palpation.summary:PalpationSummary",
             "ROSHapticDevice = coco_ros.haptics.device:ROSHapticDevice",
         ],
     },

@@ -221,6 +221,8 @@ class HapticRenderer(Component):
     device = InputPort(HapticDeviceState, doc="the device's state (workspace frame)")
     force = OutputPort(HapticForce, doc="the force on the device (workspace frame)")
     sample = OutputPort(HapticSample, doc="one record per cycle, in the render frame (for HapticRecorder)")
+    penetration = OutputPort(float, "m: how deep the device is inside the surfaces this cycle (0 out of contact): "
+                             "what a display colours the hand by (UpdateColor.value)")
 
     def on_config(self) -> None:
         self.renderers = [peer for peer in self.peers if isinstance(peer, SurfaceRenderer)]
@@ -296,3 +298,4 @@ class HapticRenderer(Component):
         self.force.write(HapticForce(out, state.stamp))
         self.sample.write(HapticSample(time.perf_counter(), (x, y, z), proxy, (fx, fy, fz), bool(touching),
                                        touching, depth, unready, fault))
+        self.penetration.write(depth)

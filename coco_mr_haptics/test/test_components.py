@@ -330,3 +330,28 @@ def test_a_workspace_not_yet_joined_renders_zero_force_until_it_is(tmp_path):
     blind_run(0.1)
     blind.stop()
     assert any("was never joined to world" in damage for damage in blind.app.damage)
+
+
+class DepthSink(Component):
+    penetration = InputPort(float)
+    samples = InputPort(object)
+
+
+def test_the_penetration_port_carries_each_cycles_depth():
+    """What a display colours a hand model by: the sample's depth, every cycle, 0 out of contact."""
+    app = Application("penetration")
+    renderer = HapticRenderer("renderer")
+    renderer.add_peer(HapticImplicitSurf("plane", surface="plane()", stiffness=1000.0, damping=0.0))
+    handle, sink = Handle("handle"), DepthSink("sink")
+    for component in (renderer, handle, sink):
+        app.add(component)
+    app.connect("handle.state", "renderer.device")
+    app.connect("renderer.penetration", "sink.penetration", ConnectionPolicy(BufferPolicy.BUFFER, size=100))
+    app.connect("renderer.sample", "sink.samples", ConnectionPolicy(BufferPolicy.BUFFER, size=100))
+    renderer.configure()
+    for z in (0.01, 0.0, -0.002, -0.004, 0.01):
+        handle.state.write(HapticDeviceState((0.0, 0.0, z)))
+        renderer.step()
+    depths, samples = sink.penetration.read_all(), sink.samples.read_all()
+    assert depths == [sample.depth for sample in samples]
+    assert depths[0] == 0.0 and depths[3] == pytest.approx(0.004, abs=1e-6) and depths[-1] == 0.0

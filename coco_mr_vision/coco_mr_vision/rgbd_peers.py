@@ -18,6 +18,7 @@ The reader, not the peer, stamps frames, converts formats and writes the port: a
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -207,6 +208,9 @@ class BagRgbdPeer(RgbdPeer):
     info_topic = Attribute(str, "/camera/color/camera_info", "camera intrinsics")
     max_difference = Attribute(float, 0.02, "largest colour/depth stamp difference paired, s", min=0.0)
     depth_scale = Attribute(float, 1000.0, "units per metre of 16UC1 depth (ROS: millimetres)", min=1e-9)
+    realtime = Attribute(bool, False, "deliver the recording as the live camera did: each frame once the "
+                         "time since the first one reaches its stamp's; frames the reader could not take in "
+                         "time are skipped (the profile's merged column); false: the next frame at each grab")
 
     def on_config(self) -> None:
         from coco_ros.bag import BagReader  # ROS only for this peer
@@ -231,8 +235,36 @@ class BagRgbdPeer(RgbdPeer):
         self._color: list[Image] = []
         self._depth: list[Image] = []
         self.exhausted = False
+        self._pending: RGBDFrame | None = None
+        """With realtime: the next frame, read but not due yet."""
+        self._offset: float | None = None
+        """With realtime: perf_counter time minus stamp of the recording's clock."""
 
     def grab(self) -> RGBDFrame | None:
+        if not self.realtime:
+            return self._next_pair()
+        # Why: a replay that falls behind (a loaded machine, a slow reader) would deliver a scene
+        # ever older than the other streams of the same recording (a hand, a robot); a live camera
+        # never waits, it drops. The frame of the recording's present is delivered, never one early.
+        now = time.perf_counter()
+        frame = self._pending if self._pending is not None else self._next_pair()
+        self._pending = None
+        if frame is None or frame.stamp is None:
+            return frame
+        if self._offset is None:
+            self._offset = now - frame.stamp
+        if frame.stamp + self._offset > now:
+            self._pending = frame
+            return None
+        while (later := self._next_pair()) is not None:
+            if later.stamp is None or later.stamp + self._offset > now:
+                self._pending = later
+                break
+            self.record_merged()  # superseded: a later frame is due already
+            frame = later
+        return frame
+
+    def _next_pair(self) -> RGBDFrame | None:
         for message in self._messages:
             if message.topic == self.info_topic:
                 self._intrinsics = self._infos.to_coco(message.message)

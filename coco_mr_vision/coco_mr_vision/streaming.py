@@ -25,6 +25,7 @@ from __future__ import annotations
 import logging
 import secrets
 import time
+from dataclasses import replace
 
 import zmq
 
@@ -77,7 +78,12 @@ class StreamingServer(Component):
     def on_update(self) -> None:
         for value in self.rgbd.read_all():
             frame, stamp = unstamped(value)
-            self._send(frame.color, frame.depth, frame.depth_scale, stamp)
+            depth = frame.depth
+            if frame.intrinsics is not None and depth.intrinsics is None:
+                # The packet carries the depth image's intrinsics: a frame whose intrinsics came
+                # beside its images (a bag's camera_info) would reach the receivers without any.
+                depth = replace(depth, intrinsics=frame.intrinsics)
+            self._send(frame.color, depth, frame.depth_scale, stamp)
         for value in self.image.read_all():
             image, stamp = unstamped(value)
             self._send(image, None, 1000.0, stamp)

@@ -11,8 +11,9 @@ detection's instant (the nearest by stamp). When ``samples`` are in, their robus
 
 The *residual* reported is what a user would check: over the samples, the distance between the
 marker's centre and the hand's touch point mapped into the camera by the installed transform (RMS,
-metres); it is written on ``residual`` and in the JSON ``output``. An application that stops before
-the touch installs nothing and records it as damaged input (the launcher exits 1).
+metres); it is written on ``residual`` and in the JSON ``output``, with ``stamp``: the time (the
+detections' time base, a recording's) of the newest detection sampled. An application that stops
+before the touch installs nothing and records it as damaged input (the launcher exits 1).
 """
 
 from __future__ import annotations
@@ -65,6 +66,9 @@ class TouchRegistration(Component):
         self._pending: list[MarkerDetections] = []
         self._pairs: list[tuple[np.ndarray, np.ndarray]] = []
         """(T_camera_marker, T_tracker_hand) of each sample."""
+        self.installed_stamp: float | None = None
+        """The stamp of the newest sample's detection (the detections' time base: a recording's
+        time); once installed, when the samples were complete."""
 
     def on_update(self) -> None:
         for value in self.hand.read_all():
@@ -97,6 +101,7 @@ class TouchRegistration(Component):
             marker = detections.pose(self.marker_id)
             if hand is not None and np.isfinite(marker).all():
                 self._pairs.append((marker, hand))
+                self.installed_stamp = stamp  # the newest sample's, kept once installed
         self._pending = waiting
         if len(self._pairs) >= self.samples:
             self._install()
@@ -125,7 +130,8 @@ class TouchRegistration(Component):
                  np.array2string(found, precision=4))
         if str(self.output) not in ("", "."):
             report = result.describe()
-            report.update(residual_m=self.rms, samples=len(self._pairs), marker_id=self.marker_id)
+            report.update(residual_m=self.rms, samples=len(self._pairs), marker_id=self.marker_id,
+                          stamp=self.installed_stamp)
             self.output.parent.mkdir(parents=True, exist_ok=True)
             self.output.write_text(json.dumps(report, indent=2) + "\n")
 

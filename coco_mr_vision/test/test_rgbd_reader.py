@@ -5,6 +5,7 @@ and the RealSense peer's error when no device is present."""
 from __future__ import annotations
 
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -179,3 +180,49 @@ def test_backend_attribute_makes_its_peer_with_the_path():
     reader = RgbdCameraReader("r", backend="tum", path="x")
     reader.init()
     assert isinstance(reader.peers[0], TumRgbdPeer) and reader.peers[0].path == "x"
+
+
+def test_a_bag_replayed_in_real_time_skips_the_frames_a_slow_reader_missed(tmp_path):
+    """With ``realtime`` the bag is a live camera: a frame is delivered once the time since the first
+    one reaches its stamp's, never earlier, and a reader that fell behind gets the newest due frame,
+    the ones it missed counted in the profile's merged column (without it the palpation app's remote
+    camera delivered an ever older scene: the calibration touch was seen a second after the hand's)."""
+    pytest.importorskip("rclpy")
+    from coco_ros.bag import BagWriter
+    from coco_ros.convert.images import CameraInfoConverter, ImageMessageConverter
+    from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
+
+    images, infos = ImageMessageConverter(), CameraInfoConverter()
+    period, count = 0.1, 12
+    with BagWriter(tmp_path / "camera_bag") as writer:
+        for index in range(count):
+            stamp = 100.0 + index * period
+            ns = int(round(stamp * 1e9))
+            color = Image(np.full((48, 64, 3), index, np.uint8), ImageFormat.RGB8, stamp, "camera")
+            depth = Image(np.full((48, 64), 1000 + index, np.uint16), ImageFormat.DEPTH16, stamp, "camera")
+            writer.write("/camera/color/camera_info", infos.to_ros(CameraIntrinsics(64, 48, 50.0, 50.0, 32.0, 24.0)), ns)
+            writer.write("/camera/color/image_raw", images.to_ros(color), ns + 1000)
+            writer.write("/camera/depth/image_raw", images.to_ros(depth), ns + 2000)
+    peer = BagRgbdPeer("bag", path=str(tmp_path / "camera_bag"), realtime=True)
+    peer.on_config()
+    start = time.perf_counter()
+    first = peer.grab()
+    assert first is not None and first.stamp == pytest.approx(100.0)
+    delivered = [(time.perf_counter(), first.stamp)]
+    # Fall behind: take nothing until four periods have passed.
+    while time.perf_counter() < start + 4 * period:
+        time.sleep(0.01)
+    late = peer.grab()
+    assert late is not None and late.stamp >= 100.0 + 3 * period - 1e-9, "the newest due frame"
+    assert peer.stats.merged == round((late.stamp - 100.0) / period) - 1 >= 2
+    delivered.append((time.perf_counter(), late.stamp))
+    while not peer.exhausted:
+        frame = peer.grab()
+        if frame is not None:
+            delivered.append((time.perf_counter(), frame.stamp))
+        time.sleep(0.005)
+    stamps = [stamp for _, stamp in delivered]
+    assert stamps == sorted(stamps) and stamps[-1] == pytest.approx(100.0 + (count - 1) * period)
+    assert len(delivered) + peer.stats.merged == count
+    # Never early: each frame came once the time since the first reached its stamp's.
+    assert all(when - start >= stamp - 100.0 - 1e-3 for when, stamp in delivered)

@@ -21,7 +21,7 @@ import pytest
 cv2 = pytest.importorskip("cv2")
 zmq = pytest.importorskip("zmq")
 
-from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort  # noqa: E402
+from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort  # noqa: E402
 from coco_core.errors import CocoError, PacketError  # noqa: E402
 from coco_mr_vision.image import CameraIntrinsics  # noqa: E402
 from coco_mr_vision.rgbd import RGBDFrame  # noqa: E402
@@ -260,3 +260,41 @@ def test_a_server_that_starts_again_is_one_restart_and_its_frames_are_delivered(
     assert after["out_of_order"] == before["out_of_order"] and after["dropped"] == before["dropped"]
     assert after["frames"] - before["frames"] == 3
     assert [stamped.stamp.seq for stamped in sink.image.read_all()[-3:]] == [1, 2, 3]
+
+
+def test_a_frame_whose_intrinsics_came_beside_its_images_keeps_them_through_the_stream():
+    """A bag's RGB-D frames carry their intrinsics on the frame (from camera_info), not on the depth
+    image: the packet took the depth image's, so every receiver got frames without intrinsics and
+    MeshReconstructor refused them all (the palpation app meshed nothing)."""
+    from coco_core.stamps import Stamp, Stamped
+    from coco_mr_vision.image import Image, ImageFormat
+    from coco_mr_vision.streaming import StreamingServer
+
+    class Source(Component):
+        rgbd = OutputPort(object)
+
+    address = f"tcp://127.0.0.1:{free_port()}"
+    app = Application("send")
+    source = app.add(Source("source"))
+    server = app.add(StreamingServer("server", address=address, color_encoding="raw"))
+    app.connect(source.rgbd, server.rgbd, ConnectionPolicy(BufferPolicy.BUFFER, size=10))
+    server.on_config()
+    receiver, sink = receiver_rig(address)
+    intrinsics = CameraIntrinsics(64, 48, 50.0, 51.0, 32.0, 24.0)
+    color = Image(np.full((48, 64, 3), 90, np.uint8), ImageFormat.RGB8, 3.0, "camera")
+    depth = Image(np.full((48, 64), 1000, np.uint16), ImageFormat.DEPTH16, 3.0, "camera")
+    assert depth.intrinsics is None
+    try:
+        deadline = time.monotonic() + 10
+        while receiver.frames == 0 and time.monotonic() < deadline:
+            source.rgbd.write(Stamped(RGBDFrame(color, depth, intrinsics), Stamp.now(source="camera")))
+            server.on_update()
+            time.sleep(0.02)
+            receiver.on_update()
+        received = sink.rgbd.read_all()
+        assert received, "no frame received"
+        frame = received[-1].value
+        assert (frame.intrinsics.fx, frame.intrinsics.fy, frame.intrinsics.cx) == (50.0, 51.0, 32.0)
+    finally:
+        server.on_stop()
+        receiver.on_stop()

@@ -182,9 +182,30 @@ def test_the_touch_on_the_marker_registers_the_hand_tracker(session, tmp_path):
     # error against the truth is bounded by the marker's depth error (2 % of 1 m, see above).
     assert registration.rms < 3e-3
     assert np.linalg.norm(registration.installed[:3, 3] - truth[:3, 3]) < 0.025
-    assert json.loads((tmp_path / "touch.json").read_text())["residual_m"] == pytest.approx(registration.rms)
+    report = json.loads((tmp_path / "touch.json").read_text())
+    assert report["residual_m"] == pytest.approx(registration.rms)
+    # When, in the recording's time: the newest detection sampled, once the hand had rested, at the
+    # latest the message that completed the samples.
+    assert report["stamp"] == registration.installed_stamp
+    assert start + touch[1] + registration.still_time <= report["stamp"] <= start + installed_at + 1e-6
     never = TouchRegistration("never", marker_id=MARKER_ID)
     app.add(never)
     never.configure()
     never.stop()
     assert any("nothing registered" in damage for damage in app.damage)
+
+
+def test_the_hand_never_jumps():
+    """Each phase starts where the last one left the hand: a press ended 2 cm over its point but the
+    next press (and the stroke) started from the previous press's bottom, 8 mm inside the body, so
+    the hand jumped 3 cm down and slid inside the body from one press to the next (the palpation
+    app's device then slid over the belly between the presses instead of lifting)."""
+    plan = hand_plan(DURATION)
+    times = np.arange(0.0, DURATION, 1e-3)
+    path = np.array([hand_at(plan, t) for t in times])
+    steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    assert steps.max() < 2e-3, f"a jump of {steps.max() * 1e3:.1f} mm at {times[int(np.argmax(steps))]:.3f} s"
+    for name, start, end, *_ in plan:
+        if name.startswith("press"):  # lifted off the body between two presses
+            at = hand_at(plan, start)
+            assert at[2] > belly_height(at[0], at[1]) + 0.01, (name, at)

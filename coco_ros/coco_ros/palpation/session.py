@@ -145,6 +145,11 @@ def min_jerk(tau: float) -> float:
     return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
 
 
+def _over(press: np.ndarray) -> np.ndarray:
+    """Where a press comes down from and goes back to: 2 cm over the surface above its point."""
+    return press + (0.0, 0.0, PRESS_DEPTH + 0.02)
+
+
 def hand_plan(duration: float) -> list[tuple[str, float, float, np.ndarray, np.ndarray]]:
     """The hand's fingertip path in ``table``: (phase, start, end, from, to); strokes move along x."""
     if duration < 0.5 * NOMINAL_DURATION:
@@ -159,10 +164,12 @@ def hand_plan(duration: float) -> list[tuple[str, float, float, np.ndarray, np.n
     presses = [np.array((x, y, belly_height(x, y) - PRESS_DEPTH)) for x, y in ((0.08, 0.03), (0.14, -0.04), (0.02, 0.0))]
     stroke_from = np.array((-0.12, 0.02, belly_height(-0.12, 0.02) - STROKE_DEPTH))
     stroke_to = np.array((0.18, 0.02, belly_height(0.18, 0.02) - STROKE_DEPTH))
+    # Each phase starts where the last one left the hand: a press ends back over its point.
     targets = {
         "approach": (start, marker), "calibration_touch": (marker, marker), "lift": (marker, above),
-        "press_1": (above, presses[0]), "press_2": (presses[0], presses[1]), "press_3": (presses[1], presses[2]),
-        "stroke": (presses[2], stroke_from), "lift_off": (stroke_to, stroke_to + (0.0, 0.0, 0.2)),
+        "press_1": (above, presses[0]), "press_2": (_over(presses[0]), presses[1]),
+        "press_3": (_over(presses[1]), presses[2]), "stroke": (_over(presses[2]), stroke_from),
+        "lift_off": (stroke_to, stroke_to + (0.0, 0.0, 0.2)),
     }
     plan, t = [], 0.0
     for name, nominal in PHASES:
@@ -180,7 +187,7 @@ def hand_at(plan: Sequence[tuple[str, float, float, np.ndarray, np.ndarray]], t:
             s = (t - start) / (end - start)
             if name.startswith("press"):
                 # Over the first half move above the press point; then down to it and back up.
-                over = b + (0.0, 0.0, PRESS_DEPTH + 0.02)
+                over = _over(b)
                 if s < 0.5:
                     return a + min_jerk(2 * s) * (over - a)
                 return over + math.sin(math.pi * (s - 0.5) * 2) * (b - over) if s < 1.0 else over

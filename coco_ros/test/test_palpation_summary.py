@@ -1,0 +1,77 @@
+"""PalpationSummary: the figures of a palpation run, from the samples, structures, frames and
+residual that reach it; nulls where no data came."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from coco_core.application import Application
+from coco_core.component import Component
+from coco_core.policy import BufferPolicy, ConnectionPolicy
+from coco_core.ports import OutputPort
+from coco_core.stamps import Stamp, Stamped
+from coco_mr_haptics.cloud import CloudStructure
+from coco_mr_haptics.types import HapticSample
+from coco_ros.palpation.summary import PalpationSummary, describe
+
+
+class Sources(Component):
+    samples = OutputPort(object)
+    structures = OutputPort(object)
+    frames = OutputPort(object)
+    residual = OutputPort(float)
+
+
+def rig(tmp_path):
+    app = Application("palpation_summary")
+    sources = app.add(Sources("sources"))
+    summary = app.add(PalpationSummary("summary", json=tmp_path / "summary.json"))
+    for port in ("samples", "structures", "frames", "residual"):
+        app.connect(f"sources.{port}", f"summary.{port}", ConnectionPolicy(BufferPolicy.BUFFER, size=10000))
+    summary.configure()
+    return sources, summary
+
+
+def sample(time: float, contact: bool, depth: float = 0.0, force: float = 0.0) -> HapticSample:
+    return HapticSample(time, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, force), contact,
+                        "cloud" if contact else "", depth)
+
+
+def test_the_figures_come_from_the_data(tmp_path):
+    sources, summary = rig(tmp_path)
+    # 1 kHz with one late cycle (3 ms), in contact over 100 intervals, 4 mm deepest, 2.5 N.
+    times = np.concatenate([np.arange(0, 0.5, 1e-3), 0.502 + np.arange(0, 0.5, 1e-3)])
+    for i, t in enumerate(times):
+        touching = 200 < i <= 300
+        sources.samples.write(sample(float(t), touching, 0.004 if i == 250 else 0.001 * touching, 2.5 * touching))
+    for i in range(3):
+        sources.structures.write(CloudStructure("grid", np.zeros((10 + i, 3)), build_seconds=0.01 * (i + 1), valid=10 + i))
+    for seq in (1, 2, 5, 6):  # 3 and 4 never arrived
+        sources.frames.write(Stamped("frame", Stamp(0.0, seq, "camera")))
+    sources.residual.write(0.0012)
+    summary.step()
+    summary.stop()
+    report = json.loads((tmp_path / "summary.json").read_text())
+    haptics = report["haptics"]
+    assert haptics["samples"] == 1000 and haptics["rate_hz"] == pytest.approx(999 / times[-1])
+    assert haptics["period_error_ms"]["max"] == pytest.approx(2.0) and haptics["period_error_ms"]["median"] < 1e-6
+    assert haptics["contact_time_s"] == pytest.approx(0.1) and haptics["max_penetration_mm"] == pytest.approx(4.0)
+    assert haptics["max_force_n"] == pytest.approx(2.5)
+    tree = report["kdtree"]
+    assert tree["updates"] == 3 and tree["build_ms"]["median"] == pytest.approx(20.0) and tree["points_median"] == 11
+    assert report["stream"] == {"frames": 4, "dropped": 2}
+    assert report["registration_residual_mm"] == pytest.approx(1.2)
+    text = describe(report)
+    assert "1000 samples" in text and "residual 1.20 mm" in text and "2 dropped" in text
+
+
+def test_a_run_without_data_says_so(tmp_path):
+    sources, summary = rig(tmp_path)
+    summary.stop()
+    report = json.loads((tmp_path / "summary.json").read_text())
+    assert report["haptics"]["rate_hz"] is None and report["haptics"]["period_error_ms"]["p99"] is None
+    assert report["kdtree"]["rate_hz"] is None and report["registration_residual_mm"] is None
+    assert "NOT REGISTERED" in describe(report)
