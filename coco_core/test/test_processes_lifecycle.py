@@ -122,6 +122,7 @@ def test_child_runs_its_part_and_stops_with_the_launcher(tmp_path: Path, reap) -
     reap(launcher)
     child = int(wait_for_file(tmp_path / "ticker.pid"))
     assert child != launcher.pid
+    assert Path(f"/proc/{child}/comm").read_text().strip() == "coco:worker", "ps and top name the process"
     assert segments(launcher.pid), "the connection between the processes is a shared-memory segment"
     out, _ = launcher.communicate(timeout=60)
     assert launcher.returncode == 0, out

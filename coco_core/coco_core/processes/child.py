@@ -51,6 +51,20 @@ def die_with_parent(parent: int) -> None:
         sys.exit(1)
 
 
+PR_SET_NAME = 15
+
+
+def name_process(process: str) -> None:
+    """Call this process ``coco:<process>`` where ``ps``, ``top`` and ``/proc/PID/comm`` show it
+    (15 bytes at most), instead of ``python``: which process of the application is the view, and
+    which the haptic loop, can then be seen from outside it."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_NAME, f"coco:{process}".encode()[:15], 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the name is only cosmetic
+        pass
+
+
 def apply_process_placement(affinity: list[int], nice: int | None) -> None:
     """The ``<process>``'s cores and nice value, for every thread of the process."""
     if affinity:
@@ -79,6 +93,7 @@ class ChildProcess:
         if config is None or config.get("kind") != "config":
             return 2
         process: str = config["process"]
+        name_process(process)
         self.launch = config["launch"]
         logging.basicConfig(level=config["log_level"],
                             format=f"[%(levelname)s] %(name)s[{process}]: %(message)s")
