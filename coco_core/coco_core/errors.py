@@ -104,6 +104,10 @@ class PoolError(CocoError, ValueError):
     published yet."""
 
 
+class MeasurementError(CocoError, ValueError):
+    """A measurement that cannot be: a negative or non-finite duration, a quantile of nothing."""
+
+
 class SetupError(CocoError, ValueError):
     """A component whose attributes or peers cannot work together, found when it is configured
     (``far`` not beyond ``near``, a peer of the wrong kind, a missing camera)."""

@@ -14,13 +14,16 @@ import math
 
 import numpy as np
 
+from .errors import MeasurementError
+
 
 class DurationHistogram:
     """Counts of durations (seconds) in logarithmic bins; see the module docstring."""
 
     def __init__(self, lowest: float = 1e-7, highest: float = 1e3, precision: float = 0.005) -> None:
         if not 0 < lowest < highest or not 0 < precision < 1:
-            raise ValueError(f"need 0 < lowest < highest and 0 < precision < 1, got {lowest}, {highest}, {precision}")
+            raise MeasurementError("need 0 < lowest < highest and 0 < precision < 1, "
+                                   f"got {lowest}, {highest}, {precision}")
         self.lowest = lowest
         self._scale = 1.0 / math.log1p(precision)
         self._bins = np.zeros(int(math.log(highest / lowest) * self._scale) + 2, dtype=np.int64)
@@ -31,9 +34,10 @@ class DurationHistogram:
         self.min = math.inf
 
     def record(self, seconds: float) -> None:
-        """Count one duration; negative and non-finite ones are refused (a clock error upstream)."""
+        """Count one duration; negative and non-finite ones are refused (:class:`MeasurementError`:
+        a clock error upstream)."""
         if not math.isfinite(seconds) or seconds < 0:
-            raise ValueError(f"a duration must be a finite number >= 0, got {seconds!r}")
+            raise MeasurementError(f"a duration must be a finite number >= 0, got {seconds!r}")
         index = 0 if seconds <= self.lowest else min(int(math.log(seconds / self.lowest) * self._scale) + 1,
                                                       len(self._bins) - 1)
         self._bins[index] += 1
@@ -52,9 +56,9 @@ class DurationHistogram:
         """The ``q`` quantile (0..1) to the bins' precision, within the exact min and max (which it is
         for a quantile below ``lowest`` or above ``highest``)."""
         if not 0.0 <= q <= 1.0:
-            raise ValueError(f"a quantile is between 0 and 1, got {q}")
+            raise MeasurementError(f"a quantile is between 0 and 1, got {q}")
         if not self.count:
-            raise ValueError("no duration was recorded: there is no quantile")
+            raise MeasurementError("no duration was recorded: there is no quantile")
         rank = q * (self.count - 1)  # the same rank as a sorted list's index (floor), as numpy's "lower"
         index = int(np.searchsorted(np.cumsum(self._bins), math.floor(rank) + 1))
         if index == 0:  # at or below lowest: the smallest there is

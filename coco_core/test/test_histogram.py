@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from coco_core.errors import MeasurementError
 from coco_core.histogram import DurationHistogram
 
 
@@ -39,12 +40,12 @@ def test_values_outside_the_range_are_kept_by_the_exact_extremes() -> None:
 
 @pytest.mark.parametrize("value", [-1e-3, float("nan"), float("inf")])
 def test_a_negative_or_non_finite_duration_is_refused(value: float) -> None:
-    with pytest.raises(ValueError, match="finite number >= 0"):
+    with pytest.raises(MeasurementError, match="finite number >= 0"):
         DurationHistogram().record(value)
 
 
 def test_an_empty_histogram_has_no_quantile() -> None:
     histogram = DurationHistogram()
     assert histogram.mean is None
-    with pytest.raises(ValueError, match="no duration was recorded"):
+    with pytest.raises(MeasurementError, match="no duration was recorded"):
         histogram.quantile(0.5)

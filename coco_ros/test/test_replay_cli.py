@@ -307,3 +307,17 @@ def test_replay_offers_the_recorded_depth_to_late_transient_local_subscribers(ro
             subscriber.kill()
             subscriber.wait()
     assert lines[0] == "ready" and lines[1].split()[2] == "1", lines
+
+
+def test_a_subscriber_first_seen_without_its_node_is_reported_once_by_name():
+    """DDS announces a subscription before its node's name (later still on a loaded machine): the final
+    report merges what the start saw with what the end sees, per subscription (its GID), and keeps the
+    name (CI once listed the same subscriber twice, as rmw's placeholder and by name)."""
+    from coco_ros.replay.flow import ShallowSubscriber, merged
+
+    gid = bytes(range(16))
+    unknown = ShallowSubscriber("/tf", "_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_", None, 3000, gid)
+    named = ShallowSubscriber("/tf", "/counting_subscriber", None, 3000, gid)
+    other = ShallowSubscriber("/tf", "/counting_subscriber", 10, 3000, bytes(16))
+    assert merged([unknown], [named, other]) == [named, other]
+    assert merged([named], []) == [named]

@@ -24,7 +24,7 @@ from coco_core.errors import BagError
 
 from ..bag import BagReader
 from ..bag.qos import for_replay
-from .flow import ACK_TIMEOUT, SHALLOW_ADVICE, as_fast_as_possible, shallow_subscribers, unacknowledged
+from .flow import ACK_TIMEOUT, SHALLOW_ADVICE, as_fast_as_possible, merged, shallow_subscribers, unacknowledged
 from .player import Player, parse_remaps
 
 
@@ -140,7 +140,7 @@ def _replay(args, reader: BagReader, player: Player, node) -> int:
     late = unacknowledged(publishers)
     print(f"coco-replay: {count} messages published from {reader.path}", file=sys.stderr)
     if args.fast:  # those seen at the start, and those that joined during the replay
-        shallow = list(dict.fromkeys([*shallow, *shallow_subscribers(node, counts)]))
+        shallow = merged(shallow, shallow_subscribers(node, counts))
         if shallow:
             print("coco-replay: warning: sent as fast as possible to subscribers whose history may be shallower "
                   f"than what they were sent, so they may have lost messages: "

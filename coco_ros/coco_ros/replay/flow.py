@@ -27,6 +27,7 @@ too (rclpy's default, KEEP_LAST 10, is the usual case), with what to do about it
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -73,6 +74,8 @@ class ShallowSubscriber:
     """Its KEEP_LAST depth; None when the middleware does not announce its history."""
     count: int
     """Messages the replay sends on the topic (per pass)."""
+    gid: bytes = b""
+    """The subscription's endpoint GID: the same subscription, whatever its node was called when seen."""
 
     def describe(self) -> str:
         history = (f"KEEP_LAST {self.depth}" if self.depth is not None
@@ -80,9 +83,33 @@ class ShallowSubscriber:
         return f"{self.topic} ({self.count} messages) to {self.node} ({history})"
 
 
-def shallow_subscribers(node: Any, counts: dict[str, int]) -> list[ShallowSubscriber]:
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
+"""The node name rmw gives a subscription whose node's description has not been discovered yet (it
+comes on a topic of its own, after the endpoint, later still on a loaded machine)."""
+
+
+def shallow_subscribers(node: Any, counts: dict[str, int], resolve_within: float = 1.0) -> list[ShallowSubscriber]:
     """The subscriptions matched on each topic of ``counts`` (topic -> messages sent per pass) whose
-    history may be shallower than that count: KEEP_LAST with a smaller depth, or not announced."""
+    history may be shallower than that count: KEEP_LAST with a smaller depth, or not announced. A
+    subscription whose node is not known yet is asked again for ``resolve_within`` seconds at most, so
+    that the warning names the node rather than rmw's placeholder."""
+    deadline = time.monotonic() + resolve_within
+    while True:
+        found = _shallow(node, counts)
+        if all(UNKNOWN_NODE not in s.node for s in found) or time.monotonic() >= deadline:
+            return found
+        time.sleep(0.05)
+
+
+def merged(seen: list[ShallowSubscriber], later: list[ShallowSubscriber]) -> list[ShallowSubscriber]:
+    """``seen`` and ``later`` as one list, one entry per subscription (topic and GID): the later entry
+    wins, with the name of a node that was not known yet at first."""
+    by_endpoint = {(s.topic, s.gid or s.node): s for s in seen}
+    by_endpoint.update({(s.topic, s.gid or s.node): s for s in later})
+    return list(by_endpoint.values())
+
+
+def _shallow(node: Any, counts: dict[str, int]) -> list[ShallowSubscriber]:
     from rclpy.qos import HistoryPolicy
 
     found = []
@@ -96,7 +123,7 @@ def shallow_subscribers(node: Any, counts: dict[str, int]) -> list[ShallowSubscr
                 continue
             namespace = info.node_namespace.rstrip("/")
             found.append(ShallowSubscriber(topic, f"{namespace}/{info.node_name}", qos.depth if known else None,
-                                           count))
+                                           count, bytes(info.endpoint_gid)))
     return found
 
 
