@@ -256,3 +256,56 @@ def test_poses_superseded_before_a_sample_are_counted_as_merged_in_the_profile()
     row = next(line for line in report if line.startswith("distance "))
     column = header.index(" merged ") + 1
     assert row[column:].split()[0] == "3"
+
+
+class SampleSource(Component):
+    """Writes what EndEffectorDistance writes for one sample, and a display latency, per call."""
+
+    distance = OutputPort(Stamped)
+    color = OutputPort(Stamped)
+    bag_time = OutputPort(Stamped)
+    latency = OutputPort(Stamped)
+
+    def init(self) -> None:
+        self.seq = 0
+
+    def emit(self) -> None:
+        self.seq += 1
+        stamp = Stamp.now(self.seq, "/robot/joint_states")
+        self.distance.write(Stamped(0.1 + 1e-6 * self.seq, stamp))
+        self.color.write(Stamped((1.0, 0.0, 0.0), stamp))
+        self.bag_time.write(Stamped(100.0 + 1e-3 * self.seq, stamp))
+        self.latency.write(Stamped(0.02 + 1e-7 * self.seq, stamp))
+
+
+def test_the_summary_keeps_its_size_however_long_the_run(tmp_path):
+    """Issue 23: the Baxter app looped for ten minutes grew by megabytes a minute, the summary's lists
+    of every latency (and the pages they pinned). Its memory no longer grows with the samples."""
+    import tracemalloc
+
+    app = Application("long")
+    source = app.add(SampleSource("source"))
+    summary = app.add(TeleopSummary("summary", csv=tmp_path / "d.csv", json=tmp_path / "s.json"))
+    for port in ("distance", "color", "bag_time"):
+        app.connect(f"source.{port}", f"summary.{port}", BUFFER)
+    app.connect("source.latency", "summary.display_latency", BUFFER)
+    summary.configure()
+
+    def run(samples: int) -> None:
+        for _ in range(samples):
+            source.emit()
+            summary.on_update()
+
+    run(2_000)  # the CSV writer's buffers, the histogram, the first latencies
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        run(40_000)
+        grown = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    summary.stop()
+    assert grown < 100_000, f"{grown} bytes more after 40,000 samples"  # a list of them: 1.3 MB or more
+    result = json.loads((tmp_path / "s.json").read_text())
+    assert result["samples"] == 42_000 and result["display_latency_ms"]["frames"] == 42_000
+    assert result["display_latency_ms"]["median"] == pytest.approx(20 + 1e-4 * 21_000, rel=0.005)
