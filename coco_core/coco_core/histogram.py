@@ -1,10 +1,12 @@
-"""A distribution of durations in bounded memory, for summaries of runs of any length.
+"""A distribution of non-negative quantities (durations, point counts) in bounded memory, for the
+summaries of runs of any length.
 
 A summary that keeps every latency it saw to take a median at the end grows with the run: the Baxter
 replay looped for ten minutes grew its launcher by megabytes a minute, most of it the pages that the
-kept floats pinned, not the floats. :class:`DurationHistogram` keeps a count per logarithmic bin
+kept floats pinned, not the floats. :class:`LogHistogram` keeps a count per logarithmic bin
 instead (an HDR histogram's idea): its size is fixed whatever the run's length, and a quantile is
-exact to the bin's relative width (``precision``, 0.5 % by default; 4,600 bins from 100 ns to 1000 s).
+exact to the bin's relative width (``precision``, 0.5 % by default; 4,600 bins from 100 ns to 1000 s
+for durations in seconds; ``lowest`` and ``highest`` suit other quantities).
 Count, mean and max are exact.
 """
 
@@ -17,8 +19,8 @@ import numpy as np
 from .errors import MeasurementError
 
 
-class DurationHistogram:
-    """Counts of durations (seconds) in logarithmic bins; see the module docstring."""
+class LogHistogram:
+    """Counts of non-negative values in logarithmic bins; see the module docstring."""
 
     def __init__(self, lowest: float = 1e-7, highest: float = 1e3, precision: float = 0.005) -> None:
         if not 0 < lowest < highest or not 0 < precision < 1:
@@ -33,20 +35,20 @@ class DurationHistogram:
         self.max = -math.inf
         self.min = math.inf
 
-    def record(self, seconds: float) -> None:
-        """Count one duration; negative and non-finite ones are refused (:class:`MeasurementError`:
-        a clock error upstream)."""
-        if not math.isfinite(seconds) or seconds < 0:
-            raise MeasurementError(f"a duration must be a finite number >= 0, got {seconds!r}")
-        index = 0 if seconds <= self.lowest else min(int(math.log(seconds / self.lowest) * self._scale) + 1,
-                                                      len(self._bins) - 1)
+    def record(self, value: float) -> None:
+        """Count one value; negative and non-finite ones are refused (:class:`MeasurementError`: a
+        clock error upstream, for a duration)."""
+        if not math.isfinite(value) or value < 0:
+            raise MeasurementError(f"a value must be a finite number >= 0, got {value!r}")
+        index = 0 if value <= self.lowest else min(int(math.log(value / self.lowest) * self._scale) + 1,
+                                                    len(self._bins) - 1)
         self._bins[index] += 1
         self.count += 1
-        self.total += seconds
-        if seconds > self.max:
-            self.max = seconds
-        if seconds < self.min:
-            self.min = seconds
+        self.total += value
+        if value > self.max:
+            self.max = value
+        if value < self.min:
+            self.min = value
 
     @property
     def mean(self) -> float | None:
@@ -58,7 +60,7 @@ class DurationHistogram:
         if not 0.0 <= q <= 1.0:
             raise MeasurementError(f"a quantile is between 0 and 1, got {q}")
         if not self.count:
-            raise MeasurementError("no duration was recorded: there is no quantile")
+            raise MeasurementError("nothing was recorded: there is no quantile")
         rank = q * (self.count - 1)  # the same rank as a sorted list's index (floor), as numpy's "lower"
         index = int(np.searchsorted(np.cumsum(self._bins), math.floor(rank) + 1))
         if index == 0:  # at or below lowest: the smallest there is

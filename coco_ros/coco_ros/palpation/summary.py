@@ -27,22 +27,26 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.histogram import LogHistogram
 from coco_core.ports import InputPort
 from coco_core.stamps import Stamped, unstamped
 from coco_mr_haptics.cloud import CloudStructure
 from coco_mr_haptics.types import HapticSample
 
 
-def _stats_ms(seconds: list[float]) -> dict[str, float | None]:
-    """Median, 99th percentile and max of durations, in milliseconds (nulls when empty)."""
-    if not seconds:
+def _stats_ms(seconds: LogHistogram) -> dict[str, float | None]:
+    """Median, 99th percentile and max of durations, in milliseconds (nulls when empty; the quantiles
+    to the histogram's 0.5 %)."""
+    if not seconds.count:
         return {"median": None, "p99": None, "max": None}
-    values = np.asarray(seconds) * 1e3
-    return {"median": float(np.median(values)), "p99": float(np.percentile(values, 99)), "max": float(values.max())}
+    return {"median": 1e3 * seconds.quantile(0.5), "p99": 1e3 * seconds.quantile(0.99), "max": 1e3 * seconds.max}
+
+
+def _rate(count: int, first: float, last: float) -> float | None:
+    """Events a second from the first to the last of ``count``; None without two at distinct times."""
+    return (count - 1) / (last - first) if count > 1 and last > first else None
 
 
 class PalpationSummary(Component):
@@ -58,13 +62,18 @@ class PalpationSummary(Component):
     residual = InputPort(float, doc="TouchRegistration.residual (m)")
 
     def on_config(self) -> None:
-        self._times: list[float] = []
-        self._contact: list[bool] = []
+        # Running figures and histograms, not lists of every sample: a run at 1 kHz keeps its size
+        # however long it lasts (issue 23).
+        self.haptic_samples = 0
+        self._first_time = self._last_time = math.nan
+        self._period_errors = LogHistogram()
+        self.contact_time = 0.0
         self.max_penetration = 0.0
         self.max_force = 0.0
-        self._arrivals: list[float] = []
-        self._builds: list[float] = []
-        self._points: list[int] = []
+        self.tree_updates = 0
+        self._first_arrival = self._last_arrival = math.nan
+        self._builds = LogHistogram()
+        self._points = LogHistogram(lowest=1.0, highest=1e9)
         self.frames_received = 0
         self.frames_missed = 0
         self._last_seq: int | None = None
@@ -72,15 +81,25 @@ class PalpationSummary(Component):
 
     def on_update(self) -> None:
         for sample in self.samples.read_all():
-            self._times.append(sample.time)
-            self._contact.append(bool(sample.contact))
+            if self.haptic_samples:
+                interval = sample.time - self._last_time
+                self._period_errors.record(abs(interval - self.period))
+                if sample.contact:
+                    self.contact_time += interval
+            else:
+                self._first_time = sample.time
+            self._last_time = sample.time
+            self.haptic_samples += 1
             self.max_penetration = max(self.max_penetration, float(sample.depth))
             self.max_force = max(self.max_force, math.sqrt(sum(f * f for f in sample.force)))
         now = time.perf_counter()
         for structure in self.structures.read_all():
-            self._arrivals.append(now)
-            self._builds.append(float(structure.build_seconds))
-            self._points.append(int(structure.valid or len(structure.points)))
+            if not self.tree_updates:
+                self._first_arrival = now
+            self._last_arrival = now
+            self.tree_updates += 1
+            self._builds.record(float(structure.build_seconds))
+            self._points.record(int(structure.valid or len(structure.points)))
         for value in self.frames.read_all():
             _, stamp = unstamped(value)
             self.frames_received += 1
@@ -92,23 +111,19 @@ class PalpationSummary(Component):
             self.registration_residual = float(residual)
 
     def report(self) -> dict[str, Any]:
-        times = np.asarray(self._times)
-        intervals = np.diff(times)
-        contact = np.asarray(self._contact[1:], bool)
         haptic: dict[str, Any] = {
-            "samples": len(times),
-            "rate_hz": float((len(times) - 1) / (times[-1] - times[0])) if len(times) > 1 and times[-1] > times[0] else None,
-            "period_error_ms": _stats_ms(list(np.abs(intervals - self.period))),
-            "contact_time_s": float(intervals[contact].sum()) if len(intervals) else 0.0,
+            "samples": self.haptic_samples,
+            "rate_hz": _rate(self.haptic_samples, self._first_time, self._last_time),
+            "period_error_ms": _stats_ms(self._period_errors),
+            "contact_time_s": self.contact_time,
             "max_penetration_mm": 1e3 * self.max_penetration,
             "max_force_n": self.max_force,
         }
-        arrivals = self._arrivals
         tree: dict[str, Any] = {
-            "updates": len(arrivals),
-            "rate_hz": (len(arrivals) - 1) / (arrivals[-1] - arrivals[0]) if len(arrivals) > 1 and arrivals[-1] > arrivals[0] else None,
+            "updates": self.tree_updates,
+            "rate_hz": _rate(self.tree_updates, self._first_arrival, self._last_arrival),
             "build_ms": _stats_ms(self._builds),
-            "points_median": int(np.median(self._points)) if self._points else None,
+            "points_median": round(self._points.quantile(0.5)) if self._points.count else None,
         }
         return {
             "haptics": haptic,

@@ -38,7 +38,7 @@ from typing import IO, Any
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.histogram import DurationHistogram
+from coco_core.histogram import LogHistogram
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
 from coco_core.stamps import Stamped, unstamped
@@ -51,7 +51,7 @@ def _finite(value: float) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
 
 
-def _milliseconds(seconds: DurationHistogram) -> dict[str, Any]:
+def _milliseconds(seconds: LogHistogram) -> dict[str, Any]:
     """Count, mean, median, 90th percentile and max in milliseconds (nulls when empty; the quantiles
     to the histogram's 0.5 %)."""
     if not seconds.count:
@@ -91,7 +91,7 @@ class TeleopSummary(Component):
         self._final = math.nan
         self._grasp: float | None = None
         self._latency_total, self._latency_max = 0.0, -math.inf  # over self.rows samples
-        self._display = DurationHistogram()
+        self._display = LogHistogram()
         """Sensor-to-display latencies: a histogram, so that a run of any length keeps its size."""
         self._bowl: FramePose | None = None
         self._target: FramePose | None = None
