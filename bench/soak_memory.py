@@ -85,10 +85,16 @@ def children(pid: int) -> list[int]:
         return []
 
 
+def in_workspace(*command: str) -> list[str]:
+    """``command`` run as a user runs it: after ``source install/setup.bash`` (the installed scripts
+    find their packages through it), replaced by the command itself (its pid is the launcher's)."""
+    return ["bash", "-c", f'source "{INSTALL}/setup.bash" && exec "$@"', "bash", *command]
+
+
 def soak(bag: Path, output: Path, minutes: float, display: bool, rate: float, every: float) -> dict[str, Trace]:
-    command = [str(INSTALL / "coco_core" / "lib" / "coco_core" / "coco-launch"), str(APP), f"bag:={bag}",
-               f"output:={output}", "loop:=true", f"display:={str(display).lower()}", f"rate:={rate}",
-               "--duration", str(minutes * 60)]
+    command = in_workspace(str(INSTALL / "coco_core" / "lib" / "coco_core" / "coco-launch"), str(APP),
+                           f"bag:={bag}", f"output:={output}", "loop:=true", f"display:={str(display).lower()}",
+                           f"rate:={rate}", "--duration", str(minutes * 60))
     launcher = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                 start_new_session=True)
     traces: dict[int, Trace] = {}
@@ -166,8 +172,8 @@ def main() -> int:
         if bag is None:
             bag = Path(folder) / "session"
             print("generating a 12 s Baxter session ...", flush=True)
-            subprocess.run([str(INSTALL / "coco_ros" / "lib" / "coco_ros" / "baxter-session"), str(bag), "--quiet"],
-                           check=True)
+            subprocess.run(in_workspace(str(INSTALL / "coco_ros" / "lib" / "coco_ros" / "baxter-session"), str(bag),
+                                        "--quiet"), check=True)
         traces = soak(bag, Path(folder) / "out", args.minutes, args.display == "true", args.rate, args.every)
     t, results = table(traces, args.limit, args.minutes)
     _report.emit("soak_memory", args, [t], results)

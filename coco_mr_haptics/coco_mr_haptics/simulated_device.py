@@ -155,7 +155,12 @@ class SimulatedDevice(Component):
                 transform = getattr(target, "transform", None)  # a FramePose / TransformSample
                 if transform is not None:
                     target = transform[:3, 3]
-                self._hand = (float(target[0]), float(target[1]), float(target[2]))
+                hand = (float(target[0]), float(target[1]), float(target[2]))
+                if all(map(math.isfinite, hand)):
+                    self._hand = hand
+                else:  # a tracker that lost the hand: one NaN would put the handle at NaN for good
+                    self.record_refusal("a hand target", HapticDeviceError(
+                        f"non-finite hand target {hand}; the last finite one kept"))
         if dt > 0.0:
             self._hand_velocity = ((self._hand[0] - previous[0]) / dt, (self._hand[1] - previous[1]) / dt,
                                    (self._hand[2] - previous[2]) / dt)

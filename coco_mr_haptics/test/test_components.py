@@ -202,6 +202,28 @@ def test_hand_port_takes_poses():
     assert (device.x, device.y, device.z) == pytest.approx((0.02, -0.01, 0.03), abs=1e-6)
 
 
+def test_a_non_finite_hand_pose_is_refused_and_the_handle_stays_where_it_was():
+    """A hand tracker that loses the hand may publish NaN (issue 20's bad input): counted as refused,
+    the last finite target kept, the handle never NaN."""
+    app = Application("hand_nan")
+    device = SimulatedDevice("device", time_step=1e-3, coupling_stiffness=300.0)
+    hand = Hand("hand")
+    app.add(device)
+    app.add(hand)
+    app.connect("hand.pose", "device.hand")
+    device.configure()
+    target = np.eye(4)
+    target[:3, 3] = (0.02, -0.01, 0.03)
+    lost = target.copy()
+    lost[:3, 3] = math.nan
+    for cycle in range(3000):
+        hand.pose.write(FramePose("haptic_workspace", "hand", lost if cycle % 100 == 50 else target))
+        device.step()
+        assert math.isfinite(device.x + device.y + device.z + device.vx), cycle
+    assert device.stats.refused == 30
+    assert (device.x, device.y, device.z) == pytest.approx((0.02, -0.01, 0.03), abs=1e-6)
+
+
 def test_a_non_finite_force_is_never_sent_to_the_device(tmp_path):
     """An infinite stiffness makes the proxy's force NaN in contact: the renderer sends zero instead,
     counts the fault (summary, sample) and restarts the proxy; the device never sees a NaN."""
