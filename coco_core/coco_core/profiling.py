@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import threading
+from array import array
 from dataclasses import dataclass
 
 
@@ -94,7 +95,9 @@ class ActivityStats:
     def __init__(self) -> None:
         self.cycles = 0
         self.overruns = 0
-        self._errors = [0.0] * self.RING
+        self._errors = array("d", bytes(8 * self.RING))
+        """The last RING period errors, as doubles: a list would allocate a float object per error
+        until it wrapped (1.5 MB over the first five minutes of a 5 ms activity, read as a leak)."""
         self._next = 0
         self._lock = threading.Lock()
 
