@@ -14,8 +14,8 @@ export PYTEST_ADDOPTS="--timeout=300 ${PYTEST_ADDOPTS:-}"
 # makes every later participant on it hang while it is created (coco_ros/fastdds_segments.py).
 python -m coco_ros.fastdds_segments
 LOGS="build/test_logs"
-rm -rf build/*/pytest.xml build/workspace_tests build/workspace_apps "$LOGS"
-mkdir -p build/workspace_tests build/workspace_apps "$LOGS"
+rm -rf build/*/pytest.xml build/workspace_tests build/workspace_apps build/workspace_alone "$LOGS"
+mkdir -p build/workspace_tests build/workspace_apps build/workspace_alone "$LOGS"
 
 # The suites are independent (each reads the built workspace, none writes it) and mostly wait: on
 # applications that run for seconds, on DDS discovery, on child processes. Run one after the other
@@ -44,13 +44,15 @@ package_tests() {  # package_tests LOG_BASE COLCON_SELECTION...
 start_suite core "coco_core's tests (colcon test)" package_tests log/test_core --packages-select coco_core
 start_suite packages "the other packages' tests (colcon test)" package_tests log/test_packages --packages-skip coco_core
 # The workspace tests in two pytest processes: the Baxter and camera apps (they replay and render for
-# seconds each) and the rest; a new test file goes to the rest.
-APPS=(test/test_baxter_*.py test/test_camera_registration_app.py test/test_palpation_app.py)
+# seconds each) and the rest; a new test file goes to the rest. The remote palpation app (five
+# processes that need both cores) runs alone once these are done: ALONE.
+APPS=(test/test_baxter_*.py test/test_camera_registration_app.py)
+ALONE=(test/test_palpation_app.py)
 start_suite apps "workspace tests: the apps (test/)" \
     python -m pytest "${APPS[@]}" -o cache_dir=build/workspace_apps/.pytest_cache \
     --junit-xml=build/workspace_apps/pytest.xml --junit-prefix=workspace
 start_suite workspace "workspace tests: the rest (test/)" \
-    python -m pytest test "${APPS[@]/#/--ignore=}" -o cache_dir=build/workspace_tests/.pytest_cache \
+    python -m pytest test "${APPS[@]/#/--ignore=}" "${ALONE[@]/#/--ignore=}" -o cache_dir=build/workspace_tests/.pytest_cache \
     --junit-xml=build/workspace_tests/pytest.xml --junit-prefix=workspace
 # The type checker (mypy.ini): the five packages must stay clean, and every `type: ignore` needed.
 start_suite mypy "type check (mypy)" python -m mypy
@@ -68,6 +70,10 @@ while [ "${#SUITE_OF[@]}" -gt 0 ]; do
     cat "$LOGS/$name.log"
     [ "$suite_status" -eq 0 ] || status=$suite_status
 done
+echo
+echo "===== workspace tests: alone (test/), ${SECONDS} s after the start ====="
+python -m pytest "${ALONE[@]}" -o cache_dir=build/workspace_alone/.pytest_cache \
+    --junit-xml=build/workspace_alone/pytest.xml --junit-prefix=workspace || status=$?
 colcon test-result --test-result-base build --verbose || status=$?
 python scripts/check_test_results.py build || status=$?
 exit "$status"

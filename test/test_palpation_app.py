@@ -66,8 +66,12 @@ processes: there, at full speed, the hand's replay (which decompresses every cam
 bag to find the hand's poses) stalled for over a second at times and a press went by untouched."""
 
 
-def run_app(coco_launch: Path, app: Path, bag: Path, output: Path, *args: str):
-    result = run_launcher(coco_launch, str(app), f"bag:={bag}", f"output:={output}", f"rate:={HAND_RATE}",
+RUN_APP = ROOT / "scripts" / "run_app.sh"
+
+
+def run_app(command: tuple[Path, str], bag: Path, output: Path, *args: str):
+    """Run ``command`` (a launcher and the application file, or ``run_app.sh palpation``) on ``bag``."""
+    result = run_launcher(command[0], command[1], f"bag:={bag}", f"output:={output}", f"rate:={HAND_RATE}",
                           f"stream:=tcp://127.0.0.1:{free_port()}", *args, "--profile", "100", "--duration", "60",
                           timeout=240)
     assert result.returncode == 0, result.stderr[-6000:]
@@ -138,10 +142,13 @@ def behind_the_body(rows: dict[str, np.ndarray]) -> float:
     return max(0.0, max(belly_height(x, y) - z for x, y, z in proxy[over]))
 
 
-def test_palpation_app_end_to_end(coco_launch: Path, palpation_session: Path, tmp_path: Path) -> None:
+def test_palpation_app_end_to_end(palpation_session: Path, tmp_path: Path) -> None:
+    """As the docs show it, ``./scripts/run_app.sh palpation`` (on the test's session)."""
     output = tmp_path / "palpation"
-    result = run_app(coco_launch, APP, palpation_session, output)
+    result = run_app((RUN_APP, "palpation"), palpation_session, output)
     report = result.stdout
+    assert f"Palpation summary ({output}/summary.json" in report and "registration: residual" in report, report
+    assert f"Contact sheet:  {output}/contact_sheet.png" in report, report
     assert "registered from" in result.stderr, result.stderr[-4000:]
     for process in ("hand", "remote", "haptics", "view"):
         assert re.search(rf"^{process}\s+\d+\s", report, re.M), f"process {process} missing:\n{report}"
@@ -193,7 +200,7 @@ def test_palpation_app_without_processes_touches_the_same_places(coco_launch: Pa
     runs, expected = {}, set(PLACES)
     for name, app in (("processes", APP), ("one process", flat_app)):
         output = tmp_path / name.replace(" ", "_")
-        result = run_app(coco_launch, app, palpation_session, output, "display:=false")
+        result = run_app((coco_launch, str(app)), palpation_session, output, "display:=false")
         runs[name] = haptic_rows(output)
         expected &= places_after_the_registration(output)
         # The process table's row of the haptic process (name, pid): only with the process level.
