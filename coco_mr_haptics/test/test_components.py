@@ -185,14 +185,20 @@ class Hand(Component):
     pose = OutputPort(FramePose)
 
 
-def test_hand_port_takes_poses():
-    app = Application("hand")
+def hand_rig(name: str) -> tuple[SimulatedDevice, Hand]:
+    """A simulated device whose hand port is driven by poses, configured."""
+    app = Application(name)
     device = SimulatedDevice("device", time_step=1e-3, coupling_stiffness=300.0)
     hand = Hand("hand")
     app.add(device)
     app.add(hand)
     app.connect("hand.pose", "device.hand")
     device.configure()
+    return device, hand
+
+
+def test_hand_port_takes_poses():
+    device, hand = hand_rig("hand")
     target = np.eye(4)
     target[:3, 3] = (0.02, -0.01, 0.03)
     for _ in range(3000):
@@ -205,13 +211,7 @@ def test_hand_port_takes_poses():
 def test_a_non_finite_hand_pose_is_refused_and_the_handle_stays_where_it_was():
     """A hand tracker that loses the hand may publish NaN (issue 20's bad input): counted as refused,
     the last finite target kept, the handle never NaN."""
-    app = Application("hand_nan")
-    device = SimulatedDevice("device", time_step=1e-3, coupling_stiffness=300.0)
-    hand = Hand("hand")
-    app.add(device)
-    app.add(hand)
-    app.connect("hand.pose", "device.hand")
-    device.configure()
+    device, hand = hand_rig("hand_nan")
     target = np.eye(4)
     target[:3, 3] = (0.02, -0.01, 0.03)
     lost = target.copy()
