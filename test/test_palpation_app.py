@@ -169,6 +169,10 @@ def test_palpation_app_end_to_end(palpation_session: Path, tmp_path: Path) -> No
     assert haptics["contact_time_s"] > 0.5 and 0 < haptics["max_penetration_mm"] < 30, haptics
     assert summary["kdtree"]["updates"] >= 2 and summary["kdtree"]["build_ms"]["median"] > 0, summary
     assert summary["stream"]["frames"] >= 10, summary
+    # Sensor-to-display: the remote camera's frames, from their acquisition (the remote process)
+    # through the stream to the view process's pixels.
+    shown = summary["display_latency_ms"]["camera"]
+    assert shown["frames"] > 0 and 0 < shown["median"] <= shown["max"], summary["display_latency_ms"]
     assert summary["input_damage"] == []
 
     # The view: one video frame per display cycle, and a contact sheet; the hand (the only saturated

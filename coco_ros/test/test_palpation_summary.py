@@ -23,13 +23,14 @@ class Sources(Component):
     structures = OutputPort(object)
     frames = OutputPort(object)
     residual = OutputPort(float)
+    display_latency = OutputPort(object)
 
 
 def rig(tmp_path):
     app = Application("palpation_summary")
     sources = app.add(Sources("sources"))
     summary = app.add(PalpationSummary("summary", json=tmp_path / "summary.json"))
-    for port in ("samples", "structures", "frames", "residual"):
+    for port in ("samples", "structures", "frames", "residual", "display_latency"):
         app.connect(f"sources.{port}", f"summary.{port}", ConnectionPolicy(BufferPolicy.BUFFER, size=10000))
     summary.configure()
     return sources, summary
@@ -101,3 +102,21 @@ def test_its_size_does_not_grow_with_the_haptic_samples(tmp_path):
     summary.stop()
     assert grown < 100_000, f"{grown} bytes more after 40,000 samples"
     assert json.loads((tmp_path / "summary.json").read_text())["haptics"]["samples"] == 42_000
+
+
+def test_the_display_latency_is_reported_by_the_source_a_frame_showed_first(tmp_path):
+    """GLManager stamps each frame that shows a new input with the oldest such input: the remote
+    camera's frames (acquisition to pixels, the paper's sensor-to-display latency) and the hand's
+    poses are reported apart."""
+    sources, summary = rig(tmp_path)
+    for i in range(100):
+        sources.display_latency.write(Stamped(0.040 + 1e-4 * i, Stamp(0.0, i, "camera")))
+        sources.display_latency.write(Stamped(0.010, Stamp(0.0, i, "/hand/pose")))
+    summary.step()
+    summary.stop()
+    report = json.loads((tmp_path / "summary.json").read_text())["display_latency_ms"]
+    assert set(report) == {"camera", "/hand/pose"}
+    camera = report["camera"]
+    assert camera["frames"] == 100 and camera["median"] == pytest.approx(44.9, rel=0.005)
+    assert camera["max"] == pytest.approx(49.9)
+    assert "display latency from camera: median 44.9" in describe(json.loads((tmp_path / "summary.json").read_text()))

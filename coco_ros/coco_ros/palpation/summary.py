@@ -12,7 +12,11 @@ structures, draining the haptic samples at each wake-up) and reads:
   server sent that never arrived (gaps in the server's sequence numbers: dropped by ZeroMQ or
   superseded in the receiver);
 - ``residual`` (``TouchRegistration.residual``): the calibration touch's RMS residual, or null when
-  the touch never registered the hand tracker.
+  the touch never registered the hand tracker;
+- ``display_latency`` (``GLManager.latency``, optional): per rendered frame that showed a new input,
+  seconds from that input's origin to the frame's pixels, by the origin's source: the remote
+  camera's frames (stamped at acquisition, through the stream) give the paper's sensor-to-display
+  latency, the hand's poses the tracker-to-display one.
 
 The JSON (``json`` attribute) is written at the stop; :func:`describe` puts it in a few lines
 (``python -m coco_ros.palpation summary.json``, what ``scripts/run_app.sh palpation`` shows). Nothing
@@ -60,6 +64,8 @@ class PalpationSummary(Component):
     structures = InputPort(CloudStructure, event=True, doc="KDTreeBuilder.structure, through a BUFFER connection")
     frames = InputPort(Stamped, event=True, doc="StreamingReceiver.rgbd: frames stamped with the server's sequence numbers")
     residual = InputPort(float, doc="TouchRegistration.residual (m)")
+    display_latency = InputPort(Stamped, doc="GLManager.latency: seconds from an input's origin to the frame "
+                                             "that first shows it, stamped with that origin (optional)")
 
     def on_config(self) -> None:
         # Running figures and histograms, not lists of every sample: a run at 1 kHz keeps its size
@@ -78,6 +84,8 @@ class PalpationSummary(Component):
         self.frames_missed = 0
         self._last_seq: int | None = None
         self.registration_residual: float | None = None
+        self._display: dict[str, LogHistogram] = {}
+        """Sensor-to-display latencies by the source of the input a frame showed first."""
 
     def on_update(self) -> None:
         for sample in self.samples.read_all():
@@ -109,6 +117,9 @@ class PalpationSummary(Component):
                 self._last_seq = stamp.seq
         for residual in self.residual.read_all():
             self.registration_residual = float(residual)
+        for latency in self.display_latency.read_all():
+            source = latency.stamp.source or "?"
+            self._display.setdefault(source, LogHistogram()).record(max(float(latency.value), 0.0))
 
     def report(self) -> dict[str, Any]:
         haptic: dict[str, Any] = {
@@ -130,6 +141,8 @@ class PalpationSummary(Component):
             "kdtree": tree,
             "stream": {"frames": self.frames_received, "dropped": self.frames_missed},
             "registration_residual_mm": None if self.registration_residual is None else 1e3 * self.registration_residual,
+            "display_latency_ms": {source: {"frames": latencies.count, **_stats_ms(latencies)}
+                                   for source, latencies in sorted(self._display.items())},
             "input_damage": list(self.app.damage) if self.app is not None else [],
         }
 
@@ -162,6 +175,9 @@ def describe(summary: dict[str, Any]) -> str:
         "registration: " + ("NOT REGISTERED (no calibration touch seen)" if residual is None
                             else f"residual {residual:.2f} mm RMS"),
     ]
+    for source, latency in (summary.get("display_latency_ms") or {}).items():
+        lines.append(f"display latency from {source}: median {ms(latency, 'median')}, p99 {ms(latency, 'p99')} "
+                     f"({latency['frames']} frames)")
     for damage in summary.get("input_damage") or ():
         lines.append(f"DAMAGED INPUT: {damage}")
     return "\n".join(lines)
