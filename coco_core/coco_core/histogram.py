@@ -68,3 +68,10 @@ class LogHistogram:
         if index == len(self._bins) - 1:  # above highest: the largest
             return self.max
         return min(max(self.lowest * self._ratio ** (index - 0.5), self.min), self.max)  # the bin's middle
+
+    def milliseconds(self, **quantiles: float) -> dict[str, float | None]:
+        """The named quantiles (``median=0.5``) and the max, in milliseconds, for a summary's JSON;
+        nulls when nothing was recorded."""
+        if not self.count:
+            return {**{name: None for name in quantiles}, "max": None}
+        return {**{name: 1e3 * self.quantile(q) for name, q in quantiles.items()}, "max": 1e3 * self.max}

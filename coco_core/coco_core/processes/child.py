@@ -38,31 +38,31 @@ from .remote import serve_call, settle
 log = logging.getLogger("coco")
 
 PR_SET_PDEATHSIG = 1
+PR_SET_NAME = 15
+
+
+def prctl(option: int, argument: int | bytes) -> None:
+    """Linux's ``prctl(option, argument)`` for this process; nothing elsewhere (what it sets here is
+    a convenience there: the control link's end still stops a child, a name is only cosmetic)."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(option, argument, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
 
 
 def die_with_parent(parent: int) -> None:
     """Have the kernel send SIGTERM when the launcher dies; exit now if it already did."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
-    except (OSError, AttributeError):  # not Linux: the control link's end still stops the child
-        pass
+    prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
     if os.getppid() != parent:
         sys.exit(1)
-
-
-PR_SET_NAME = 15
 
 
 def name_process(process: str) -> None:
     """Call this process ``coco:<process>`` where ``ps``, ``top`` and ``/proc/PID/comm`` show it
     (15 bytes at most), instead of ``python``: which process of the application is the view, and
     which the haptic loop, can then be seen from outside it."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(PR_SET_NAME, f"coco:{process}".encode()[:15], 0, 0, 0)
-    except (OSError, AttributeError):  # not Linux: the name is only cosmetic
-        pass
+    prctl(PR_SET_NAME, f"coco:{process}".encode()[:15])
 
 
 def apply_process_placement(affinity: list[int], nice: int | None) -> None:

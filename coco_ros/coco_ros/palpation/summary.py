@@ -40,14 +40,6 @@ from coco_mr_haptics.cloud import CloudStructure
 from coco_mr_haptics.types import HapticSample
 
 
-def _stats_ms(seconds: LogHistogram) -> dict[str, float | None]:
-    """Median, 99th percentile and max of durations, in milliseconds (nulls when empty; the quantiles
-    to the histogram's 0.5 %)."""
-    if not seconds.count:
-        return {"median": None, "p99": None, "max": None}
-    return {"median": 1e3 * seconds.quantile(0.5), "p99": 1e3 * seconds.quantile(0.99), "max": 1e3 * seconds.max}
-
-
 def _rate(count: int, first: float, last: float) -> float | None:
     """Events a second from the first to the last of ``count``; None without two at distinct times."""
     return (count - 1) / (last - first) if count > 1 and last > first else None
@@ -125,7 +117,7 @@ class PalpationSummary(Component):
         haptic: dict[str, Any] = {
             "samples": self.haptic_samples,
             "rate_hz": _rate(self.haptic_samples, self._first_time, self._last_time),
-            "period_error_ms": _stats_ms(self._period_errors),
+            "period_error_ms": self._period_errors.milliseconds(median=0.5, p99=0.99),
             "contact_time_s": self.contact_time,
             "max_penetration_mm": 1e3 * self.max_penetration,
             "max_force_n": self.max_force,
@@ -133,7 +125,7 @@ class PalpationSummary(Component):
         tree: dict[str, Any] = {
             "updates": self.tree_updates,
             "rate_hz": _rate(self.tree_updates, self._first_arrival, self._last_arrival),
-            "build_ms": _stats_ms(self._builds),
+            "build_ms": self._builds.milliseconds(median=0.5, p99=0.99),
             "points_median": round(self._points.quantile(0.5)) if self._points.count else None,
         }
         return {
@@ -141,7 +133,7 @@ class PalpationSummary(Component):
             "kdtree": tree,
             "stream": {"frames": self.frames_received, "dropped": self.frames_missed},
             "registration_residual_mm": None if self.registration_residual is None else 1e3 * self.registration_residual,
-            "display_latency_ms": {source: {"frames": latencies.count, **_stats_ms(latencies)}
+            "display_latency_ms": {source: {"frames": latencies.count, **latencies.milliseconds(median=0.5, p99=0.99)}
                                    for source, latencies in sorted(self._display.items())},
             "input_damage": list(self.app.damage) if self.app is not None else [],
         }

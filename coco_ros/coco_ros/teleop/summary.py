@@ -51,16 +51,6 @@ def _finite(value: float) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
 
 
-def _milliseconds(seconds: LogHistogram) -> dict[str, Any]:
-    """Count, mean, median, 90th percentile and max in milliseconds (nulls when empty; the quantiles
-    to the histogram's 0.5 %)."""
-    if not seconds.count:
-        return {"frames": 0, "mean": None, "median": None, "p90": None, "max": None}
-    return {"frames": seconds.count, "mean": seconds.total / seconds.count * 1e3,
-            "median": seconds.quantile(0.5) * 1e3, "p90": seconds.quantile(0.9) * 1e3,
-            "max": seconds.max * 1e3}
-
-
 class TeleopSummary(Component):
     """CSV of every distance sample and a JSON summary at the stop; see the module docstring."""
 
@@ -159,7 +149,9 @@ class TeleopSummary(Component):
             "final_bowl_target_distance": bowl_target,
             "latency_ms": {"mean": self._latency_total / self.rows * 1e3 if self.rows else None,
                            "max": self._latency_max * 1e3 if self.rows else None},
-            "display_latency_ms": _milliseconds(self._display),
+            "display_latency_ms": {"frames": self._display.count,
+                                   "mean": None if self._display.mean is None else self._display.mean * 1e3,
+                                   **self._display.milliseconds(median=0.5, p90=0.9)},
             "csv": str(self.csv),
             "input_damage": list(self.app.damage) if self.app is not None else [],
             "input_refused": {name: component.stats.refused for name, component in self.app.components.items()
