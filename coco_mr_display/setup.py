@@ -22,6 +22,7 @@ setup(
             "GLRGBDImage = coco_mr_display.rgbd:GLRGBDImage",
             "GLEntity = coco_mr_display.entity:GLEntity",
             "UpdateColor = coco_mr_display.update_color:UpdateColor",
+            "UpdateVector = coco_mr_display.update_vector:UpdateVector",
             "GLUrdf = coco_mr_display.urdf:GLUrdf",
         ],
     },

@@ -7,8 +7,12 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import re
+import signal
 import socket
+import subprocess
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -176,18 +180,23 @@ def test_palpation_app_end_to_end(palpation_session: Path, tmp_path: Path) -> No
     assert summary["input_damage"] == []
 
     # The view: one video frame per display cycle, and a contact sheet; the hand (the only saturated
-    # colour in the scene) green out of contact, redder in it (OpenCV hues: green 60, yellow 30, red 0).
+    # colour in the scene but the force arrow's blue) green out of contact, redder in it (OpenCV hues:
+    # green 60, yellow 30, red 0); the force arrow (hue ~107) only in contact, so never in the
+    # first frame (nothing streamed, nothing registered yet).
     cv2 = pytest.importorskip("cv2", reason="the recorded frames are decoded with OpenCV")
     capture = cv2.VideoCapture(str(output / "frames.mp4"))
-    frames, hues = 0, []
+    frames, hues, arrows = 0, [], []
     while (frame := capture.read())[0]:
         frames += 1
         hsv = cv2.cvtColor(frame[1], cv2.COLOR_BGR2HSV)
-        hand = (hsv[:, :, 1] > 150) & (hsv[:, :, 2] > 120)
+        saturated = (hsv[:, :, 1] > 150) & (hsv[:, :, 2] > 120)
+        hand = saturated & (hsv[:, :, 0] < 90)
+        arrows.append(int((saturated & (hsv[:, :, 0] >= 95) & (hsv[:, :, 0] <= 120)).sum()))
         if hand.sum() > 500:
             hues.append(float(np.median(hsv[:, :, 0][hand])))
     assert frames == activity_cycles(report, "view", "display") >= 3, frames
     assert hues and max(hues) >= 55 and min(hues) <= 48, hues
+    assert arrows[0] == 0 and max(arrows) >= 15, arrows
     assert (output / "contact_sheet.png").stat().st_size > 0
 
 
@@ -212,3 +221,83 @@ def test_palpation_app_without_processes_touches_the_same_places(coco_launch: Pa
         assert behind_the_body(runs[name]) <= BEHIND_BOUND, name
     assert {"press_3", "stroke"} <= expected, f"a registration came late: only {expected} after both"
     assert places_touched(runs["processes"]) & expected == places_touched(runs["one process"]) & expected == expected
+
+
+HAND_DOMAIN = "151"
+"""The DDS domain of the ROS variant's test (unique among the suite's)."""
+
+
+def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_path: Path) -> None:
+    """``ros2 run coco_ros launcher config/palpation_replay.xml hand:=topic``: the hand's poses come
+    from DDS, here the session's ``/hand/pose`` played by ``coco-replay`` (as a live tracker or a
+    played recording publishes them) once the application runs; the touch registers the tracker
+    and the places the hand reaches after it are touched, as with the bag's hand. The launcher is
+    stopped by Ctrl-C once the hand's recording has been played (a topic has no end)."""
+    installed = ROOT / "install" / "coco_ros" / "lib" / "coco_ros"
+    env = {**os.environ, "ROS_DOMAIN_ID": HAND_DOMAIN, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+           "PYTHONUNBUFFERED": "1"}
+    output = tmp_path / "topic"
+    launcher = subprocess.Popen(
+        [str(installed / "launcher"), str(APP), "hand:=topic", f"bag:={palpation_session}", f"output:={output}",
+         f"stream:=tcp://127.0.0.1:{free_port()}", "display:=false", "--profile", "100", "--duration", "120"],
+        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+    running = threading.Event()
+
+    def read() -> None:
+        assert launcher.stdout is not None
+        for line in launcher.stdout:
+            lines.append(line)
+            if "is not joined to camera yet" in line:  # the haptic loop's first cycle: every process runs
+                running.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        assert running.wait(120), "".join(lines)[-6000:]
+        replay = subprocess.run([str(installed / "coco-replay"), str(palpation_session), "--topics", "/hand/pose",
+                                 "--rate", str(HAND_RATE), "--wait-subscribers", "1", "--no-progress"],
+                                cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+        assert replay.returncode == 0 and "subscriptions after" not in replay.stdout + replay.stderr, replay.stdout + replay.stderr
+    finally:
+        launcher.send_signal(signal.SIGINT)
+        code = launcher.wait(30)
+        reader.join(5)
+    log = "".join(lines)
+    assert code == 0, log[-6000:]
+    assert "registered from" in log, log[-6000:]
+    rows = haptic_rows(output)
+    expected = places_after_the_registration(output)
+    assert {"press_3", "stroke"} <= expected, f"the registration came late: only {expected} after it"
+    assert expected <= places_touched(rows)
+    assert behind_the_body(rows) <= BEHIND_BOUND
+
+
+REDWOOD = ROOT.parent / "shared" / "data" / "rgbd" / "redwood"
+REDWOOD_TRACKER = ("0.047 0.943 1.5696", "1.6413 -1.1994 -0.058")
+"""The hand tracker's pose in the Redwood camera's frame (xyz, rpy) that puts the session's body
+where the floor is: the floor fitted to the depth's bottom rows (1.8 mm RMS), its normal as the
+table's z, its point under pixel (320, 420) lowered by the belly's height as the table's origin,
+composed with the session's table -> tracker (``session.TRACKER``). The presses then take the
+hand 5.6 to 8 mm into the floor, the stroke 2 to 4 mm."""
+
+
+@pytest.mark.skipif(not REDWOOD.is_dir(), reason="the shared Redwood frames are not beside the workspace")
+def test_a_real_rgbd_scene_with_a_fixed_registration(coco_launch: Path, palpation_session: Path,
+                                                     tmp_path: Path) -> None:
+    """``scene:=redwood`` (a real PrimeSense room, no marker in it) with ``registration:=fixed``: the
+    remote camera plays the folder's frames, the hand tracker is joined to it from the start by
+    the given pose, the hand's presses meet the floor and are rendered as force, bounded by the
+    device's limit; no touch, so no residual, and nothing reported as damaged."""
+    output = tmp_path / "redwood"
+    run_app((coco_launch, str(APP)), palpation_session, output, "scene:=redwood", f"scene_path:={REDWOOD}",
+            "registration:=fixed", f"tracker_xyz:={REDWOOD_TRACKER[0]}", f"tracker_rpy:={REDWOOD_TRACKER[1]}",
+            "display:=false")
+    summary = json.loads((output / "summary.json").read_text())
+    assert summary["registration"] == "fixed" and summary["registration_residual_mm"] is None, summary
+    assert summary["input_damage"] == [], summary
+    haptics = summary["haptics"]
+    assert haptics["contact_time_s"] > 0.2 and 0 < haptics["max_force_n"] <= 8.0 + 1e-9, haptics
+    assert summary["kdtree"]["updates"] >= 2 and summary["stream"]["frames"] >= 10, summary
+    rows = haptic_rows(output)
+    assert rows["contact"].any()

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from coco_core.attributes import Attribute
-from coco_core.errors import GeometryError
+from coco_core.errors import ExtrapolationError, GeometryError
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
 from coco_core.stamps import unstamped
@@ -143,7 +143,8 @@ class GLEntity(PhongPeer):
             graph = self.transform_graph
             try:
                 model = graph.lookup(view.frame, state.reference) @ model
-            except TransformError as error:  # its frame comes with its first pose: not drawn until then
+            except (TransformError, ExtrapolationError) as error:  # no path yet, or an edge on it without a
+                # value yet: its frame comes with its first pose, not drawn until then
                 if not self._unplaced:
                     log.warning("%s: not drawn until the transformation graph can place %s in %s (%s)",
                                 self.name, state.reference, view.frame, error)

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     import moderngl
     import trimesh
 
-PRIMITIVES = ("box", "sphere", "cylinder")
+PRIMITIVES = ("box", "sphere", "cylinder", "arrow")
 """Shapes that need no file: ``mesh="box"`` etc., sized by a component's ``size`` attribute."""
 
 
@@ -58,11 +58,14 @@ class MeshPart:
 
 def primitive(kind: str, size: Sequence[float] = ()) -> trimesh.Trimesh:
     """A box (``size`` = x y z extents, default 1 1 1), sphere (radius, default 0.5) or cylinder
-    (radius length along z, default 0.5 1), centred on the origin."""
+    (radius length along z, default 0.5 1), centred on the origin; or an arrow (shaft radius and
+    length, default 0.02 1) from the origin along +z, its tip at ``length``: scaled along z it shows
+    a vector's magnitude (UpdateVector), so it starts where the vector applies."""
     import trimesh
 
     size = [float(value) for value in size]
-    expected = {"box": (3, "x y z extents"), "sphere": (1, "a radius"), "cylinder": (2, "radius length")}
+    expected = {"box": (3, "x y z extents"), "sphere": (1, "a radius"), "cylinder": (2, "radius length"),
+                "arrow": (2, "shaft radius and length")}
     if kind not in expected:
         raise MeshLoadError(f"unknown primitive {kind!r}; valid: {', '.join(PRIMITIVES)}")
     count, meaning = expected[kind]
@@ -73,8 +76,24 @@ def primitive(kind: str, size: Sequence[float] = ()) -> trimesh.Trimesh:
         return trimesh.creation.box(extents=size or (1.0, 1.0, 1.0))
     if kind == "sphere":
         return trimesh.creation.icosphere(subdivisions=3, radius=size[0] if size else 0.5)
+    if kind == "arrow":
+        return _arrow(*(size or (0.02, 1.0)))
     radius, length = size or (0.5, 1.0)
     return trimesh.creation.cylinder(radius=radius, height=length, sections=48)
+
+
+def _arrow(radius: float, length: float) -> trimesh.Trimesh:
+    """A shaft of ``radius`` and a cone twice as wide, from z = 0 to the tip at z = ``length``; the
+    head is a fifth of the length (a short arrow keeps its proportions when scaled along z)."""
+    import trimesh
+
+    head = length / 5
+    segment = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, length - head]])
+    shaft = trimesh.creation.cylinder(radius=radius, segment=segment, sections=24)
+    cone = trimesh.creation.cone(radius=2 * radius, height=head, sections=24)
+    cone.apply_translation([0.0, 0.0, length - head])
+    return trimesh.Trimesh(np.vstack([shaft.vertices, cone.vertices]),
+                           np.vstack([shaft.faces, cone.faces + len(shaft.vertices)]), process=False)
 
 
 def load_geometry(source: str | Path, relative_to: str | Path | None = None) -> Any:

@@ -4,6 +4,7 @@ shape; bad meshes fail with the file named; and it works inside a running GLMana
 
 from __future__ import annotations
 
+import logging
 import math
 
 import cv2
@@ -155,6 +156,22 @@ def test_follows_a_graph_frame(scene):
     # An offset from the attributes applies in the frame's axes: the marker's x is the world's y.
     box.set_attribute_now("position", [1.0, 0.0, 0.0])
     assert_projected_box(mask_of(scene(box, view=view)), view, marker @ se3.make(translation=[1.0, 0.0, 0.0]))
+
+
+def test_a_frame_whose_edge_has_no_sample_yet_is_not_drawn_until_it_has(scene, caplog):
+    """A frame joined to the world by a dynamic edge that has had no value yet (a tracker declared in
+    the file that has not sent a pose): no error, nothing drawn, then drawn at the first value."""
+    app = scene.app
+    view = camera_view([0, 0, 0], [0, 0, -1], SIZE)
+    app.transforms.add_static("world", "tracker", se3.make(translation=[0.0, 0.0, -4.0]))
+    app.transforms.add_dynamic("tracker", "hand")
+    box = GLEntity("hand_model", frame="hand")
+    with caplog.at_level(logging.WARNING):
+        assert not mask_of(scene(box, view=view)).any()
+    assert box.enabled and box.stats.errors == 0, "waiting for a pose is not an error"
+    assert "not drawn until" in caplog.text
+    app.transforms.set_transform("tracker", "hand", np.eye(4), stamp=1.0)
+    assert_projected_box(mask_of(scene(box, view=view)), view, se3.make(translation=[0.0, 0.0, -4.0]))
 
 
 class PoseSource(Component):

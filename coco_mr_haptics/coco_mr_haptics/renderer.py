@@ -28,9 +28,11 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import HapticDeviceError, SetupError, TransformError
+from coco_core.errors import ExtrapolationError, HapticDeviceError, SetupError, TransformError
 from coco_core.policy import NO_DATA
 from coco_core.ports import InputPort, OutputPort
+from coco_core.transforms import se3
+from coco_core.transforms.samples import FramePose
 
 from .proxy import GodObject, Material
 from .types import HapticDeviceState, HapticForce, HapticSample, Vector
@@ -223,6 +225,10 @@ class HapticRenderer(Component):
     sample = OutputPort(HapticSample, doc="one record per cycle, in the render frame (for HapticRecorder)")
     penetration = OutputPort(float, "m: how deep the device is inside the surfaces this cycle (0 out of contact): "
                              "what a display colours the hand by (UpdateColor.value)")
+    proxy = OutputPort(FramePose, "the proxy's position in the render frame (the device's where it is free): "
+                       "where a display draws the contact point (GLEntity.pose)")
+    proxy_force = OutputPort(tuple, "N: the force on the device in the render frame, applied at the proxy: "
+                             "what a display draws as an arrow (UpdateVector.vector)")
 
     def on_config(self) -> None:
         self.renderers = [peer for peer in self.peers if isinstance(peer, SurfaceRenderer)]
@@ -258,7 +264,7 @@ class HapticRenderer(Component):
         workspace = self._workspace
         try:
             reading = workspace.read(self.device, self.force)
-        except TransformError as error:
+        except (TransformError, ExtrapolationError) as error:  # no path yet, or an edge on it without a value
             self._unjoined(error)
             return
         if reading is None:
@@ -299,3 +305,6 @@ class HapticRenderer(Component):
         self.sample.write(HapticSample(time.perf_counter(), (x, y, z), proxy, (fx, fy, fz), bool(touching),
                                        touching, depth, unready, fault))
         self.penetration.write(depth)
+        if self.proxy.connections:  # the pose is built only for a display that draws it
+            self.proxy.write(FramePose(self.frame, "proxy", se3.make(translation=proxy)))
+        self.proxy_force.write((fx, fy, fz))

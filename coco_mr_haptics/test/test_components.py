@@ -377,3 +377,50 @@ def test_the_penetration_port_carries_each_cycles_depth():
     depths, samples = sink.penetration.read_all(), sink.samples.read_all()
     assert depths == [sample.depth for sample in samples]
     assert depths[0] == 0.0 and depths[3] == pytest.approx(0.004, abs=1e-6) and depths[-1] == 0.0
+
+
+class ProxySink(Component):
+    proxy = InputPort(FramePose)
+    force = InputPort(tuple)
+    samples = InputPort(object)
+
+
+def test_the_proxy_and_its_force_for_a_display():
+    """What a display draws the contact by: the proxy's pose and the force at it, in the render frame,
+    the sample's every cycle (the device where it is free; on the surface in contact)."""
+    app = Application("proxy")
+    renderer = HapticRenderer("renderer")
+    renderer.add_peer(HapticImplicitSurf("plane", surface="plane()", stiffness=1000.0, damping=0.0))
+    handle, sink = Handle("handle"), ProxySink("sink")
+    for component in (renderer, handle, sink):
+        app.add(component)
+    app.connect("handle.state", "renderer.device")
+    for port, to in (("proxy", "proxy"), ("proxy_force", "force"), ("sample", "samples")):
+        app.connect(f"renderer.{port}", f"sink.{to}", ConnectionPolicy(BufferPolicy.BUFFER, size=100))
+    renderer.configure()
+    for z in (0.01, -0.004):
+        handle.state.write(HapticDeviceState((0.02, 0.0, z)))
+        renderer.step()
+    poses, forces, samples = sink.proxy.read_all(), sink.force.read_all(), sink.samples.read_all()
+    assert [(pose.target, pose.source) for pose in poses] == [("world", "proxy")] * 2
+    assert [tuple(pose.transform[:3, 3]) for pose in poses] == [sample.proxy for sample in samples]
+    assert forces == [sample.force for sample in samples]
+    assert poses[0].transform[2, 3] == pytest.approx(0.01) and forces[0] == (0.0, 0.0, 0.0)
+    assert poses[1].transform[2, 3] == pytest.approx(0.0, abs=1e-9), "held on the plane"
+    assert forces[1] == pytest.approx((0.0, 0.0, 4.0), abs=1e-6), "1000 N/m x 4 mm, out of the plane"
+
+
+def test_a_workspace_behind_an_edge_without_a_value_yet_gets_zero_force(tmp_path):
+    """The device's workspace joined to the render frame through a dynamic edge that has had no value
+    yet (a tracker declared in the file, silent so far): zero force and no sample, not an error; once
+    the edge has a value, the loop renders."""
+    _, renderer, recorder, run = loop(
+        tmp_path, [(0, 0, 0, -0.01), (1, 0, 0, -0.01)],
+        [HapticImplicitSurf("plane", surface="plane()", stiffness=800.0)],
+        renderer_attributes={"device_frame": "tracker"},
+        transforms=lambda graph: graph.add_dynamic("world", "tracker"))
+    run(0.05)
+    assert renderer.unjoined_cycles == 50 and renderer.stats.errors == 0 and recorder.rows == 0
+    renderer.transform_graph.set_transform("world", "tracker", np.eye(4), stamp=1.0)
+    run(0.05)
+    assert recorder.rows > 0 and renderer.stats.errors == 0

@@ -12,7 +12,7 @@ structures, draining the haptic samples at each wake-up) and reads:
   server sent that never arrived (gaps in the server's sequence numbers: dropped by ZeroMQ or
   superseded in the receiver);
 - ``residual`` (``TouchRegistration.residual``): the calibration touch's RMS residual, or null when
-  the touch never registered the hand tracker;
+  the touch never registered the hand tracker (or the ``registration`` is ``fixed``: none to make);
 - ``display_latency`` (``GLManager.latency``, optional): per rendered frame that showed a new input,
   seconds from that input's origin to the frame's pixels, by the origin's source: the remote
   camera's frames (stamped at acquisition, through the stream) give the paper's sensor-to-display
@@ -49,6 +49,9 @@ class PalpationSummary(Component):
     """Measures the palpation run from its data flows and writes the JSON summary at the stop."""
 
     json = Attribute(Path, Path("out/palpation/summary.json"), "JSON summary written at the stop")
+    registration = Attribute(str, "touch", "how the hand tracker is joined to the camera: touch (TouchRegistration, "
+                             "whose residual arrives on residual) or fixed (a transform the application gives)",
+                             choices=("touch", "fixed"))
     period = Attribute(float, 0.001, "s: the haptic loop's nominal period (its period error is measured against it)",
                        min=1e-6)
 
@@ -132,6 +135,7 @@ class PalpationSummary(Component):
             "haptics": haptic,
             "kdtree": tree,
             "stream": {"frames": self.frames_received, "dropped": self.frames_missed},
+            "registration": self.registration,
             "registration_residual_mm": None if self.registration_residual is None else 1e3 * self.registration_residual,
             "display_latency_ms": {source: {"frames": latencies.count, **latencies.milliseconds(median=0.5, p99=0.99)}
                                    for source, latencies in sorted(self._display.items())},
@@ -164,7 +168,9 @@ def describe(summary: dict[str, Any]) -> str:
         f"KD-tree: {tree['updates']} updates at {tree_rate}, build median {ms(tree['build_ms'], 'median')}, "
         f"p99 {ms(tree['build_ms'], 'p99')} ({tree['points_median'] or 0} points)",
         f"stream: {stream['frames']} frames received, {stream['dropped']} dropped",
-        "registration: " + ("NOT REGISTERED (no calibration touch seen)" if residual is None
+        "registration: " + ("fixed (given by the application, no calibration touch)"
+                            if summary.get("registration") == "fixed"
+                            else "NOT REGISTERED (no calibration touch seen)" if residual is None
                             else f"residual {residual:.2f} mm RMS"),
     ]
     for source, latency in (summary.get("display_latency_ms") or {}).items():
