@@ -7,14 +7,16 @@ says that it made no picture.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import json
 import os
 import platform
+import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Iterator
 
 from _table import Table
 
@@ -89,6 +91,18 @@ class LoadMeter:
             return
         busy, own, wall = (e - s for e, s in zip(end, self._start))
         self.others = max(0.0, (busy - own) / (wall * (os.cpu_count() or 1)))
+
+
+@contextlib.contextmanager
+def other_processes(count: int) -> Iterator[None]:
+    """``count`` other processes that spin on the CPU meanwhile: a shared machine, made reproducible."""
+    spinners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(count)]
+    try:
+        yield
+    finally:
+        for spinner in spinners:
+            spinner.kill()
+            spinner.wait()
 
 
 def emit(name: str, args: argparse.Namespace, tables: Iterable[Table], results: dict[str, Any]) -> None:

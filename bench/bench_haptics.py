@@ -466,6 +466,90 @@ def loops(seconds: float) -> tuple[Table, dict[str, Any]]:
     return table, results
 
 
+REALTIME_ON = ("realtime:=FIFO", "lock_memory:=true", "gc:=between_cycles")
+REALTIME_OFF = ("realtime:=none", "lock_memory:=false", "gc:=auto")
+GOAL_LOADED_RATIO = 2.0
+"""The haptic loop's p99 period error with both cores busy, at most this times the idle one's."""
+
+
+def long_stroke(seconds: float, folder: Path) -> Path:
+    """config/haptic_hand_stroke.csv played again and again for ``seconds`` (a loop as long as asked)."""
+    rows = (REPO / "config" / "haptic_hand_stroke.csv").read_text().splitlines()
+    header, points = rows[0], [row.split(",") for row in rows[1:]]
+    length = float(points[-1][0]) + 0.5
+    lines, offset = [header], 0.0
+    while offset < seconds:
+        lines += [",".join([f"{float(p[0]) + offset:.3f}", *p[1:]]) for p in points]
+        offset += length
+    path = folder / "long_stroke.csv"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def haptic_app_profile(trajectory: Path, settings: tuple[str, ...], folder: Path) -> dict[str, Any]:
+    """config/haptic_implicit.xml (its haptic loop in a process of its own) run through coco-launch
+    with ``settings``; the haptic activity's row of the profile: cycles, overruns, period error."""
+    import subprocess
+
+    result = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(REPO / "config" / "haptic_implicit.xml"),
+                             f"trajectory:={trajectory}", f"out:={folder}", *settings, "--profile", "3600"],
+                            capture_output=True, text=True, timeout=600)
+    if result.returncode != 0:
+        raise RuntimeError(f"haptic_implicit.xml failed ({result.returncode}):\n{result.stdout[-3000:]}{result.stderr[-3000:]}")
+    # "haptics  haptics  periodic 1 ms  CYCLES  OVERRUNS  P50 / P99 / MAX" (microseconds)
+    row = next(line.split() for line in result.stdout.splitlines() if line.startswith("haptics ") and " periodic " in line)
+    p50, p99, largest = float(row[7]), float(row[9]), float(row[11])
+    warnings = [line for line in result.stderr.splitlines() if "WARNING" in line]
+    return {"cycles": int(row[5]), "overruns": int(row[6]), "p50_us": p50, "p99_us": p99, "max_us": largest,
+            "warnings": warnings}
+
+
+def realtime_under_load(seconds: float) -> tuple[Table, dict[str, Any]]:
+    """config/haptic_implicit.xml's 1 kHz loop (in its own process) idle and with every core kept busy
+    by CPU burners the bench starts, with its real-time settings on (the file's defaults: SCHED_FIFO
+    80, memory locked, garbage collected between cycles) and off; the conditions alternate."""
+    import tempfile
+
+    cores = os.cpu_count() or 1
+    table = Table(f"config/haptic_implicit.xml's 1 kHz haptic process, {seconds:g} s a run, idle and with "
+                  f"{cores} CPU burners", ["condition", "cycles", "overruns", "period error p50", "p99", "max",
+                                           "p99 / idle p99 (same settings)"])
+    results: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = Path(scratch)
+        trajectory = long_stroke(seconds, folder)
+        for settings_name, settings in (("real-time settings off", REALTIME_OFF), ("real-time settings on", REALTIME_ON)):
+            for load in ("idle", "loaded"):
+                with _report.other_processes(cores if load == "loaded" else 0), _report.LoadMeter() as meter:
+                    run = haptic_app_profile(trajectory, settings, folder)
+                run["others_share"] = meter.others
+                results[f"{load}, {settings_name}"] = run
+    for name, run in results.items():
+        load, settings_name = name.split(", ")
+        idle = results[f"idle, {settings_name}"]
+        ratio = run["p99_us"] / idle["p99_us"] if idle["p99_us"] > 0 else float("nan")
+        run["ratio_to_idle"] = ratio
+        table.add(name, run["cycles"], run["overruns"], f"{run['p50_us']:.1f} us", f"{run['p99_us']:.1f} us",
+                  f"{run['max_us']:.0f} us", fmt_ratio(ratio) if load == "loaded" else "-")
+    on, off = results["loaded, real-time settings on"], results["loaded, real-time settings off"]
+    idle_on = results["idle, real-time settings on"]
+    table.notes.append(verdict(on["p99_us"] <= GOAL_LOADED_RATIO * idle_on["p99_us"]) + ": "
+                       + (f"loaded p99 with the settings {on['p99_us']:.1f} us = {on['ratio_to_idle']:.2f}x the idle "
+                          f"p99 {idle_on['p99_us']:.1f} us (goal <= {GOAL_LOADED_RATIO:g}x); without them "
+                          f"{off['p99_us']:.0f} us = {off['ratio_to_idle']:.0f}x"))
+    table.notes.append(verdict(on["overruns"] == 0 and on["cycles"] >= 10_000) + ": "
+                       + (f"missed deadlines with the settings under load: {on['overruns']} in {on['cycles']} cycles "
+                          f"(goal: 0 in 10 s); without them {off['overruns']}"))
+    refused = sorted({w.split("]", 1)[-1].strip() for w in on["warnings"]})
+    table.notes.append("The settings were " + ("all granted." if not refused
+                                               else "partly refused: " + "; ".join(refused)))
+    table.notes.append("Period error: the runtime's figure in the child process's profile (spin exit minus deadline), "
+                       "over the whole run. Burners: `python -c 'while True: pass'`, one per core. Other processes "
+                       "used " + ", ".join(f"{r['others_share'] * 100:.0f}%" if r["others_share"] is not None else "n/a"
+                                           for r in results.values()) + " of all cores in these runs (burners included).")
+    return table, results
+
+
 def draw(step_results: dict[str, Any], build_results: dict[str, Any]):
     def figure(plt: Any) -> Any:
         fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4))
@@ -490,7 +574,15 @@ def draw(step_results: dict[str, Any], build_results: dict[str, Any]):
 def main() -> None:
     p = _report.parser("bench_haptics", __doc__.splitlines()[0])
     p.add_argument("--seconds", type=float, default=5.0, help="seconds per haptic-loop condition (default 5)")
+    p.add_argument("--realtime-only", action="store_true",
+                   help="only the haptic process under load with and without its real-time settings")
+    p.add_argument("--realtime-seconds", type=float, default=10.0,
+                   help="seconds of each run of the haptic process under load (default 10)")
     args = p.parse_args()
+    if args.realtime_only:
+        table, results = realtime_under_load(args.realtime_seconds)
+        _report.emit("bench_haptics", args, [table], {"realtime": results})
+        return
     kernel_warm = time.perf_counter()
     GodObject(Scene(parse_surface("sphere(1)")))
     print(f"kernel loaded in {time.perf_counter() - kernel_warm:.1f} s", flush=True)
@@ -499,8 +591,11 @@ def main() -> None:
     build, query_table, build_results = builds()
     print(build.text(), flush=True)
     loop_table, loop_results = loops(args.seconds)
-    _report.emit("bench_haptics", args, [steps, build, query_table, loop_table],
-                 {"steps": step_results, "builds": build_results, "loops": loop_results})
+    print(loop_table.text(), flush=True)
+    realtime_table, realtime_results = realtime_under_load(args.realtime_seconds)
+    _report.emit("bench_haptics", args, [steps, build, query_table, loop_table, realtime_table],
+                 {"steps": step_results, "builds": build_results, "loops": loop_results,
+                  "realtime": realtime_results})
     _report.save_plot(args, draw(step_results, build_results))
 
 

@@ -19,14 +19,12 @@ SCHED_FIFO scheduling request. Goal: p99 < 50 us idle.
 
 from __future__ import annotations
 
-import contextlib
 import os
-import subprocess
 import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterator
+from typing import Any, Callable
 
 import _report
 from _ros import RosContext  # sets ROS_DOMAIN_ID before rclpy is imported
@@ -199,18 +197,6 @@ def grid_origin(first_start: int, guess: int) -> tuple[int, bool]:
     return first_start, True
 
 
-@contextlib.contextmanager
-def other_processes(count: int) -> Iterator[None]:
-    """``count`` other processes that spin on the CPU meanwhile: a shared machine, made reproducible."""
-    spinners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(count)]
-    try:
-        yield
-    finally:
-        for spinner in spinners:
-            spinner.kill()
-            spinner.wait()
-
-
 def run_coco(seconds: float, load: str, switchinterval: float | None = None, fifo: int | None = None) -> Run:
     recorder = Recorder(int((seconds + WARMUP_S + 1) * 1e9 / PERIOD_NS * 1.2))
     app = Application("bench_period")
@@ -224,7 +210,7 @@ def run_coco(seconds: float, load: str, switchinterval: float | None = None, fif
     if switchinterval is not None:
         sys.setswitchinterval(switchinterval)
     try:
-        with other_processes(LOADERS if load == LOADED else 0):
+        with _report.other_processes(LOADERS if load == LOADED else 0):
             app.start()
             t0 = time.perf_counter_ns()
             time.sleep(WARMUP_S)
@@ -255,7 +241,7 @@ def run_rclpy(seconds: float, load: str, multi: bool) -> Run:
     recorder = Recorder(int((seconds + WARMUP_S + 1) * 1e9 / PERIOD_NS * 1.2))
     stop = threading.Event()
     burner = threading.Thread(target=burn_until, args=(stop,), daemon=True)
-    with other_processes(LOADERS if load == LOADED else 0), RosContext() as context:
+    with _report.other_processes(LOADERS if load == LOADED else 0), RosContext() as context:
         node = Node("bench_timer", context=context)
         executor = (MultiThreadedExecutor if multi else SingleThreadedExecutor)(context=context)
         executor.add_node(node)

@@ -50,7 +50,7 @@ def test_surface_typo_is_reported_at_its_line_and_column() -> None:
     text = Path(APP).read_text().replace("sphere(0.02)", "sphre(0.02)")
     line = next(i for i, row in enumerate(text.splitlines(), start=1) if "sphre(0.02)" in row)
     try:
-        build_application(parse_application_string(text, "haptic.xml"))
+        build_application(parse_application_string(text, "haptic.xml"), "haptics")  # the process with the scene
     except ConfigErrors as error:
         message = str(error)
     else:
@@ -73,7 +73,7 @@ def test_absurd_numbers_and_deep_nesting_are_refused_at_their_line(original: str
     text = Path(APP).read_text().replace(original, hostile)
     line = next(i for i, row in enumerate(text.splitlines(), start=1) if hostile in row)
     with pytest.raises(ConfigErrors) as caught:
-        build_application(parse_application_string(text, "haptic.xml"))
+        build_application(parse_application_string(text, "haptic.xml"), "haptics")  # the process with the scene
     message = str(caught.value)
     assert f"haptic.xml:{line}" in message
     for word in words:

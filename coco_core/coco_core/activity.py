@@ -24,6 +24,7 @@ from typing import Callable, Iterable
 from .component import Component
 from .drivers import DEFAULT_SPIN, Driver, MainThreadDriver, ThreadDriver
 from .errors import ActivityError
+from .garbage import GarbageBetweenCycles
 from .lifecycle import StartGate
 from .period import PeriodGrid, check_period
 from .profiling import ActivityStats
@@ -317,6 +318,9 @@ class PeriodicActivity(Activity):
         """Seconds before each deadline at which a thread driver stops sleeping and spins."""
         self.grid = PeriodGrid(period, self.stats)
         """The time grid; the driver keeps it (in the driver's thread)."""
+        self.garbage: GarbageBetweenCycles | None = None
+        """The process's garbage collections, run between this activity's cycles by its thread
+        driver (``<process gc="between_cycles">``, see :mod:`.garbage`); None: CPython's own."""
 
     @property
     def period(self) -> float:

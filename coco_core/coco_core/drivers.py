@@ -113,9 +113,12 @@ class ThreadDriver:
         clock = time.perf_counter
         grid = activity.grid
         grid.begin(clock())
+        garbage = activity.garbage
         while not activity.stopping:
             activity.cycle()
             deadline = grid.after_cycle(clock())
+            if garbage is not None:
+                garbage.after_cycle(deadline, clock())
             woke = self._sleep_until(activity, deadline)
             while woke is None:  # interrupted: stopping, or a new period
                 if activity.stopping:

@@ -135,7 +135,9 @@ def describe_processes(spec: AppSpec, launcher_part: Application, allow_unknown:
     for name, part in parts.items():
         process = placement.processes.get(name)
         placed = [f"affinity {','.join(map(str, process.affinity))}" if process and process.affinity else "",
-                  f"nice {process.nice}" if process and process.nice is not None else ""]
+                  f"nice {process.nice}" if process and process.nice is not None else "",
+                  "memory locked" if process and process.lock_memory else "",
+                  "gc between cycles" if process and process.gc == "between_cycles" else ""]
         details = ", ".join(word for word in placed if word)
         lines.append(f"  process {name or 'launcher'}" + (f" ({details})" if details else ""))
         lines += _activity_lines(part, "    ")

@@ -111,6 +111,10 @@ class ProcessSpec:
     """Cores the whole process may run on; empty: any."""
     nice: int | None = None
     """Nice value of the whole process (-20..19)."""
+    lock_memory: bool = False
+    """Whether the process locks its memory in RAM (mlockall): no page fault in a real-time loop."""
+    gc: str = "auto"
+    """``auto`` (CPython's collector as usual) or ``between_cycles`` (see :mod:`coco_core.garbage`)."""
     location: Location | None = None
 
 

@@ -8,6 +8,7 @@ process is left behind.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
@@ -382,3 +383,49 @@ def test_a_signal_during_a_long_natural_stop_still_stops_within_a_second(tmp_pat
     # the child was told the stop became hard, and bounded its own flush
     assert "coco[worker]: activity near did not stop within 1.0 s" in out, out
     assert not (tmp_path / "far.txt").exists()
+
+
+REALTIME_APP = """<package name="realtime">
+  <components>
+    <component><name>garbage</name><task>process_components:CycleGarbage</task>
+      <attributes><attribute name="path" value="{tmp}/garbage.json"/>
+        <attribute name="stop_after" value="400"/></attributes></component>
+    <component><name>ticker</name><task>process_components:Ticker</task></component>
+  </components>
+  <activities>
+    <process name="haptics" {settings}>
+      <activity name="loop"><schedule type="periodic" period="1"/>
+        <components><component name="garbage"/></components></activity>
+      <activity name="slower"><schedule type="periodic" period="20"/>
+        <components><component name="ticker"/></components></activity>
+    </process>
+  </activities>
+</package>
+"""
+
+
+@pytest.mark.parametrize("settings", ['lock_memory="true" gc="between_cycles"', ""])
+def test_a_realtime_process_locks_its_memory_and_collects_between_cycles(tmp_path: Path, reap, settings: str) -> None:
+    """``<process lock_memory="true" gc="between_cycles">``: its memory is locked (or the OS's refusal
+    is said once), automatic collection is off and what it built is frozen before the first cycle,
+    and its fastest activity (1 ms, not the 20 ms one) collects between its cycles the cyclic
+    garbage a component makes, so the young generation stays bounded; without them, as before."""
+    app = tmp_path / "app.xml"
+    app.write_text(REALTIME_APP.format(tmp=tmp_path, settings=settings))
+    check = launch(app, "--check")
+    out, _ = check.communicate(timeout=60)
+    assert ("process haptics (memory locked, gc between cycles)" in out) == bool(settings), out
+    launcher = launch(app, "--duration", "60")
+    reap(launcher)
+    out, _ = launcher.communicate(timeout=90)
+    assert launcher.returncode == 0, out
+    first, last = json.loads((tmp_path / "garbage.json").read_text())
+    if not settings:
+        assert first["enabled"] and first["frozen"] == 0 and first["locked_kb"] == 0
+        assert "garbage collections" not in out
+        return
+    assert not first["enabled"] and first["frozen"] > 1000, first
+    assert first["locked_kb"] > 0 or "mlockall refused" in out, (first, out)
+    collections = int(re.search(r"process haptics: (\d+) garbage collections between cycles", out).group(1))
+    assert collections >= 400 * 50 // 700 // 2, out  # 20,000 cycles made, a collection per ~700 objects
+    assert last["young"] < 10 * 700, "the young generation stays bounded"

@@ -242,7 +242,7 @@ class HapticRenderer(Component):
         self.unjoined_cycles = 0
         """Cycles in which the device's workspace was not yet joined to the render frame."""
 
-    def _unjoined(self, error: TransformError) -> None:
+    def _unjoined(self, error: TransformError | ExtrapolationError) -> None:
         """The device's workspace frame is not joined to the render frame yet (a calibration, such as
         the palpation's touch on a marker, has not run): nothing can be rendered where the device
         is, so the force is zero and no sample is written, until the graph joins them."""

@@ -25,11 +25,14 @@ import threading
 from concurrent.futures import Future
 from typing import Any
 
+from ..activity import PeriodicActivity
 from ..application import Application
 from ..builder import build_application
 from ..drivers import EventfdDriver
 from ..errors import CocoError
+from ..garbage import GarbageBetweenCycles
 from ..launcher import stopped_by_a_failure
+from ..memory_lock import lock_memory
 from ..report import snapshot
 from .channels import attach
 from .control import ControlLink
@@ -79,6 +82,19 @@ def apply_process_placement(affinity: list[int], nice: int | None) -> None:
             log.warning("cannot set nice %d (%s): lowering a nice value needs CAP_SYS_NICE", nice, error.strerror)
 
 
+def collect_between_cycles(app: Application) -> GarbageBetweenCycles | None:
+    """Give the collections of ``app`` to its fastest periodic activity (see :mod:`..garbage`);
+    None, with a warning, when it has none (nothing would collect: the collector stays as it is)."""
+    periodic = [activity for activity in app.activities.values() if isinstance(activity, PeriodicActivity)]
+    if not periodic:
+        log.warning('process %s: gc="between_cycles" needs a periodic activity to collect between its cycles; '
+                    "this process has none: its garbage collector is left automatic", app.process)
+        return None
+    fastest = min(periodic, key=lambda activity: activity.period)
+    fastest.garbage = GarbageBetweenCycles()
+    return fastest.garbage
+
+
 class ChildProcess:
     """One child's life: configure, build, start, serve the control link, stop."""
 
@@ -87,6 +103,8 @@ class ChildProcess:
         self.parent = parent
         self.app: Application | None = None
         self.launch = ""
+        self.garbage: GarbageBetweenCycles | None = None
+        """The collections between cycles of a ``gc="between_cycles"`` process."""
 
     def run(self) -> int:
         config = self.link.receive()
@@ -100,6 +118,8 @@ class ChildProcess:
         spec = config["spec"]
         placement = next(p for p in spec.processes if p.name == process)
         apply_process_placement(placement.affinity, placement.nice)
+        if placement.lock_memory and (refused := lock_memory()):
+            log.warning("process %s: %s", process, refused)
         try:
             app = self.app = build_application(spec, process)
         except CocoError as error:
@@ -114,6 +134,8 @@ class ChildProcess:
             self.link.send("error", text=str(error))
             return 1
         app.add_stop_listener(self._stop_requested_here)
+        if placement.gc == "between_cycles":
+            self.garbage = collect_between_cycles(app)
         app.gate.hold(self._configured)  # the launcher's word ("run") opens it
         app.router = self
         self.link.send("built")
@@ -129,6 +151,8 @@ class ChildProcess:
         listener = threading.Thread(target=self._serve, name="coco:control", daemon=True)
         listener.start()
         clean = self.run_app(app, config)
+        if self.garbage is not None:
+            log.info("process %s: %s", process, self.garbage.describe())
         failed = stopped_by_a_failure(app)  # a component's error policy, or damaged input
         self.link.send("stopped", clean=clean, failed=failed, snapshot=snapshot(app, process))
         return 0 if clean else 1
@@ -150,7 +174,10 @@ class ChildProcess:
         return app.stop()
 
     def _configured(self) -> None:
-        """Every activity of this process is configured: tell the launcher, whose gate counts them."""
+        """Every activity of this process is configured: tell the launcher, whose gate counts them.
+        A ``gc="between_cycles"`` process freezes what it built now, before the first cycle."""
+        if self.garbage is not None:
+            self.garbage.take_over()
         self.link.send("configured")
 
     def _stop_requested_here(self, reason: str) -> None:

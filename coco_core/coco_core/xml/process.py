@@ -10,21 +10,24 @@
 Activities outside any ``<process>`` run in the launcher's process, as they always did; each
 ``<process>`` becomes a child process of the launcher that builds only the components of its own
 activities. ``affinity`` (cores) and ``nice`` apply to the whole child process; an activity's own
-``<schedule>`` settings still apply to its thread inside it.
+``<schedule>`` settings still apply to its thread inside it. For a real-time loop (a 1 kHz haptic
+process): ``lock_memory="true"`` locks the process's memory in RAM (mlockall) and ``gc="between_cycles"``
+keeps CPython's garbage collector out of its cycles (:mod:`coco_core.garbage`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
+from ..garbage import GC_MODES
 from ..model import ProcessSpec
 from .draft import Draft
 from .reader import CONDITIONS, FileReader
 from .tree import Element
 from .schedule import parse_nice
-from .values import parse_cores
+from .values import parse_bool, parse_cores
 
-PROCESS_ATTRIBUTES = ("affinity", "name", "nice", *CONDITIONS)
+PROCESS_ATTRIBUTES = ("affinity", "gc", "lock_memory", "name", "nice", *CONDITIONS)
 PROCESS_CHILDREN = ("activity", "farm", "pipeline")
 
 
@@ -39,6 +42,8 @@ def read_process(
         name=name,
         affinity=reader.parsed(element, values, "affinity", parse_cores) or [],
         nice=reader.parsed(element, values, "nice", parse_nice),
+        lock_memory=bool(reader.parsed(element, values, "lock_memory", parse_bool)),
+        gc=reader.choice(element, values, "gc", GC_MODES, "auto"),
         location=element.location,
     )
     first = len(draft.activities)

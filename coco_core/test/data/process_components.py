@@ -149,3 +149,42 @@ class Caller(Component):
 
     def on_stop(self) -> None:
         self.file.close()
+
+
+class CycleGarbage(Component):
+    """Makes ``cycles`` reference cycles an update (garbage only the cyclic collector frees), and
+    writes what its process did to the collector and its memory to ``path`` (JSON) at its first
+    update and at the stop: whether automatic collection is on, the objects frozen, the memory
+    locked (VmLck, kB), and the collector's young-generation count."""
+
+    path = Attribute(str, "garbage.json", "output file")
+    cycles = Attribute(int, 50, "reference cycles made per update")
+    stop_after = Attribute(int, 0, "updates after which the application stops itself (0: never)")
+
+    def on_config(self) -> None:
+        self.count = 0
+        self.states: list[dict[str, object]] = []
+
+    def state(self) -> dict[str, object]:
+        import gc
+
+        locked = next((int(line.split()[1]) for line in Path("/proc/self/status").read_text().splitlines()
+                       if line.startswith("VmLck:")), 0)
+        return {"enabled": gc.isenabled(), "frozen": gc.get_freeze_count(), "locked_kb": locked,
+                "young": gc.get_count()[0], "pid": os.getpid()}
+
+    def on_update(self) -> None:
+        if self.count == 0:
+            self.states.append(self.state())
+        for _ in range(self.cycles):
+            loop: list[object] = []
+            loop.append(loop)
+        self.count += 1
+        if self.stop_after and self.count == self.stop_after and self.app is not None:
+            self.app.request_stop(f"{self.name}: {self.count} updates")
+
+    def on_stop(self) -> None:
+        import json
+
+        self.states.append(self.state())
+        Path(self.path).write_text(json.dumps(self.states))
