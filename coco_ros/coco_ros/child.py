@@ -54,7 +54,7 @@ class RosChildProcess(ChildProcess):
             # The launcher resolved the args (its -p values included) and reported the -p values no arg
             # takes: a child's node shows the args and refuses changes as the launcher's does.
             ArgParameters(node, config["spec"]).declare({})
-            host = ExecutorHost(node, app, config["threads"], config["all_threads"])
+            host = ExecutorHost(node, app, config["threads"], config["all_threads"], woken=set(config["wakes"]))
             executor = host.create_executor()
             executor.add_node(node)
             with RosoutLogging(node):  # this process's log lines on /rosout, under its node's name

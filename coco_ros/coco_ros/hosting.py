@@ -59,11 +59,10 @@ import functools
 import logging
 import threading
 import time
-from typing import TYPE_CHECKING, Callable, Iterable
+from typing import TYPE_CHECKING, Callable, Collection, Iterable
 
 from coco_core import Activity, Application, CocoError, Component, PeriodicActivity, SchedulingRequest
 from coco_core.errors import did_you_mean
-from coco_core.drivers import EventfdDriver
 from coco_core.operations import set_current_activity
 from .wait_set import ActivityWaitSet, WaitSetGroup
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -99,11 +98,11 @@ _CHAIN = threading.local()
 cycles it runs before it returns (None outside such a callback)."""
 
 
-def dedicated_reason(activity: Activity, forced: bool = False) -> str | None:
+def dedicated_reason(activity: Activity, forced: bool = False, woken: bool = False) -> str | None:
     """Why ``activity`` needs a thread of its own, or None when the executor may host it.
 
-    A thread is needed by an activity that another process wakes (a connection from a child process
-    ends in it: the writer's process wakes its thread through an eventfd), by the main activity (it runs in the launcher's main thread), by an activity
+    A thread is needed by an activity that another process wakes (``woken``: a connection from a child
+    process ends in it, and the writer's process wakes its thread through an eventfd), by the main activity (it runs in the launcher's main thread), by an activity
     that asks the OS for anything about its thread (affinity, exclusive cores, real-time class,
     priority, nice: an executor thread is shared, so none of it could be applied), by a periodic
     activity faster than :data:`THREAD_PERIOD`, by one running a ``thread_bound`` component (or peer:
@@ -112,7 +111,7 @@ def dedicated_reason(activity: Activity, forced: bool = False) -> str | None:
     """
     if forced:
         return "asked on the command line"
-    if isinstance(activity.driver, EventfdDriver):
+    if woken:
         return "woken by another process (its eventfd)"
     if activity.main:
         return "main activity (the launcher's main thread)"
@@ -130,11 +129,14 @@ def dedicated_reason(activity: Activity, forced: bool = False) -> str | None:
     return None
 
 
-def plan_hosting(app: Application, threads: Iterable[str] = (), all_threads: bool = False) -> dict[str, str]:
+def plan_hosting(app: Application, threads: Iterable[str] = (), all_threads: bool = False,
+                 woken: Collection[str] = ()) -> dict[str, str]:
     """Where each activity of ``app`` runs: ``"executor"`` or ``"thread: <reason>"``, by name.
 
     ``threads`` names activities forced onto their own thread (``--threads``); an unknown name is an
-    error that lists the activities.
+    error that lists the activities. ``woken``: the activities a write in another process wakes
+    (:func:`coco_core.processes.channels.woken_by_other_processes`, from the application file alone,
+    so that ``--check`` prints what the run does).
     """
     forced = set(threads)
     unknown = sorted(forced - set(app.activities))
@@ -146,7 +148,7 @@ def plan_hosting(app: Application, threads: Iterable[str] = (), all_threads: boo
         if activity.process != app.process:  # another process of the application runs it
             plan[name] = f"process {activity.process or 'launcher'}"
             continue
-        reason = dedicated_reason(activity, all_threads or name in forced)
+        reason = dedicated_reason(activity, all_threads or name in forced, name in woken)
         plan[name] = EXECUTOR if reason is None else f"thread: {reason}"
     return plan
 
@@ -451,7 +453,7 @@ class ExecutorHost:
     """
 
     def __init__(self, node: Node, app: Application, threads: Iterable[str] = (),
-                 all_threads: bool = False, wait_sets: bool = True) -> None:
+                 all_threads: bool = False, wait_sets: bool = True, woken: Collection[str] = ()) -> None:
         self.node = node
         self.app = app
         self.wait_sets = wait_sets
@@ -459,7 +461,7 @@ class ExecutorHost:
         :class:`ActivityWaitSet`) rather than a callback group in the executor's shared threads."""
         self.clock = Clock(clock_type=ClockType.STEADY_TIME)
         """Activity timers run on the steady clock, like the activities' own threads (not /clock)."""
-        self.plan = plan_hosting(app, threads, all_threads)
+        self.plan = plan_hosting(app, threads, all_threads, woken)
         self.groups: dict[str, MutuallyExclusiveCallbackGroup] = {}
         self.hosted: dict[str, ExecutorDriver] = {}
         for name, activity in app.activities.items():

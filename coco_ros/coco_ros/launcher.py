@@ -43,7 +43,9 @@ from coco_core.launcher import (
     make_parser,
     stopped_by_a_failure,
 )
+from coco_core.processes.channels import woken_by_other_processes
 from coco_core.processes.level import process_level
+from coco_core.processes.placement import Placement
 from coco_core.processes.supervisor import ProcessSupervisor
 from coco_core.report import snapshot
 from coco_core.signals import INTERRUPTED, LaunchSignals, leave
@@ -211,7 +213,8 @@ def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], si
                     "all_threads": options.all_threads}
     with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
                        child_config=child_config) as processes:
-        host = ExecutorHost(node, app, _threads(options.threads), options.all_threads, options.executor_threads is None)
+        host = ExecutorHost(node, app, _threads(options.threads), options.all_threads, options.executor_threads is None,
+                            woken_by_other_processes(spec, Placement.of(spec)))
         executor = host.create_executor(options.executor_threads)
         executor.add_node(node)
         log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
@@ -235,7 +238,8 @@ def _check(options: argparse.Namespace, signals: LaunchSignals, parameters: dict
     hosting, run nothing."""
     try:
         spec, app = load_and_build(options, signals, parameters)
-        plan = plan_hosting(app, _threads(options.threads), options.all_threads)
+        plan = plan_hosting(app, _threads(options.threads), options.all_threads,
+                            woken_by_other_processes(spec, Placement.of(spec)))
         signals.check()
     except CocoError as error:
         return failure(_NAME, error)

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from .. import registry
 from ..errors import ConfigError
-from ..model import AppSpec, ComponentSpec
+from ..model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec
 from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from ..connections import Connection
 from ..ports import InputPort, OutputPort, PooledOutputPort
@@ -70,6 +70,28 @@ def _declared(spec: ComponentSpec | None, port: str) -> Any:
     return cls._port_decls.get(port)
 
 
+def _woken_by(connection: ConnectionSpec, components: dict[str, ComponentSpec],
+              activity_of: dict[str, ActivitySpec], placement: Placement) -> tuple[str, Any]:
+    """(the activity a write on the crossing ``connection`` wakes, "" for none; whether its input is an
+    event port: True, False, or None when the reader's process must say, the port being made in init)."""
+    into = _declared(components.get(connection.dest.component), connection.dest.port)
+    event = connection.event if connection.event is not None else (into.event if isinstance(into, InputPort)
+                                                                    else None)
+    activity = activity_of.get(placement.top_of.get(connection.dest.component, connection.dest.component))
+    triggered = activity is not None and activity.schedule.type == "triggered"
+    return (activity.name if triggered and event is not False and activity is not None else ""), event
+
+
+def woken_by_other_processes(spec: AppSpec, placement: Placement) -> set[str]:
+    """The activities that a write in another process may wake: each gets an eventfd thread
+    (:class:`~coco_core.drivers.EventfdDriver`) in the run. Pure, so that ``--check`` and the run
+    agree (the ROS launcher hosts no such activity in its executor)."""
+    components = {component.name: component for component in spec.all_components()}
+    activity_of = {name: activity for activity in spec.activities for name in activity.components}
+    return {woken for connection in placement.crossing(spec)
+            if (woken := _woken_by(connection, components, activity_of, placement)[0])}
+
+
 def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[ChannelPlan]:
     """One channel for every connection of ``spec`` that crosses processes; one frame pool for
     every pooled output read from another process, with the slots the port declares, shared by all
@@ -87,12 +109,7 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
     for connection in crossing:
         label = f"{connection.src}->{connection.dest}"
         frames = connection in pooled
-        into = _declared(components.get(connection.dest.component), connection.dest.port)
-        event = connection.event if connection.event is not None else (into.event if isinstance(into, InputPort)
-                                                                        else None)
-        activity = activity_of.get(placement.top_of.get(connection.dest.component, connection.dest.component))
-        triggered = activity is not None and activity.schedule.type == "triggered"
-        wakes = activity.name if triggered and event is not False and activity is not None else ""
+        wakes, event = _woken_by(connection, components, activity_of, placement)
         ask = -1
         if wakes and event is None:  # an input made in init(): the reader's process says
             ask, asks = asks, asks + 1
