@@ -88,9 +88,13 @@ def matrix_to_quaternion(rotation: np.ndarray) -> np.ndarray:
 
 def from_pose(translation: Sequence[float], quaternion: Sequence[float]) -> np.ndarray:
     """4x4 transform of a translation and a quaternion ``(x, y, z, w)`` (a ROS Pose), built as one
-    array from Python floats."""
+    array from Python floats. A translation with a NaN or an infinity is refused as tf2 refuses it
+    (a tracker that lost its target may send one): one such pose in a graph or a device target
+    would make every pose composed with it NaN."""
     (a, b, c), (d, e, f), (g, h, i) = _rotation_rows(quaternion)
     x, y, z = (float(t) for t in translation)
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise GeometryError(f"translation {(x, y, z)} is not finite: not a pose")
     return np.array([[a, b, c, x], [d, e, f, y], [g, h, i, z], [0.0, 0.0, 0.0, 1.0]])
 
 
