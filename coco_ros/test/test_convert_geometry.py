@@ -88,6 +88,9 @@ def test_a_position_that_is_not_finite_is_refused_as_tf2_refuses_it(bad):
     tf = converter_for("tf2_msgs/msg/TFMessage")
     with pytest.raises(ValueError, match="is not finite: not a pose"):
         tf.from_cdr(serialize_message(tf.message_type(transforms=[stamped])))
+    turned = PoseStamped(pose=Pose(orientation=Quaternion(z=bad, w=1.0)))
+    with pytest.raises(ValueError, match="has no direction"):
+        poses.to_coco(turned)
 
 
 def test_transform_stamped_round_trips():

@@ -52,7 +52,7 @@ def quaternion_to_matrix(q: Sequence[float] | np.ndarray) -> np.ndarray:
 def _rotation_rows(q: Sequence[float] | np.ndarray) -> list[list[float]]:
     x, y, z, w = (float(c) for c in q)
     norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not norm > 0.0:
+    if not 0.0 < norm < math.inf:  # NaN or infinite components leave no direction either
         raise GeometryError(f"quaternion {(x, y, z, w)} has no direction (norm {norm}): not a rotation")
     x, y, z, w = x / norm, y / norm, z / norm, w / norm
     return [
