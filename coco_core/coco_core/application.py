@@ -104,6 +104,14 @@ class Application:
             member.app = self
         for member in reversed(members):
             member.init()
+        made = [member for member in component.walk() if member.app is not self]
+        for member in made:  # peers an owner's init made (RgbdCameraReader's from its backend attribute)
+            if member.name in self._components:
+                raise CocoError(f"two components are called {member.name!r}; instance names must be unique")
+            self._components[member.name] = member
+            member.app = self  # its damage reaches the application, its row the profile
+        for member in reversed(made):
+            member.init()
         if activity is not None:
             self.schedule(component, activity)
         return component

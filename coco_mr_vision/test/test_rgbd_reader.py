@@ -228,7 +228,8 @@ def test_a_bag_replayed_in_real_time_skips_the_frames_a_slow_reader_missed(tmp_p
     assert all(when - start >= stamp - 100.0 - 1e-3 for when, stamp in delivered)
 
 
-def test_a_malformed_frame_in_a_bag_is_skipped_counted_and_reported(tmp_path):
+@pytest.mark.parametrize("declared", [True, False], ids=["declared-peer", "backend-attribute"])
+def test_a_malformed_frame_in_a_bag_is_skipped_counted_and_reported(tmp_path, declared):
     """Issue 20: a colour image of another size than its depth, a depth image encoded rgb8, one of an
     encoding nobody knows and images that disagree with their camera_info raised out of the reader
     (its errors column, nothing else: the run exited 0). Now each is skipped alone, counted in the
@@ -256,14 +257,19 @@ def test_a_malformed_frame_in_a_bag_is_skipped_counted_and_reported(tmp_path):
             writer.write("/camera/color/camera_info", infos.to_ros(info), ns)
             writer.write("/camera/color/image_raw", images.to_ros(color), ns + 1000)
             writer.write("/camera/depth/image_raw", depth, ns + 2000)
-    reader = RgbdCameraReader("camera")  # the peer declared, as the palpation app's XML does
-    peer = reader.add_peer(BagRgbdPeer("camera_bag", path=str(tmp_path / "camera_bag")))
+    if declared:  # as the palpation app's XML does
+        reader = RgbdCameraReader("camera")
+        reader.add_peer(BagRgbdPeer("camera_bag", path=str(tmp_path / "camera_bag")))
+    else:  # the peer made by the reader's init: the application holds it too (its damage, its profile row)
+        reader = RgbdCameraReader("camera", backend="bag", path=str(tmp_path / "camera_bag"))
     got = run(reader, 8)
+    peer = reader.peers[0]
+    assert reader.app.component(peer.name) is peer
     assert [round(float(value.value.depth.data[0, 0])) - 1000 for value in got] == [0, 5, 6]
     assert peer.stats.refused == peer.refused_messages == 4 and reader.stats.errors == 0
     damage = reader.app.damage
     assert len(damage) == 4, damage
-    assert all(entry.startswith(f"camera_bag: {tmp_path / 'camera_bag'}: the /camera/") for entry in damage), damage
+    assert all(entry.startswith(f"{peer.name}: {tmp_path / 'camera_bag'}: the /camera/") for entry in damage), damage
     assert "/camera/depth/image_raw message 0.033" in damage[0] and "must be registered: same size" in damage[0]
     assert "/camera/depth/image_raw message 0.067" in damage[1] and "must be DEPTH16 or DEPTH32F" in damage[1]
     assert "/camera/depth/image_raw message 0.100" in damage[2] and "'bogus16' is not supported" in damage[2]
