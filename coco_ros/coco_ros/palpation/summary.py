@@ -11,8 +11,8 @@ structures, draining the haptic samples at each wake-up) and reads:
 - ``frames`` (``StreamingReceiver.rgbd``): the frames the stream delivered, and the frames the
   server sent that never arrived (gaps in the server's sequence numbers: dropped by ZeroMQ or
   superseded in the receiver); its stalls: gaps longer than ``stall`` between the acquisition
-  stamps of the frames delivered, or from the last one to the stop (a remote camera, process or
-  network that stopped: the local side had no newer scene for that long), and the contact the
+  stamps of the frames delivered, or from the last one to the stop (a remote camera or link that
+  stopped: the local side had no newer scene for that long), and the contact the
   haptic loop rendered after the last frame (on the last structure it had);
 - ``residual`` (``TouchRegistration.residual``): the calibration touch's RMS residual, or null when
   the touch never registered the hand tracker;
