@@ -56,16 +56,21 @@ fi
 
 started="$(mktemp)"  # what this run rendered is newer than this file (the folder may hold older runs')
 trap 'rm -f "$started"' EXIT
+# Damaged input (exit status 1) still leaves a run whose summary says what was damaged: print it,
+# then exit with the launcher's status.
+status=0
 "$ROOT/install/coco_core/lib/coco_core/coco-launch" "$XML" \
-    bag:="$SESSION" output:="$OUTPUT" --profile 6 "$@"
+    bag:="$SESSION" output:="$OUTPUT" --profile 6 "$@" || status=$?
 
-echo
-if [ "$APP" = "palpation" ]; then
-    echo "Palpation summary ($OUTPUT/summary.json; forces: $OUTPUT/haptic.csv):"
-    python -m coco_ros.palpation "$OUTPUT/summary.json"
-else
-    echo "Teleoperation summary ($OUTPUT/summary.json):"
-    python -m coco_ros.teleop "$OUTPUT/summary.json"
+if [ "$OUTPUT/summary.json" -nt "$started" ]; then
+    echo
+    if [ "$APP" = "palpation" ]; then
+        echo "Palpation summary ($OUTPUT/summary.json; forces: $OUTPUT/haptic.csv):"
+        python -m coco_ros.palpation "$OUTPUT/summary.json"
+    else
+        echo "Teleoperation summary ($OUTPUT/summary.json):"
+        python -m coco_ros.teleop "$OUTPUT/summary.json"
+    fi
 fi
 
 # The rendered view (not with display:=false): a video or PNG sequence, and a contact sheet.
@@ -79,3 +84,4 @@ if [ "$OUTPUT/contact_sheet.png" -nt "$started" ]; then
     fi
     echo "Contact sheet:  $OUTPUT/contact_sheet.png"
 fi
+exit "$status"

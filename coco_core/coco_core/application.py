@@ -69,6 +69,7 @@ class Application:
         """The writers' ends of connections into other processes (their readers' processes profile them)."""
         self._stop_requested = threading.Event()
         self._stop_listeners: list[Callable[[str], None]] = []
+        self._damage_listeners: list[Callable[[str], None]] = []
         self._stop_requested_at = 0.0
         self.stop_reason = ""
         self._started = False
@@ -87,7 +88,9 @@ class Application:
         between an activity's ``configure`` and its first cycle."""
         self.damage: list[str] = []
         """Damaged input found while running (e.g. a truncated bag), one line each: the launchers
-        exit non-zero and summaries report it, although the application ran on what was readable."""
+        exit non-zero and summaries report it, although the application ran on what was readable.
+        With processes, each process's list also holds what the others found (the process level
+        passes it on), so that a summary sees the damage of the whole application."""
 
     # --- composition ----------------------------------------------------------------------------
     def add(self, component: Component, activity: Activity | str | None = None) -> Component:
@@ -100,6 +103,14 @@ class Application:
             self._components[member.name] = member
             member.app = self
         for member in reversed(members):
+            member.init()
+        made = [member for member in component.walk() if member.app is not self]
+        for member in made:  # peers an owner's init made (RgbdCameraReader's from its backend attribute)
+            if member.name in self._components:
+                raise CocoError(f"two components are called {member.name!r}; instance names must be unique")
+            self._components[member.name] = member
+            member.app = self  # its damage reaches the application, its row the profile
+        for member in reversed(made):
             member.init()
         if activity is not None:
             self.schedule(component, activity)
@@ -280,9 +291,19 @@ class Application:
         self.gate.when_open(timer.start)
         return timer
 
-    def report_damage(self, what: str) -> None:
-        """Record damaged input (see :attr:`damage`); list.append is atomic, any thread may call it."""
+    def report_damage(self, what: str, *, here: bool = True) -> None:
+        """Record damaged input (see :attr:`damage`); list.append is atomic, any thread may call it.
+        ``here``: found by this process's components, so the damage listeners pass it on to the
+        other processes; False for damage another process found (the process level's delivery)."""
         self.damage.append(what)
+        if here:
+            for listener in self._damage_listeners:
+                listener(what)
+
+    def add_damage_listener(self, listener: Callable[[str], None]) -> None:
+        """Call ``listener(what)`` for each damage this process's components report (the process
+        level tells the other processes of the application)."""
+        self._damage_listeners.append(listener)
 
     def request_stop(self, reason: str = "stop requested", hard: bool = False) -> None:
         """Ask every activity to stop; returns at once (safe from signal handlers and components).

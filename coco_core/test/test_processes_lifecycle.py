@@ -429,3 +429,49 @@ def test_a_realtime_process_locks_its_memory_and_collects_between_cycles(tmp_pat
     collections = int(re.search(r"process haptics: (\d+) garbage collections between cycles", out).group(1))
     assert collections >= 400 * 50 // 700 // 2, out  # 20,000 cycles made, a collection per ~700 objects
     assert last["young"] < 10 * 700, "the young generation stays bounded"
+
+
+DAMAGE = """<package name="damage">
+  <components>
+    <component><name>ticker</name><task>process_components:Ticker</task>
+      <attributes><attribute name="damage_at" value="3"/><attribute name="stop_after" value="20"/></attributes></component>
+    <component><name>near</name><task>process_components:Sink</task>
+      <attributes><attribute name="path" value="{tmp}/near.txt"/></attributes></component>
+    <component><name>far</name><task>process_components:Sink</task>
+      <attributes><attribute name="path" value="{tmp}/far.txt"/></attributes></component>
+    <component><name>home</name><task>process_components:Sink</task>
+      <attributes><attribute name="path" value="{tmp}/home.txt"/></attributes></component>
+  </components>
+  <connections>
+    <connection data="BUFFER" policy="LOCKED" buffersize="100"><src task="ticker" port="out"/><dest task="near" port="value"/></connection>
+    <connection data="BUFFER" policy="LOCKED" buffersize="100"><src task="ticker" port="out"/><dest task="far" port="value"/></connection>
+    <connection data="BUFFER" policy="LOCKED" buffersize="100"><src task="ticker" port="out"/><dest task="home" port="value"/></connection>
+  </connections>
+  <activities>
+    <process name="reader">
+      <activity name="ticks"><schedule type="periodic" period="10"/><components><component name="ticker"/></components></activity>
+      <activity name="near"><schedule type="triggered"/><components><component name="near"/></components></activity>
+    </process>
+    <process name="summary">
+      <activity name="far"><schedule type="triggered"/><components><component name="far"/></components></activity>
+    </process>
+    <activity name="home"><schedule type="triggered"/><components><component name="home"/></components></activity>
+  </activities>
+</package>
+"""
+
+
+def test_damage_found_in_one_process_reaches_every_process_and_the_exit_status(tmp_path: Path, reap) -> None:
+    """A reader's damaged input (found in process ``reader``) is in every process's
+    ``Application.damage`` by the stop: the process that writes a summary (``summary``) reports it,
+    the launcher's own process holds it, the launcher exits 1. The damage comes before the stop the
+    same process asks for, so it arrives before the stop, however loaded the machine."""
+    app = tmp_path / "app.xml"
+    app.write_text(DAMAGE.format(tmp=tmp_path))
+    launcher = launch(app, "--duration", "60")
+    reap(launcher)
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 1, out
+    for sink in ("near", "far", "home"):
+        lines = (tmp_path / f"{sink}.txt").read_text().splitlines()
+        assert lines[-2:] == ["damage ticker: value 3 was damaged", "stopped"], (sink, lines)

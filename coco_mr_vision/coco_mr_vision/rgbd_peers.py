@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -33,6 +34,11 @@ from .rgbd import RGBDFrame
 
 PRIMESENSE = CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
 """The default intrinsics of the PrimeSense / Kinect v1 sensors that TUM and Redwood recorded with."""
+
+
+REFUSALS_LISTED = 10
+"""Malformed messages of a bag reported one by one to the application's damage, as BagReplay does;
+the profile counts every one."""
 
 
 class RgbdPeer(Component):
@@ -200,7 +206,11 @@ class BagRgbdPeer(RgbdPeer):
     """A rosbag2 bag with ``sensor_msgs/Image`` colour and depth and ``sensor_msgs/CameraInfo``.
 
     Colour and depth are paired by header stamp (nearest within ``max_difference``), the newest
-    CameraInfo gives the intrinsics. Messages go through coco_ros's bag reader and converters."""
+    CameraInfo gives the intrinsics. Messages go through coco_ros's bag reader and converters. A
+    malformed message (an image encoding the converter does not read, a depth image that is not
+    depth, colour and depth of different sizes, images that disagree with the camera_info) is
+    skipped, counted in the profile's refused column and reported as damaged input; the frames
+    after it are delivered."""
 
     path = Attribute(str, "", "the bag folder or .mcap file")
     color_topic = Attribute(str, "/camera/color/image_raw", "colour images")
@@ -226,6 +236,8 @@ class BagRgbdPeer(RgbdPeer):
             raise CameraError(f"{self.name}: bag {self.path!r} has no topic {', '.join(missing)}; "
                               f"it has {', '.join(sorted(topics))}")
         self._images, self._infos = ImageMessageConverter(copy=True), CameraInfoConverter()
+        self.refused_messages = 0
+        """Malformed messages skipped, over every pass of a looped recording."""
         self._start()
 
     def _start(self) -> None:
@@ -266,16 +278,40 @@ class BagRgbdPeer(RgbdPeer):
 
     def _next_pair(self) -> RGBDFrame | None:
         for message in self._messages:
-            if message.topic == self.info_topic:
-                self._intrinsics = self._infos.to_coco(message.message)
+            try:
+                frame = self._take(message)
+            except Exception as error:  # noqa: BLE001 - a malformed message must cost itself only
+                self._refuse(message, error)
                 continue
-            image = self._images.to_coco(message.message)
-            (self._color if message.topic == self.color_topic else self._depth).append(image)
-            frame = self._pair()
             if frame is not None:
                 return frame
         self.exhausted = True
         return None
+
+    def _take(self, message: Any) -> RGBDFrame | None:
+        """The frame ``message`` completes, if any; raises when it is malformed (an encoding the
+        converter does not read, a depth that is not depth, images of sizes that disagree with each
+        other or with the camera_info)."""
+        if message.topic == self.info_topic:
+            self._intrinsics = self._infos.to_coco(message.message)
+            return None
+        image = self._images.to_coco(message.message)
+        (self._color if message.topic == self.color_topic else self._depth).append(image)
+        return self._pair()
+
+    def _refuse(self, message: Any, error: Exception) -> None:
+        """Count a malformed message (the profile's refused column) and report it as damaged input
+        (the first ``REFUSALS_LISTED``: the launcher exits with 1, a summary names them); the
+        frames after it are delivered. Why: it raised out of the reader before, counted as the
+        reader's error and nowhere else, and the run exited 0 as if the recording were sound."""
+        self.refused_messages += 1
+        offset = (message.log_time - self._reader.start_time) / 1e9
+        what = f"the {message.topic} message {offset:.3f} s into the bag"
+        self.record_refusal(what, error)
+        if self.app is not None and self.refused_messages <= REFUSALS_LISTED:
+            more = (f"; further refused messages are only counted (the profile's refused column of {self.name})"
+                    if self.refused_messages == REFUSALS_LISTED else "")
+            self.app.report_damage(f"{self.name}: {self.path}: {what} refused: {error}{more}")
 
     def _pair(self) -> RGBDFrame | None:
         for depth in self._depth:

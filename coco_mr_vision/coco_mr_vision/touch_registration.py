@@ -28,6 +28,7 @@ import numpy as np
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.errors import GeometryError
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamped, unstamped
 from coco_core.transforms import se3
@@ -73,8 +74,11 @@ class TouchRegistration(Component):
     def on_update(self) -> None:
         for value in self.hand.read_all():
             pose, _ = unstamped(value)
-            if pose.stamp is None or not np.isfinite(pose.transform).all():
-                continue  # a pose without its time cannot be matched; a NaN pose is no rest
+            if pose.stamp is None:
+                continue  # a pose without its time cannot be matched
+            if not np.isfinite(pose.transform).all():  # no rest, and a NaN in the mean would spoil it
+                self.record_refusal("a hand pose", GeometryError(f"non-finite hand pose at {pose.stamp}"))
+                continue
             self._hands.append((float(pose.stamp), np.asarray(pose.transform, float)))
         while self._hands and self._hands[0][0] < self._hands[-1][0] - HISTORY:
             self._hands.popleft()

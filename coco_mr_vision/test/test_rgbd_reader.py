@@ -226,3 +226,51 @@ def test_a_bag_replayed_in_real_time_skips_the_frames_a_slow_reader_missed(tmp_p
     assert len(delivered) + peer.stats.merged == count
     # Never early: each frame came once the time since the first reached its stamp's.
     assert all(when - start >= stamp - 100.0 - 1e-3 for when, stamp in delivered)
+
+
+@pytest.mark.parametrize("declared", [True, False], ids=["declared-peer", "backend-attribute"])
+def test_a_malformed_frame_in_a_bag_is_skipped_counted_and_reported(tmp_path, declared):
+    """Issue 20: a colour image of another size than its depth, a depth image encoded rgb8, one of an
+    encoding nobody knows and images that disagree with their camera_info raised out of the reader
+    (its errors column, nothing else: the run exited 0). Now each is skipped alone, counted in the
+    peer's refused column and named in the application's damage, and the frames after it come."""
+    pytest.importorskip("rclpy")
+    from coco_ros.bag import BagWriter
+    from coco_ros.convert.images import CameraInfoConverter, ImageMessageConverter
+    from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
+
+    images, infos = ImageMessageConverter(), CameraInfoConverter()
+    with BagWriter(tmp_path / "camera_bag") as writer:
+        for index in range(7):
+            stamp = 100.0 + index / 30
+            ns = int(round(stamp * 1e9))
+            info = CameraIntrinsics(32, 24, 25.0, 25.0, 16.0, 12.0) if index == 4 else \
+                CameraIntrinsics(64, 48, 50.0, 50.0, 32.0, 24.0)
+            color = Image(np.full((24, 32, 3) if index == 1 else (48, 64, 3), index, np.uint8), ImageFormat.RGB8,
+                          stamp, "camera")
+            depth = images.to_ros(Image(np.full((48, 64), 1000 + index, np.uint16), ImageFormat.DEPTH16, stamp,
+                                        "camera"))
+            if index == 2:  # the depth as colour: the right size in bytes for rgb8 and a wrong encoding
+                depth = images.to_ros(Image(np.zeros((48, 64, 3), np.uint8), ImageFormat.RGB8, stamp, "camera"))
+            if index == 3:
+                depth.encoding = "bogus16"
+            writer.write("/camera/color/camera_info", infos.to_ros(info), ns)
+            writer.write("/camera/color/image_raw", images.to_ros(color), ns + 1000)
+            writer.write("/camera/depth/image_raw", depth, ns + 2000)
+    if declared:  # as the palpation app's XML does
+        reader = RgbdCameraReader("camera")
+        reader.add_peer(BagRgbdPeer("camera_bag", path=str(tmp_path / "camera_bag")))
+    else:  # the peer made by the reader's init: the application holds it too (its damage, its profile row)
+        reader = RgbdCameraReader("camera", backend="bag", path=str(tmp_path / "camera_bag"))
+    got = run(reader, 8)
+    peer = reader.peers[0]
+    assert reader.app.component(peer.name) is peer
+    assert [round(float(value.value.depth.data[0, 0])) - 1000 for value in got] == [0, 5, 6]
+    assert peer.stats.refused == peer.refused_messages == 4 and reader.stats.errors == 0
+    damage = reader.app.damage
+    assert len(damage) == 4, damage
+    assert all(entry.startswith(f"{peer.name}: {tmp_path / 'camera_bag'}: the /camera/") for entry in damage), damage
+    assert "/camera/depth/image_raw message 0.033" in damage[0] and "must be registered: same size" in damage[0]
+    assert "/camera/depth/image_raw message 0.067" in damage[1] and "must be DEPTH16 or DEPTH32F" in damage[1]
+    assert "/camera/depth/image_raw message 0.100" in damage[2] and "'bogus16' is not supported" in damage[2]
+    assert "intrinsics are for 32x24 images, the frame is 64x48" in damage[3]

@@ -72,6 +72,27 @@ def test_a_zero_quaternion_is_refused():
         poses.to_coco(PoseStamped(pose=Pose(orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=0.0))))
 
 
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_a_position_that_is_not_finite_is_refused_as_tf2_refuses_it(bad):
+    """A tracker that lost the hand may publish NaN: converted, it would make every pose composed
+    with it NaN (a device target, a registration); refused, the replay counts it and goes on. Both
+    the message and its CDR bytes (a bag's), PoseStamped and the TF paths."""
+    msg = PoseStamped(pose=Pose(position=Point(x=0.1, y=bad, z=0.2), orientation=Quaternion(w=1.0)))
+    for convert in (poses.to_coco, lambda m: poses.from_cdr(serialize_message(m))):
+        with pytest.raises(ValueError, match=r"translation \(0.1, (nan|inf), 0.2\) is not finite: not a pose"):
+            convert(msg)
+    stamped = TransformStamped(child_frame_id="hand", transform=Transform(translation=Vector3(z=bad),
+                                                                         rotation=Quaternion(w=1.0)))
+    with pytest.raises(ValueError, match="is not finite: not a pose"):
+        transforms.to_coco(stamped)
+    tf = converter_for("tf2_msgs/msg/TFMessage")
+    with pytest.raises(ValueError, match="is not finite: not a pose"):
+        tf.from_cdr(serialize_message(tf.message_type(transforms=[stamped])))
+    turned = PoseStamped(pose=Pose(orientation=Quaternion(z=bad, w=1.0)))
+    with pytest.raises(ValueError, match="has no direction"):
+        poses.to_coco(turned)
+
+
 def test_transform_stamped_round_trips():
     msg = TransformStamped(header=Header(stamp=Time(sec=5, nanosec=250_000_000), frame_id="world"),
                            child_frame_id="marker_7",

@@ -63,7 +63,8 @@ def test_the_figures_come_from_the_data(tmp_path):
     assert haptics["max_force_n"] == pytest.approx(2.5)
     tree = report["kdtree"]
     assert tree["updates"] == 3 and tree["build_ms"]["median"] == pytest.approx(20.0, rel=0.005) and tree["points_median"] == 11
-    assert report["stream"] == {"frames": 4, "dropped": 2}
+    stream = report["stream"]
+    assert (stream["frames"], stream["dropped"]) == (4, 2)
     assert report["registration_residual_mm"] == pytest.approx(1.2)
     text = describe(report)
     assert "1000 samples" in text and "residual 1.20 mm" in text and "2 dropped" in text
@@ -120,3 +121,30 @@ def test_the_display_latency_is_reported_by_the_source_a_frame_showed_first(tmp_
     assert camera["frames"] == 100 and camera["median"] == pytest.approx(44.9, rel=0.005)
     assert camera["max"] == pytest.approx(49.9)
     assert "display latency from camera: median 44.9" in describe(json.loads((tmp_path / "summary.json").read_text()))
+
+
+def test_a_stream_that_stops_is_counted_as_a_stall_and_the_contact_after_it_reported(tmp_path):
+    """Frames 33 ms apart for a second, one more 2 s later, then none until the stop (over 2 s
+    later): two stalls (over the summary's 1 s), the longest gap at least 2 s; the contact the haptic
+    loop rendered after the last frame (on the last structure) is reported apart. The frames'
+    acquisition stamps and the samples' times are this host's perf_counter, as in the app."""
+    import time
+
+    sources, summary = rig(tmp_path)
+    start = time.perf_counter() - 5.0
+    stamps = [start + i / 30 for i in range(31)] + [start + 3.0]
+    for seq, stamp in enumerate(stamps, 1):
+        sources.frames.write(Stamped("frame", Stamp(stamp, seq, "camera")))
+    for i in range(1000):  # in contact from 1.5 s to 3.5 s after the start, every 2 ms
+        sources.samples.write(sample(start + 1.5 + 2e-3 * i, True, 0.002, 1.0))
+    summary.step()
+    summary.stop()
+    report = json.loads((tmp_path / "summary.json").read_text())
+    stream = report["stream"]
+    assert stream["frames"] == 32 and stream["dropped"] == 0 and stream["stalls"] == 2, stream
+    assert stream["longest_gap_s"] >= 2.0 and stream["silent_at_end_s"] >= 2.0 and stream["stall_s"] == 1.0
+    assert report["haptics"]["contact_after_last_frame_s"] == pytest.approx(0.5, abs=3e-3)
+    assert report["haptics"]["contact_time_s"] == pytest.approx(1.998)
+    text = describe(report)
+    assert "STREAM STALLED 2 times (no newer frame for over 1 s)" in text and "0.50 s of contact rendered after it" in text
+

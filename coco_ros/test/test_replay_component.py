@@ -322,8 +322,9 @@ def test_tf_static_from_a_bag_becomes_static_edges_for_timed_lookups(tmp_path):
 
 @pytest.fixture(scope="module")
 def malformed_bag(tmp_path_factory) -> Path:
-    """30 joint states and 30 bowl poses, 10 ms apart, of which three are malformed: joint state 7 has
-    one position fewer than names, pose 12 a zero quaternion, pose 21 a NaN one."""
+    """30 joint states and 30 bowl poses, 10 ms apart, of which four are malformed: joint state 7 has
+    one position fewer than names, pose 12 a zero quaternion, pose 21 a NaN one, pose 25 a NaN
+    position (a tracker that lost its target)."""
     from builtin_interfaces.msg import Time
     from geometry_msgs.msg import PoseStamped
     from sensor_msgs.msg import JointState
@@ -339,6 +340,8 @@ def malformed_bag(tmp_path_factory) -> Path:
             pose.pose.position.x, pose.pose.orientation.w = 0.01 * i, float("nan") if i == 21 else 1.0
             if i == 12:
                 pose.pose.orientation.w = 0.0
+            if i == 25:
+                pose.pose.position.y = float("nan")
             writer.write("/bowl/pose", pose, T0 + i * 10 * MS + 1)
     return folder
 
@@ -359,10 +362,11 @@ def test_a_malformed_message_is_refused_alone_counted_and_reported(malformed_bag
         app.schedule(component, activity)
     run(app)
     assert [round(v.positions[0] * 10) for v in joints.got] == [i for i in range(30) if i != 7]
-    assert [round(v.transform[0, 3] * 100) for v in poses.got] == [i for i in range(30) if i not in (12, 21)]
-    assert replay.stats.refused == 3 and replay.refused_messages == 3
-    assert len(app.damage) == 3, app.damage
+    assert [round(v.transform[0, 3] * 100) for v in poses.got] == [i for i in range(30) if i not in (12, 21, 25)]
+    assert replay.stats.refused == 4 and replay.refused_messages == 4
+    assert len(app.damage) == 4, app.damage
     assert "/joints message 0.070 s into the bag" in app.damage[0] and "2 names but 1 position" in app.damage[0]
     assert "/bowl/pose message 0.120 s into the bag" in app.damage[1] and "zero" in app.damage[1]
     assert "/bowl/pose message 0.210 s into the bag" in app.damage[2] and "nan" in app.damage[2]
+    assert "/bowl/pose message 0.250 s into the bag" in app.damage[3] and "not finite" in app.damage[3]
     assert all(entry.startswith(f"replay: {malformed_bag}:") for entry in app.damage)

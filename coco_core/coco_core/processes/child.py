@@ -136,6 +136,7 @@ class ChildProcess:
         app.add_stop_listener(self._stop_requested_here)
         if placement.gc == "between_cycles":
             self.garbage = collect_between_cycles(app)
+        app.add_damage_listener(self._damage_found_here)
         app.gate.hold(self._configured)  # the launcher's word ("run") opens it
         app.router = self
         self.link.send("built")
@@ -148,6 +149,8 @@ class ChildProcess:
                 break
             if message is not None and message["kind"] == "stop":
                 return 0
+            if message is not None and message["kind"] == "damage":  # another process's, found while building
+                app.report_damage(message["what"], here=False)
         listener = threading.Thread(target=self._serve, name="coco:control", daemon=True)
         listener.start()
         clean = self.run_app(app, config)
@@ -186,6 +189,11 @@ class ChildProcess:
             assert self.app is not None  # it is the app that calls its stop listeners
             self.link.send("stop_request", reason=reason, hard=self.app.stop_is_hard)
 
+    def _damage_found_here(self, what: str) -> None:
+        """Damaged input found in this process: the launcher records it and passes it on to the
+        other processes, whose summaries report it too."""
+        self.link.send("damage", what=what)
+
     def _serve(self) -> None:
         app = self.app
         assert app is not None
@@ -205,6 +213,8 @@ class ChildProcess:
             app.gate.open()
         elif kind == "stop":
             app.request_stop(f"launcher: {message['reason']}", hard=message.get("hard", True))
+        elif kind == "damage":
+            app.report_damage(message["what"], here=False)
         elif kind == "profile":
             self.link.send("result", id=message["id"], ok=True, value=snapshot(app, app.process))
         elif kind == "call":

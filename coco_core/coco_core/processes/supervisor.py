@@ -193,6 +193,7 @@ class ProcessSupervisor:
                 ProcessDriver(self, child, self.app.activities[name], self._wakes.get(name))
             threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True).start()
         self.app.router = self
+        self.app.add_damage_listener(self._pass_on_damage)
 
     def _spawn(self, name: str) -> Child:
         link, theirs = ControlLink.pair(f"process {name}")
@@ -260,6 +261,9 @@ class ProcessSupervisor:
                     self.app.gate.configured(name)
             elif kind == "stopped":
                 child.clean, child.failed, child.last = message["clean"], message["failed"], message["snapshot"]
+            elif kind == "damage":
+                self.app.report_damage(message["what"], here=False)
+                self._pass_on_damage(message["what"], found_by=child)
             elif kind == "stop_request":
                 self.app.request_stop(f"process {child.name}: {message['reason']}", hard=message.get("hard", True))
             elif kind == "result":
@@ -277,6 +281,16 @@ class ProcessSupervisor:
         with self._lock:
             self.failure = self.failure or f"process {child.name} died: {what}"
         self.app.request_stop(f"process {child.name} died ({what})", hard=True)
+
+    def _pass_on_damage(self, what: str, found_by: Child | None = None) -> None:
+        """Damaged input that one process found (a child, or the launcher's own components) goes to
+        every other process's :attr:`Application.damage`: a summary written in one process (the
+        palpation's, beside the haptic loop) reports the damage the others' readers found, and each
+        process's exit status carries it. The messages of one link keep their order, so damage a
+        process found before it asked the application to stop reaches the others before the stop."""
+        for child in self.children.values():
+            if child is not found_by:
+                child.link.send("damage", what=what)
 
     def stop_child(self, child: Child, reason: str) -> None:
         """Tell ``child`` to stop, once (every stand-in of its activities asks, when the application

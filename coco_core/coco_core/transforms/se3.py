@@ -52,7 +52,7 @@ def quaternion_to_matrix(q: Sequence[float] | np.ndarray) -> np.ndarray:
 def _rotation_rows(q: Sequence[float] | np.ndarray) -> list[list[float]]:
     x, y, z, w = (float(c) for c in q)
     norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not norm > 0.0:
+    if not 0.0 < norm < math.inf:  # NaN or infinite components leave no direction either
         raise GeometryError(f"quaternion {(x, y, z, w)} has no direction (norm {norm}): not a rotation")
     x, y, z, w = x / norm, y / norm, z / norm, w / norm
     return [
@@ -88,9 +88,13 @@ def matrix_to_quaternion(rotation: np.ndarray) -> np.ndarray:
 
 def from_pose(translation: Sequence[float], quaternion: Sequence[float]) -> np.ndarray:
     """4x4 transform of a translation and a quaternion ``(x, y, z, w)`` (a ROS Pose), built as one
-    array from Python floats."""
+    array from Python floats. A translation with a NaN or an infinity is refused as tf2 refuses it
+    (a tracker that lost its target may send one): one such pose in a graph or a device target
+    would make every pose composed with it NaN."""
     (a, b, c), (d, e, f), (g, h, i) = _rotation_rows(quaternion)
     x, y, z = (float(t) for t in translation)
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise GeometryError(f"translation {(x, y, z)} is not finite: not a pose")
     return np.array([[a, b, c, x], [d, e, f, y], [g, h, i, z], [0.0, 0.0, 0.0, 1.0]])
 
 

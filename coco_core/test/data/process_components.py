@@ -20,6 +20,7 @@ class Ticker(Component):
     fault_after = Attribute(int, 5, "updates before the fault")
     first_update_file = Attribute(str, "", "where to write the monotonic time of the first update")
     stop_after = Attribute(int, 0, "updates after which the application stops itself (0: never)")
+    damage_at = Attribute(int, 0, "the update at which the ticker reports damaged input (0: never)")
     out = OutputPort(Stamped)
 
     def init(self) -> None:
@@ -40,6 +41,8 @@ class Ticker(Component):
             return
         self.out.write(Stamped(self.count))
         self.count += 1
+        if self.count == self.damage_at and self.app is not None:
+            self.app.report_damage(f"{self.name}: value {self.count} was damaged")
         if self.fault and self.count == self.fault_after:
             if self.fault == "segfault":
                 ctypes.string_at(0)
@@ -72,6 +75,8 @@ class Sink(Component):
             self.file.write(f"{sample.value}\n")
 
     def on_stop(self) -> None:
+        for what in self.app.damage if self.app is not None else ():  # what a summary would report
+            self.file.write(f"damage {what}\n")
         self.file.write("stopped\n")
         self.file.close()
 

@@ -10,7 +10,10 @@ structures, draining the haptic samples at each wake-up) and reads:
   at what rate (arrival times here), how long each took to build (``build_seconds``), how many points;
 - ``frames`` (``StreamingReceiver.rgbd``): the frames the stream delivered, and the frames the
   server sent that never arrived (gaps in the server's sequence numbers: dropped by ZeroMQ or
-  superseded in the receiver);
+  superseded in the receiver); its stalls: gaps longer than ``stall`` between the acquisition
+  stamps of the frames delivered, or from the last one to the stop (a remote camera or link that
+  stopped: the local side had no newer scene for that long), and the contact the
+  haptic loop rendered after the last frame (on the last structure it had);
 - ``residual`` (``TouchRegistration.residual``): the calibration touch's RMS residual, or null when
   the touch never registered the hand tracker (or the ``registration`` is ``fixed``: none to make);
 - ``display_latency`` (``GLManager.latency``, optional): per rendered frame that showed a new input,
@@ -20,7 +23,15 @@ structures, draining the haptic samples at each wake-up) and reads:
 
 The JSON (``json`` attribute) is written at the stop; :func:`describe` puts it in a few lines
 (``python -m coco_ros.palpation summary.json``, what ``scripts/run_app.sh palpation`` shows). Nothing
-is estimated: a figure with no data behind it is null.
+is estimated: a figure with no data behind it is null. Besides: ``input_damage`` (the application's
+:attr:`~coco_core.application.Application.damage`, every process's: a camera frame or a hand pose
+the readers refused, a workspace never joined; the launcher exits 1) and ``input_refused``
+(component -> malformed input samples it refused, the profile's ``refused`` column, for the
+components of the haptic process, e.g. a non-finite hand target the device kept out).
+
+A stall is not damaged input: the stream's frames that came were sound, and the haptic loop goes on
+with the last structure it had (or zero force before the first), so it does not change the exit
+status; the summary counts it.
 """
 
 from __future__ import annotations
@@ -54,6 +65,8 @@ class PalpationSummary(Component):
                              choices=("touch", "fixed"))
     period = Attribute(float, 0.001, "s: the haptic loop's nominal period (its period error is measured against it)",
                        min=1e-6)
+    stall = Attribute(float, 1.0, "s without a newer stream frame (by the frames' acquisition stamps, or from the "
+                      "last one to the stop) counted as a stall of the stream (30 frames of a 30 Hz camera)", min=0.0)
 
     samples = InputPort(HapticSample, doc="HapticRenderer.sample, through a BUFFER connection")
     structures = InputPort(CloudStructure, event=True, doc="KDTreeBuilder.structure, through a BUFFER connection")
@@ -78,17 +91,37 @@ class PalpationSummary(Component):
         self.frames_received = 0
         self.frames_missed = 0
         self._last_seq: int | None = None
+        self.stalls = 0
+        self.longest_gap = 0.0
+        self._newest_frame: float | None = None
+        """The acquisition stamp (perf_counter, shared by the processes of a host) of the newest frame."""
+        self.contact_after_frame = 0.0
+        """Contact time rendered after the newest frame's acquisition (on the last structure)."""
+        self._stopped_at: float | None = None
         self.registration_residual: float | None = None
         self._display: dict[str, LogHistogram] = {}
         """Sensor-to-display latencies by the source of the input a frame showed first."""
 
     def on_update(self) -> None:
+        for value in self.frames.read_all():  # first: the samples after the newest frame are told apart
+            _, stamp = unstamped(value)
+            self.frames_received += 1
+            if stamp is not None and stamp.seq:
+                if self._last_seq is not None and stamp.seq > self._last_seq:
+                    self.frames_missed += stamp.seq - self._last_seq - 1
+                self._last_seq = stamp.seq
+            if stamp is not None and (self._newest_frame is None or stamp.time > self._newest_frame):
+                if self._newest_frame is not None:
+                    self._gap(stamp.time - self._newest_frame)
+                self._newest_frame, self.contact_after_frame = stamp.time, 0.0
         for sample in self.samples.read_all():
             if self.haptic_samples:
                 interval = sample.time - self._last_time
                 self._period_errors.record(abs(interval - self.period))
                 if sample.contact:
                     self.contact_time += interval
+                    if self._newest_frame is not None and sample.time > self._newest_frame:
+                        self.contact_after_frame += interval
             else:
                 self._first_time = sample.time
             self._last_time = sample.time
@@ -103,18 +136,17 @@ class PalpationSummary(Component):
             self.tree_updates += 1
             self._builds.record(float(structure.build_seconds))
             self._points.record(int(structure.valid or len(structure.points)))
-        for value in self.frames.read_all():
-            _, stamp = unstamped(value)
-            self.frames_received += 1
-            if stamp is not None and stamp.seq:
-                if self._last_seq is not None and stamp.seq > self._last_seq:
-                    self.frames_missed += stamp.seq - self._last_seq - 1
-                self._last_seq = stamp.seq
         for residual in self.residual.read_all():
             self.registration_residual = float(residual)
         for latency in self.display_latency.read_all():
             source = latency.stamp.source or "?"
             self._display.setdefault(source, LogHistogram()).record(max(float(latency.value), 0.0))
+
+    def _gap(self, seconds: float) -> None:
+        """A time without a newer frame: a stall when longer than ``stall``."""
+        self.longest_gap = max(self.longest_gap, seconds)
+        if seconds > self.stall:
+            self.stalls += 1
 
     def report(self) -> dict[str, Any]:
         haptic: dict[str, Any] = {
@@ -124,6 +156,7 @@ class PalpationSummary(Component):
             "contact_time_s": self.contact_time,
             "max_penetration_mm": 1e3 * self.max_penetration,
             "max_force_n": self.max_force,
+            "contact_after_last_frame_s": self.contact_after_frame,
         }
         tree: dict[str, Any] = {
             "updates": self.tree_updates,
@@ -134,16 +167,30 @@ class PalpationSummary(Component):
         return {
             "haptics": haptic,
             "kdtree": tree,
-            "stream": {"frames": self.frames_received, "dropped": self.frames_missed},
+            "stream": {"frames": self.frames_received, "dropped": self.frames_missed, "stalls": self.stalls,
+                       "stall_s": self.stall, "longest_gap_s": None if self._newest_frame is None else self.longest_gap,
+                       "silent_at_end_s": self._silent_at_end()},
             "registration": self.registration,
             "registration_residual_mm": None if self.registration_residual is None else 1e3 * self.registration_residual,
             "display_latency_ms": {source: {"frames": latencies.count, **latencies.milliseconds(median=0.5, p99=0.99)}
                                    for source, latencies in sorted(self._display.items())},
             "input_damage": list(self.app.damage) if self.app is not None else [],
+            "input_refused": {name: component.stats.refused for name, component in self.app.components.items()
+                              if component.stats.refused} if self.app is not None else {},
         }
+
+    def _silent_at_end(self) -> float | None:
+        """Seconds from the newest frame's acquisition to the stop; None without a frame or before the stop."""
+        if self._newest_frame is None or self._stopped_at is None:
+            return None
+        return max(self._stopped_at - self._newest_frame, 0.0)
 
     def on_stop(self) -> None:
         self.on_update()
+        self._stopped_at = time.perf_counter()
+        silent = self._silent_at_end()
+        if silent is not None:
+            self._gap(silent)
         report = self.report()
         self.json.parent.mkdir(parents=True, exist_ok=True)
         self.json.write_text(json.dumps(report, indent=2) + "\n")
@@ -167,7 +214,8 @@ def describe(summary: dict[str, Any]) -> str:
         f"max force {haptic['max_force_n']:.2f} N",
         f"KD-tree: {tree['updates']} updates at {tree_rate}, build median {ms(tree['build_ms'], 'median')}, "
         f"p99 {ms(tree['build_ms'], 'p99')} ({tree['points_median'] or 0} points)",
-        f"stream: {stream['frames']} frames received, {stream['dropped']} dropped",
+        f"stream: {stream['frames']} frames received, {stream['dropped']} dropped"
+        + ("" if stream.get("longest_gap_s") is None else f", longest gap {stream['longest_gap_s']:.2f} s"),
         "registration: " + ("fixed (given by the application, no calibration touch)"
                             if summary.get("registration") == "fixed"
                             else "NOT REGISTERED (no calibration touch seen)" if residual is None
@@ -176,6 +224,15 @@ def describe(summary: dict[str, Any]) -> str:
     for source, latency in (summary.get("display_latency_ms") or {}).items():
         lines.append(f"display latency from {source}: median {ms(latency, 'median')}, p99 {ms(latency, 'p99')} "
                      f"({latency['frames']} frames)")
+    if stream.get("stalls"):
+        silent = stream.get("silent_at_end_s")
+        lines.append(f"STREAM STALLED {stream['stalls']} time{'s' if stream['stalls'] != 1 else ''} (no newer frame "
+                     f"for over {stream['stall_s']:g} s); the last frame {silent or 0.0:.2f} s before the stop, "
+                     f"{haptic.get('contact_after_last_frame_s', 0.0):.2f} s of contact rendered after it "
+                     "(on the last structure)")
     for damage in summary.get("input_damage") or ():
         lines.append(f"DAMAGED INPUT: {damage}")
+    for name, count in (summary.get("input_refused") or {}).items():
+        lines.append(f"REFUSED INPUT: {name} refused {count} malformed sample{'s' if count != 1 else ''} "
+                     "(the profile's refused column)")
     return "\n".join(lines)

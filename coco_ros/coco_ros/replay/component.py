@@ -53,7 +53,7 @@ lost) is logged once and reported to the application (:meth:`Application.report_
 launcher exits with 1 and a summary that reads ``app.damage`` shows it.
 
 A message its converter refuses (a JointState with fewer positions than names, a zero or NaN
-quaternion, CDR that does not decode) is damaged input too, but it costs only itself: it is counted
+quaternion or position, CDR that does not decode) is damaged input too, but it costs only itself: it is counted
 in the profile's ``refused`` column (:meth:`~coco_core.component.Component.record_refusal`), the
 first ``REFUSALS_LISTED`` are each reported to the application (topic, bag time and
 reason: the launcher exits with 1) and the messages after it are delivered as usual, at every rate.
