@@ -22,8 +22,8 @@ Per run, from the app's own ``summary.json`` (PalpationSummary) and its ``--prof
   received, *meshed* (-> MeshReconstructor published the mesh: the hand-off and the meshing),
   *built* (-> KDTreeBuilder finished the structure over every vertex);
 - the haptic loop's rate and its period error p99, the runtime's own figure (wake-up - deadline,
-  the profile's), against an idle 1 kHz activity's measured just before (bench_processes' ``idle``
-  application, before each round's runs at each display period; a run's ratio is to that anchor);
+  the profile's), against an idle 1 kHz activity's (bench_processes' ``idle`` application, measured
+  before each round's runs at each display period: the ratio is to the median of those anchors);
 - KD-tree updates per second (arrivals at the haptic side) and points per structure;
 - display frames per second: the view's display cycles over the run's time (the profile's).
 
@@ -210,7 +210,7 @@ def combine(runs: list[dict[str, Any]]) -> dict[str, Any]:
 
     out: dict[str, Any] = {"runs": len(runs)}
     for key in ("haptic_rate_hz", "haptic_interval_p99_ms", "haptic_p99_us", "tree_hz", "tree_points",
-                "tree_build_ms", "display_fps", "others", "app_cores", "idle_p99_us", "haptic_ratio"):
+                "tree_build_ms", "display_fps", "others", "app_cores"):
         out[key] = median(pick(key))
     out["registered"] = f"{sum(bool(v) for v in pick('registered'))}/{len(runs)}"
     out["latency_median"] = median(pick("latency_ms", "median"))
@@ -235,28 +235,14 @@ def bound(steps: dict[str, float | None]) -> str:
     return f"{name.replace('_', ' ')} ({known[name]:.0f} ms, {100 * known[name] / max(sum(known.values()), 1e-9):.0f}%)"
 
 
-def main() -> None:
-    parser = _report.parser("bench_palpation", __doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="one round, the 60 Hz display only, no diagnostic rows")
-    parser.add_argument("--no-diagnostics", action="store_true",
-                        help=f"leave out the diagnostic rows ({', '.join(DIAGNOSTICS)})")
-    parser.add_argument("--rounds", type=int, default=2, help="rounds per display period (default 2)")
-    parser.add_argument("--periods", type=int, nargs="+", default=[16, 50],
-                        help="display periods in ms (default 16 50: the paper's 60 Hz and the app's default)")
-    parser.add_argument("--stride", type=int, default=1, help="mesh every stride-th pixel (default 1: every point)")
-    parser.add_argument("--session", default=str(REPO / "out" / "palpation_session"),
-                        help="the session bag (generated when missing; default: run_app.sh palpation's)")
-    parser.add_argument("--idle-seconds", type=float, default=4.0, help="seconds of the idle 1 kHz anchor per round")
-    args = parser.parse_args()
-    if args.quick:
-        args.rounds, args.periods, args.idle_seconds, args.no_diagnostics = 1, args.periods[:1], 2.0, True
-    here = os.path.dirname(os.path.abspath(__file__))
-    sys.path.insert(0, here)
-    if not LAUNCH.exists():
-        raise SystemExit(f"{LAUNCH} is missing: build the workspace first (scripts/setup.sh)")
-    bag = session(Path(args.session))
+Runs = dict[tuple[int, str], list[dict[str, Any]]]
+"""The runs of each condition (display period, layout), in the order they first ran."""
 
-    runs: dict[tuple[int, str], list[dict[str, Any]]] = {}
+
+def measure(args: Any, bag: Path) -> tuple[Runs, list[dict[str, Any]]]:
+    """Every round: at each display period the idle anchor, then the app's runs."""
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    runs: Runs = {}
     idle: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as scratch:
         flat = one_process_file(Path(scratch))
@@ -265,7 +251,8 @@ def main() -> None:
             variants.update({name: (APP, extra) for name, extra in DIAGNOSTICS.items()})
         for round_ in range(args.rounds):
             for index, period in enumerate(args.periods):
-                # The anchor just before the runs it anchors: the shared machine's load moves a lot.
+                # An anchor just before the runs: the shared machine's load moves a lot (the ratio is to
+                # the median of all the anchors, which one caught in a quiet or busy moment cannot sway).
                 with _report.LoadMeter() as load:
                     idle.append(idle_anchor(args.idle_seconds))
                 idle[-1]["others"] = load.others
@@ -279,19 +266,54 @@ def main() -> None:
                     with tempfile.TemporaryDirectory(dir=scratch) as folder:
                         run = run_app(app, bag, period, args.stride, Path(folder), extra)
                     run["idle_p99_us"] = anchor_us
-                    run["haptic_ratio"] = (run["haptic_p99_us"] / anchor_us
-                                           if run["haptic_p99_us"] is not None else None)
                     runs.setdefault((period, layout), []).append(run)
                     print(f"round {round_ + 1}, {period} ms, {layout}: latency median "
                           f"{ms(run['latency_ms']['median'])}, haptic p99 {run['haptic_p99_us']} us, "
                           f"KD-tree {run['tree_hz'] or 0:.1f} Hz, display {run['display_fps'] or 0:.1f} fps, "
                           f"app {run['app_cores'] or 0:.2f} cores",
                           flush=True)
+    return runs, idle
 
+
+def main() -> None:
+    parser = _report.parser("bench_palpation", __doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="one round, the 60 Hz display only, no diagnostic rows")
+    parser.add_argument("--no-diagnostics", action="store_true",
+                        help=f"leave out the diagnostic rows ({', '.join(DIAGNOSTICS)})")
+    parser.add_argument("--rounds", type=int, default=2, help="rounds per display period (default 2)")
+    parser.add_argument("--periods", type=int, nargs="+", default=[16, 50],
+                        help="display periods in ms (default 16 50: the paper's 60 Hz and the app's default)")
+    parser.add_argument("--stride", type=int, default=1, help="mesh every stride-th pixel (default 1: every point)")
+    parser.add_argument("--session", default=str(REPO / "out" / "palpation_session"),
+                        help="the session bag (generated when missing; default: run_app.sh palpation's)")
+    parser.add_argument("--idle-seconds", type=float, default=4.0, help="seconds of the idle 1 kHz anchor per round")
+    parser.add_argument("--from-json", metavar="PATH",
+                        help="run nothing: print the tables and draw the plot of an earlier run's JSON")
+    args = parser.parse_args()
+    if args.quick:
+        args.rounds, args.periods, args.idle_seconds, args.no_diagnostics = 1, args.periods[:1], 2.0, True
+    if args.from_json:
+        earlier = json.loads(Path(args.from_json).read_text())["results"]
+        runs: Runs = {}
+        for key, condition in earlier["conditions"].items():
+            period, layout = key.split(" ms, ", 1)
+            runs[(int(period), layout)] = condition["runs"]
+        report(args, runs, earlier["idle"], max(len(r) for r in runs.values()), earlier["stride"],
+               Path(earlier["session"]))
+        return
+    if not LAUNCH.exists():
+        raise SystemExit(f"{LAUNCH} is missing: build the workspace first (scripts/setup.sh)")
+    bag = session(Path(args.session))
+    runs, idle = measure(args, bag)
+    report(args, runs, idle, args.rounds, args.stride, bag)
+
+
+def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, stride: int, bag: Path) -> None:
+    """The tables, the verdicts and the plot (and the JSON when asked)."""
     idle_p99_us = statistics.median(r["p99_ns"] for r in idle) / 1e3
-    results: dict[str, Any] = {"idle": idle, "idle_p99_us": idle_p99_us, "stride": args.stride,
+    results: dict[str, Any] = {"idle": idle, "idle_p99_us": idle_p99_us, "stride": stride,
                                "session": str(bag), "conditions": {}}
-    table = Table(f"Remote palpation app, {args.rounds} round(s), stride {args.stride} (medians over the rounds)",
+    table = Table(f"Remote palpation app, {rounds} round(s), stride {stride} (medians over the rounds)",
                   ["display", "layout", "latency p50", "p99", f"goal <= {GOAL_LATENCY_MS:.0f} ms",
                    "haptic rate", "haptic p99", "/ idle p99", f"goal <= {GOAL_HAPTIC_RATIO:.0f}x",
                    "KD-tree", "points", f"goal >= {GOAL_TREE_HZ:.0f} Hz", "display fps", "registered",
@@ -302,7 +324,7 @@ def main() -> None:
     for (period, layout), condition_runs in runs.items():
         c = combine(condition_runs)
         results["conditions"][f"{period} ms, {layout}"] = {"combined": c, "runs": condition_runs}
-        ratio = c["haptic_ratio"] if c["haptic_ratio"] is not None else float("nan")
+        ratio = c["haptic_p99_us"] / idle_p99_us if c["haptic_p99_us"] is not None else float("nan")
         lat = c["latency_median"]
         table.add(f"{period} ms", layout, ms(lat), ms(c["latency_p99"]),
                   verdict(None if lat is None else lat <= GOAL_LATENCY_MS),
@@ -319,7 +341,7 @@ def main() -> None:
                             + bound(c["display_steps"]))
         verdicts.append(f"{period} ms display, {layout}: haptic p99 period error "
                         f"{(c['haptic_p99_us'] or 0) / 1e3:.2f} ms "
-                        f"= {fmt_ratio(ratio)} the idle activity's ({c['idle_p99_us']:.0f} us, same rounds), "
+                        f"= {fmt_ratio(ratio)} the idle activity's ({idle_p99_us:.0f} us, same rounds), "
                         + ("PASS" if ratio <= GOAL_HAPTIC_RATIO else f"MISS by {ratio / GOAL_HAPTIC_RATIO:.1f}x")
                         + f" (goal {GOAL_HAPTIC_RATIO:.0f}x; rate "
                         + ("- : no run registered" if c["haptic_rate_hz"] is None else f"{c['haptic_rate_hz']:.0f} Hz")
@@ -340,9 +362,10 @@ def main() -> None:
     table.notes += [
         "latency: the remote camera's frames, acquisition (remote process) -> the view's pixels read back "
         "(GLManager.latency); haptic p99: the runtime's period error (wake-up - deadline) of the 1 ms "
-        "activity; / idle p99: each run's against a lone 1 kHz activity's measured just before its round's runs "
-        f"at that display period (median of the runs' ratios; idle p99 {min(r['p99_ns'] for r in idle) / 1e3:.0f}-"
-        f"{max(r['p99_ns'] for r in idle) / 1e3:.0f} us over the rounds, as the machine's load moved)",
+        "activity; / idle p99: against a lone 1 kHz activity's, measured before each round's runs at each "
+        f"display period: the median of those {len(idle)} anchors, {idle_p99_us:.0f} us (they ranged "
+        f"{min(r['p99_ns'] for r in idle) / 1e3:.0f}-{max(r['p99_ns'] for r in idle) / 1e3:.0f} us "
+        "as the machine's load moved)",
         f"KD-tree: structures arriving at the haptic side per second (the camera sends {CAMERA_HZ:.0f} Hz); "
         "display fps: display cycles / run time; registered: runs whose calibration touch registered the "
         "hand (before it the haptic loop runs but renders no sample: its rate is from the samples); app CPU: "
@@ -386,7 +409,7 @@ def main() -> None:
                   label="display fps")
         right.axhline(GOAL_TREE_HZ, color="k", linestyle="--", linewidth=1, label="camera 30 Hz")
         for i, c in enumerate(combined):
-            ratio = c["haptic_ratio"] or 0.0
+            ratio = (c["haptic_p99_us"] or 0.0) / idle_p99_us
             right.text(i, max(c["tree_hz"] or 0, c["display_fps"] or 0) + 1, f"haptic p99\n{ratio:.1f}x idle",
                        ha="center", fontsize=7)
         right.set_xticks(range(len(names)), names, fontsize=8)
