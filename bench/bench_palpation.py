@@ -12,9 +12,10 @@ goal's "every point"; the app's default is 2).
 Per run, from the app's own ``summary.json`` (PalpationSummary) and its ``--profile`` at exit:
 - sensor-to-display latency p50/p99: the remote camera's frames from their acquisition (RgbdCameraReader,
   remote process) to the view's pixels read back (GLManager.latency), and the same split by step,
-  from the stamps the frame carries: *sent* (acquisition -> StreamingServer sent the packet: the
-  remote activity's encoding), *received* (-> StreamingReceiver decoded it: TCP, the receiver's
-  10 ms poll, JPEG + Zstandard decoding), *frame start* (-> the view's update began and the scene
+  from the stamps the frame carries: *sent* (acquisition -> StreamingServer began the packet: the
+  hand-over in the remote activity; the packet's header takes this time before the encoding),
+  *received* (-> StreamingReceiver decoded it: JPEG + Zstandard encoding, TCP, the receiver's 10 ms
+  poll, decoding), *frame start* (-> the view's update began and the scene
   took the frame: the hand-off across processes and the wait for the display period), *drawn* (->
   every peer read its input, uploaded and drew, and the context finished: the renderer), *read back*
   (-> the pixels copied out of the framebuffer);
@@ -373,7 +374,8 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
         "cores' share used by processes other than the benchmark and the app",
     ]
     steps.notes += [
-        "sent: encoding in the remote process; received: TCP, the receiver's 10 ms poll, decoding; frame start: "
+        "sent: the hand-over to the server in the remote process; received: encoding, TCP, the receiver's 10 ms "
+        "poll, decoding; frame start: "
         "hand-off to the view and the wait for its period; drawn: peers' input, upload, draw and the finished "
         "rasterisation; read back: pixels out; meshed: hand-off to and meshing by MeshReconstructor; built: "
         "hand-off to and the structure by KDTreeBuilder",

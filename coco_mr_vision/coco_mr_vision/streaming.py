@@ -9,8 +9,9 @@ Garbage, truncated and out-of-order packets are counted by kind and skipped: a b
 a crash. Each server run names itself in its packets, so a server that starts again (its sequence
 numbers from 1) is counted once as a restart and its frames delivered, not taken for stale ones.
 Latency is measured from the frame's acquisition stamp on the server side (the monotonic clock is
-shared by the processes of one host); the receiver's stamps carry the server's send time and its own
-receive time as the stamp's first ``steps``.
+shared by the processes of one host); the receiver's stamps carry the time the server took the frame
+(its packet's ``sent``, taken before the encoding) and the time the receiver decoded it as the
+stamp's first ``steps``.
 
 The receiver trusts nothing in a packet (see :mod:`coco_mr_vision.stream_codec`): ZeroMQ refuses a
 message larger than the packet of the receiver's ``max_frame`` (``MAXMSGSIZE``), every header field
@@ -265,8 +266,8 @@ class StreamingReceiver(Component):
             self.latency_sum += latency
             self.latency_count += 1
         self.frames += 1
-        # The way so far, for a latency split by step downstream: sent by the server, received here
-        # (decoded: what the receiver's readers get).
+        # The way so far, for a latency split by step downstream: taken by the server to send (before
+        # its encoding), received here (decoded: what the receiver's readers get).
         stamp = Stamp(frame.acquired, frame.seq, frame.source, (("sent", frame.sent), ("received", received)))
         if frame.depth is not None and frame.color is not None:
             self.rgbd.write(Stamped(RGBDFrame(frame.color, frame.depth, frame.depth.intrinsics,
