@@ -4,8 +4,9 @@
     PYTHONPATH=coco_core .venv/bin/python bench/run_all.py --seconds 2     # quick run
     PYTHONPATH=coco_core .venv/bin/python bench/run_all.py --markdown /tmp/tables.md
 
-``bench_replay`` and ``bench_latency`` start the installed ROS launcher and ``coco-replay``: build the
-workspace and ``source install/setup.bash`` first.
+``bench_replay`` and ``bench_latency`` start the installed ROS launcher and ``coco-replay``, and
+``bench_palpation`` the installed ``coco-launch`` (about 7 minutes): build the workspace and
+``source install/setup.bash`` first.
 
 Each benchmark runs in a fresh interpreter so that one's threads, DDS participants and garbage do
 not weigh on the next. Results go to ``bench/results/<name>.json``, plots to ``docs/img/<name>.png``.
@@ -26,7 +27,7 @@ from _table import Table
 
 BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms", "bench_bag", "bench_replay",
               "bench_latency", "bench_hosting", "bench_display", "bench_check", "bench_processes", "bench_ipc", "bench_haptics",
-              "bench_vision"]
+              "bench_vision", "bench_palpation"]
 
 
 def markdown(results: Path) -> str:

@@ -177,6 +177,9 @@ def test_palpation_app_end_to_end(palpation_session: Path, tmp_path: Path) -> No
     # through the stream to the view process's pixels.
     shown = summary["display_latency_ms"]["camera"]
     assert shown["frames"] > 0 and 0 < shown["median"] <= shown["max"], summary["display_latency_ms"]
+    # Split by the steps the frames' stamps passed on their way to the pixels and to the haptic loop.
+    assert list(summary["display_steps_ms"]["camera"]) == ["sent", "received", "frame_start", "drawn", "read_back"]
+    assert list(summary["kdtree"]["steps_ms"]) == ["sent", "received", "meshed", "built"], summary["kdtree"]
     assert summary["input_damage"] == []
 
     # The view: one video frame per display cycle, and a contact sheet; the hand (the only saturated

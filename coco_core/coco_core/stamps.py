@@ -20,6 +20,11 @@ class Stamp:
     time: float
     seq: int = 0
     source: str = ""
+    steps: tuple[tuple[str, float], ...] = ()
+    """Named times (``perf_counter`` seconds) the data passed on its way from the acquisition, in
+    order, appended by the stages that choose to (FlowVR's stamps carry such fields too): a latency
+    from the acquisition to an output is then split step by step where it was spent (the remote
+    palpation app: sent, received, meshed, built, frame start, drawn, read back)."""
 
     @classmethod
     def now(cls, seq: int = 0, source: str = "") -> Stamp:
@@ -28,6 +33,15 @@ class Stamp:
     def age(self) -> float:
         """Seconds since acquisition."""
         return time.perf_counter() - self.time
+
+    def step(self, name: str, at: float | None = None) -> Stamp:
+        """This stamp with the step ``name`` passed at ``at`` (default: now) appended to ``steps``."""
+        return Stamp(self.time, self.seq, self.source, (*self.steps, (name, time.perf_counter() if at is None else at)))
+
+    def intervals(self) -> list[tuple[str, float]]:
+        """Seconds from each step's predecessor (the acquisition for the first) to it, by step name."""
+        times = [self.time, *(at for _, at in self.steps)]
+        return [(name, times[index + 1] - times[index]) for index, (name, _) in enumerate(self.steps)]
 
 
 @dataclass(frozen=True, slots=True)

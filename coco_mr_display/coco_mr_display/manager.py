@@ -17,7 +17,10 @@ frame's number); a frame that shows nothing new is stamped at its own render tim
 name as source. When the frame is read back (the pixels exist), the manager records the frame's
 latency (``record_latency``: the ``display`` row of ``--profile``) and writes it on ``latency``
 (``Stamped[float]`` seconds, with the frame's stamp; only for frames that showed a new input). With
-``stamped``, ``color`` and ``depth`` carry ``Stamped(Image, frame stamp)``.
+``stamped``, ``color`` and ``depth`` carry ``Stamped(Image, frame stamp)``. The frame's stamp keeps
+the input's ``steps`` (its way to the display) and adds the frame's own: ``frame_start`` (the
+update began: the peers then read their inputs), ``drawn`` (every peer drew and the context finished
+the drawing) and ``read_back`` (the pixels copied out), so that the latency splits by step.
 """
 
 from __future__ import annotations
@@ -121,9 +124,10 @@ class GLManager(Component):
             dispatch(events, self.walk()[1:])
             if any(event.kind is EventKind.CLOSE for event in events):
                 self._close()
+        started = time.perf_counter()
         for peer in self.peers:
             peer.step()
-        self.render_frame()
+        self.render_frame(started)
         surface.present()
         self.frames += 1
 
@@ -151,8 +155,11 @@ class GLManager(Component):
         return self.camera.render_views(size, self.visualization == "stereo",  # type: ignore[union-attr]
                                         self.eye_separation, self.world)
 
-    def render_frame(self) -> list[RenderView]:
-        """Clear, draw every enabled peer per view, and write the output ports; the views drawn."""
+    def render_frame(self, started: float | None = None) -> list[RenderView]:
+        """Clear, draw every enabled peer per view, and write the output ports; the views drawn.
+        ``started``: when the frame's update began (default: now), its stamp's ``frame_start``."""
+        if started is None:
+            started = time.perf_counter()
         surface = self.surface
         assert surface is not None
         ctx, fbo = surface.ctx, surface.fbo
@@ -172,7 +179,11 @@ class GLManager(Component):
                     peer.render(ctx, view)
                 except Exception:
                     peer.report_error("render")
-        self._write_outputs(fbo, views, self._frame_origin())
+        origin = self._frame_origin()
+        if origin is not None:  # a frame to time: the drawing finished apart from its read-back
+            ctx.finish()
+            origin = origin.step("frame_start", started).step("drawn")
+        self._write_outputs(fbo, views, origin)
         return views
 
     def _frame_origin(self) -> Stamp | None:
@@ -188,7 +199,8 @@ class GLManager(Component):
     def _write_outputs(self, fbo: moderngl.Framebuffer, views: list[RenderView], origin: Stamp | None) -> None:
         width, height = fbo.size
         seq = self.frames + 1
-        frame = Stamp(origin.time, seq, origin.source) if origin is not None else Stamp.now(seq, self.name)
+        frame = (Stamp(origin.time, seq, origin.source, origin.steps) if origin is not None
+                 else Stamp.now(seq, self.name))
         self.last_stamp = frame
         stamp = time.time()
         if self.color.connected:
@@ -199,9 +211,8 @@ class GLManager(Component):
         if self.depth_output and self.depth.connected:
             depth = Image(self.read_depth(fbo, views)[::-1], ImageFormat.DEPTH32F, stamp, self.world)
             self._write_image(self.depth, depth, frame)
-        if origin is not None:  # the pixels exist now: read back, or finished here
-            if not (self.color.connected or self.depth_output and self.depth.connected):
-                self.surface.ctx.finish()  # type: ignore[union-attr]
+        if origin is not None:  # the pixels exist now: read back (or finished in render_frame)
+            frame = frame.step("read_back")
             self.record_latency(frame)
             self.latency.write(Stamped(frame.age(), frame))
 

@@ -51,6 +51,11 @@ def scene(color_policy: ConnectionPolicy | None = None) -> tuple[Application, GL
     return app, manager, inputs, collected
 
 
+def origin_of(stamp: Stamp) -> tuple[float, int, str]:
+    """A frame stamp's origin and number, without the steps of its way (see the next test)."""
+    return stamp.time, stamp.seq, stamp.source
+
+
 def test_each_frame_is_stamped_with_the_oldest_input_it_shows_first():
     app, manager, inputs, collected = scene()
     graph = app.transforms
@@ -63,9 +68,10 @@ def test_each_frame_is_stamped_with_the_oldest_input_it_shows_first():
         inputs.color.write(Stamped((0.0, 1.0, 0.0), colour_origin))
         manager.step()
         [frame] = collected.frames.read_all()
-        assert frame.stamp == Stamp(colour_origin.time, 1, "distance")  # the older of the two
+        assert origin_of(frame.stamp) == (colour_origin.time, 1, "distance")  # the older of the two
         [latency] = collected.latency.read_all()
-        assert latency.stamp == frame.stamp and latency.value >= 0.010
+        assert latency.stamp.steps[:-1] == frame.stamp.steps  # the same frame, then read back
+        assert origin_of(latency.stamp) == origin_of(frame.stamp) and latency.value >= 0.010
         assert manager.stats.latency.count == 1
 
         # Frame 2: nothing new reaches the screen: stamped at render time, no latency recorded.
@@ -83,10 +89,32 @@ def test_each_frame_is_stamped_with_the_oldest_input_it_shows_first():
         graph.set_transform("base", "bowl", moved, 2.0, cause=Stamp.now(8, "/bowl/pose"))
         manager.step()
         [frame] = collected.frames.read_all()
-        assert frame.stamp == Stamp(pose_origin.time, 3, "/marker")
+        assert origin_of(frame.stamp) == (pose_origin.time, 3, "/marker")
         assert manager.stats.latency.count == 2
     finally:
         manager.stop()
+
+
+def test_a_frame_stamp_keeps_the_inputs_way_and_adds_frame_start_drawn_and_read_back():
+    """The latency split by step: the input's steps (e.g. the stream's sent and received) are kept in
+    the frame's stamp, followed by the frame's own, in time order."""
+    app, manager, inputs, collected = scene()
+    assert manager.configure(), "GLManager failed to configure (see the log)"
+    try:
+        origin = Stamp.now(3, "camera").step("sent").step("received")
+        inputs.color.write(Stamped((0.0, 1.0, 0.0), origin))
+        manager.step()
+        [latency] = collected.latency.read_all()
+    finally:
+        manager.stop()
+    stamp = latency.stamp
+    assert (stamp.time, stamp.source) == (origin.time, "camera")
+    assert [name for name, _ in stamp.steps] == ["sent", "received", "frame_start", "drawn", "read_back"]
+    times = [stamp.time, *(at for _, at in stamp.steps)]
+    assert times == sorted(times)
+    assert latency.value >= stamp.steps[-1][1] - stamp.time
+    [frame] = collected.frames.read_all()
+    assert frame.stamp.steps == stamp.steps[:-1], "the image goes out before its read-back is stamped"
 
 
 def test_a_display_reading_the_newest_counts_the_skipped_inputs_as_dropped():

@@ -28,7 +28,8 @@ from coco_core.errors import SetupError, StructureError
 from coco_core.policy import NEW_DATA
 from coco_core.pool import Slot
 from coco_core.ports import InputPort, OutputPort
-from coco_mr_vision.mesh import TriangleMesh
+from coco_core.stamps import Stamp
+from coco_mr_vision.mesh import MeshInfo, TriangleMesh
 from coco_mr_vision.pointcloud import PointCloud
 
 from . import kernel
@@ -99,6 +100,9 @@ class CloudStructure:
     build_seconds: float = 0.0
     valid: int = 0
     """Points that survived the filters."""
+    origin: Stamp | None = None
+    """The acquisition stamp of the frame a mesh's cloud came from, with its way so far and the step
+    ``built`` (when the structure was finished): the sensor-to-touchable latency, step by step."""
 
     def fit(self, qx: float, qy: float, qz: float, support: float, viewpoint: tuple[float, float, float],
             out: np.ndarray, moments: np.ndarray) -> int:
@@ -202,14 +206,19 @@ class KDTreeBuilder(Component):
         status, cloud = self.cloud.read_newest()
         if status is not NEW_DATA:
             return
-        self.structure.write(self.build(mesh_cloud(cloud) if isinstance(cloud, Slot) else cloud))
+        if isinstance(cloud, Slot):
+            origin = cloud.stamp.stamp if isinstance(cloud.stamp, MeshInfo) else None
+            self.structure.write(self.build(mesh_cloud(cloud), origin))
+        else:
+            self.structure.write(self.build(cloud))
         self.built += 1
 
     def on_stop(self) -> None:
         log.info("%s: %d structures built", self.name, self.built)
 
-    def build(self, cloud: PointCloud | np.ndarray) -> CloudStructure:
-        """The structure of one cloud after the filters."""
+    def build(self, cloud: PointCloud | np.ndarray, origin: Stamp | None = None) -> CloudStructure:
+        """The structure of one cloud after the filters; ``origin``: the acquisition stamp of the
+        cloud's frame, passed on with the step ``built``."""
         import time
 
         start = time.perf_counter()
@@ -234,8 +243,9 @@ class KDTreeBuilder(Component):
             structure = {"kind": "grid", "points": points, "cells": cells, "valid": len(points)}
         else:
             structure = self._kdtree(self._unorganised(points))
-        return CloudStructure(**structure, frame_id=frame_id, stamp=stamp,
-                              build_seconds=time.perf_counter() - start)
+        end = time.perf_counter()
+        return CloudStructure(**structure, frame_id=frame_id, stamp=stamp, build_seconds=end - start,
+                              origin=origin.step("built", end) if origin is not None else None)
 
     def _projective(self, points: np.ndarray, organized: tuple[int, int] | None) -> dict[str, Any]:
         if organized is None:

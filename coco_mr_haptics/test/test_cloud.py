@@ -179,6 +179,46 @@ def test_builder_offers_the_newest_structure():
     assert cloud_renderer.current.grid[240, 320, 2] == pytest.approx(1.2)
 
 
+def test_the_structure_of_a_streamed_frame_carries_its_way_from_the_acquisition():
+    """A stamped frame meshed and built: the structure's ``origin`` is the frame's acquisition stamp
+    with its way so far and the steps ``meshed`` and ``built`` (the sensor-to-touchable latency)."""
+    from coco_core.stamps import Stamp, Stamped
+    from coco_mr_vision.image import Image, ImageFormat
+    from coco_mr_vision.mesh_reconstructor import MeshReconstructor
+    from coco_mr_vision.rgbd import RGBDFrame
+
+    class Sensor(Component):
+        rgbd = OutputPort(Stamped)
+
+    class Haptics(Component):
+        structure = InputPort(object)
+
+    app = Application("stamped_mesh_to_cloud")
+    sensor, mesher, builder = Sensor("sensor"), MeshReconstructor("mesher"), KDTreeBuilder("builder")
+    haptics = Haptics("haptics")
+    for component in (sensor, mesher, builder, haptics):
+        app.add(component)
+    app.connect("sensor.rgbd", "mesher.rgbd")
+    app.connect("mesher.mesh", "builder.cloud")
+    app.connect("builder.structure", "haptics.structure")
+    builder.configure()
+    intrinsics = CameraIntrinsics(64, 48, 60.0, 60.0, 31.5, 23.5)
+    depth = np.full((48, 64), 1.0, np.float32)
+    frame = RGBDFrame(Image(np.zeros((48, 64, 3), np.uint8), ImageFormat.RGB8, 10.0, "cam"),
+                      Image(depth, ImageFormat.DEPTH32F, 10.0, "cam"), intrinsics)
+    acquired = Stamp.now(5, "camera").step("received")
+    sensor.rgbd.write(Stamped(frame, acquired))
+    mesher.step()
+    builder.step()
+    origin = haptics.structure.read()[1].origin
+    assert (origin.time, origin.seq, origin.source) == (acquired.time, 5, "camera")
+    assert [name for name, _ in origin.steps] == ["received", "meshed", "built"]
+    times = [origin.time, *(at for _, at in origin.steps)]
+    assert times == sorted(times)
+    assert [name for name, _ in origin.intervals()] == ["received", "meshed", "built"]
+    assert all(seconds >= 0 for _, seconds in origin.intervals())
+
+
 def test_a_mesh_reconstructor_feeds_the_builder_its_vertices():
     """RGB-D frames -> MeshReconstructor -> KDTreeBuilder, as wired in an application: the structure
     holds the mesh's vertices (in the camera's frame, with the image's stamp), and each mesh slot goes

@@ -102,7 +102,8 @@ class MeshReconstructor(Component):
             self.stalls += 1
             return
         counts = self.reconstruct(frame, slot.array, layout)
-        slot.stamp = MeshInfo(layout, counts[0], counts[1], stamp, frame.stamp, frame.frame_id)
+        slot.stamp = MeshInfo(layout, counts[0], counts[1], stamp.step("meshed") if stamp is not None else None,
+                              frame.stamp, frame.frame_id)
         self.mesh.write(slot)
         self._newest = slot
         self.frames += 1

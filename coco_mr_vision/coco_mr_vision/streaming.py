@@ -9,7 +9,9 @@ Garbage, truncated and out-of-order packets are counted by kind and skipped: a b
 a crash. Each server run names itself in its packets, so a server that starts again (its sequence
 numbers from 1) is counted once as a restart and its frames delivered, not taken for stale ones.
 Latency is measured from the frame's acquisition stamp on the server side (the monotonic clock is
-shared by the processes of one host).
+shared by the processes of one host); the receiver's stamps carry the time the server took the frame
+(its packet's ``sent``, taken before the encoding) and the time the receiver decoded it as the
+stamp's first ``steps``.
 
 The receiver trusts nothing in a packet (see :mod:`coco_mr_vision.stream_codec`): ZeroMQ refuses a
 message larger than the packet of the receiver's ``max_frame`` (``MAXMSGSIZE``), every header field
@@ -257,13 +259,16 @@ class StreamingReceiver(Component):
         except PacketError as error:
             self._refuse(error)
             return
-        latency = time.perf_counter() - frame.acquired
+        received = time.perf_counter()
+        latency = received - frame.acquired
         self.latency_last = latency
         if 0.0 <= latency <= MAX_LATENCY:
             self.latency_sum += latency
             self.latency_count += 1
         self.frames += 1
-        stamp = Stamp(frame.acquired, frame.seq, frame.source)
+        # The way so far, for a latency split by step downstream: taken by the server to send (before
+        # its encoding), received here (decoded: what the receiver's readers get).
+        stamp = Stamp(frame.acquired, frame.seq, frame.source, (("sent", frame.sent), ("received", received)))
         if frame.depth is not None and frame.color is not None:
             self.rgbd.write(Stamped(RGBDFrame(frame.color, frame.depth, frame.depth.intrinsics,
                                               frame.depth_scale), stamp))

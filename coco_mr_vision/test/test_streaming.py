@@ -174,6 +174,9 @@ def test_server_in_another_process_to_receiver(tmp_path):
     assert np.array_equal(last.value.depth.data, original.depth.data), "depth is lossless"
     assert np.abs(last.value.color.data.astype(int) - original.color.data).mean() < 5
     assert last.value.intrinsics.fx == 525.0 and last.stamp.source == "camera"
+    # The way so far, for a latency split by step: sent by the server, received (decoded) here.
+    assert [name for name, _ in last.stamp.steps] == ["sent", "received"]
+    assert last.stamp.time <= last.stamp.steps[0][1] <= last.stamp.steps[1][1]
 
 
 @pytest.fixture

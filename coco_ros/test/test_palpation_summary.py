@@ -105,6 +105,31 @@ def test_its_size_does_not_grow_with_the_haptic_samples(tmp_path):
     assert json.loads((tmp_path / "summary.json").read_text())["haptics"]["samples"] == 42_000
 
 
+def test_the_latencies_are_split_by_the_steps_their_stamps_passed(tmp_path):
+    """The camera's frames to the pixels (GLManager.latency) and to the structure built (the
+    structure's origin): each step's time from the one before, medians and p99 by step."""
+    sources, summary = rig(tmp_path)
+    for i in range(100):
+        way = Stamp(1.0, i, "camera").step("sent", 1.001).step("received", 1.021)
+        frame = way.step("frame_start", 1.031).step("drawn", 1.131).step("read_back", 1.132)
+        sources.display_latency.write(Stamped(0.132, frame))
+        built = way.step("meshed", 1.025).step("built", 1.045)
+        sources.structures.write(CloudStructure("grid", np.zeros((4, 3)), build_seconds=0.02, origin=built))
+    summary.step()
+    summary.stop()
+    report = json.loads((tmp_path / "summary.json").read_text())
+    display = report["display_steps_ms"]["camera"]
+    assert list(display) == ["sent", "received", "frame_start", "drawn", "read_back"]
+    for name, expected in zip(display, (1.0, 20.0, 10.0, 100.0, 1.0)):
+        assert display[name]["median"] == pytest.approx(expected, rel=0.01), name
+    tree = report["kdtree"]
+    assert list(tree["steps_ms"]) == ["sent", "received", "meshed", "built"]
+    assert tree["steps_ms"]["meshed"]["median"] == pytest.approx(4.0, rel=0.01)
+    assert tree["latency_ms"]["median"] == pytest.approx(45.0, rel=0.01)
+    text = describe(report)
+    assert "sensor to touchable: median 45.0" in text and "drawn +100.0" in text, text
+
+
 def test_the_display_latency_is_reported_by_the_source_a_frame_showed_first(tmp_path):
     """GLManager stamps each frame that shows a new input with the oldest such input: the remote
     camera's frames (acquisition to pixels, the paper's sensor-to-display latency) and the hand's

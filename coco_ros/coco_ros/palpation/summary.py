@@ -7,7 +7,10 @@ structures, draining the haptic samples at each wake-up) and reads:
   of the loop (from the samples' own ``perf_counter`` times: |interval - ``period``|), the time in
   contact, the deepest penetration and the largest force;
 - ``structures`` (``KDTreeBuilder.structure``): how many cloud structures reached the haptic side,
-  at what rate (arrival times here), how long each took to build (``build_seconds``), how many points;
+  at what rate (arrival times here), how long each took to build (``build_seconds``), how many points,
+  and, for those built from a streamed frame, the sensor-to-touchable latency (acquisition to the
+  structure built) split by the steps its stamp passed: ``sent`` (taken by the remote server,
+  before its encoding), ``received`` (decoded by the receiver), ``meshed``, ``built``;
 - ``frames`` (``StreamingReceiver.rgbd``): the frames the stream delivered, and the frames the
   server sent that never arrived (gaps in the server's sequence numbers: dropped by ZeroMQ or
   superseded in the receiver); its stalls: gaps longer than ``stall`` between the acquisition
@@ -19,7 +22,9 @@ structures, draining the haptic samples at each wake-up) and reads:
 - ``display_latency`` (``GLManager.latency``, optional): per rendered frame that showed a new input,
   seconds from that input's origin to the frame's pixels, by the origin's source: the remote
   camera's frames (stamped at acquisition, through the stream) give the paper's sensor-to-display
-  latency, the hand's poses the tracker-to-display one.
+  latency, the hand's poses the tracker-to-display one; each split by the steps the frame's stamp
+  passed (the camera's: ``sent``, ``received``, then the view's ``frame_start``: its update began
+  and the scene read the frame, ``drawn``, ``read_back``), each step the time from the one before.
 
 The JSON (``json`` attribute) is written at the stop; :func:`describe` puts it in a few lines
 (``python -m coco_ros.palpation summary.json``, what ``scripts/run_app.sh palpation`` shows). Nothing
@@ -46,9 +51,20 @@ from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.histogram import LogHistogram
 from coco_core.ports import InputPort
-from coco_core.stamps import Stamped, unstamped
+from coco_core.stamps import Stamp, Stamped, unstamped
 from coco_mr_haptics.cloud import CloudStructure
 from coco_mr_haptics.types import HapticSample
+
+
+def _record_steps(steps: dict[str, LogHistogram], stamp: Stamp) -> None:
+    """Each step of ``stamp``'s way, from the one before (clamped at 0: a display update may begin a
+    moment before the frame it shows was received, and still read it)."""
+    for name, seconds in stamp.intervals():
+        steps.setdefault(name, LogHistogram()).record(max(seconds, 0.0))
+
+
+def _steps_ms(steps: dict[str, LogHistogram]) -> dict[str, Any]:
+    return {name: histogram.milliseconds(median=0.5, p99=0.99) for name, histogram in steps.items()}
 
 
 def _rate(count: int, first: float, last: float) -> float | None:
@@ -88,6 +104,9 @@ class PalpationSummary(Component):
         self._first_arrival = self._last_arrival = math.nan
         self._builds = LogHistogram()
         self._points = LogHistogram(lowest=1.0, highest=1e9)
+        self._touchable = LogHistogram()
+        """Acquisition of a streamed frame to its structure built (sensor-to-touchable)."""
+        self._touchable_steps: dict[str, LogHistogram] = {}
         self.frames_received = 0
         self.frames_missed = 0
         self._last_seq: int | None = None
@@ -101,6 +120,8 @@ class PalpationSummary(Component):
         self.registration_residual: float | None = None
         self._display: dict[str, LogHistogram] = {}
         """Sensor-to-display latencies by the source of the input a frame showed first."""
+        self._display_steps: dict[str, dict[str, LogHistogram]] = {}
+        """The same split by the steps of the way, by source."""
 
     def on_update(self) -> None:
         for value in self.frames.read_all():  # first: the samples after the newest frame are told apart
@@ -136,11 +157,16 @@ class PalpationSummary(Component):
             self.tree_updates += 1
             self._builds.record(float(structure.build_seconds))
             self._points.record(int(structure.valid or len(structure.points)))
+            origin = structure.origin
+            if origin is not None and origin.steps:
+                self._touchable.record(max(origin.steps[-1][1] - origin.time, 0.0))
+                _record_steps(self._touchable_steps, origin)
         for residual in self.residual.read_all():
             self.registration_residual = float(residual)
         for latency in self.display_latency.read_all():
             source = latency.stamp.source or "?"
             self._display.setdefault(source, LogHistogram()).record(max(float(latency.value), 0.0))
+            _record_steps(self._display_steps.setdefault(source, {}), latency.stamp)
 
     def _gap(self, seconds: float) -> None:
         """A time without a newer frame: a stall when longer than ``stall``."""
@@ -163,6 +189,8 @@ class PalpationSummary(Component):
             "rate_hz": _rate(self.tree_updates, self._first_arrival, self._last_arrival),
             "build_ms": self._builds.milliseconds(median=0.5, p99=0.99),
             "points_median": round(self._points.quantile(0.5)) if self._points.count else None,
+            "latency_ms": self._touchable.milliseconds(median=0.5, p99=0.99),
+            "steps_ms": _steps_ms(self._touchable_steps),
         }
         return {
             "haptics": haptic,
@@ -174,6 +202,7 @@ class PalpationSummary(Component):
             "registration_residual_mm": None if self.registration_residual is None else 1e3 * self.registration_residual,
             "display_latency_ms": {source: {"frames": latencies.count, **latencies.milliseconds(median=0.5, p99=0.99)}
                                    for source, latencies in sorted(self._display.items())},
+            "display_steps_ms": {source: _steps_ms(steps) for source, steps in sorted(self._display_steps.items())},
             "input_damage": list(self.app.damage) if self.app is not None else [],
             "input_refused": {name: component.stats.refused for name, component in self.app.components.items()
                               if component.stats.refused} if self.app is not None else {},
@@ -221,9 +250,18 @@ def describe(summary: dict[str, Any]) -> str:
                             else "NOT REGISTERED (no calibration touch seen)" if residual is None
                             else f"residual {residual:.2f} mm RMS"),
     ]
+    def steps(split: dict[str, Any]) -> str:
+        return ", ".join(f"{name} +{ms(stats, 'median')}" for name, stats in split.items())
+
+    if tree.get("steps_ms"):
+        lines.append(f"sensor to touchable: median {ms(tree['latency_ms'], 'median')}, p99 "
+                     f"{ms(tree['latency_ms'], 'p99')}; step medians: {steps(tree['steps_ms'])}")
     for source, latency in (summary.get("display_latency_ms") or {}).items():
         lines.append(f"display latency from {source}: median {ms(latency, 'median')}, p99 {ms(latency, 'p99')} "
                      f"({latency['frames']} frames)")
+        split = (summary.get("display_steps_ms") or {}).get(source)
+        if split:
+            lines.append(f"  step medians: {steps(split)}")
     if stream.get("stalls"):
         silent = stream.get("silent_at_end_s")
         lines.append(f"STREAM STALLED {stream['stalls']} time{'s' if stream['stalls'] != 1 else ''} (no newer frame "
