@@ -31,6 +31,7 @@ setup(
             'Supervisor = coco_core.demo.supervisor:Supervisor',
             'TransformationInterface = coco_core.transforms.interface:TransformationInterface',
             'JointSequence = coco_core.transforms.joint_sequence:JointSequence',
+            'Relay = coco_core.relay:Relay',
         ],
     },
 )

@@ -154,7 +154,7 @@ def test_palpation_app_end_to_end(palpation_session: Path, tmp_path: Path) -> No
     assert f"Palpation summary ({output}/summary.json" in report and "registration: residual" in report, report
     assert f"Contact sheet:  {output}/contact_sheet.png" in report, report
     assert "registered from" in result.stderr, result.stderr[-4000:]
-    for process in ("hand", "remote", "haptics", "view"):
+    for process in ("hand", "remote", "haptics", "local", "view"):
         assert re.search(rf"^{process}\s+\d+\s", report, re.M), f"process {process} missing:\n{report}"
     rows = haptic_rows(output)
     expected = places_after_the_registration(output)

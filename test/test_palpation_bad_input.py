@@ -100,8 +100,9 @@ def test_a_stream_that_stops_and_a_surface_stiffer_than_the_device(palpation_ses
     assert summary["input_damage"] == [] and summary["registration_residual_mm"] is not None, summary
     printed = describe(summary)
     assert f"STREAM STALLED {stream['stalls']} time" in printed, printed
-    for component in ("device", "renderer", "receiver", "mesh", "tree", "summary"):
-        assert profile_row(result.stdout, "haptics", component)["errors"] == 0, component
+    for process, component in (("haptics", "device"), ("haptics", "renderer"), ("local", "receiver"),
+                               ("local", "mesh"), ("local", "tree"), ("local", "summary")):
+        assert profile_row(result.stdout, process, component)["errors"] == 0, (process, component)
     # The force limit, whatever the surface asks.
     magnitudes = forces(output)
     assert len(magnitudes) == haptics["samples"]
@@ -163,7 +164,7 @@ def test_frames_of_the_wrong_size_or_encoding_and_hand_poses_with_nan(palpation_
     assert profile_row(report, "hand", "replay")["refused"] == len(NAN_POSES), report
     assert profile_row(report, "haptics", "device")["refused"] == 0, "a NaN pose reached the device"
     for process, component in (("remote", "camera"), ("hand", "replay"), ("haptics", "device"),
-                               ("haptics", "renderer"), ("haptics", "mesh"), ("haptics", "tree")):
+                               ("haptics", "renderer"), ("local", "mesh"), ("local", "tree")):
         assert profile_row(report, process, component)["errors"] == 0, (process, component, report)
 
     summary = json.loads((output / "summary.json").read_text())
