@@ -42,6 +42,9 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("coco")
 
+DAMAGE_LISTED = 10
+"""Refused samples a component reports as damaged input one by one (:meth:`Component.refuse_damaged_input`)."""
+
 
 class ErrorPolicy(enum.Enum):
     """What happens when a component's callback raises."""
@@ -349,6 +352,19 @@ class Component:
             self._refusals_reported.add(type(error))
             log.error("component %s refused %s: %s (further refusals are counted in the profile)",
                       self.name, what, error)
+
+    def refuse_damaged_input(self, source: object, what: str, error: Exception) -> None:
+        """Refuse ``what``, a malformed sample read from ``source`` (a bag, a folder): counted (the
+        profile's refused column) and reported to the application as damaged input, the first
+        :data:`DAMAGE_LISTED` each (the launcher then exits 1 and a summary names them), later ones
+        only counted. Why: a recording with broken messages must not pass for a sound one, nor
+        flood the summary."""
+        self.record_refusal(what, error)
+        refused = self.stats.refused
+        if self.app is not None and refused <= DAMAGE_LISTED:
+            more = (f"; further refused samples are only counted (the profile's refused column of {self.name})"
+                    if refused == DAMAGE_LISTED else "")
+            self.app.report_damage(f"{self.name}: {source}: {what} refused: {error}{more}")
 
     def record_merged(self, count: int = 1) -> None:
         """Count ``count`` input samples this component read but folded into a later output (or

@@ -36,11 +36,6 @@ PRIMESENSE = CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
 """The default intrinsics of the PrimeSense / Kinect v1 sensors that TUM and Redwood recorded with."""
 
 
-REFUSALS_LISTED = 10
-"""Malformed messages of a bag reported one by one to the application's damage, as BagReplay does;
-the profile counts every one."""
-
-
 class RgbdPeer(Component):
     """Base of RGB-D back-ends: see the module docstring for the contract."""
 
@@ -300,18 +295,12 @@ class BagRgbdPeer(RgbdPeer):
         return self._pair()
 
     def _refuse(self, message: Any, error: Exception) -> None:
-        """Count a malformed message (the profile's refused column) and report it as damaged input
-        (the first ``REFUSALS_LISTED``: the launcher exits with 1, a summary names them); the
+        """Refuse a malformed message as damaged input (:meth:`Component.refuse_damaged_input`); the
         frames after it are delivered. Why: it raised out of the reader before, counted as the
         reader's error and nowhere else, and the run exited 0 as if the recording were sound."""
         self.refused_messages += 1
         offset = (message.log_time - self._reader.start_time) / 1e9
-        what = f"the {message.topic} message {offset:.3f} s into the bag"
-        self.record_refusal(what, error)
-        if self.app is not None and self.refused_messages <= REFUSALS_LISTED:
-            more = (f"; further refused messages are only counted (the profile's refused column of {self.name})"
-                    if self.refused_messages == REFUSALS_LISTED else "")
-            self.app.report_damage(f"{self.name}: {self.path}: {what} refused: {error}{more}")
+        self.refuse_damaged_input(self.path, f"the {message.topic} message {offset:.3f} s into the bag", error)
 
     def _pair(self) -> RGBDFrame | None:
         for depth in self._depth:

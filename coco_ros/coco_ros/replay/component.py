@@ -55,7 +55,7 @@ launcher exits with 1 and a summary that reads ``app.damage`` shows it.
 A message its converter refuses (a JointState with fewer positions than names, a zero or NaN
 quaternion or position, CDR that does not decode) is damaged input too, but it costs only itself: it is counted
 in the profile's ``refused`` column (:meth:`~coco_core.component.Component.record_refusal`), the
-first ``REFUSALS_LISTED`` are each reported to the application (topic, bag time and
+first ``DAMAGE_LISTED`` (``coco_core.component``) are each reported to the application (topic, bag time and
 reason: the launcher exits with 1) and the messages after it are delivered as usual, at every rate.
 """
 
@@ -88,8 +88,6 @@ DRAIN_TIMEOUT = 2.0
 """Seconds ``stop_at_end`` waits at most for the downstream connections to empty."""
 DRAIN_CHECK = 0.01
 """Seconds between two checks of the connections in a triggered activity (a periodic one checks every update)."""
-REFUSALS_LISTED = 10
-"""Refused messages reported one by one to the application's damage; the profile counts every one."""
 
 
 def port_name_for(topic: str) -> str:
@@ -274,16 +272,12 @@ class BagReplay(Component):
         port.write(value)
 
     def _refuse(self, played: Played, error: Exception) -> None:
-        """Count a message that cannot be converted (profile) and report it as damaged input."""
+        """Refuse a message that cannot be converted as damaged input (:meth:`Component.refuse_damaged_input`)."""
         message = played.message
         self.refused_messages += 1
         offset = (message.log_time - self._reader.start_time) / 1e9
-        what = f"the {message.topic} message {offset:.3f} s into the bag (log time {message.log_time} ns)"
-        self.record_refusal(what, error)
-        if self.app is not None and self.refused_messages <= REFUSALS_LISTED:
-            more = (f"; further refused messages are only counted (the profile's refused column of {self.name})"
-                    if self.refused_messages == REFUSALS_LISTED else "")
-            self.app.report_damage(f"{self.name}: {self.bag}: {what} refused: {error}{more}")
+        self.refuse_damaged_input(self.bag, f"the {message.topic} message {offset:.3f} s into the bag "
+                                  f"(log time {message.log_time} ns)", error)
 
     def _wake_in(self, delay: float) -> None:
         """In a triggered activity, arrange an update in ``delay`` seconds (a periodic one needs nothing)."""
