@@ -228,6 +228,11 @@ class Activity:
         self._run_pending()
         for component in self.components:
             component.stop()
+        for component in self.components:  # what on_stop wrote was the last: readers elsewhere may stop
+            for member in component.walk():
+                for port in member.outputs.values():
+                    for connection in port.connections:
+                        connection.writer_done()
         self._finished.set()
         self._run_pending()
 

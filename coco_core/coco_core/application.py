@@ -26,6 +26,9 @@ from .transforms.graph import TransformGraph
 
 log = logging.getLogger("coco")
 
+WRITER_POLL = 0.002
+"""Seconds between two looks at whether writers in other processes have finished (a natural stop)."""
+
 
 
 def types_compatible(source: object, sink: object) -> bool:
@@ -351,6 +354,7 @@ class Application:
         activities = list(self.activities.values())
         known = {id(activity) for activity in activities}
         feeders: dict[str, set[str]] = {activity.name: set() for activity in activities}
+        outside = self.fed_from_outside()
         for connection in self.connections:
             source, sink = connection.source, connection.sink
             writer = source.owner.activity if source is not None and source.owner is not None else None
@@ -365,9 +369,34 @@ class Application:
                 break
             order += ready
             placed.update(a.name for a in ready)
-        fed = {a.name for a in order if feeders[a.name] and not a.main}  # main: it holds the thread that stops
+        fed = {a.name for a in order if (feeders[a.name] or a.name in outside) and not a.main}  # main: it stops them
         order += [a for a in activities if a.name not in placed]  # on a cycle: stopped at once
         return order, fed
+
+    def fed_from_outside(self) -> dict[str, list[Connection]]:
+        """The queued connections (BUFFER, CIRCULAR) from another process into each activity of this
+        one, by activity name: on a natural stop the activity waits until their writers' activities
+        have finished (:attr:`Connection.writer_finished`) before it stops and reads what they wrote
+        last. Without it a recorder stopped with its process while the 1 kHz loop of another process
+        still wrote lost the loop's last samples. Latest-value connections (DATA, POOL) do not wait:
+        a value left unread there is not lost data, and they may close a loop between processes."""
+        outside: dict[str, list[Connection]] = {}
+        for connection in self.connections:
+            sink = connection.sink
+            activity = sink.owner.activity if sink is not None and sink.owner is not None else None
+            if (connection.source is None and activity is not None
+                    and connection.policy.data in (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR)):
+                outside.setdefault(activity.name, []).append(connection)
+        return outside
+
+    def _writers_finished(self, connections: list[Connection], timeout: float) -> bool:
+        """Whether every writer of ``connections`` has finished; waits up to ``timeout`` seconds."""
+        deadline = time.monotonic() + timeout
+        while not all(connection.writer_finished for connection in connections):
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(min(WRITER_POLL, timeout))
+        return True
 
     def in_flight(self, besides: Activity | None = None) -> bool:
         """Whether data is still moving through the application: an activity (other than ``besides``,
@@ -411,8 +440,14 @@ class Application:
         begun = time.monotonic()
         clean = True
         order, fed = self.stop_order()
+        outside = self.fed_from_outside()
         for activity in order:  # feeders first: every feeder of an activity has finished when it stops
             if activity.name in fed and not activity.stopping:
+                writers = outside.get(activity.name, [])
+                if writers and not self.progress.wait(lambda seconds: self._writers_finished(writers, seconds),
+                                                      lambda: self.stop_deadline(begun, timeout)):
+                    log.warning("activity %s: a writer in another process did not finish; stopping without "
+                                "its last values", activity.name)
                 activity.stop(drain=True)
             if self.progress.wait(activity.join, lambda: self.stop_deadline(begun, timeout)):
                 self.progress.advance()

@@ -98,6 +98,17 @@ class Connection:
         """Values written and not yet taken by the reader."""
         raise NotImplementedError
 
+    def writer_done(self) -> None:
+        """The writer's activity finished: nothing more will come. A reader in the same process
+        knows it from the stop order (:meth:`Application.stop_order`); only a channel to another
+        process has to carry it (:class:`coco_core.shm.ShmWriter`)."""
+
+    @property
+    def writer_finished(self) -> bool:
+        """Whether the writer is known to have finished, as far as the reader must wait for it: a
+        writer in the same process always is by the time the stop order reaches its reader."""
+        return True
+
     @property
     def dropped(self) -> int:
         """Values lost on the way: discarded by the policy (overwritten, refused when full, pushed

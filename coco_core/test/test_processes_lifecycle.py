@@ -475,3 +475,43 @@ def test_damage_found_in_one_process_reaches_every_process_and_the_exit_status(t
     for sink in ("near", "far", "home"):
         lines = (tmp_path / f"{sink}.txt").read_text().splitlines()
         assert lines[-2:] == ["damage ticker: value 3 was damaged", "stopped"], (sink, lines)
+
+
+LAST_VALUE = """<package name="last">
+  <components>
+    <component><name>ticker</name><task>process_components:Ticker</task>
+      <attributes><attribute name="last_after" value="0.5"/></attributes></component>
+    <component><name>recorder</name><task>process_components:Flusher</task>
+      <attributes><attribute name="flush_cpu" value="0"/><attribute name="path" value="{tmp}/recorded.txt"/></attributes></component>
+  </components>
+  <connections>
+    <connection data="BUFFER" policy="LOCKED" buffersize="1000"><src task="ticker" port="out"/><dest task="recorder" port="value"/></connection>
+  </connections>
+  <activities>
+    <process name="loop">
+      <activity name="ticks"><schedule type="periodic" period="1"/><components><component name="ticker"/></components></activity>
+    </process>
+    <process name="recording">
+      <activity name="record"><schedule type="periodic" period="100"/><components><component name="recorder"/></components></activity>
+    </process>
+  </activities>
+</package>
+"""
+
+
+def test_a_natural_stop_waits_for_writers_in_other_processes(tmp_path: Path, reap) -> None:
+    """A recorder in one process, fed at 1 kHz by a loop in another that writes a last value in its
+    on_stop half a second after the stop: the recorder stops only once the loop's activity has
+    finished, and records every value written, the last one included (it stopped with its own
+    process before, and the loop's last values stayed pending in the ring)."""
+    app = tmp_path / "app.xml"
+    app.write_text(LAST_VALUE.format(tmp=tmp_path))
+    launcher = launch(app, "--duration", "1", "--profile", "10")
+    reap(launcher)
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 0, out
+    values = [int(word) for word in (tmp_path / "recorded.txt").read_text().split()]
+    crossing = next(line for line in out.splitlines() if "ticker.out -> recorder.value" in line)
+    written, read, dropped, pending = (int(word) for word in crossing.split()[-4:])
+    assert values[-1] == -1, f"the loop's last value was not recorded: ... {values[-5:]}"
+    assert written == read == len(values) and dropped == pending == 0, (crossing, len(values))

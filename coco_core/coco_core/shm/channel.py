@@ -58,7 +58,7 @@ from ..policy import BufferPolicy, ConnectionPolicy
 from .segment import SHM_DIR, Segment, rename, shm_open, unlink
 
 HEADER = 64
-OFFERED, STORED, READ, CURSOR, SLOTS, CAPACITY = range(6)
+OFFERED, STORED, READ, CURSOR, SLOTS, CAPACITY, FINISHED = range(7)
 SLOT_HEADER = 32
 """Per slot: stamp, length, where the value is (0: in the slot, 1: in a segment of its own), unused."""
 RETRIES = 10_000
@@ -165,6 +165,12 @@ class ShmConnection(Connection):
         return min(waiting, self.ring.slots)
 
     @property
+    def writer_finished(self) -> bool:
+        """Whether the writer's activity has finished (the writer process set ``FINISHED``): a natural
+        stop lets the reader's activity stop only then, so that the last values are read."""
+        return bool(self.ring.counters[FINISHED])
+
+    @property
     def label(self) -> str:
         source, _, sink = self.ring.spec.label.partition("->")
         return f"{source} -> {sink}"
@@ -184,6 +190,10 @@ class ShmWriter(ShmConnection):
     each way and a few system calls; frames without copies are what pooled outputs are for."""
 
     __slots__ = ()
+
+    def writer_done(self) -> None:
+        """Tell the reader's process that nothing more will come (see :attr:`writer_finished`)."""
+        self.ring.counters[FINISHED] = 1
 
     def _store_large(self, index: int, parts: list[Any], size: int) -> None:
         """Item ``index``'s value (``parts``, ``size`` bytes) in a segment of its own; a

@@ -21,6 +21,8 @@ class Ticker(Component):
     first_update_file = Attribute(str, "", "where to write the monotonic time of the first update")
     stop_after = Attribute(int, 0, "updates after which the application stops itself (0: never)")
     damage_at = Attribute(int, 0, "the update at which the ticker reports damaged input (0: never)")
+    last_after = Attribute(float, 0.0, "seconds on_stop works before it writes a last value, -1 "
+                           "(a component that flushes at its stop); 0: no last value")
     out = OutputPort(Stamped)
 
     def init(self) -> None:
@@ -50,6 +52,11 @@ class Ticker(Component):
                 os._exit(3)
             elif self.fault == "kill":
                 os.kill(os.getpid(), signal.SIGKILL)
+
+    def on_stop(self) -> None:
+        if self.last_after:
+            time.sleep(self.last_after)
+            self.out.write(Stamped(-1))
 
     @operation
     def scale(self, factor: int) -> int:
