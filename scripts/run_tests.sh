@@ -44,10 +44,10 @@ package_tests() {  # package_tests LOG_BASE COLCON_SELECTION...
 start_suite core "coco_core's tests (colcon test)" package_tests log/test_core --packages-select coco_core
 start_suite packages "the other packages' tests (colcon test)" package_tests log/test_packages --packages-skip coco_core
 # The workspace tests in two pytest processes: the Baxter and camera apps (they replay and render for
-# seconds each) and the rest; a new test file goes to the rest. The remote palpation app (five
+# seconds each) and the rest; a new test file goes to the rest. The remote palpation app (six
 # processes that need both cores) runs alone once these are done: ALONE.
 APPS=(test/test_baxter_*.py test/test_camera_registration_app.py)
-ALONE=(test/test_palpation_app.py)
+ALONE=(test/test_palpation_app.py test/test_palpation_bad_input.py)
 start_suite apps "workspace tests: the apps (test/)" \
     python -m pytest "${APPS[@]}" -o cache_dir=build/workspace_apps/.pytest_cache \
     --junit-xml=build/workspace_apps/pytest.xml --junit-prefix=workspace
