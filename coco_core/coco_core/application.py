@@ -441,6 +441,9 @@ class Application:
         clean = True
         order, fed = self.stop_order()
         outside = self.fed_from_outside()
+        # This process's own activities are joined before the stand-ins of other processes' (which
+        # wait for a whole child): a child's reader may be waiting for one of ours to finish writing.
+        order.sort(key=lambda activity: activity.process != self.process)
         for activity in order:  # feeders first: every feeder of an activity has finished when it stops
             if activity.name in fed and not activity.stopping:
                 writers = outside.get(activity.name, [])
