@@ -196,6 +196,7 @@ class KDTreeBuilder(Component):
     def on_config(self) -> None:
         if self.intrinsics and len(self.intrinsics) != 4:
             raise SetupError(f"{self.name}: intrinsics are fx fy cx cy, got {self.intrinsics}")
+        warm_up()  # the compiled grid passes now, before the start gate, not at the first cloud
         self._known: tuple[tuple[int, ...], tuple[float, float, float, float]] | None = None
         self._enlarged = False
         self.built = 0

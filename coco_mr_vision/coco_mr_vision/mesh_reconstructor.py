@@ -37,12 +37,15 @@ from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort, PooledOutputPort
 from coco_core.stamps import Stamped, unstamped
 
-from .image import ImageFormat
+from .image import CameraIntrinsics, Image, ImageFormat
 from .mesh import MeshInfo, MeshLayout, TriangleMesh, write_ply
 from .mesh_kernel import depth_grid, fill_small_holes, mesh_rows, number_known
 from .rgbd import RGBDFrame
 
 log = logging.getLogger("coco.vision")
+
+WARM_UP_SIDE = 8
+"""Grid points a side of the frame meshed in ``on_config`` to compile the passes."""
 
 
 _BANDS_FROM_POINTS = 40_000
@@ -84,6 +87,24 @@ class MeshReconstructor(Component):
         self._newest: Slot | None = None
         """The slot published last: only this component writes slots, in its own thread, and an
         operation runs in that thread too, so the slot is intact when ``export_ply`` reads it."""
+
+    def on_config(self) -> None:
+        """Compile (or load from numba's cache) the meshing passes now, at this stride, for both depth
+        encodings and both colour orders: on a fresh install the first compilation takes seconds,
+        and made at the first frame it held the first meshes back that long (the palpation app's
+        first presses found no surface in a fresh clone's run). Configured here, it is done before
+        the application's start gate opens."""
+        side = WARM_UP_SIDE * self.stride
+        layout = MeshLayout(WARM_UP_SIDE, WARM_UP_SIDE)
+        intrinsics = CameraIntrinsics(side, side, float(side), float(side), side / 2, side / 2)
+        for depth, depth_format, color_format in ((np.full((side, side), 1000, np.uint16), ImageFormat.DEPTH16,
+                                                   ImageFormat.BGR8),
+                                                  (np.full((side, side), 1.0, np.float32), ImageFormat.DEPTH32F,
+                                                   ImageFormat.RGB8)):
+            frame = RGBDFrame(Image(np.zeros((side, side, 3), np.uint8), color_format, 0.0, ""),
+                              Image(depth, depth_format, 0.0, ""), intrinsics)
+            self.reconstruct(frame, np.empty(layout.offsets[-1], np.uint8), layout)
+        self._scratch = self._rays = None
 
     def on_update(self) -> None:
         # A mesh is only worth making for the newest frame: the older ones waiting count as dropped

@@ -320,3 +320,22 @@ def test_compiled_passes_match_the_numpy_version(scene):
     np.testing.assert_allclose(mesh.normals, normals, atol=2e-5)
     assert np.array_equal(mesh.colors, colors)
     assert np.array_equal(mesh.triangles, triangles)
+
+
+def test_the_meshing_passes_are_compiled_when_the_component_is_configured():
+    """Before the start gate opens, not at the first frame: a fresh process that only configures a
+    MeshReconstructor holds the compiled passes (from numba's cache, or compiled then)."""
+    import subprocess
+    import sys
+
+    probe = ("from coco_core import Application\n"
+             "from coco_mr_vision.mesh_reconstructor import MeshReconstructor\n"
+             "from coco_mr_vision.mesh_kernel import depth_grid, mesh_rows\n"
+             "mesher = MeshReconstructor('mesher', stride=2)\n"
+             "Application('probe').add(mesher)\n"
+             "assert mesher.configure()\n"
+             "print(len(depth_grid.signatures), len(mesh_rows.signatures))\n")
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    grids, rows = (int(word) for word in result.stdout.split())
+    assert grids >= 2 and rows >= 1, "the depth grid for both depth encodings, the mesh rows"
