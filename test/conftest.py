@@ -9,6 +9,7 @@ import signal
 import subprocess
 import time
 from pathlib import Path
+from typing import Any, Callable
 
 import pytest
 
@@ -97,3 +98,24 @@ def check_ctrl_c_stops_within_a_second_and_flushes(script: Path, tmp_path: Path)
     # The recorder's on_stop flushed: the file ends with a complete row.
     rows = read_rows(output)
     assert rows and all(len(row) == 5 and None not in row.values() for row in rows)
+
+
+def damaged_copy(folder: Path, copy: Path, damage: Callable[[str, int, float, Any], Any | None]) -> dict[str, int]:
+    """``folder``'s bag written again into ``copy``, each message through ``damage(topic, index in
+    its topic, seconds into the bag, message)``: None leaves it out, the message (changed or not)
+    is written; returns the messages written per topic."""
+    from rclpy.serialization import serialize_message
+
+    from coco_ros.bag import BagReader, BagWriter
+
+    with BagReader(folder) as reader, BagWriter(copy) as writer:
+        for name, info in reader.topics.items():
+            writer.add_topic(name, info.type, info.offered_qos_profiles)
+        index: dict[str, int] = {}
+        for message in reader.messages():
+            i = index[message.topic] = index.get(message.topic, -1) + 1
+            changed = damage(message.topic, i, (message.log_time - reader.start_time) / 1e9, message.message)
+            if changed is not None:
+                writer.write(message.topic, serialize_message(changed), message.log_time, message.type,
+                             publish_time_ns=message.publish_time)
+        return writer.topic_counts()

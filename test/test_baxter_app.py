@@ -7,11 +7,12 @@ import csv
 import json
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
-from conftest import ROOT, activity_cycles, run_launcher
+from conftest import ROOT, activity_cycles, damaged_copy, run_launcher
 
 APP = "config/baxter_teleop_replay.xml"
 URDF = "package://example-robot-data/robots/baxter_description/urdf/baxter.urdf"
@@ -152,27 +153,16 @@ def test_a_truncated_bag_makes_the_app_exit_1_with_the_damage_in_its_summary(coc
 def copy_with_malformed_messages(folder: Path, copy: Path, joint_states: set[int], bowl_poses: set[int]) -> None:
     """``folder``'s bag written again into ``copy`` with the given joint states (by index) one position
     short of their names and the given bowl poses' quaternions zero (even index) or NaN (odd)."""
-    from rclpy.serialization import serialize_message
 
-    from coco_ros.bag import BagReader, BagWriter
+    def damage(topic: str, i: int, _seconds: float, msg: Any) -> Any:
+        if topic == "/robot/joint_states" and i in joint_states:
+            msg.position = list(msg.position)[:-1]
+        elif topic == "/bowl/pose" and i in bowl_poses:
+            q = msg.pose.orientation
+            q.x, q.y, q.z, q.w = (0.0, 0.0, 0.0, 0.0) if i % 2 == 0 else (q.x, q.y, q.z, float("nan"))
+        return msg
 
-    with BagReader(folder) as reader, BagWriter(copy) as writer:
-        for name, info in reader.topics.items():
-            writer.add_topic(name, info.type, info.offered_qos_profiles)
-        index: dict[str, int] = {}
-        for message in reader.messages():
-            i = index[message.topic] = index.get(message.topic, -1) + 1
-            data = message.data
-            if message.topic == "/robot/joint_states" and i in joint_states:
-                msg = message.message
-                msg.position = list(msg.position)[:-1]
-                data = serialize_message(msg)
-            elif message.topic == "/bowl/pose" and i in bowl_poses:
-                msg = message.message
-                q = msg.pose.orientation
-                q.x, q.y, q.z, q.w = (0.0, 0.0, 0.0, 0.0) if i % 2 == 0 else (q.x, q.y, q.z, float("nan"))
-                data = serialize_message(msg)
-            writer.write(message.topic, data, message.log_time, message.type, publish_time_ns=message.publish_time)
+    damaged_copy(folder, copy, damage)
 
 
 def connection_counts(report: str, connection: str) -> tuple[int, int, int]:

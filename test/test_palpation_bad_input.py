@@ -15,35 +15,14 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import pytest
 
-from conftest import ROOT, run_launcher
+from conftest import ROOT, damaged_copy, run_launcher
 from test_palpation_app import HAND_RATE, free_port, palpation_session  # noqa: F401 - the fixture, shared
 
 APP = ROOT / "config" / "palpation_replay.xml"
-
-
-def damaged_copy(folder: Path, copy: Path, damage: Callable[[str, int, float, Any], Any | None]) -> dict[str, int]:
-    """``folder``'s bag written again into ``copy``, each message through ``damage(topic, index in
-    its topic, seconds into the bag, message)``: None leaves it out, the message (changed or not)
-    is written; returns the messages written per topic."""
-    from rclpy.serialization import serialize_message
-
-    from coco_ros.bag import BagReader, BagWriter
-
-    with BagReader(folder) as reader, BagWriter(copy) as writer:
-        for name, info in reader.topics.items():
-            writer.add_topic(name, info.type, info.offered_qos_profiles)
-        index: dict[str, int] = {}
-        for message in reader.messages():
-            i = index[message.topic] = index.get(message.topic, -1) + 1
-            changed = damage(message.topic, i, (message.log_time - reader.start_time) / 1e9, message.message)
-            if changed is not None:
-                writer.write(message.topic, serialize_message(changed), message.log_time, message.type,
-                             publish_time_ns=message.publish_time)
-        return writer.topic_counts()
 
 
 def run_app(bag: Path, output: Path, *args: str):

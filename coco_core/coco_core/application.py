@@ -30,7 +30,6 @@ WRITER_POLL = 0.002
 """Seconds between two looks at whether writers in other processes have finished (a natural stop)."""
 
 
-
 def types_compatible(source: object, sink: object) -> bool:
     """Whether values of port type ``source`` may flow into an input of port type ``sink``.
 

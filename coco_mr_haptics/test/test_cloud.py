@@ -2,6 +2,7 @@
 sampled from the same shapes, and strokes over real RGB-D frames through a structure swap."""
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -179,29 +180,38 @@ def test_builder_offers_the_newest_structure():
     assert cloud_renderer.current.grid[240, 320, 2] == pytest.approx(1.2)
 
 
-def test_the_structure_of_a_streamed_frame_carries_its_way_from_the_acquisition():
-    """A stamped frame meshed and built: the structure's ``origin`` is the frame's acquisition stamp
-    with its way so far and the steps ``meshed`` and ``built`` (the sensor-to-touchable latency)."""
-    from coco_core.stamps import Stamp, Stamped
-    from coco_mr_vision.image import Image, ImageFormat
+class RgbdSource(Component):
+    rgbd = OutputPort(object)
+
+
+class StructureSink(Component):
+    structure = InputPort(object)
+
+
+def mesh_to_cloud(name: str) -> tuple[RgbdSource, Any, KDTreeBuilder, StructureSink]:
+    """RGB-D frames -> MeshReconstructor -> KDTreeBuilder -> a haptic side, wired in an application."""
     from coco_mr_vision.mesh_reconstructor import MeshReconstructor
-    from coco_mr_vision.rgbd import RGBDFrame
 
-    class Sensor(Component):
-        rgbd = OutputPort(Stamped)
-
-    class Haptics(Component):
-        structure = InputPort(object)
-
-    app = Application("stamped_mesh_to_cloud")
-    sensor, mesher, builder = Sensor("sensor"), MeshReconstructor("mesher"), KDTreeBuilder("builder")
-    haptics = Haptics("haptics")
+    app = Application(name)
+    sensor, mesher, builder = RgbdSource("sensor"), MeshReconstructor("mesher"), KDTreeBuilder("builder")
+    haptics = StructureSink("haptics")
     for component in (sensor, mesher, builder, haptics):
         app.add(component)
     app.connect("sensor.rgbd", "mesher.rgbd")
     app.connect("mesher.mesh", "builder.cloud")
     app.connect("builder.structure", "haptics.structure")
     builder.configure()
+    return sensor, mesher, builder, haptics
+
+
+def test_the_structure_of_a_streamed_frame_carries_its_way_from_the_acquisition():
+    """A stamped frame meshed and built: the structure's ``origin`` is the frame's acquisition stamp
+    with its way so far and the steps ``meshed`` and ``built`` (the sensor-to-touchable latency)."""
+    from coco_core.stamps import Stamp, Stamped
+    from coco_mr_vision.image import Image, ImageFormat
+    from coco_mr_vision.rgbd import RGBDFrame
+
+    sensor, mesher, builder, haptics = mesh_to_cloud("stamped_mesh_to_cloud")
     intrinsics = CameraIntrinsics(64, 48, 60.0, 60.0, 31.5, 23.5)
     depth = np.full((48, 64), 1.0, np.float32)
     frame = RGBDFrame(Image(np.zeros((48, 64, 3), np.uint8), ImageFormat.RGB8, 10.0, "cam"),
@@ -224,24 +234,9 @@ def test_a_mesh_reconstructor_feeds_the_builder_its_vertices():
     holds the mesh's vertices (in the camera's frame, with the image's stamp), and each mesh slot goes
     back to the reconstructor's pool (its three slots serve any number of frames)."""
     from coco_mr_vision.image import Image, ImageFormat
-    from coco_mr_vision.mesh_reconstructor import MeshReconstructor
     from coco_mr_vision.rgbd import RGBDFrame
 
-    class Sensor(Component):
-        rgbd = OutputPort(RGBDFrame)
-
-    class Haptics(Component):
-        structure = InputPort(object)
-
-    app = Application("mesh_to_cloud")
-    sensor, mesher, builder = Sensor("sensor"), MeshReconstructor("mesher"), KDTreeBuilder("builder")
-    haptics = Haptics("haptics")
-    for component in (sensor, mesher, builder, haptics):
-        app.add(component)
-    app.connect("sensor.rgbd", "mesher.rgbd")
-    app.connect("mesher.mesh", "builder.cloud")
-    app.connect("builder.structure", "haptics.structure")
-    builder.configure()
+    sensor, mesher, builder, haptics = mesh_to_cloud("mesh_to_cloud")
     intrinsics = CameraIntrinsics(64, 48, 60.0, 60.0, 31.5, 23.5)
     for frame in range(8):
         depth = np.full((48, 64), 1.0 + 0.1 * frame, np.float32)
