@@ -32,7 +32,8 @@ is estimated: a figure with no data behind it is null. Besides: ``input_damage``
 :attr:`~coco_core.application.Application.damage`, every process's: a camera frame or a hand pose
 the readers refused, a workspace never joined; the launcher exits 1) and ``input_refused``
 (component -> malformed input samples it refused, the profile's ``refused`` column, for the
-components of the haptic process, e.g. a non-finite hand target the device kept out).
+components of the summary's own process: in the palpation app the ``local`` process's receiver,
+mesh and tree).
 
 A stall is not damaged input: the stream's frames that came were sound, and the haptic loop goes on
 with the last structure it had (or zero force before the first), so it does not change the exit
@@ -56,6 +57,10 @@ from coco_mr_haptics.cloud import CloudStructure
 from coco_mr_haptics.types import HapticSample
 
 
+QUANTILES = {"median": 0.5, "p99": 0.99}
+"""The quantiles of every duration the summary reports (with the max, which ``milliseconds`` adds)."""
+
+
 def _record_steps(steps: dict[str, LogHistogram], stamp: Stamp) -> None:
     """Each step of ``stamp``'s way, from the one before (clamped at 0: a display update may begin a
     moment before the frame it shows was received, and still read it)."""
@@ -64,7 +69,7 @@ def _record_steps(steps: dict[str, LogHistogram], stamp: Stamp) -> None:
 
 
 def _steps_ms(steps: dict[str, LogHistogram]) -> dict[str, Any]:
-    return {name: histogram.milliseconds(median=0.5, p99=0.99) for name, histogram in steps.items()}
+    return {name: histogram.milliseconds(**QUANTILES) for name, histogram in steps.items()}
 
 
 def _rate(count: int, first: float, last: float) -> float | None:
@@ -178,7 +183,7 @@ class PalpationSummary(Component):
         haptic: dict[str, Any] = {
             "samples": self.haptic_samples,
             "rate_hz": _rate(self.haptic_samples, self._first_time, self._last_time),
-            "period_error_ms": self._period_errors.milliseconds(median=0.5, p99=0.99),
+            "period_error_ms": self._period_errors.milliseconds(**QUANTILES),
             "contact_time_s": self.contact_time,
             "max_penetration_mm": 1e3 * self.max_penetration,
             "max_force_n": self.max_force,
@@ -187,9 +192,9 @@ class PalpationSummary(Component):
         tree: dict[str, Any] = {
             "updates": self.tree_updates,
             "rate_hz": _rate(self.tree_updates, self._first_arrival, self._last_arrival),
-            "build_ms": self._builds.milliseconds(median=0.5, p99=0.99),
+            "build_ms": self._builds.milliseconds(**QUANTILES),
             "points_median": round(self._points.quantile(0.5)) if self._points.count else None,
-            "latency_ms": self._touchable.milliseconds(median=0.5, p99=0.99),
+            "latency_ms": self._touchable.milliseconds(**QUANTILES),
             "steps_ms": _steps_ms(self._touchable_steps),
         }
         return {
@@ -200,7 +205,7 @@ class PalpationSummary(Component):
                        "silent_at_end_s": self._silent_at_end()},
             "registration": self.registration,
             "registration_residual_mm": None if self.registration_residual is None else 1e3 * self.registration_residual,
-            "display_latency_ms": {source: {"frames": latencies.count, **latencies.milliseconds(median=0.5, p99=0.99)}
+            "display_latency_ms": {source: {"frames": latencies.count, **latencies.milliseconds(**QUANTILES)}
                                    for source, latencies in sorted(self._display.items())},
             "display_steps_ms": {source: _steps_ms(steps) for source, steps in sorted(self._display_steps.items())},
             "input_damage": list(self.app.damage) if self.app is not None else [],
