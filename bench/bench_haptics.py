@@ -413,6 +413,7 @@ def haptic_loop_in_its_own_process(seconds: float) -> dict[str, Any]:
     """The same loop, moved by the XML into ``<process name="haptics">``, the display-like load
     staying in the launcher's process; the period error comes from the child's profile."""
     from coco_core.builder import build_application
+    from coco_core.deployment import plan_deployment
     from coco_core.processes.level import process_level
     from coco_core.xml import parse_application_string
 
@@ -420,7 +421,7 @@ def haptic_loop_in_its_own_process(seconds: float) -> dict[str, Any]:
     text = PROCESS_APP.format(trajectory=REPO / "config" / "haptic_hand_stroke.csv", scene=SCENE)
     spec = parse_application_string(text, "haptic_loop_processes.xml")
     app = build_application(spec)
-    with process_level(spec, app) as processes:
+    with process_level(spec, app, plan_deployment(spec)) as processes:
         assert processes is not None
         app.run(seconds + WARMUP_PROCESS)
         shots = processes.snapshots()

@@ -11,8 +11,8 @@ writing to its event port (the *wake latency*: that write to the cycle that read
   MultiThreadedExecutor with one thread per activity and one more, as ``executor_threads`` says);
 - *thread*: CoCo's own activity loop (``--threads``), what an activity below 5 ms gets.
 
-To host a 1 ms activity by rclpy at all, the 5 ms rule (``coco_ros.hosting.THREAD_PERIOD``) is
-switched off in this process: measuring why it exists is the point. Goal: none; this backs the
+To host a 1 ms activity by rclpy at all, the 5 ms rule (``coco_core.deployment.THREAD_PERIOD``) is
+switched off in the deployment plans made here: measuring why it exists is the point. Goal: none; this backs the
 hosting rule in docs/ros.md.
 
     .venv/bin/python bench/bench_hosting.py [--seconds 10] [--json PATH] [--no-plot]
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import replace
 from typing import Any, Callable
 
 import _report
@@ -30,8 +31,9 @@ from _table import Table, fmt_ratio, fmt_time_ns
 
 import numpy as np
 from coco_core import Application, Component, InputPort, OutputPort, PeriodicActivity, TriggeredActivity
+from coco_core.deployment import Host, LaunchOptions, of_application
+from coco_core.drivers import Driving
 from coco_core.policy import BufferPolicy, ConnectionPolicy
-from coco_ros import hosting
 from coco_ros.hosting import ExecutorHost, ExecutorThread
 from rclpy.node import Node
 
@@ -72,8 +74,13 @@ def run(context: Any, host: str, period_ms: int, seconds: float) -> dict[str, An
     waker = app.add(Waker("waker"), TriggeredActivity("triggered"))
     app.connect("source.out", "waker.stamps", ConnectionPolicy(data=BufferPolicy.BUFFER, size=64))
     node = Node(app.name, context=context)
-    threads = list(app.activities) if host == "thread" else []
-    rclpy_host = ExecutorHost(node, app, threads=threads, wait_sets=host == "wait set")
+    options = LaunchOptions(Host.ROS, tuple(app.activities) if host == "thread" else (), wait_sets=host == "wait set")
+    plan = of_application(app, options)
+    if host != "thread":  # the 5 ms rule switched off: rclpy hosts the 1 ms activity too
+        hosted = Driving.WAIT_SET if options.wait_sets else Driving.EXECUTOR
+        plan = replace(plan, activities={name: replace(placed, driving=hosted, reason="")
+                                         for name, placed in plan.activities.items()})
+    rclpy_host = ExecutorHost(node, app, plan)
     executor = rclpy_host.create_executor(context=context)
     executor.add_node(node)
     spinner = ExecutorThread(executor)
@@ -153,7 +160,6 @@ def main() -> None:
     p = _report.parser("bench_hosting", __doc__.splitlines()[0])
     p.add_argument("--seconds", type=float, default=10.0, help="seconds per row (default 10)")
     args = p.parse_args()
-    hosting.THREAD_PERIOD = 0.0  # host the 1 ms activity by rclpy too (see the module docstring)
     results: dict[str, dict[str, Any]] = {}
     with RosContext() as context:
         for period_ms in PERIODS_MS:

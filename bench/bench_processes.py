@@ -23,6 +23,7 @@ import numpy as np
 from _table import Table, fmt_ratio, fmt_time_ns, verdict
 
 from coco_core.builder import build_application
+from coco_core.deployment import plan_deployment
 from coco_core.processes.level import process_level
 from coco_core.xml import parse_application_string
 
@@ -54,7 +55,7 @@ CONDITIONS = {
 def run(condition: str, seconds: float) -> dict[str, Any]:
     spec = parse_application_string(APP.format(**CONDITIONS[condition]), "bench_processes.xml")
     app = build_application(spec)
-    with process_level(spec, app):
+    with process_level(spec, app, plan_deployment(spec)):
         app.run(seconds)
     haptic = app.activities["haptic"]
     summary = haptic.stats.error_summary()
@@ -92,7 +93,7 @@ def wakeups(other_process: bool, seconds: float) -> dict[str, Any]:
         wrap = ('<process name="reader">', "</process>") if other_process else ("", "")
         spec = parse_application_string(WAKE_APP.format(path=path, open=wrap[0], close=wrap[1]), "bench_wakeup.xml")
         app = build_application(spec)
-        with process_level(spec, app):
+        with process_level(spec, app, plan_deployment(spec)):
             app.run(seconds)
         values = np.loadtxt(path, dtype=np.int64, ndmin=1)[50:]  # after the start
     return {"samples": int(values.size), "p50_ns": float(np.percentile(values, 50)),

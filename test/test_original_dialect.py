@@ -40,7 +40,7 @@ def test_sample_passes_check_up_to_its_cpp_components(coco_launch: Path, sample:
 def test_the_farm_sample_expands_into_workers(coco_launch: Path) -> None:
     result = run_launcher(coco_launch, str(ORIGINAL / "config_farm.xml"), "--check", "--allow-unknown")
     assert result.returncode == 0, result.stderr
-    assert [line.split(":")[0].strip() for line in result.stdout.splitlines()[1:]] == [
+    assert [line.split(":")[0].strip() for line in result.stdout.splitlines()[2:]] == [
         "activity farm1.source", "activity farm1.worker0", "activity farm1.worker1", "activity farm1.worker2",
         "activity farm1.gather",
     ]
@@ -74,7 +74,7 @@ def test_the_arg_samples_fail_only_where_the_original_fails_too(coco_launch: Pat
 def test_the_ros_launcher_checks_the_farm_sample_too(ros_launcher: Path) -> None:
     result = run_launcher(ros_launcher, str(ORIGINAL / "config_farm.xml"), "--check", "--allow-unknown")
     assert result.returncode == 0, result.stderr
-    assert "activity farm1.worker2" in result.stdout and "hosting in the ROS launcher" in result.stdout
+    assert "activity farm1.worker2" in result.stdout and "deployment: ROS" in result.stdout
 
 
 def test_allow_unknown_goes_with_check_only(coco_launch: Path) -> None:

@@ -64,7 +64,7 @@ def test_demo_runs_in_the_node_with_profile_and_output(ros_launcher: Path, tmp_p
     assert "node /demo_pipeline hosts application demo_pipeline" in log
     assert "activity acquisition: periodic 10 ms -> wait set on its own thread (rclpy timer in its callback group)" in log
     assert "activity filtering: triggered -> wait set on its own thread (guard condition in its callback group)" in log
-    assert "activity supervision: periodic 1000 ms -> thread: main activity" in log
+    assert "activity supervision: periodic 1000 ms -> main thread (main activity)" in log
     rows = read_rows(output)
     assert len(rows) > 100, f"only {len(rows)} rows in 3 s at 100 Hz"
     seqs = [int(row["seq"]) for row in rows]
@@ -99,7 +99,7 @@ def test_all_threads_runs_like_coco_launch(ros_launcher: Path, tmp_path: Path) -
     output = tmp_path / "x.csv"
     result = run_launcher(ros_launcher, APP, f"output:={output}", "--duration", "1.5", "--all-threads")
     assert result.returncode == 0, result.stderr
-    assert "activity acquisition: periodic 10 ms -> thread: asked on the command line" in result.stderr
+    assert "activity acquisition: periodic 10 ms -> own thread (asked on the command line)" in result.stderr
     assert len(read_rows(output)) > 50
 
 
@@ -170,38 +170,3 @@ def test_a_child_process_hosts_ros_components_in_a_node_of_its_own(ros_launcher:
     assert process.returncode == 0, out
     assert "received: 50" in listener.stdout, listener.stdout + listener.stderr
     assert "procs_publisher" in listener.stdout.split("received:")[0], listener.stdout
-
-
-WOKEN_APP = """<package name="woken">
-  <components>
-    <component><name>generator</name><task>SignalGenerator</task></component>
-    <component><name>filter</name><task>MovingAverage</task></component>
-  </components>
-  <connections>
-    <connection data="BUFFER" policy="LOCKED" buffersize="50"><src task="generator" port="sample"/><dest task="filter" port="sample"/></connection>
-  </connections>
-  <activities>
-    <process name="source">
-      <activity name="ticks"><schedule type="periodic" period="10"/>
-        <components><component name="generator"/></components></activity>
-    </process>
-    <activity name="filtering"><schedule type="triggered"/>
-      <components><component name="filter"/></components></activity>
-  </activities>
-</package>
-"""
-
-
-def test_check_prints_the_hosting_the_run_uses(ros_launcher: Path, tmp_path: Path) -> None:
-    """An activity of the launcher's process that a child's writes wake runs on a thread woken through
-    its eventfd: ``--check`` says so (it used to print a wait set, which the run did not use)."""
-    app = tmp_path / "woken.xml"
-    app.write_text(WOKEN_APP)
-    check = run_launcher(ros_launcher, str(app), "--check")
-    assert check.returncode == 0, check.stderr
-    hosting = check.stdout.split("hosting in the ROS launcher")[1]
-    planned = next(line.strip() for line in hosting.splitlines() if line.strip().startswith("activity filtering:"))
-    assert planned == "activity filtering: triggered -> thread: woken by another process (its eventfd)", check.stdout
-    run = run_launcher(ros_launcher, str(app), "--duration", "1")
-    assert run.returncode == 0, run.stderr
-    assert planned in run.stdout + run.stderr, "the run logs the hosting --check printed"

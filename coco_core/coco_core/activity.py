@@ -22,33 +22,33 @@ from collections import deque
 from typing import Callable, Iterable
 
 from .component import Component
-from .drivers import DEFAULT_SPIN, Driver, MainThreadDriver, ThreadDriver
+from .drivers import Driver, MainThreadDriver, ThreadDriver
 from .errors import ActivityError
 from .garbage import GarbageBetweenCycles
 from .lifecycle import StartGate
-from .period import PeriodGrid, check_period
 from .profiling import ActivityStats
+from .schedule import DEFAULT_SPIN, Schedule
 from .scheduling import SchedulingRequest
 
 log = logging.getLogger("coco")
 
 
 class Activity:
-    """Base of periodic and triggered activities."""
-
-    kind = "activity"
-    wakes_on_data = True
-    """Whether data arriving on an event port starts a cycle (triggered) or waits for one (periodic)."""
+    """What runs a list of components by its :class:`~coco_core.schedule.Schedule` (triggered unless
+    given one; :class:`PeriodicActivity` and :class:`TriggeredActivity` say which by their names)."""
 
     def __init__(
         self,
         name: str,
         components: Iterable[Component] = (),
         *,
+        schedule: Schedule = Schedule(),
         main: bool = False,
         scheduling: SchedulingRequest | None = None,
     ) -> None:
         self.name = name
+        self.schedule = schedule
+        """When it cycles: the drivers read it; :meth:`set_period` is the one path that changes it."""
         self.main = main
         self.process = ""
         """The ``<process>`` that runs this activity; empty: the launcher's own process."""
@@ -76,6 +76,9 @@ class Activity:
         """Set when the application's :class:`~coco_core.lifecycle.StartGate` opens, or on a stop."""
         self.gate: StartGate | None = None
         """The start gate of the application (set by ``Application.start``); None: none to wait for."""
+        self.garbage: GarbageBetweenCycles | None = None
+        """The process's garbage collections, run between this (periodic) activity's cycles by its
+        thread driver (``<process gc="between_cycles">``, see :mod:`.garbage`); None: CPython's own."""
         for component in components:
             self.add(component)
 
@@ -145,6 +148,23 @@ class Activity:
     @property
     def stopping(self) -> bool:
         return self._stopping
+
+    @property
+    def period(self) -> float | None:
+        """Seconds between cycles of a periodic activity; None for a triggered one."""
+        return self.schedule.period
+
+    @property
+    def wakes_on_data(self) -> bool:
+        """Whether data arriving on an event port starts a cycle (triggered) or waits for one (periodic)."""
+        return self.schedule.period is None
+
+    def set_period(self, period: float) -> None:
+        """Change a periodic activity's period at run time: the next cycle comes ``period`` after the
+        last one was due (at once if that is already past), and the time grid continues from there.
+        The one path to a new period: it is checked here, then the driver applies it."""
+        self.schedule = self.schedule.with_period(period, f"activity {self.name}: ")
+        self._driver.set_period(period)
 
     @property
     def wake_pending(self) -> bool:
@@ -281,8 +301,10 @@ class Activity:
             self.wake()
 
     def wake(self) -> None:
-        """Ask a triggered activity for one more cycle (what event ports call on new data)."""
-        self._driver.wake()
+        """Ask a triggered activity for one more cycle (what event ports call on new data). Data on
+        an event port does not advance a periodic activity: it is read at the next cycle."""
+        if self.schedule.period is None:
+            self._driver.wake()
 
     def stop(self, drain: bool = False) -> None:
         """Ask the activity to finish its current cycle and stop; returns at once.
@@ -300,49 +322,27 @@ class Activity:
         return self._driver.join(timeout)
 
     def describe(self) -> str:
-        return self.kind
+        return self.schedule.describe()
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r} {self.describe()}>"
 
 
 class PeriodicActivity(Activity):
-    """Runs every ``period`` seconds on absolute deadlines (its :class:`~coco_core.period.PeriodGrid`):
-    late cycles never shift later ones, and missed deadlines are skipped and counted as overruns.
-    Queued operations and data on event ports wait for the next deadline."""
-
-    kind = "periodic"
-    wakes_on_data = False
+    """Runs every ``period`` seconds on absolute deadlines (a :class:`~coco_core.period.PeriodGrid`
+    its driver keeps): late cycles never shift later ones, and missed deadlines are skipped and
+    counted as overruns. Queued operations and data on event ports wait for the next deadline."""
 
     def __init__(self, name: str, period: float, components: Iterable[Component] = (), *,
                  spin: float = DEFAULT_SPIN, **options: object) -> None:
-        check_period(period, f"activity {name}: ")
-        super().__init__(name, components, **options)  # type: ignore[arg-type]
-        self._period = period
-        self.spin = spin
-        """Seconds before each deadline at which a thread driver stops sleeping and spins."""
-        self.grid = PeriodGrid(period, self.stats)
-        """The time grid; the driver keeps it (in the driver's thread)."""
-        self.garbage: GarbageBetweenCycles | None = None
-        """The process's garbage collections, run between this activity's cycles by its thread
-        driver (``<process gc="between_cycles">``, see :mod:`.garbage`); None: CPython's own."""
+        super().__init__(name, components, schedule=Schedule.periodic(period, f"activity {name}: ", spin),
+                         **options)  # type: ignore[arg-type]
 
     @property
     def period(self) -> float:
-        return self._period
-
-    def set_period(self, period: float) -> None:
-        """Change the period at run time: the next cycle comes ``period`` after the last one was due
-        (at once if that is already past), and the time grid continues from there."""
-        check_period(period, f"activity {self.name}: ")
-        self._period = period
-        self._driver.set_period(period)
-
-    def wake(self) -> None:
-        """Data on an event port does not advance a periodic activity: it is read at the next cycle."""
-
-    def describe(self) -> str:
-        return f"periodic {self._period * 1e3:g} ms"
+        period = self.schedule.period
+        assert period is not None  # a periodic schedule keeps a period
+        return period
 
 
 class TriggeredActivity(Activity):
@@ -352,5 +352,3 @@ class TriggeredActivity(Activity):
     for a component that cycle has yet to update (a pipeline's stages in one activity: each stage's
     output is read by the next in the same cycle).
     """
-
-    kind = "triggered"

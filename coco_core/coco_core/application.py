@@ -12,7 +12,7 @@ import threading
 import time
 from types import UnionType
 from typing import Callable, Union, get_args, get_origin
-from .activity import Activity, PeriodicActivity
+from .activity import Activity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
 from .errors import CocoError, WiringError, did_you_mean
@@ -472,7 +472,7 @@ class Application:
     def set_period(self, activity: str, period: float) -> None:
         """Change a periodic activity's period (seconds) while it runs."""
         target = self.activity(activity)
-        if not isinstance(target, PeriodicActivity):
+        if target.period is None:
             raise CocoError(f"activity {activity} is {target.describe()}, it has no period")
         target.set_period(period)
 

@@ -78,13 +78,7 @@ class _Builder:
 
     def activity(self, spec: ActivitySpec) -> Activity:
         schedule = spec.schedule
-        request = SchedulingRequest(
-            affinity=list(schedule.exclusive_affinity or schedule.affinity),
-            exclusive=bool(schedule.exclusive_affinity),
-            realtime=schedule.realtime or "none",
-            priority=schedule.priority,
-            nice=schedule.nice,
-        )
+        request = SchedulingRequest.of(schedule)
         if schedule.type == "periodic":
             assert schedule.period_ms is not None  # the loader guarantees it
             return PeriodicActivity(spec.name, schedule.period_ms / 1e3, main=schedule.main, scheduling=request)

@@ -14,6 +14,7 @@ than an rclpy timer.
 
 from __future__ import annotations
 
+import enum
 import logging
 import os
 import select
@@ -22,20 +23,37 @@ import time
 from typing import TYPE_CHECKING, Protocol
 
 from .operations import set_current_activity
+from .period import PeriodGrid
 from .scheduling import apply_to_current_thread
 
 if TYPE_CHECKING:
-    from .activity import Activity, PeriodicActivity
+    from .activity import Activity
 
 log = logging.getLogger("coco")
 
-DEFAULT_SPIN = 200e-6
-"""Seconds before a periodic deadline at which the coarse sleep ends and spinning begins."""
+
+class Driving(str, enum.Enum):
+    """What drives an activity, as the deployment plan (:mod:`coco_core.deployment`) names it."""
+
+    THREAD = "own thread"
+    MAIN = "main thread"
+    WAIT_SET = "wait set"
+    """The ROS host: a thread of the activity's own waiting on its callback group's entities only."""
+    EXECUTOR = "executor"
+    """The ROS host: a callback group of the node's executor, run by its shared threads."""
 
 
 class Driver(Protocol):
     """When and where an activity's steps run. Called by the activity only (its methods of the same
     names delegate here), so that ports, operations and the application never know the driver."""
+
+    @property
+    def driving(self) -> Driving:
+        """What kind of driver this is (checked against the deployment plan)."""
+
+    @property
+    def eventfd(self) -> int | None:
+        """The eventfd through which other processes wake the activity; None: they do not."""
 
     def start(self, activity: Activity) -> None:
         """Begin driving ``activity``: configure it, then cycle it by its schedule until stopped."""
@@ -60,9 +78,18 @@ class Driver(Protocol):
 class ThreadDriver:
     """Runs the activity in a thread of its own: periodic on the activity's time grid with a precise
     sleep, triggered on each wake-up. Wake-ups that arrive during a cycle are not lost: they cause one
-    more cycle."""
+    more cycle.
 
-    def __init__(self) -> None:
+    ``eventfd``: a Linux eventfd (a kernel counter that any process holding the descriptor can
+    increment) that wakes the activity instead of a thread event. A triggered activity that reads a
+    connection from another process is driven so, and the writer's process wakes it directly (one
+    ``write`` system call), without a relay thread; wake-ups from its own process go the same way. A
+    periodic activity is never woken by data: it ignores the descriptor."""
+
+    driving = Driving.THREAD
+
+    def __init__(self, eventfd: int | None = None) -> None:
+        self.eventfd = eventfd
         self._wake = threading.Event()
         self._interrupt = threading.Event()
         """Ends a periodic activity's coarse sleep early: a stop or a period change (data never does)."""
@@ -88,12 +115,11 @@ class ThreadDriver:
             activity.configure()
             activity.wait_may_run()  # every activity of the application configured (or a stop)
             if not activity.stopping:
-                from .activity import PeriodicActivity
-
-                if isinstance(activity, PeriodicActivity):
-                    self._periodic(activity)
-                else:
+                period = activity.schedule.period
+                if period is None:
                     self._triggered(activity)
+                else:
+                    self._periodic(activity, PeriodGrid(period, activity.stats))
         except Exception as error:  # the driver's own failure: the components' errors never reach here
             activity.fail(error)
         finally:
@@ -101,6 +127,14 @@ class ThreadDriver:
             set_current_activity(None)
 
     def _triggered(self, activity: Activity) -> None:
+        if self.eventfd is not None:
+            read, fd = os.eventfd_read, self.eventfd
+            while not activity.stopping:
+                read(fd)  # blocks with the GIL released until the counter is non-zero, then clears it
+                if activity.stopping:
+                    break
+                activity.cycle()
+            return
         wait, clear = self._wake.wait, self._wake.clear
         while not activity.stopping:
             wait()
@@ -109,9 +143,9 @@ class ThreadDriver:
                 break
             activity.cycle()
 
-    def _periodic(self, activity: PeriodicActivity) -> None:
+    def _periodic(self, activity: Activity, grid: PeriodGrid) -> None:
+        """Cycle on ``grid``, this driver's own: only this thread touches it."""
         clock = time.perf_counter
-        grid = activity.grid
         grid.begin(clock())
         garbage = activity.garbage
         while not activity.stopping:
@@ -123,14 +157,16 @@ class ThreadDriver:
             while woke is None:  # interrupted: stopping, or a new period
                 if activity.stopping:
                     return
-                deadline = grid.change_period(activity.period, clock())
+                period = activity.schedule.period
+                assert period is not None  # a periodic schedule keeps a period
+                deadline = grid.change_period(period, clock())
                 woke = self._sleep_until(activity, deadline)
             grid.woke(woke)
 
-    def _sleep_until(self, activity: PeriodicActivity, deadline: float) -> float | None:
+    def _sleep_until(self, activity: Activity, deadline: float) -> float | None:
         """Sleep coarsely, then spin to ``deadline``; the wake-up time, or None when interrupted."""
         remaining = deadline - time.perf_counter()
-        spin = activity.spin
+        spin = activity.schedule.spin
         if remaining > spin and self._interrupt.wait(remaining - spin):
             self._interrupt.clear()
             return None
@@ -146,15 +182,20 @@ class ThreadDriver:
         return self._thread
 
     def wake(self) -> None:
-        self._wake.set()
+        if self.eventfd is not None:
+            os.eventfd_write(self.eventfd, 1)
+        else:
+            self._wake.set()
 
     @property
     def wake_pending(self) -> bool:
-        return self._wake.is_set()
+        return eventfd_pending(self.eventfd) if self.eventfd is not None else self._wake.is_set()
 
     def stop(self) -> None:
         self._wake.set()
         self._interrupt.set()
+        if self.eventfd is not None:
+            os.eventfd_write(self.eventfd, 1)
 
     def set_period(self, period: float) -> None:
         self._interrupt.set()
@@ -168,6 +209,8 @@ class MainThreadDriver(ThreadDriver):
     """Runs the activity in the thread that calls :meth:`run` (the launcher's main thread, which
     some GUI toolkits require): ``start`` only marks it started, ``Activity.run_here`` runs it."""
 
+    driving = Driving.MAIN
+
     def start(self, activity: Activity) -> None:
         self._activity = activity
 
@@ -175,34 +218,3 @@ class MainThreadDriver(ThreadDriver):
 def eventfd_pending(fd: int) -> bool:
     """Whether an eventfd holds a wake-up not taken yet (its counter is non-zero), without taking it."""
     return bool(select.select([fd], [], [], 0)[0])
-
-
-class EventfdDriver(ThreadDriver):
-    """A thread driver woken through a Linux ``eventfd``: a kernel counter that any process holding
-    the descriptor can increment. A triggered activity that reads a connection from another process
-    is driven by one, so the writer's process wakes it directly (one ``write`` system call), without
-    a relay thread; wake-ups from its own process go the same way. Only triggered activities use it:
-    a periodic one is never woken by data."""
-
-    def __init__(self, fd: int) -> None:
-        super().__init__()
-        self.fd = fd
-
-    def wake(self) -> None:
-        os.eventfd_write(self.fd, 1)
-
-    @property
-    def wake_pending(self) -> bool:
-        return eventfd_pending(self.fd)
-
-    def stop(self) -> None:
-        super().stop()
-        os.eventfd_write(self.fd, 1)
-
-    def _triggered(self, activity: Activity) -> None:
-        read, fd = os.eventfd_read, self.fd
-        while not activity.stopping:
-            read(fd)  # blocks with the GIL released until the counter is non-zero, then clears it
-            if activity.stopping:
-                break
-            activity.cycle()

@@ -62,6 +62,10 @@ class ProcessError(CocoError):
     """A child process of the launcher could not be started or built, or died."""
 
 
+class DeploymentError(CocoError):
+    """A run that would differ from its deployment plan (``coco_core.deployment``): a bug guard."""
+
+
 class RemoteError(CocoError):
     """An operation that ran in another process raised: its type, message and traceback come along
     as text (the exception itself may not exist, or not be picklable, in the caller's process)."""

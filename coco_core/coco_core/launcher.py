@@ -21,6 +21,7 @@ from .applications import find_application
 from .application import Application
 from .builder import build_application, configure_logging
 from .connections import Connection
+from .deployment import Deployment, deployed, plan_deployment
 from .errors import CocoError, ConfigError, ConfigErrors, Interrupted
 from .model import AppSpec
 from .policy import ConnectionPolicy
@@ -91,12 +92,12 @@ def list_components() -> str:
     return "\n".join(lines)
 
 
-def _activity_lines(app: Application, indent: str) -> list[str]:
+def _activity_lines(app: Application, deployment: Deployment, indent: str) -> list[str]:
     lines = []
     for activity, components in app.schedule_tree():
         if activity is not None and activity.process != app.process:
             continue  # the launcher's stand-in of a child's activity: the child's part shows it
-        lines.append(f"{indent}activity {activity.name}: {activity.describe()}" if activity else f"{indent}(no activity)")
+        lines.append(f"{indent}{deployment.activities[activity.name].line()}" if activity else f"{indent}(no activity)")
         for top in components:
             for component in top.walk():
                 depth = 0
@@ -111,16 +112,16 @@ def _connection_line(connection: Connection, indent: str) -> str:
     return f"{indent}{connection.source.qualified_name} -> {connection.sink.qualified_name}  {connection.policy}"  # type: ignore[union-attr]
 
 
-def describe(app: Application) -> str:
-    """The scheduling tree and the connections, for ``--check``."""
-    lines = [f"application {app.name}", *_activity_lines(app, "  ")]
-    lines += [_connection_line(connection, "  ") for connection in app.connections]
-    return "\n".join(lines)
-
-
-def describe_processes(spec: AppSpec, launcher_part: Application, allow_unknown: bool = False) -> str:
-    """The scheduling tree with its process level, for ``--check``: every child's part is built here
-    too (``init`` only, nothing runs), so a wrong component in any process is reported now."""
+def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, allow_unknown: bool = False) -> str:
+    """The scheduling tree for ``--check``: processes (when the file has any), activities with what
+    drives each and why (the deployment plan every process of the run executes), components and
+    connections. Every child's part is built here too (``init`` only, nothing runs), so a wrong
+    component in any process is reported now."""
+    lines = [f"application {launcher_part.name}", f"  deployment: {deployment.options.describe()}"]
+    if not spec.processes:
+        lines += _activity_lines(launcher_part, deployment, "  ")
+        lines += [_connection_line(connection, "  ") for connection in launcher_part.connections]
+        return "\n".join(lines)
     placement = Placement.of(spec)
     parts = {LAUNCHER: launcher_part}
     errors: list[ConfigError] = []
@@ -131,16 +132,15 @@ def describe_processes(spec: AppSpec, launcher_part: Application, allow_unknown:
             errors += error.errors
     if errors:
         raise ConfigErrors(errors)
-    lines = [f"application {launcher_part.name}"]
     for name, part in parts.items():
-        process = placement.processes.get(name)
+        process = deployment.processes.get(name)
         placed = [f"affinity {','.join(map(str, process.affinity))}" if process and process.affinity else "",
                   f"nice {process.nice}" if process and process.nice is not None else "",
                   "memory locked" if process and process.lock_memory else "",
                   "gc between cycles" if process and process.gc == "between_cycles" else ""]
         details = ", ".join(word for word in placed if word)
         lines.append(f"  process {name or 'launcher'}" + (f" ({details})" if details else ""))
-        lines += _activity_lines(part, "    ")
+        lines += _activity_lines(part, deployment, "    ")
         lines += [_connection_line(connection, "    ") for connection in part.connections]
     crossing = placement.crossing(spec)
     if crossing:
@@ -239,15 +239,17 @@ def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> in
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
     try:
         spec, app = load_and_build(options, signals)
+        deployment = plan_deployment(spec)
         signals.check()
         if options.check:
-            print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
+            print(describe(spec, app, deployment, options.allow_unknown))
             return 0
     except CocoError as error:
         return failure("coco-launch", error)
     try:
         configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
-        with process_level(spec, app, logging.getLevelName(options.log_level)) as processes:
+        with process_level(spec, app, deployment, logging.getLevelName(options.log_level)) as processes:
+            deployed(app, deployment)
             signals.attach(app)
             with launcher_services(app, options, processes):
                 app.run(options.duration)

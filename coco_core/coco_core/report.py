@@ -19,7 +19,6 @@ import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from .activity import PeriodicActivity
 from .application import Application
 from .connections import Connection
 from .ports import PooledOutputPort
@@ -68,7 +67,7 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
                            times.user + times.system, _rss())
     local = [activity for activity in app.activities.values() if activity.process == app.process]
     for activity in local:
-        summary = activity.stats.error_summary() if isinstance(activity, PeriodicActivity) else None
+        summary = activity.stats.error_summary() if activity.period is not None else None
         error = f"{_us(summary.p50)} / {_us(summary.p99)} / {_us(summary.max)}" if summary else "-"
         shot.activities.append([activity.name + (" (main)" if activity.main else ""), activity.describe(),
                                 str(activity.stats.cycles), str(activity.stats.overruns), error])

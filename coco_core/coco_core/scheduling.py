@@ -10,6 +10,10 @@ from __future__ import annotations
 import os
 import threading
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .model import ScheduleSpec
 
 
 @dataclass
@@ -26,6 +30,13 @@ class SchedulingRequest:
     """Real-time priority (1-99); only meaningful with ``realtime`` FIFO or RR."""
     nice: int | None = None
     """Nice value (-20..19) of a normal, non-real-time thread."""
+
+    @classmethod
+    def of(cls, schedule: ScheduleSpec) -> SchedulingRequest:
+        """What the file's ``<schedule>`` asks of the OS (the builder and the deployment plan read it)."""
+        return cls(affinity=list(schedule.exclusive_affinity or schedule.affinity),
+                   exclusive=bool(schedule.exclusive_affinity), realtime=schedule.realtime or "none",
+                   priority=schedule.priority, nice=schedule.nice)
 
 
 def available_cores() -> set[int]:

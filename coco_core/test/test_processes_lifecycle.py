@@ -515,3 +515,30 @@ def test_a_natural_stop_waits_for_writers_in_other_processes(tmp_path: Path, rea
     written, read, dropped, pending = (int(word) for word in crossing.split()[-4:])
     assert values[-1] == -1, f"the loop's last value was not recorded: ... {values[-5:]}"
     assert written == read == len(values) and dropped == pending == 0, (crossing, len(values))
+
+
+def test_a_main_activity_woken_by_another_process_runs_once_in_the_main_thread(tmp_path: Path, reap) -> None:
+    """The launcher's main activity, fed by a child: the deployment plan gives it the main thread,
+    woken by its eventfd. It used to get an eventfd thread driver as well as the main thread's run,
+    and so ran twice: configured twice (its file opened twice) and finished twice."""
+    app = write_app(tmp_path).read_text().replace(
+        '<activity name="sinking"><schedule type="triggered"/>',
+        '<activity name="sinking"><schedule type="triggered" main="true"/>').replace(
+        f'<attribute name="path" value="{tmp_path}/sink.txt"/>',
+        f'<attribute name="path" value="{tmp_path}/sink.txt"/><attribute name="threads_path" value="{tmp_path}/threads"/>')
+    path = tmp_path / "main.xml"
+    path.write_text(app)
+    check = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--check"], capture_output=True,
+                           text=True, env=dict(os.environ, PYTHONPATH=f"{DATA}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"),
+                           timeout=60)
+    assert "activity sinking: triggered -> main thread, woken by an eventfd (main activity)" in check.stdout, check
+    launcher = launch(path, "--duration", "1")
+    reap(launcher)
+    out, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 0, out
+    assert "process launcher: activity sinking: triggered -> main thread, woken by an eventfd" in out, out
+    lines = (tmp_path / "sink.txt").read_text().splitlines()
+    assert sum(line.startswith("pid") for line in lines) == 1 and lines.count("stopped") == 1, lines
+    values = [int(line) for line in lines[1:-1]]
+    assert values and values == list(range(len(values))), lines
+    assert (tmp_path / "threads").read_text() == "MainThread", "only the main thread ran it"

@@ -10,7 +10,7 @@ import time
 import pytest
 
 from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort, TriggeredActivity
-from coco_core.drivers import EventfdDriver, ThreadDriver
+from coco_core.drivers import ThreadDriver
 from coco_core.errors import ActivityError
 from coco_core.period import PeriodGrid
 from coco_core.profiling import ActivityStats
@@ -74,7 +74,7 @@ def test_a_wake_pending_before_start_goes_to_the_new_driver() -> None:
     assert activity.wake_pending
     fd = os.eventfd(0)
     try:
-        activity.drive_with(EventfdDriver(fd))
+        activity.drive_with(ThreadDriver(fd))
         assert activity.wake_pending, "the pending wake-up came along"
         app.start()
         deadline = time.monotonic() + 2
@@ -92,7 +92,7 @@ def test_an_eventfd_driver_is_woken_by_another_process() -> None:
     app = Application("drivers")
     counter = app.add(Counter("counter"), TriggeredActivity("events"))
     fd = os.eventfd(0)
-    app.activity("events").drive_with(EventfdDriver(fd))
+    app.activity("events").drive_with(ThreadDriver(fd))
     app.start()
     try:
         time.sleep(0.05)

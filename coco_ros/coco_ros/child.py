@@ -3,7 +3,8 @@
 The same child as ``coco_core.processes.child`` (it builds and runs its ``<process>``'s part of the
 application), with an rclpy node of its own, named after the launcher's node and the process
 (``<launcher node>_<process>``), whose executor hosts the process's activities as the launcher's
-executor hosts its own: ROSInterface, TFBridge and BagReplay work in a child as in the launcher.
+executor hosts its own, by the launch's one deployment plan (``--executor-threads`` included):
+ROSInterface, TFBridge and BagReplay work in a child as in the launcher.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import sys
 from typing import Any
 
 from coco_core import Application
+from coco_core.deployment import deployed
 from coco_core.processes.child import ChildProcess, main
 
 from .hosting import ExecutorHost
@@ -54,9 +56,11 @@ class RosChildProcess(ChildProcess):
             # The launcher resolved the args (its -p values included) and reported the -p values no arg
             # takes: a child's node shows the args and refuses changes as the launcher's does.
             ArgParameters(node, config["spec"]).declare({})
-            host = ExecutorHost(node, app, config["threads"], config["all_threads"], woken=set(config["wakes"]))
+            deployment = config["deployment"]
+            host = ExecutorHost(node, app, deployment)
             executor = host.create_executor()
             executor.add_node(node)
+            deployed(app, deployment)
             with RosoutLogging(node):  # this process's log lines on /rosout, under its node's name
                 clean = run_hosted(app, host, executor)
             if clean:

@@ -43,8 +43,9 @@ triggers, so no callback ever waits for the others; the activity's last callback
 at the same time): a component that holds a thread-bound resource (an OpenGL context, a
 thread-affine device SDK) needs a dedicated thread.
 
-Which activities get their own thread (coco_core's loop: ``Activity.start``) instead is decided by
-:func:`dedicated_reason`; see ``docs/ros.md`` for the rule and the measured numbers behind it.
+Which activities keep a thread of their own (coco_core's thread drivers) instead is decided by the
+deployment plan (:mod:`coco_core.deployment`), which ``--check`` prints and every process executes;
+see ``docs/ros.md`` for the rule and the measured numbers behind it.
 
 How rclpy attaches to an activity: an :class:`ExecutorDriver` is the activity's driver
 (``Activity.drive_with``, the protocol of :mod:`coco_core.drivers`), whether a wait set or the
@@ -59,10 +60,13 @@ import functools
 import logging
 import threading
 import time
-from typing import TYPE_CHECKING, Callable, Collection, Iterable
+from typing import TYPE_CHECKING, Callable
 
-from coco_core import Activity, Application, CocoError, Component, PeriodicActivity, SchedulingRequest
+from coco_core import Activity, Application, CocoError, Component
+from coco_core.deployment import Deployment
+from coco_core.drivers import Driving
 from coco_core.errors import did_you_mean
+from coco_core.period import PeriodGrid
 from coco_core.operations import set_current_activity
 from .wait_set import ActivityWaitSet, WaitSetGroup
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -78,12 +82,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("coco")
 
-THREAD_PERIOD = 5e-3
-"""Periodic activities faster than this (seconds) get a dedicated thread: an rclpy timer's p99 period
-error (233 us SingleThreaded, 500 us MultiThreaded at 1 kHz, idle) is a tenth of such a period."""
-
-EXECUTOR = "executor"
-
 MULTI_POLL = 0.1
 """Seconds a multi-threaded executor's spin waits at most (see :class:`ExecutorThread`)."""
 
@@ -98,79 +96,14 @@ _CHAIN = threading.local()
 cycles it runs before it returns (None outside such a callback)."""
 
 
-def dedicated_reason(activity: Activity, forced: bool = False, woken: bool = False) -> str | None:
-    """Why ``activity`` needs a thread of its own, or None when the executor may host it.
-
-    A thread is needed by an activity that another process wakes (``woken``: a connection from a child
-    process ends in it, and the writer's process wakes its thread through an eventfd), by the main activity (it runs in the launcher's main thread), by an activity
-    that asks the OS for anything about its thread (affinity, exclusive cores, real-time class,
-    priority, nice: an executor thread is shared, so none of it could be applied), by a periodic
-    activity faster than :data:`THREAD_PERIOD`, by one running a ``thread_bound`` component (or peer:
-    an OpenGL context works only in the thread that made it, and executor callbacks hop between the
-    pool's threads), and by one the command line names (``forced``).
-    """
-    if forced:
-        return "asked on the command line"
-    if woken:
-        return "woken by another process (its eventfd)"
-    if activity.main:
-        return "main activity (the launcher's main thread)"
-    request = activity.scheduling
-    if request != SchedulingRequest():
-        asked = [name for name, value in (("affinity", request.affinity), ("realtime", request.realtime != "none"),
-                                          ("priority", request.priority is not None),
-                                          ("nice", request.nice is not None)) if value]
-        return f"thread placement ({', '.join(asked) or 'scheduling request'})"
-    if isinstance(activity, PeriodicActivity) and activity.period < THREAD_PERIOD:
-        return f"period {activity.period * 1e3:g} ms < {THREAD_PERIOD * 1e3:g} ms"
-    bound = [c.name for top in activity.components for c in top.walk() if c.thread_bound]
-    if bound:
-        return f"thread-bound component{'s' if len(bound) > 1 else ''} {', '.join(bound)}"
-    return None
-
-
-def plan_hosting(app: Application, threads: Iterable[str] = (), all_threads: bool = False,
-                 woken: Collection[str] = ()) -> dict[str, str]:
-    """Where each activity of ``app`` runs: ``"executor"`` or ``"thread: <reason>"``, by name.
-
-    ``threads`` names activities forced onto their own thread (``--threads``); an unknown name is an
-    error that lists the activities. ``woken``: the activities a write in another process wakes
-    (:func:`coco_core.processes.channels.woken_by_other_processes`, from the application file alone,
-    so that ``--check`` prints what the run does).
-    """
-    forced = set(threads)
-    unknown = sorted(forced - set(app.activities))
-    if unknown:
-        raise CocoError(f"--threads: no activity {', '.join(map(repr, unknown))} in application {app.name}; "
-                        f"{did_you_mean(unknown[0], app.activities)}")
-    plan: dict[str, str] = {}
-    for name, activity in app.activities.items():
-        if activity.process != app.process:  # another process of the application runs it
-            plan[name] = f"process {activity.process or 'launcher'}"
-            continue
-        reason = dedicated_reason(activity, all_threads or name in forced, name in woken)
-        plan[name] = EXECUTOR if reason is None else f"thread: {reason}"
-    return plan
-
-
-def describe_hosting(app: Application, plan: dict[str, str], wait_sets: bool = True) -> str:
-    """One line per activity of ``app``: its schedule and where ``plan`` runs it (``wait_sets``: as
-    :class:`ExecutorHost` does by default, each hosted activity in a wait set of its own)."""
-    lines = []
-    for name, where in plan.items():
-        activity = app.activities[name]
-        how = "rclpy timer" if isinstance(activity, PeriodicActivity) else "guard condition"
-        hosted = (f"wait set on its own thread ({how} in its callback group)" if wait_sets else
-                  f"executor ({how} in its callback group)")
-        lines.append(f"  activity {name}: {activity.describe()} -> " + (hosted if where == EXECUTOR else where))
-    return "\n".join(lines)
-
-
 class ExecutorDriver:
     """The driver (:class:`coco_core.drivers.Driver`) of one activity hosted by rclpy: its callback
     group, guard condition and (periodic) timer, run by its wait set or by the node's executor. The
     activity keeps its own class and methods: its ``wake``, ``stop``, ``set_period`` and ``join``
     come here because this is its driver."""
+
+    eventfd = None
+    """Other processes never wake a hosted activity: the plan gives such an activity a thread."""
 
     def __init__(self, host: ExecutorHost, activity: Activity, group: MutuallyExclusiveCallbackGroup,
                  server: ActivityWaitSet | None = None) -> None:
@@ -180,6 +113,7 @@ class ExecutorDriver:
         self.server = server
         """The thread that waits on this activity's entities (a :class:`WaitSetGroup`), or None when
         the node's executor runs the group's callbacks."""
+        self.driving = Driving.EXECUTOR if server is None else Driving.WAIT_SET
         self.started = False
         self.configured = False
         self.running = False
@@ -194,16 +128,20 @@ class ExecutorDriver:
         """Held while this activity's components run, by its own callbacks and by a cycle another
         activity's callback runs for it (the chain): the callback group alone cannot keep those two
         apart, since a chained cycle runs in another group's callback."""
-        self.chained = not isinstance(activity, PeriodicActivity)
+        self.chained = activity.schedule.period is None
         """Whether a wake-up from another hosted activity's callback runs this one's cycle in that
         callback (triggered activities) rather than through the guard condition."""
         node = host.node
         self.guard: GuardCondition = node.create_guard_condition(self._on_guard, callback_group=group)
         self.timer: Timer | None = None
+        self.grid: PeriodGrid | None = None
+        """A periodic activity's time grid, against which the timer's callbacks are measured."""
         self._lock = threading.Lock()
-        if isinstance(activity, PeriodicActivity):
-            self.timer = node.create_timer(activity.period, self._on_timer, callback_group=group,
-                                           clock=host.clock, autostart=False)
+        period = activity.schedule.period
+        if period is not None:
+            self.grid = PeriodGrid(period, activity.stats)
+            self.timer = node.create_timer(period, self._on_timer, callback_group=group, clock=host.clock,
+                                           autostart=False)
         activity.drive_with(self)  # a wake-up pending from before (data written early) comes along
 
     # --- the driver protocol (called through the activity) ---------------------------------------
@@ -244,18 +182,18 @@ class ExecutorDriver:
         self._trigger()
 
     def set_period(self, period: float) -> None:
-        """A new period (stored by the activity): the next cycle comes one new period after the last
-        one was due, and the grid continues from it."""
-        activity = self.activity
-        assert isinstance(activity, PeriodicActivity) and self.timer is not None
+        """A new period (checked and stored by the activity): the next cycle comes one new period
+        from now (an rclpy timer restarts from its reset), and the grid continues from it."""
+        assert self.grid is not None and self.timer is not None  # only a periodic activity has a period
         with self._lock:
-            activity.grid.period = period
-            if activity.stopping:  # the timer stays parked
+            now = time.perf_counter()
+            self.grid.change_period(period, now)
+            if self.activity.stopping:  # the timer stays parked
                 return
             self.timer.timer_period_ns = int(round(period * 1e9))
             if self.running:
                 self.timer.reset()  # the timer's next call is one new period from now: so is the grid's
-                activity.grid.begin(time.perf_counter() + period)
+                self.grid.begin(now + period)
         # the current wait was computed with the old period
         if self.server is not None:
             self.server.wake()
@@ -307,8 +245,8 @@ class ExecutorDriver:
                 if not activity.may_run:
                     return  # data written meanwhile stays pending for the first cycle
                 self.running = True
-                if isinstance(activity, PeriodicActivity):
-                    self._begin_grid(activity)  # and run the first cycle now, as a thread driver does
+                if self.grid is not None:
+                    self._begin_grid(self.grid)  # and run the first cycle now, as a thread driver does
                     activity.cycle()
                     return
             self._serve()
@@ -394,20 +332,20 @@ class ExecutorDriver:
         finally:
             self._leave()
 
-    def _begin_grid(self, activity: PeriodicActivity) -> None:
+    def _begin_grid(self, grid: PeriodGrid) -> None:
         assert self.timer is not None
         with self._lock:
             self.timer.reset()  # starts the timer: its grid begins now
-            activity.grid.begin(time.perf_counter() + self.timer.time_until_next_call() / 1e9)
+            grid.begin(time.perf_counter() + self.timer.time_until_next_call() / 1e9)
 
     def _on_timer(self) -> None:
         now = time.perf_counter()
         activity = self.activity
         if not self.running or activity.stopping:
             return
-        assert isinstance(activity, PeriodicActivity)
+        assert self.grid is not None  # only a periodic activity has a timer
         with self._lock:
-            activity.grid.fired(now)
+            self.grid.fired(now)
         self._enter()
         try:
             activity.cycle()
@@ -434,8 +372,9 @@ class ExecutorDriver:
 
 
 class ExecutorHost:
-    """Runs ``app``'s activities in ``node``: each in a wait set of its own (``wait_sets``, the
-    default) or as callback groups of the node's executor, or on threads of their own.
+    """Runs ``app``'s activities in ``node`` as ``deployment`` plans them: each in a wait set of its
+    own (the default) or as callback groups of the node's executor; the others have the thread
+    drivers :func:`coco_core.deployment.drive` gave them.
 
     Create it after the application was built and before ``app.start()``; add ``node`` to the
     executor of :meth:`create_executor` and spin it, and :meth:`start` the wait sets, while the
@@ -452,22 +391,22 @@ class ExecutorHost:
     so from any component (:func:`ros_node`, :func:`callback_group`).
     """
 
-    def __init__(self, node: Node, app: Application, threads: Iterable[str] = (),
-                 all_threads: bool = False, wait_sets: bool = True, woken: Collection[str] = ()) -> None:
+    def __init__(self, node: Node, app: Application, deployment: Deployment) -> None:
         self.node = node
         self.app = app
-        self.wait_sets = wait_sets
+        self.deployment = deployment
+        self.wait_sets = deployment.options.wait_sets
         """Whether each hosted activity has a wait set on a thread of its own (an
         :class:`ActivityWaitSet`) rather than a callback group in the executor's shared threads."""
         self.clock = Clock(clock_type=ClockType.STEADY_TIME)
         """Activity timers run on the steady clock, like the activities' own threads (not /clock)."""
-        self.plan = plan_hosting(app, threads, all_threads, woken)
         self.groups: dict[str, MutuallyExclusiveCallbackGroup] = {}
         self.hosted: dict[str, ExecutorDriver] = {}
         for name, activity in app.activities.items():
-            if self.plan[name] != EXECUTOR:
-                self.groups[name] = MutuallyExclusiveCallbackGroup()
-            elif wait_sets:
+            driving = deployment.activities[name].driving
+            if activity.process != app.process or driving not in (Driving.WAIT_SET, Driving.EXECUTOR):
+                self.groups[name] = MutuallyExclusiveCallbackGroup()  # its components' ROS entities
+            elif driving is Driving.WAIT_SET:
                 group = self.groups[name] = WaitSetGroup()
                 server = ActivityWaitSet(group, node.context, name,
                                          on_error=functools.partial(app.request_stop, hard=True))
@@ -497,7 +436,7 @@ class ExecutorHost:
         (the node's default group), so there is next to nothing to run in parallel, and
         :meth:`create_executor` makes it a ``SingleThreadedExecutor``."""
         if self.wait_sets:
-            threaded = sum(1 for where in self.plan.values() if where.startswith("thread"))
+            threaded = self.deployment.threads(self.app.process)
             return threaded + 1 if threaded else 1
         if len(self.hosted) <= 1 and len(self.hosted) == len(self.app.activities):
             return 1
@@ -505,7 +444,8 @@ class ExecutorHost:
 
     def create_executor(self, threads: int | None = None, context: Context | None = None) -> Executor:
         """The executor to add the node to: a ``MultiThreadedExecutor`` with ``threads`` workers
-        (default :meth:`executor_threads`), or for one thread a ``SingleThreadedExecutor``.
+        (default: the deployment's ``--executor-threads``, else :meth:`executor_threads`), or for one
+        thread a ``SingleThreadedExecutor``.
 
         One thread is not a ``MultiThreadedExecutor(num_threads=1)``: that one still hands every
         callback to its worker while its spinning thread polls the wait set again, which costs (rclpy
@@ -515,7 +455,7 @@ class ExecutorHost:
         """
         from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 
-        threads = threads or self.executor_threads()
+        threads = threads or self.deployment.options.executor_threads or self.executor_threads()
         if threads == 1:
             return SingleThreadedExecutor(context=context)
         return MultiThreadedExecutor(num_threads=threads, context=context)
@@ -526,10 +466,6 @@ class ExecutorHost:
         for hosted in self.hosted.values():
             if hosted.server is not None:
                 hosted.server.start()
-
-    def describe(self) -> str:
-        """One line per activity: its schedule and where it runs."""
-        return describe_hosting(self.app, self.plan, self.wait_sets)
 
     def close(self) -> None:
         """Release the timers and guard conditions; call after the executor stopped spinning."""

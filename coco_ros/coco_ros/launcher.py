@@ -32,10 +32,10 @@ from coco_core.errors import Interrupted
 from coco_core.model import AppSpec
 from coco_core.applications import find_application
 from coco_core.builder import configure_logging
+from coco_core.deployment import Host, LaunchOptions, deployed, plan_deployment
 from coco_core.launcher import (
     parse_assignments,
     describe,
-    describe_processes,
     failure,
     launcher_services,
     list_components,
@@ -43,9 +43,7 @@ from coco_core.launcher import (
     make_parser,
     stopped_by_a_failure,
 )
-from coco_core.processes.channels import woken_by_other_processes
 from coco_core.processes.level import process_level
-from coco_core.processes.placement import Placement
 from coco_core.processes.supervisor import ProcessSupervisor
 from coco_core.report import snapshot
 from coco_core.signals import INTERRUPTED, LaunchSignals, leave
@@ -53,7 +51,7 @@ from coco_core.xml import load_application
 from rclpy.node import Node
 
 from .fastdds_segments import remove_abandoned
-from .hosting import ExecutorHost, ExecutorThread, describe_hosting, plan_hosting
+from .hosting import ExecutorHost, ExecutorThread
 from .managed import ManagedApplication, ManagedLauncherNode
 from .diagnostics import ProfileDiagnostics
 from .operation_services import OperationServices
@@ -209,15 +207,15 @@ def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], si
     ArgParameters(node, spec).declare(parameters)
     signals.check()
     configure_logging(spec.log, logging.getLevelName(options.log_level))
-    child_config = {"node": node.get_name(), "ros_args": list(ros_args), "threads": _threads(options.threads),
-                    "all_threads": options.all_threads}
-    with process_level(spec, app, logging.getLevelName(options.log_level), child_module="coco_ros.child",
+    deployment = plan_deployment(spec, launch_options(options))
+    child_config = {"node": node.get_name(), "ros_args": list(ros_args)}
+    with process_level(spec, app, deployment, logging.getLevelName(options.log_level), child_module="coco_ros.child",
                        child_config=child_config) as processes:
-        host = ExecutorHost(node, app, _threads(options.threads), options.all_threads, options.executor_threads is None,
-                            woken_by_other_processes(spec, Placement.of(spec)))
-        executor = host.create_executor(options.executor_threads)
+        host = ExecutorHost(node, app, deployment)
+        executor = host.create_executor()
         executor.add_node(node)
-        log.info("node %s hosts application %s:\n%s", node.get_fully_qualified_name(), app.name, host.describe())
+        log.info("node %s hosts application %s", node.get_fully_qualified_name(), app.name)
+        deployed(app, deployment)
         if (options.executor_threads or 1) > 1:
             log.warning("--executor-threads %d: rclpy's MultiThreadedExecutor hosts the activities; it missed "
                         "wake-ups in docs/benchmarks.md (Figure 6: p99 2.4-566x a plain node, messages lost "
@@ -238,15 +236,18 @@ def _check(options: argparse.Namespace, signals: LaunchSignals, parameters: dict
     hosting, run nothing."""
     try:
         spec, app = load_and_build(options, signals, parameters)
-        plan = plan_hosting(app, _threads(options.threads), options.all_threads,
-                            woken_by_other_processes(spec, Placement.of(spec)))
+        deployment = plan_deployment(spec, launch_options(options))
         signals.check()
+        print(describe(spec, app, deployment, options.allow_unknown))
     except CocoError as error:
         return failure(_NAME, error)
-    print(describe_processes(spec, app, options.allow_unknown) if spec.processes else describe(app))
-    print("hosting in the ROS launcher (the launcher's process):")
-    print(describe_hosting(app, plan, options.executor_threads is None))
     return 0
+
+
+def launch_options(options: argparse.Namespace) -> LaunchOptions:
+    """What of the command line decides where activities run (the deployment plan's options)."""
+    return LaunchOptions(Host.ROS, tuple(_threads(options.threads)), options.all_threads,
+                         wait_sets=options.executor_threads is None, executor_threads=options.executor_threads)
 
 
 def application_name(options: argparse.Namespace, signals: LaunchSignals) -> str:

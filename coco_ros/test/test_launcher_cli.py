@@ -74,7 +74,7 @@ def test_check_prints_the_tree_and_where_each_activity_runs(app_file: Path, caps
     out = capsys.readouterr().out
     assert "application cli-app" in out
     assert "activity sampling: periodic 10 ms -> wait set on its own thread (rclpy timer in its callback group)" in out
-    assert "activity averaging: triggered -> thread: asked on the command line" in out
+    assert "activity averaging: triggered -> own thread (asked on the command line)" in out
     assert launcher.main([str(app_file), "--check", "--executor-threads", "2"]) == 0
     out = capsys.readouterr().out
     assert "activity sampling: periodic 10 ms -> executor (rclpy timer in its callback group)" in out
@@ -84,7 +84,7 @@ def test_check_prints_the_tree_and_where_each_activity_runs(app_file: Path, caps
 def test_fast_period_is_planned_on_a_thread(app_file: Path, capsys) -> None:
     assert launcher.main([str(app_file), "period:=1", "--check"]) == 0
     out = capsys.readouterr().out
-    assert "activity sampling: periodic 1 ms -> thread: period 1 ms < 5 ms" in out
+    assert "activity sampling: periodic 1 ms -> own thread (period 1 ms < 5 ms)" in out
     assert "activity averaging: triggered -> wait set on its own thread (guard condition in its callback group)" in out
 
 

@@ -27,21 +27,17 @@ from coco_core import (
     InputPort,
     OutputPort,
     PeriodicActivity,
-    SchedulingRequest,
     SyncPolicy,
     TriggeredActivity,
     current_activity,
     operation,
 )
+from coco_core.deployment import THREAD_PERIOD, Deployment, Host, LaunchOptions, of_application
 from coco_ros.hosting import (
-    EXECUTOR,
-    THREAD_PERIOD,
     ExecutorHost,
     ExecutorThread,
     activity_callback,
     callback_group,
-    dedicated_reason,
-    plan_hosting,
     ros_node,
 )
 
@@ -131,10 +127,14 @@ class Hosting:
         self.spinner: ExecutorThread | None = None
         self.errors: list[str] = []
 
-    def host_app(self, app: Application, **options: object) -> ExecutorHost:
+    def host_app(self, app: Application, threads: tuple[str, ...] = ()) -> ExecutorHost:
         self.app = app
-        self.host = ExecutorHost(self.node, app, wait_sets=self.wait_sets, **options)  # type: ignore[arg-type]
+        self.host = ExecutorHost(self.node, app, self.plan(app, threads))
         return self.host
+
+    def plan(self, app: Application, threads: tuple[str, ...] = ()) -> Deployment:
+        """The ROS host's deployment of ``app`` (``threads``: as ``--threads`` names them)."""
+        return of_application(app, LaunchOptions(Host.ROS, threads, wait_sets=self.wait_sets))
 
     def spin(self) -> None:
         assert self.host is not None
@@ -143,8 +143,8 @@ class Hosting:
         self.host.start()
         self.spinner = ExecutorThread(executor, on_error=self.errors.append).start()
 
-    def start(self, app: Application, **options: object) -> ExecutorHost:
-        host = self.host_app(app, **options)
+    def start(self, app: Application, threads: tuple[str, ...] = ()) -> ExecutorHost:
+        host = self.host_app(app, threads)
         app.start()
         self.spin()
         return host
@@ -185,43 +185,6 @@ def pipeline(period: float = 0.01) -> tuple[Application, Counter, Recorder]:
     recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
     app.connect("counter.out", "recorder.ev", BUFFERED)
     return app, counter, recorder
-
-
-# --- the hosting rule -----------------------------------------------------------------------------
-
-
-def test_rule_keeps_ordinary_activities_on_the_executor_and_gives_threads_to_the_rest() -> None:
-    assert dedicated_reason(TriggeredActivity("t")) is None
-    assert dedicated_reason(PeriodicActivity("p", THREAD_PERIOD)) is None
-    assert "period" in dedicated_reason(PeriodicActivity("fast", 0.001))
-    assert "main" in dedicated_reason(PeriodicActivity("m", 1.0, main=True))
-    assert "realtime" in dedicated_reason(TriggeredActivity("rt", scheduling=SchedulingRequest(realtime="FIFO")))
-    assert "affinity" in dedicated_reason(TriggeredActivity("pin", scheduling=SchedulingRequest(affinity=[0])))
-    assert "nice" in dedicated_reason(TriggeredActivity("n", scheduling=SchedulingRequest(nice=5)))
-    assert dedicated_reason(TriggeredActivity("t"), forced=True) == "asked on the command line"
-
-
-class _BoundPeer(Component):
-    """Holds a thread-bound resource, as GLManager's OpenGL context does."""
-
-    thread_bound = True
-
-
-def test_an_activity_running_a_thread_bound_component_or_peer_gets_its_own_thread() -> None:
-    owner = Component("owner")
-    owner.add_peer(_BoundPeer("context"))
-    assert "thread-bound component context" in dedicated_reason(TriggeredActivity("display", [owner]))
-    assert dedicated_reason(TriggeredActivity("plain", [Component("c")])) is None
-
-
-def test_plan_honours_threads_and_all_threads_and_rejects_unknown_names() -> None:
-    app, _, _ = pipeline()
-    assert plan_hosting(app) == {"ticks": EXECUTOR, "events": EXECUTOR}
-    plan = plan_hosting(app, threads=["events"])
-    assert plan["ticks"] == EXECUTOR and plan["events"].startswith("thread:")
-    assert all(where.startswith("thread:") for where in plan_hosting(app, all_threads=True).values())
-    with pytest.raises(CocoError, match="no activity 'evnts'.*events"):
-        plan_hosting(app, threads=["evnts"])
 
 
 # --- running on the executor ----------------------------------------------------------------------
@@ -428,7 +391,7 @@ def test_set_period_reaches_the_timer(hosting: Hosting) -> None:
 
 def test_dedicated_threads_run_beside_the_executor(hosting: Hosting) -> None:
     app, counter, recorder = pipeline(period=0.002)  # faster than THREAD_PERIOD: its own thread
-    host = hosting.start(app, threads=["events"])
+    host = hosting.start(app, threads=("events",))
     assert host.hosted == {}
     assert wait_until(lambda: len(recorder.values) >= 50)
     names = {t.name for t in threading.enumerate()}
@@ -504,7 +467,7 @@ def test_an_entity_callback_runs_the_cycle_it_woke_before_returning(hosting: Hos
 
 def test_an_entity_callback_of_a_threaded_activity_is_left_as_it_is(hosting: Hosting) -> None:
     app, _, recorder = pipeline()
-    hosting.host_app(app, threads=["events"])
+    hosting.host_app(app, threads=("events",))
     callback = lambda: None  # noqa: E731
     assert activity_callback(recorder, callback) is callback
 
@@ -524,11 +487,10 @@ def test_one_hosted_activity_gets_a_single_threaded_executor_and_more_get_worker
     assert wait_until(lambda: recorder.updates == 1), "the activity never ran"
     two, _, _ = pipeline()
     # With wait sets the executor runs no hosted activity: one thread is enough for the rest.
-    assert ExecutorHost(hosting.node, two, wait_sets=hosting.wait_sets).executor_threads() == \
-        (1 if hosting.wait_sets else 3)
+    assert ExecutorHost(hosting.node, two, hosting.plan(two)).executor_threads() == (1 if hosting.wait_sets else 3)
     threaded, _, _ = pipeline()
-    assert ExecutorHost(hosting.node, threaded, threads=["ticks"], wait_sets=hosting.wait_sets).executor_threads() \
-        == 2, "an activity on its own thread may have entities in its group: they get a worker of their own"
+    assert ExecutorHost(hosting.node, threaded, hosting.plan(threaded, ("ticks",))).executor_threads() == 2, \
+        "an activity on its own thread may have entities in its group: they get a worker of their own"
 
 
 class Relay(Recorder):

@@ -84,7 +84,7 @@ def _woken_by(connection: ConnectionSpec, components: dict[str, ComponentSpec],
 
 def woken_by_other_processes(spec: AppSpec, placement: Placement) -> set[str]:
     """The activities that a write in another process may wake: each gets an eventfd thread
-    (:class:`~coco_core.drivers.EventfdDriver`) in the run. Pure, so that ``--check`` and the run
+    (a :class:`~coco_core.drivers.ThreadDriver` on its eventfd) in the run. Pure, so that ``--check`` and the run
     agree (the ROS launcher hosts no such activity in its executor)."""
     components = {component.name: component for component in spec.all_components()}
     activity_of = {name: activity for activity in spec.activities for name in activity.components}

@@ -25,10 +25,9 @@ import threading
 from concurrent.futures import Future
 from typing import Any
 
-from ..activity import PeriodicActivity
 from ..application import Application
 from ..builder import build_application
-from ..drivers import EventfdDriver
+from ..deployment import deployed, drive
 from ..errors import CocoError
 from ..garbage import GarbageBetweenCycles
 from ..launcher import stopped_by_a_failure
@@ -85,12 +84,12 @@ def apply_process_placement(affinity: list[int], nice: int | None) -> None:
 def collect_between_cycles(app: Application) -> GarbageBetweenCycles | None:
     """Give the collections of ``app`` to its fastest periodic activity (see :mod:`..garbage`);
     None, with a warning, when it has none (nothing would collect: the collector stays as it is)."""
-    periodic = [activity for activity in app.activities.values() if isinstance(activity, PeriodicActivity)]
+    periodic = {activity: period for activity in app.activities.values() if (period := activity.period) is not None}
     if not periodic:
         log.warning('process %s: gc="between_cycles" needs a periodic activity to collect between its cycles; '
                     "this process has none: its garbage collector is left automatic", app.process)
         return None
-    fastest = min(periodic, key=lambda activity: activity.period)
+    fastest = min(periodic, key=periodic.__getitem__)
     fastest.garbage = GarbageBetweenCycles()
     return fastest.garbage
 
@@ -126,9 +125,7 @@ class ChildProcess:
             self.link.send("error", text=str(error))
             return 1
         try:
-            for name, fd in config["wakes"].items():
-                if name in app.activities:
-                    app.activities[name].drive_with(EventfdDriver(fd))
+            drive(app, config["deployment"], config["wakes"])
             attach(app, config["plans"], config["wakes"])
         except CocoError as error:
             self.link.send("error", text=str(error))
@@ -173,6 +170,7 @@ class ChildProcess:
     def run_app(self, app: Application, config: dict[str, Any]) -> bool:
         """Run this process's part until a stop; whether it stopped cleanly. A launcher with more to
         host (the ROS launcher's node and executor) runs its children with a subclass."""
+        deployed(app, config["deployment"])
         app.run()
         return app.stop()
 

@@ -9,22 +9,25 @@ from collections.abc import Iterator
 from typing import Any
 
 from ..application import Application
+from ..deployment import Deployment, drive
 from ..model import AppSpec
 from .supervisor import ProcessSupervisor
 
 
 @contextlib.contextmanager
-def process_level(spec: AppSpec, app: Application, log_level: int = logging.INFO,
+def process_level(spec: AppSpec, app: Application, deployment: Deployment, log_level: int = logging.INFO,
                   **options: Any) -> Iterator[ProcessSupervisor | None]:
-    """Start the children of ``spec`` around a run of ``app`` (the launcher's part); None when the
-    application has no ``<process>``. Raises :class:`ProcessError` when a child cannot be built. At
+    """Start the children of ``spec`` around a run of ``app`` (the launcher's part) by ``deployment``,
+    whose thread drivers the launcher's own activities get here (:func:`coco_core.deployment.drive`);
+    None when the application has no ``<process>``. Raises :class:`ProcessError` when a child cannot be built. At
     the end, children still running are given the stop time (:meth:`ProcessSupervisor.join`: a
     second after a hard stop, what their work needs after a natural one), then killed, and every
     resource of the launch is released. ``options`` go to :class:`ProcessSupervisor`."""
     if not spec.processes:
+        drive(app, deployment, {})
         yield None
         return
-    supervisor = ProcessSupervisor(spec, app, log_level, **options)
+    supervisor = ProcessSupervisor(spec, app, deployment, log_level, **options)
     supervisor.launch()
     try:
         yield supervisor

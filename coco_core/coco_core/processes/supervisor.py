@@ -32,7 +32,8 @@ from typing import TYPE_CHECKING, Any
 
 from ..activity import Activity
 from ..application import Application
-from ..drivers import EventfdDriver, eventfd_pending
+from ..deployment import Deployment, drive
+from ..drivers import Driving, eventfd_pending
 from ..errors import ProcessError
 from ..lifecycle import STOP_TIMEOUT
 from ..model import AppSpec
@@ -106,11 +107,14 @@ class ProcessDriver:
     launcher's application stop, join, re-period and ask the state of every activity by name,
     wherever it runs."""
 
-    def __init__(self, supervisor: ProcessSupervisor, child: Child, activity: Activity, wake_fd: int | None) -> None:
+    def __init__(self, supervisor: ProcessSupervisor, child: Child, activity: Activity, driving: Driving,
+                 eventfd: int | None) -> None:
         self.supervisor = supervisor
         self.child = child
         self.activity = activity
-        self.wake_fd = wake_fd
+        self.driving = driving
+        """What drives the activity in the child (the deployment plan's word)."""
+        self.eventfd = eventfd
         activity.drive_with(self)
 
     def start(self, activity: Activity) -> None:
@@ -118,12 +122,12 @@ class ProcessDriver:
         self.supervisor.start_child(self.child)
 
     def wake(self) -> None:
-        if self.wake_fd is not None:
-            os.eventfd_write(self.wake_fd, 1)
+        if self.eventfd is not None:
+            os.eventfd_write(self.eventfd, 1)
 
     @property
     def wake_pending(self) -> bool:
-        return self.wake_fd is not None and eventfd_pending(self.wake_fd)
+        return self.eventfd is not None and eventfd_pending(self.eventfd)
 
     def stop(self) -> None:
         self.supervisor.stop_child(self.child, self.supervisor.app.stop_reason or "stop requested")
@@ -138,7 +142,7 @@ class ProcessDriver:
 class ProcessSupervisor:
     """Starts, watches and stops the child processes of ``app`` (the launcher's part of ``spec``)."""
 
-    def __init__(self, spec: AppSpec, app: Application, log_level: int = logging.INFO,
+    def __init__(self, spec: AppSpec, app: Application, deployment: Deployment, log_level: int = logging.INFO,
                  child_module: str = "coco_core.processes.child", child_config: dict[str, Any] | None = None) -> None:
         self.child_module = child_module
         """The module a child runs (``python -m``): the ROS launcher's children host an rclpy node."""
@@ -146,6 +150,8 @@ class ProcessSupervisor:
         """Extra configuration every child receives (the ROS launcher's node name and ROS arguments)."""
         self.spec = spec
         self.app = app
+        self.deployment = deployment
+        """The launch's plan, which every child receives and executes (:mod:`coco_core.deployment`)."""
         self.placement = Placement.of(spec)
         self.log_level = log_level
         self.launch_id = f"{os.getpid()}-{secrets.token_hex(3)}"
@@ -175,8 +181,7 @@ class ProcessSupervisor:
                 fd = os.eventfd(0, os.EFD_CLOEXEC)
                 self._fds.append(fd)
                 self._wakes[name] = fd
-                if self.placement.of_activity[name] == LAUNCHER:
-                    self.app.activities[name].drive_with(EventfdDriver(fd))
+            drive(self.app, self.deployment, self._wakes)
             attach(self.app, self.plans, self._wakes)
             for name in self.placement.processes:
                 self.children[name] = self._spawn(name)
@@ -190,7 +195,8 @@ class ProcessSupervisor:
         self.app.gate.when_open(self._start_all)
         for child in self.children.values():
             for name in child.activities:
-                ProcessDriver(self, child, self.app.activities[name], self._wakes.get(name))
+                ProcessDriver(self, child, self.app.activities[name], self.deployment.activities[name].driving,
+                              self._wakes.get(name))
             threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True).start()
         self.app.router = self
         self.app.add_damage_listener(self._pass_on_damage)
@@ -206,7 +212,7 @@ class ProcessSupervisor:
         finally:
             os.close(theirs)
         link.send("config", spec=self.spec, process=name, launch=self.launch_id, wakes=self._wakes,
-                  plans=self.plans, log_level=self.log_level, **self.child_config)
+                  plans=self.plans, deployment=self.deployment, log_level=self.log_level, **self.child_config)
         return Child(name, link, popen, activities)
 
     def _wait_built(self, child: Child) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ctypes
 import os
 import signal
+import threading
 import time
 from pathlib import Path
 
@@ -67,17 +68,21 @@ class Ticker(Component):
 
 
 class Sink(Component):
-    """Appends every value it reads to ``path`` (one line each) and records its pid and on_stop."""
+    """Appends every value it reads to ``path`` (one line each) and records its pid and on_stop, and
+    in ``threads_path`` (when set) the names of the threads that updated it."""
 
     path = Attribute(str, "sink.txt", "output file")
+    threads_path = Attribute(str, "", "where to write the names of the threads that ran on_update")
     value = InputPort(Stamped, event=True)
 
     def on_config(self) -> None:
         self.file = open(self.path, "w")
         self.file.write(f"pid {os.getpid()}\n")
         self.file.flush()
+        self.threads: set[str] = set()
 
     def on_update(self) -> None:
+        self.threads.add(threading.current_thread().name)
         for sample in self.value.read_all():
             self.file.write(f"{sample.value}\n")
 
@@ -86,6 +91,8 @@ class Sink(Component):
             self.file.write(f"damage {what}\n")
         self.file.write("stopped\n")
         self.file.close()
+        if self.threads_path:
+            Path(self.threads_path).write_text("\n".join(sorted(self.threads)))
 
 
 class SlowConfig(Component):
