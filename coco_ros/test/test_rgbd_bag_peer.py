@@ -1,10 +1,10 @@
 """BagRgbdPeer (coco_ros.vision.rgbd_bag): a rosbag2 recording of camera topics as the peer of
 coco_mr_vision's RgbdCameraReader, declared as a peer or made from the reader's ``backend="bag"``
-(found by its registered name: coco_mr_vision imports nothing of coco_ros)."""
+(found by its registered name: coco_mr_vision imports nothing of coco_ros, which
+test/test_package_dependencies.py checks)."""
 
 from __future__ import annotations
 
-import ast
 import time
 from pathlib import Path
 
@@ -25,7 +25,6 @@ from coco_ros.convert.images import CameraInfoConverter, ImageMessageConverter  
 from coco_ros.vision.rgbd_bag import BagRgbdPeer  # noqa: E402
 
 REDWOOD = SHARED_DATA / "rgbd" / "redwood"
-VISION = Path(__file__).resolve().parents[2] / "coco_mr_vision" / "coco_mr_vision"
 
 
 def needs(path: Path) -> Path:
@@ -49,18 +48,6 @@ def run(reader: RgbdCameraReader, updates: int) -> list:
     for _ in range(updates):
         reader.on_update()
     return sink.rgbd.read_all()
-
-
-def test_coco_mr_vision_imports_nothing_of_coco_ros():
-    """coco_ros depends on coco_mr_vision, so the other way round would be a cycle (before: the bag
-    peer lived in coco_mr_vision/rgbd_peers.py and imported coco_ros's bag reader)."""
-    found = []
-    for source in sorted(VISION.rglob("*.py")):
-        for node in ast.walk(ast.parse(source.read_text(), str(source))):
-            names = [alias.name for alias in node.names] if isinstance(node, ast.Import) else \
-                [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else []
-            found += [f"{source.name}:{node.lineno} {name}" for name in names if name.split(".")[0] == "coco_ros"]
-    assert sorted(VISION.rglob("*.py")) and found == []
 
 
 def test_the_bag_backend_is_this_packages_peer():
