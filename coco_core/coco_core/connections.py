@@ -140,7 +140,7 @@ class Connection(abc.ABC):
     def __repr__(self) -> str:
         source = self.source.qualified_name if self.source else "?"
         sink = self.sink.qualified_name if self.sink else "?"
-        return f"<{type(self).__name__} {source} -> {sink} {self.policy}>"
+        return f"<Connection {source} -> {sink} {self.policy}>"
 
 
 class CountedConnection(Connection):
