@@ -18,7 +18,6 @@ setup(
             "RgbdCameraReader = coco_mr_vision.rgbd_reader:RgbdCameraReader",
             "TumRgbdPeer = coco_mr_vision.rgbd_peers:TumRgbdPeer",
             "RedwoodRgbdPeer = coco_mr_vision.rgbd_peers:RedwoodRgbdPeer",
-            "BagRgbdPeer = coco_mr_vision.rgbd_peers:BagRgbdPeer",
             "RealSenseRgbdPeer = coco_mr_vision.rgbd_peers:RealSenseRgbdPeer",
             "MarkerTracker = coco_mr_vision.marker_tracker:MarkerTracker",
             "MarkerRegistration = coco_mr_vision.marker_registration:MarkerRegistration",

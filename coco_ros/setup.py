@@ -57,6 +57,7 @@ setup(
             "TeleopSummary = coco_ros.teleop.summary:TeleopSummary",
             "PalpationSummary = coco_ros.palpation.summary:PalpationSummary",
             "ROSHapticDevice = coco_ros.haptics.device:ROSHapticDevice",
+            "BagRgbdPeer = coco_ros.vision.rgbd_bag:BagRgbdPeer",
         ],
     },
 )

@@ -29,9 +29,6 @@ DECLARED_AS = {
 }
 """How package.xml declares each third-party module; a ROS message package is declared by its own name."""
 WORKSPACE_PACKAGES = {*PACKAGES, "tf2_msgs", "coco_interfaces"}
-KNOWN_CYCLES = {("coco_mr_vision", "coco_ros")}
-"""coco_mr_vision's bag peer imports coco_ros, which depends on coco_mr_vision: a cycle package.xml
-cannot declare; issue 21 moves that peer up into coco_ros."""
 
 
 def imported_modules(package: str) -> set[str]:
@@ -51,7 +48,7 @@ def test_package_xml_declares_every_third_party_import(package: str) -> None:
     missing = []
     for module in sorted(imported_modules(package)):
         if module in WORKSPACE_PACKAGES and module != package:
-            declared = f"<exec_depend>{module}</exec_depend>" in manifest or (package, module) in KNOWN_CYCLES
+            declared = f"<exec_depend>{module}</exec_depend>" in manifest
         elif module == package:
             continue
         else:

@@ -24,7 +24,7 @@ _EXPORTS = {
     "Operation": "operations", "current_activity": "operations", "operation": "operations",
     "NEW_DATA": "policy", "NO_DATA": "policy", "OLD_DATA": "policy", "BufferPolicy": "policy",
     "ConnectionPolicy": "policy", "ReadStatus": "policy", "SyncPolicy": "policy",
-    "FramePool": "pool", "Slot": "pool", "SlotState": "pool",
+    "FramePool": "pool", "LocalFramePool": "pool", "Slot": "pool", "SlotState": "pool",
     "InputPort": "ports", "OutputPort": "ports", "PooledOutputPort": "ports",
     "register": "registry",
     "SchedulingRequest": "scheduling",
@@ -52,7 +52,7 @@ if TYPE_CHECKING:
     from .errors import CocoError, ConfigError, ConfigErrors, Location
     from .operations import Operation, current_activity, operation
     from .policy import NEW_DATA, NO_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, ReadStatus, SyncPolicy
-    from .pool import FramePool, Slot, SlotState
+    from .pool import FramePool, LocalFramePool, Slot, SlotState
     from .ports import InputPort, OutputPort, PooledOutputPort
     from .registry import register
     from .scheduling import SchedulingRequest

@@ -12,6 +12,7 @@ own small class instead of one class with branches, and the dropped-item counter
 
 from __future__ import annotations
 
+import abc
 import logging
 import sys
 import threading
@@ -39,11 +40,13 @@ class _Empty:
 EMPTY: Any = _Empty()
 
 
-class Connection:
-    """One channel from ``source`` to ``sink`` with a :class:`ConnectionPolicy`.
+class Connection(abc.ABC):
+    """One channel from ``source`` to ``sink`` with a :class:`ConnectionPolicy`: the contract every
+    connection keeps, in one process (:class:`CountedConnection` and its policies) or between
+    processes (:mod:`coco_core.shm`, whose counters live in shared memory).
 
-    Counting contract (every connection class, including any later one across processes, keeps it,
-    because the profile's ``dropped`` column is the only place a lost sample shows):
+    Counting contract (every connection class keeps it, because the profile's ``dropped`` column is
+    the only place a lost sample shows):
 
     - ``written``: values offered by the writer (``push``), whether stored or not;
     - ``read``: values the reader took *and used* (``pop``, minus those given back to :meth:`skip`);
@@ -58,23 +61,42 @@ class Connection:
     wake the sink's triggered activity.
     """
 
-    __slots__ = ("source", "sink", "policy", "written", "read", "trigger", "__weakref__")
+    __slots__ = ("source", "sink", "policy", "trigger", "__weakref__")
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         self.policy = policy
         self.source: OutputPort | None = None
         self.sink: InputPort | None = None
-        self.written = 0
-        self.read = 0
         self.trigger: Callable[[], None] | None = None
 
+    @abc.abstractmethod
     def push(self, value: Any) -> None:
         """Store ``value`` for the reader; never blocks."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def pop(self) -> Any:
         """Take the next value, or :data:`EMPTY` when there is nothing new; never blocks."""
-        raise NotImplementedError
+
+    @property
+    @abc.abstractmethod
+    def written(self) -> int:
+        """Values offered by the writer (see the counting contract)."""
+
+    @property
+    @abc.abstractmethod
+    def read(self) -> int:
+        """Values the reader took and used (see the counting contract)."""
+
+    @property
+    @abc.abstractmethod
+    def pending(self) -> int:
+        """Values written and not yet taken by the reader."""
+
+    @abc.abstractmethod
+    def skip(self, count: int = 1) -> None:
+        """Count ``count`` values the reader took with ``pop`` but discarded unused as dropped.
+
+        Called by the reader's thread only (as ``pop``), so ``read`` still has a single writer."""
 
     def pop_newest(self) -> Any:
         """Take every value waiting and return the newest (:data:`EMPTY` when none); the older ones
@@ -86,17 +108,6 @@ class Connection:
             self.skip()
             newest = value
         return newest
-
-    def skip(self, count: int = 1) -> None:
-        """Count ``count`` values the reader took with ``pop`` but discarded unused as dropped.
-
-        Called by the reader's thread only (as ``pop``), so ``read`` still has a single writer."""
-        self.read -= count
-
-    @property
-    def pending(self) -> int:
-        """Values written and not yet taken by the reader."""
-        raise NotImplementedError
 
     def writer_done(self) -> None:
         """The writer's activity finished: nothing more will come. A reader in the same process
@@ -132,7 +143,26 @@ class Connection:
         return f"<Connection {source} -> {sink} {self.policy}>"
 
 
-class DataConnection(Connection):
+class CountedConnection(Connection):
+    """A connection whose two counters are plain fields of this process: every connection in one
+    process (each side of it is a thread here), and the ends between processes whose counter only
+    this process needs."""
+
+    __slots__ = ("written", "read")
+
+    written: int  # fields here, where the contract only asks for values
+    read: int
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self.written = 0
+        self.read = 0
+
+    def skip(self, count: int = 1) -> None:
+        self.read -= count
+
+
+class DataConnection(CountedConnection):
     """DATA, LOCK_FREE / UNSYNC: the latest value and its sequence number, swapped as one tuple."""
 
     __slots__ = ("_cell", "_seen")
@@ -187,7 +217,7 @@ class LockedDataConnection(DataConnection):
             return value
 
 
-class BufferConnection(Connection):
+class BufferConnection(CountedConnection):
     """BUFFER, LOCK_FREE / UNSYNC: bounded FIFO that refuses new data when full.
 
     Only the reader shrinks the deque, so the writer's length check can only be pessimistic: the buffer
@@ -245,7 +275,7 @@ class LockedBufferConnection(BufferConnection):
             return EMPTY
 
 
-class CircularConnection(Connection):
+class CircularConnection(CountedConnection):
     """CIRCULAR, LOCK_FREE / UNSYNC: bounded FIFO whose append pushes the oldest item out atomically."""
 
     __slots__ = ("_queue",)
@@ -295,7 +325,7 @@ class LockedCircularConnection(CircularConnection):
             return EMPTY
 
 
-_CLASSES: dict[tuple[BufferPolicy, bool], type[Connection]] = {
+_CLASSES: dict[tuple[BufferPolicy, bool], type[CountedConnection]] = {
     (BufferPolicy.DATA, False): DataConnection,
     (BufferPolicy.DATA, True): LockedDataConnection,
     (BufferPolicy.BUFFER, False): BufferConnection,
@@ -314,7 +344,7 @@ def _gil_enabled() -> bool:
 GIL = _gil_enabled()
 
 
-def make_connection(policy: ConnectionPolicy) -> Connection:
+def make_connection(policy: ConnectionPolicy) -> CountedConnection:
     """The connection class for a copying policy (POOL connections are made by pooled ports).
 
     Without a GIL, appends and swaps are no longer atomic: LOCK_FREE then falls back to LOCKED.

@@ -1,6 +1,8 @@
 """Pooled channels: large frames handed from writer to readers by reference, never copied.
 
-A pooled output port owns a :class:`FramePool` of preallocated numpy buffers (*slots*). The writer
+A pooled output port owns a :class:`FramePool` of preallocated numpy buffers (*slots*): a
+:class:`LocalFramePool` in its process, or the process level's pool in shared memory when a reader
+runs in another process (both implement the :class:`FramePool` protocol). The writer
 acquires a FREE slot (-> WRITING), fills it in place and publishes it (-> READY). Each reader takes the
 newest READY slot (-> READING, counted per reader) and releases it when done; a slot goes back to FREE
 once no reader holds it and a newer frame has been published. The cost of a hand-over is a few
@@ -13,6 +15,7 @@ yet (that frame is dropped, as a DATA connection would overwrite it), and when e
 
 from __future__ import annotations
 
+import abc
 import enum
 import threading
 from typing import Any
@@ -66,8 +69,76 @@ class Slot:
         return f"<Slot {self.index} {self.state.value} seq={self.seq} readers={self.readers}>"
 
 
-class FramePool:
-    """A fixed set of slots shared by one writer and any number of readers."""
+class FramePool(abc.ABC):
+    """The slot protocol of a pooled output, wherever its slots live: in this process
+    (:class:`LocalFramePool`) or in shared memory for readers in other processes
+    (:class:`coco_core.shm.ShmFramePool`). A pooled output port and its readers use nothing else."""
+
+    __slots__ = ()
+
+    @property
+    @abc.abstractmethod
+    def count(self) -> int:
+        """Slots in the pool (fixed at its making)."""
+
+    @property
+    @abc.abstractmethod
+    def published(self) -> int:
+        """Frames published so far (the sequence number of the newest)."""
+
+    @property
+    @abc.abstractmethod
+    def stalls(self) -> int:
+        """Acquires refused because every slot was in use."""
+
+    @property
+    @abc.abstractmethod
+    def reused(self) -> int:
+        """Frames replaced unread by a newer one (the writer took back the newest READY slot)."""
+
+    @property
+    @abc.abstractmethod
+    def newest_seq(self) -> int:
+        """The sequence number of the newest frame still published, 0 when none (a reader's
+        ``pending``)."""
+
+    @abc.abstractmethod
+    def acquire(self, shape: tuple[int, ...], dtype: Any = np.uint8) -> Slot | None:
+        """A slot to write into (WRITING), with an array of ``shape`` and ``dtype``; None (and a
+        stall counted) when every slot is in use."""
+
+    @abc.abstractmethod
+    def publish(self, slot: Slot) -> None:
+        """Make a written slot the newest frame (WRITING -> READY)."""
+
+    @abc.abstractmethod
+    def take(self, after_seq: int) -> Slot | None:
+        """The newest frame if it is newer than ``after_seq``, marked READING for one more reader."""
+
+    @abc.abstractmethod
+    def release(self, slot: Slot) -> None:
+        """One reader is done with ``slot``; the last one returns it to READY (newest) or FREE."""
+
+    @abc.abstractmethod
+    def states(self) -> list[SlotState]:
+        """State of every slot, for tests and diagnostics."""
+
+    @property
+    def live(self) -> bool:
+        """Whether the pool is in use: a frame published, or a slot out of FREE. A pooled output's
+        pool is chosen before (:meth:`coco_core.ports.PooledOutputPort.use_pool`)."""
+        return self.published > 0 or any(state is not SlotState.FREE for state in self.states())
+
+
+class LocalFramePool(FramePool):
+    """A pool whose slots are numpy buffers of this process, shared by one writer and any number of
+    readers in it."""
+
+    __slots__ = ("_lock", "slots", "published", "stalls", "reused", "newest")
+
+    published: int  # fields here, where the protocol only asks for values
+    stalls: int
+    reused: int
 
     def __init__(self, slots: int) -> None:
         if slots < 2:
@@ -78,6 +149,15 @@ class FramePool:
         self.stalls = 0
         self.reused = 0
         self.newest: Slot | None = None
+
+    @property
+    def count(self) -> int:
+        return len(self.slots)
+
+    @property
+    def newest_seq(self) -> int:
+        newest = self.newest
+        return newest.seq if newest is not None else 0
 
     def acquire(self, shape: tuple[int, ...], dtype: Any = np.uint8) -> Slot | None:
         """A slot to write into (WRITING), with an array of ``shape`` and ``dtype``.
@@ -110,7 +190,6 @@ class FramePool:
         return None
 
     def publish(self, slot: Slot) -> None:
-        """Make a written slot the newest frame (WRITING -> READY)."""
         with self._lock:
             if slot.state is not SlotState.WRITING or slot.pool is not self:
                 raise PoolError(f"publish() needs a slot acquired from this pool, got {slot!r}")
@@ -122,7 +201,6 @@ class FramePool:
                 previous.state = SlotState.FREE
 
     def take(self, after_seq: int) -> Slot | None:
-        """The newest frame if it is newer than ``after_seq``, marked READING for one more reader."""
         with self._lock:
             slot = self.newest
             if slot is None or slot.seq <= after_seq:
@@ -132,7 +210,6 @@ class FramePool:
             return slot
 
     def release(self, slot: Slot) -> None:
-        """One reader is done with ``slot``; the last one returns it to READY (newest) or FREE."""
         with self._lock:
             if slot.readers <= 0:
                 raise PoolError(f"release() of a slot that is not being read: {slot!r}")
@@ -141,26 +218,32 @@ class FramePool:
                 slot.state = SlotState.READY if slot is self.newest else SlotState.FREE
 
     def states(self) -> list[SlotState]:
-        """State of every slot, for tests and diagnostics."""
         with self._lock:
             return [slot.state for slot in self.slots]
 
 
-class PoolConnection(Connection):
-    """The reader side of a pooled output: latest-frame semantics over the shared pool."""
+class PoolReader(Connection):
+    """The reader's side of a pooled output, wherever the pool and the ``read`` counter live:
+    latest-frame semantics over the pool. An input port gives a pooled frame out once only (no
+    OLD_DATA of a slot released since); a skipped frame is released."""
 
     __slots__ = ("pool", "_seen")
 
-    def __init__(self, pool: FramePool, policy: ConnectionPolicy | None = None) -> None:
-        super().__init__(policy or ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, len(pool.slots)))
+    @property
+    @abc.abstractmethod
+    def read(self) -> int:
+        """Frames this reader took and used (a field, or a word of shared memory)."""
+
+    @read.setter
+    @abc.abstractmethod
+    def read(self, value: int) -> None:
+        """Counted by this reader's thread only, in :meth:`pop` and :meth:`skip`."""
+
+    def __init__(self, pool: FramePool, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
         self.pool = pool
         self._seen = 0
-
-    def push(self, value: Any) -> None:
-        # The frame is already in the pool (published by the port); count it and wake the reader.
-        self.written += 1
-        if self.trigger is not None:
-            self.trigger()
+        """The sequence number of the last frame this reader took."""
 
     def pop(self) -> Any:
         slot = self.pool.take(self._seen)
@@ -169,6 +252,9 @@ class PoolConnection(Connection):
         self._seen = slot.seq
         self.read += 1
         return slot
+
+    def skip(self, count: int = 1) -> None:
+        self.read -= count
 
     def pop_newest(self) -> Any:
         """The newest frame; a frame published while this one was taken replaces it, and the one it
@@ -185,5 +271,24 @@ class PoolConnection(Connection):
 
     @property
     def pending(self) -> int:
-        newest = self.pool.newest
-        return 1 if newest is not None and newest.seq > self._seen else 0
+        return 1 if self.pool.newest_seq > self._seen else 0
+
+
+class PoolConnection(PoolReader):
+    """The reader's side of a pooled output in the writer's process (its pool, its counters here)."""
+
+    __slots__ = ("written", "read")
+
+    written: int  # fields here, where the contract only asks for values
+    read: int
+
+    def __init__(self, pool: FramePool, policy: ConnectionPolicy | None = None) -> None:
+        super().__init__(pool, policy or ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, pool.count))
+        self.written = 0
+        self.read = 0
+
+    def push(self, value: Any) -> None:
+        # The frame is already in the pool (published by the port); count it and wake the reader.
+        self.written += 1
+        if self.trigger is not None:
+            self.trigger()

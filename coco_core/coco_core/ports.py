@@ -11,9 +11,9 @@ import copy
 from typing import TYPE_CHECKING, Any, Callable
 
 from .connections import EMPTY, Connection
-from .errors import PolicyError
+from .errors import PolicyError, PoolError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
-from .pool import DEFAULT_SLOTS, FramePool, PoolConnection, Slot
+from .pool import DEFAULT_SLOTS, FramePool, LocalFramePool, PoolConnection, PoolReader, Slot
 
 if TYPE_CHECKING:
     from .component import Component
@@ -117,18 +117,45 @@ class PooledOutputPort(OutputPort):
 
     Readers receive the :class:`Slot` itself and must ``release()`` it (or use it as a context
     manager). ``slots`` should be at least 2 + the number of readers that hold a frame at once.
+
+    Each bound port starts with a :class:`LocalFramePool` of its own; the process level gives it its
+    pool in shared memory, when a reader runs in another process, through :meth:`use_pool`, the one
+    way a port's pool changes, before any frame went through it.
     """
 
     def __init__(self, slots: int = DEFAULT_SLOTS, doc: str = "") -> None:
         super().__init__(Slot, doc)
         self.slots = slots
-        self.pool = FramePool(slots)
+        self._pool: FramePool = LocalFramePool(slots)
 
     def bind(self, owner: Component, name: str | None = None) -> PooledOutputPort:
         port = super().bind(owner, name)
         assert isinstance(port, PooledOutputPort)
-        port.pool = FramePool(self.slots)
+        port._pool = LocalFramePool(self.slots)
         return port
+
+    @property
+    def pool(self) -> FramePool:
+        """The pool every frame of this port goes through (read-only: see :meth:`use_pool`)."""
+        return self._pool
+
+    def use_pool(self, pool: FramePool) -> None:
+        """Make ``pool`` this port's pool, for its readers in this process too: the process level's
+        pool in shared memory, attached between the building of the application and its start.
+        Refused once a frame went through the port (a reader may hold a slot of the old pool), and
+        for a pool of another slot count than the port's (the readers in other processes were
+        planned from the declaration)."""
+        if self._pool.live:
+            raise PoolError(f"{self.qualified_name}: its pool is in use (frames published or held); a pooled "
+                            "output's pool is chosen before the application starts")
+        if pool.count != self.slots:
+            raise PoolError(f"{self.qualified_name} has {self.slots} slots, the pool given to it "
+                            f"{pool.count}: a pooled output read from another process keeps the slot count "
+                            "of its declaration")
+        self._pool = pool
+        for connection in self.connections:  # the readers in this process, made by connection()
+            if isinstance(connection, PoolConnection):
+                connection.pool = pool
 
     def acquire(self, shape: tuple[int, ...], dtype: Any = "uint8") -> Slot | None:
         """A slot to fill in place, or None when every slot is busy (skip this frame)."""
@@ -177,7 +204,7 @@ class InputPort(Port):
     def add_connection(self, connection: Connection, event: bool | None = None) -> None:
         """Attach a connection; ``event`` overrides the port's own event flag for this connection."""
         connection.sink = self
-        if isinstance(connection, PoolConnection):
+        if isinstance(connection, PoolReader):
             # A pooled frame may be reused once released: never hand it out again as OLD_DATA.
             self._keeps_last = False
         if event if event is not None else self.event:

@@ -90,7 +90,7 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
                 for port in component.outputs.values():
                     if isinstance(port, PooledOutputPort):
                         pool = port.pool
-                        shot.pools.append([port.qualified_name, str(len(pool.slots)), str(pool.published),
+                        shot.pools.append([port.qualified_name, str(pool.count), str(pool.published),
                                            str(pool.stalls)])
     shot.connections = connection_rows(app.connections)
     return shot

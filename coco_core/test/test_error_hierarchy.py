@@ -26,7 +26,7 @@ from coco_core.errors import (
 from coco_core.component import Component
 from coco_core.period import PeriodGrid
 from coco_core.policy import BufferPolicy, ConnectionPolicy
-from coco_core.pool import FramePool
+from coco_core.pool import LocalFramePool
 from coco_core.profiling import ActivityStats
 from coco_core.transforms import se3
 from coco_core.transforms.edges import StaticEdge
@@ -120,7 +120,7 @@ def test_a_bad_quaternion_is_a_geometry_error_and_a_value_error() -> None:
 
 def test_frame_pool_misuse_is_a_pool_error_and_a_value_error() -> None:
     with pytest.raises(PoolError) as caught:
-        FramePool(1)
+        LocalFramePool(1)
     assert isinstance(caught.value, ValueError)
 
 

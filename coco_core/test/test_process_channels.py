@@ -20,7 +20,7 @@ import pytest
 
 from coco_core import NEW_DATA, InputPort
 from coco_core.connections import EMPTY
-from coco_core.pool import PoolConnection, SlotState
+from coco_core.pool import PoolReader, SlotState
 from coco_core.policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from coco_core.shm import Arena, ShmPoolReader, ShmReader, ShmWriter, leftovers
 
@@ -84,7 +84,7 @@ def test_read_newest_releases_the_frames_it_skips(arena: Arena) -> None:
     """A writer process publishes while the reader takes only the newest frame: a frame published
     while read_newest takes another replaces it, and the one replaced is released (before: it stayed
     READING for good, and after a few the writer had no slot left). ShmPoolReader is a
-    PoolConnection: the in-process pool's readers run the same pop_newest."""
+    PoolReader, as the in-process pool's readers: they run the same pop_newest."""
     spec = arena.channel(ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 4), "w.frames->r.value", frames=True)
     connection = ShmPoolReader(spec)
     port = InputPort(object).bind(None)  # type: ignore[arg-type]
@@ -105,7 +105,7 @@ def test_read_newest_releases_the_frames_it_skips(arena: Arena) -> None:
     states = connection.pool.states()
     assert SlotState.READING not in states, f"slots leaked after {reads} reads: {states}"
     assert connection.counters()["dropped"] == connection.written - connection.read - connection.pending
-    assert isinstance(connection, PoolConnection)
+    assert isinstance(connection, PoolReader)
     connection.pool.unlink_slots()  # type: ignore[attr-defined]
 
 

@@ -12,8 +12,8 @@ from coco_core import (
     BufferPolicy,
     Component,
     ConnectionPolicy,
-    FramePool,
     InputPort,
+    LocalFramePool,
     PooledOutputPort,
     Slot,
     SlotState,
@@ -182,7 +182,7 @@ def test_steady_stream_reuses_the_same_numpy_buffers():
 
 
 def test_shape_or_dtype_change_reallocates():
-    pool = FramePool(2)
+    pool = LocalFramePool(2)
     slot = pool.acquire((4, 4), np.uint8)
     before = slot.array
     assert before.shape == (4, 4) and before.dtype == np.uint8
@@ -227,15 +227,15 @@ def test_two_readers_share_one_slot_until_both_release():
 
 def test_pool_misuse_is_refused():
     with pytest.raises(ValueError, match="at least 2"):
-        FramePool(1)
-    pool = FramePool(2)
+        LocalFramePool(1)
+    pool = LocalFramePool(2)
     slot = pool.acquire((1,))
     pool.publish(slot)
     with pytest.raises(ValueError, match="publish"):
         pool.publish(slot)  # already READY
     with pytest.raises(ValueError, match="release"):
         slot.release()  # nobody is reading it
-    foreign = FramePool(2).acquire((1,))
+    foreign = LocalFramePool(2).acquire((1,))
     with pytest.raises(ValueError):
         pool.publish(foreign)
 
@@ -244,7 +244,7 @@ def test_each_component_instance_has_its_own_pool():
     a, b = Camera("a"), Camera("b")
     assert a.image.pool is not b.image.pool
     assert a.image.pool is not Camera.image.pool
-    assert len(a.image.pool.slots) == 3
+    assert a.image.pool.count == 3
 
 
 def test_pooled_write_without_connection_publishes_without_error():

@@ -13,15 +13,26 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coco_core import InputPort, NEW_DATA, NO_DATA, OLD_DATA, Stamp, Stamped
+from coco_core import Application, Component, InputPort, NEW_DATA, NO_DATA, OLD_DATA, PooledOutputPort, Stamp, Stamped
+from coco_core.connections import Connection
+from coco_core.errors import PoolError
 from coco_core.policy import BufferPolicy, ConnectionPolicy, SyncPolicy
-from coco_core.pool import SlotState
-from coco_core.shm import (Arena, ChannelError, ChannelStats, ShmFramePool, ShmPoolReader, ShmReader, ShmWriter,
-                           leftovers, sweep)
+from coco_core.pool import FramePool, LocalFramePool, PoolReader, Slot, SlotState
+from coco_core.shm import (FORCE_LOCKED, Arena, ChannelError, ChannelStats, FrameStats, Segment, ShmFrameNotifier,
+                           ShmFramePool, ShmPoolReader, ShmReader, ShmWriter, leftovers, sweep)
+from coco_core.shm.channel import CURSOR, FINISHED, HEADER, LARGE, LENGTH, OFFERED, READ, SLOT_HEADER, STAMP, STORED
+
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "processes.md"
 
 
-@pytest.fixture
-def arena():
+@pytest.fixture(params=["unlocked", "locked"])
+def arena(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch):
+    """Every test runs on both paths of the rings: the CPU's (unlocked on x86-64) and the locked one
+    of CPUs that may reorder stores (aarch64), forced here with COCO_SHM_LOCKED=1."""
+    if request.param == "locked":
+        monkeypatch.setenv(FORCE_LOCKED, "1")
+    else:
+        monkeypatch.delenv(FORCE_LOCKED, raising=False)
     launch = f"test{os.getpid()}x{os.urandom(3).hex()}"
     made = Arena(launch)
     yield made
@@ -229,3 +240,102 @@ def test_sweep_removes_what_a_killed_owner_left(tmp_path: Path) -> None:
     assert len(leftovers(launch)) == 3, leftovers(launch)
     assert len(sweep(launch)) == 3
     assert leftovers(launch) == []
+
+
+# --- the contracts: Connection and FramePool as protocols, the ring's named layout, one pool path -
+
+def test_connection_and_frame_pool_are_protocols_the_shared_memory_ends_implement(arena: Arena) -> None:
+    """Before, the shared-memory ends skipped Connection.__init__ (setting its fields by hand) and
+    ShmFramePool only looked like a FramePool (``type: ignore`` wherever one was expected)."""
+    with pytest.raises(TypeError, match="abstract"):
+        Connection(ConnectionPolicy())  # type: ignore[abstract]
+    with pytest.raises(TypeError, match="abstract"):
+        FramePool()  # type: ignore[abstract]
+    values = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 2), "a.out->b.in")
+    frames = arena.channel(ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 3), "c.frames->d.in", frames=True,
+                           readers=1)
+    ends: list[Connection] = [ShmWriter(values), ShmReader(values), ChannelStats(values), ShmPoolReader(frames),
+                              ShmFrameNotifier(frames), FrameStats(frames)]
+    for end in ends:
+        assert isinstance(end, Connection)
+        assert (end.source, end.sink, end.trigger) == (None, None, None), type(end).__name__
+        assert end.counters() == {"written": 0, "read": 0, "dropped": 0, "pending": 0}, type(end).__name__
+    reader = ends[3]
+    assert isinstance(reader, PoolReader) and isinstance(reader.pool, FramePool) and reader.pool.count == 3
+    reader.pool.close()
+
+
+def test_the_ring_has_the_documented_layout(arena: Arena) -> None:
+    """The ring's words by name, as docs/processes.md lists them (before: bare indexes 0, 1, 2 into
+    each slot's header)."""
+    documented = {}
+    for line in DOCS.read_text().splitlines():
+        cells = [cell.strip(" `") for cell in line.strip().strip("|").split("|")]
+        if len(cells) == 4 and cells[0] in ("header", "slot") and cells[1].isdigit():
+            documented[cells[2]] = (cells[0], int(cells[1]))
+    assert documented == {"OFFERED": ("header", OFFERED), "STORED": ("header", STORED), "READ": ("header", READ),
+                          "CURSOR": ("header", CURSOR), "FINISHED": ("header", FINISHED),
+                          "STAMP": ("slot", STAMP), "LENGTH": ("slot", LENGTH), "LARGE": ("slot", LARGE)}
+    spec = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 2), "a.out->b.in", capacity=1024)
+    writer, reader = ShmWriter(spec), ShmReader(spec)
+    writer.push(b"small")
+    writer.push(np.zeros(4096, np.uint8))  # larger than a slot: in a segment of its own
+    writer.push(1)  # refused: the BUFFER of 2 is full
+    reader.pop()
+    writer.writer_done()
+    segment = Segment(spec.segment)
+    words = segment.view.cast("q")
+    slot = (SLOT_HEADER + spec.capacity) // 8
+    try:
+        header = [words[name] for name in (OFFERED, STORED, READ, CURSOR, FINISHED)]
+        assert header == [3, 2, 1, 1, 1]
+        first, second = HEADER // 8, HEADER // 8 + slot
+        assert (words[first + STAMP], words[first + LARGE]) == (1, 0) and 0 < words[first + LENGTH] < spec.capacity
+        assert (words[second + STAMP], words[second + LARGE]) == (2, 1) and words[second + LENGTH] > 4096
+    finally:
+        words.release()
+        segment.close()
+
+
+def test_a_pooled_outputs_pool_is_given_once_before_it_is_live(arena: Arena) -> None:
+    """The process level gives a pooled output its pool in shared memory through use_pool, with the
+    readers it already has in its process; nothing else can replace it, and not once frames went
+    through (before: ``out.pool = ShmFramePool(...)`` on the port and on each of its connections)."""
+    app = Application("pool")
+    camera = app.add(Camera("camera"))
+    viewer = app.add(Viewer("viewer"))
+    local = app.connect(camera.frames, viewer.frames, ConnectionPolicy(BufferPolicy.POOL))
+    with pytest.raises(AttributeError):
+        camera.frames.pool = LocalFramePool(3)  # type: ignore[misc]
+    wrong = ShmFramePool(arena.channel(ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 4), "x.y->z.w",
+                                       frames=True))
+    with pytest.raises(PoolError, match="camera.frames has 3 slots, the pool given to it 4"):
+        camera.frames.use_pool(wrong)
+    wrong.close()
+    spec = arena.channel(ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 3), "camera.frames->far.in",
+                         frames=True, readers=1)
+    shared = ShmFramePool(spec)
+    camera.frames.use_pool(shared)
+    assert camera.frames.pool is shared and local.pool is shared, "the readers in this process read it too"
+    slot = camera.frames.acquire((2, 2))
+    assert slot is not None
+    slot.array[:] = 7
+    camera.frames.write(slot)
+    far = ShmPoolReader(spec)
+    for reader in (viewer.frames, far):
+        status, frame = reader.read() if isinstance(reader, InputPort) else (NEW_DATA, reader.pop())
+        assert status is NEW_DATA and int(frame.array.sum()) == 28
+        frame.release()
+    with pytest.raises(PoolError, match="camera.frames: its pool is in use"):
+        camera.frames.use_pool(LocalFramePool(3))
+    far.pool.close()
+    shared.unlink_slots()
+    shared.close()
+
+
+class Camera(Component):
+    frames = PooledOutputPort(slots=3)
+
+
+class Viewer(Component):
+    frames = InputPort(Slot)

@@ -13,9 +13,10 @@ import logging
 import time
 from dataclasses import replace
 
+from coco_core import registry
 from coco_core.attributes import Attribute
 from coco_core.component import Component
-from coco_core.errors import CocoError
+from coco_core.errors import CocoError, UnknownComponentError
 from coco_core.ports import OutputPort
 from coco_core.stamps import Stamp, Stamped
 
@@ -42,18 +43,32 @@ class RgbdCameraReader(Component):
 
     def init(self) -> None:
         if self.backend and not self.peers:
-            peer_class = BACKENDS[self.backend]
+            peer_class = self._backend_peer()
             attributes = {"path": self.path} if "path" in peer_class._attribute_decls else {}
             self.add_peer(peer_class(f"{self.name}.{self.backend}", **attributes))
         sources = [p for p in self.peers if isinstance(p, RgbdPeer)]
         if len(sources) != 1:
             raise CocoError(f"component {self.name} (RgbdCameraReader) needs exactly one RGB-D peer "
-                            f"({', '.join(c.__name__ for c in BACKENDS.values())} or another RgbdPeer) or a "
+                            f"({', '.join(BACKENDS.values())} or another RgbdPeer) or a "
                             f"backend attribute ({', '.join(BACKENDS)}); it has {len(sources)}")
         self.source: RgbdPeer = sources[0]
         self.frames = 0
         """Frames delivered."""
         self.ended = False
+
+    def _backend_peer(self) -> type[RgbdPeer]:
+        """The peer class of ``backend``, by its registered name: the bag peer comes from coco_ros,
+        which this package must not import (coco_ros depends on it)."""
+        task = BACKENDS[self.backend]
+        try:
+            peer_class = registry.load(task)
+        except UnknownComponentError as error:
+            raise CocoError(f"component {self.name} (RgbdCameraReader): backend {self.backend!r} needs the "
+                            f"{task} component, which no installed package provides ({error})") from None
+        if not issubclass(peer_class, RgbdPeer):
+            raise CocoError(f"component {self.name} (RgbdCameraReader): backend {self.backend!r} names {task}, "
+                            "which is not an RgbdPeer")
+        return peer_class
 
     def on_config(self) -> None:
         self._seq = 0

@@ -5,9 +5,11 @@ before any child starts: the segment, the policy, whether it carries pooled fram
 shared memory per pooled output, with its declared slots, for all its readers), and whether a write
 wakes the reader's activity (whose eventfd the launcher made and every process inherits; for an
 input made in ``init()``, which the launcher cannot see, the reader's process says so at attach).
-Then each process attaches its own ends (:func:`attach`): the writer's process an
-:class:`~coco_core.shm.ShmWriter` on the output port (and, for a pooled output, the pool in shared
-memory), the reader's process an :class:`~coco_core.shm.ShmReader` on the input port. Everything
+Then each process attaches its own ends (:func:`attach`), after building its part and before
+starting it: the writer's process an :class:`~coco_core.shm.ShmWriter` on the output port (and, for
+a pooled output, the pool in shared memory, given to the port through
+:meth:`~coco_core.ports.PooledOutputPort.use_pool`, the port's one way to change its pool), the
+reader's process an :class:`~coco_core.shm.ShmReader` on the input port. Everything
 else about the ports stays as it is: read status, round-robin over several connections, counters in
 the profile (reported by the reader's process; by the launcher, from shared memory, when that
 process died).
@@ -143,7 +145,6 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
     activity to its eventfd (inherited from the launcher)."""
     if not plans:
         return
-    from ..pool import PoolConnection
     from ..shm import ShmFrameNotifier, ShmFramePool, ShmPoolReader, ShmReader, ShmWriter
 
     process = app.process
@@ -159,14 +160,7 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
                 if not isinstance(out, PooledOutputPort):
                     raise ConfigError(f"{plan.src} is not a pooled output: a POOL connection needs one")
                 if not isinstance(out.pool, ShmFramePool):  # one shared pool for every reader process
-                    if len(out.pool.slots) != plan.channel.slots:
-                        raise ConfigError(f"{plan.src} has {len(out.pool.slots)} slots, its class declares "
-                                          f"{plan.channel.slots}: a pooled output read from another process "
-                                          "keeps the slot count of its declaration")
-                    out.pool = ShmFramePool(plan.channel)  # type: ignore[assignment]  # FramePool's interface, in shared memory
-                    for local in out.connections:  # readers in this process read the shared pool too
-                        if isinstance(local, PoolConnection):
-                            local.pool = out.pool
+                    out.use_pool(ShmFramePool(plan.channel))
                 writer = ShmFrameNotifier(plan.channel)
             else:
                 writer = ShmWriter(plan.channel)

@@ -2,7 +2,8 @@
 
 :class:`Arena` (the launcher's) makes a segment per connection between processes (per pooled output,
 whose one pool all its readers share) before the children start and unlinks them all at the end; :func:`sweep` removes what a killed launcher left. A value
-connection is a ring (:mod:`.channel`), a pooled one a pool of frame slots (:mod:`.frames`).
+connection is a ring (:mod:`.channel`), a pooled one a pool of frame slots (:mod:`.frames`); the
+launch decides whether its rings take the locked path (:mod:`.ordering`).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import itertools
 from ..policy import ConnectionPolicy
 from .channel import ChannelError, ChannelSpec, ChannelStats, ShmReader, ShmWriter, layout, ring_size
 from .frames import HEADER, NEWEST, SLOTS, FrameStats, ShmFrameNotifier, ShmFramePool, ShmPoolReader, control_size
+from .ordering import FORCE_LOCKED, rings_locked
 from .segment import Segment, leftovers, segment_name, sweep
 
 FLAGS = "flags"
@@ -22,8 +24,9 @@ def flags_name(spec: ChannelSpec) -> str:
     return f"{spec.segment.rpartition('.')[0]}.{FLAGS}"
 
 
-__all__ = ["Arena", "ChannelError", "ChannelSpec", "ChannelStats", "FrameStats", "ShmFrameNotifier", "ShmFramePool",
-           "ShmPoolReader", "ShmReader", "ShmWriter", "Segment", "flags_name", "leftovers", "sweep"]
+__all__ = ["Arena", "ChannelError", "ChannelSpec", "ChannelStats", "FORCE_LOCKED", "FrameStats", "ShmFrameNotifier",
+           "ShmFramePool", "ShmPoolReader", "ShmReader", "ShmWriter", "Segment", "flags_name", "leftovers",
+           "rings_locked", "sweep"]
 
 
 class Arena:
@@ -33,6 +36,9 @@ class Arena:
         self.launch = launch
         self._numbers = itertools.count()
         self.specs: list[ChannelSpec] = []
+        self.locked = rings_locked()
+        """Whether the launch's rings take the locked path (:mod:`.ordering`): decided here, once,
+        so that every process of the launch follows its channels' descriptions."""
 
     def channel(self, policy: ConnectionPolicy, label: str, *, frames: bool = False,
                 capacity: int | None = None, readers: int = 1) -> ChannelSpec:
@@ -50,7 +56,7 @@ class Arena:
             header.release()
         else:
             slots, size = layout(policy, capacity)
-            spec = ChannelSpec(name, label, policy, slots, size)
+            spec = ChannelSpec(name, label, policy, slots, size, locked=self.locked)
             segment = Segment(name, ring_size(slots, size))
         segment.close()
         self.specs.append(spec)

@@ -2,7 +2,26 @@
 
 The ring lives in one shared-memory segment: a header of counters, then ``slots`` slots of a fixed
 capacity. Each slot holds a *stamp* (the index of the item in it, plus one; zero while it is being
-written), the length and the pickled value. Each counter has one writer, so no lock is needed:
+written), the length and the pickled value. Its layout, in 64-bit words (native byte order):
+
+============  ==============  ==============================================================
+where         word            meaning
+============  ==============  ==============================================================
+header        ``OFFERED``     values offered by the writer (the profile's ``written``)
+header        ``STORED``      values placed in the ring (the next item's index)
+header        ``READ``        values the reader took and used (the profile's ``read``)
+header        ``CURSOR``      the index of the next item the reader takes
+header        ``FINISHED``    1 once the writer's activity finished
+header        (3 words)       unused; the header is ``HEADER`` bytes
+slot          ``STAMP``       the item's index + 1; 0 while the slot is being written
+slot          ``LENGTH``      bytes of the value (its table of parts, pickle and arrays)
+slot          ``LARGE``       0: the value follows in the slot; 1: in a segment of its own
+slot          (1 word)        unused; the slot's header is ``SLOT_HEADER`` bytes
+slot          (capacity)      the value, when it fits
+============  ==============  ==============================================================
+
+Slot ``i`` starts at byte ``HEADER + i * (SLOT_HEADER + capacity)``. Each counter has one writer,
+so no lock is needed:
 
 - the writer process owns ``offered`` (values offered: the ``written`` counter of the profile) and
   ``stored`` (values placed in the ring);
@@ -34,9 +53,10 @@ the size of the ring: a reader that keeps up keeps it at the ring plus the two l
 :class:`ChannelError` saying so, and the value counts as dropped; nothing is left half-written.
 
 The stores are ordered payload, then stamp, then counter, and the loads the other way round; on
-x86-64 (total store order) that is all the ordering needed. CPython does not expose memory fences,
-so on weakly ordered CPUs (ARM) a torn read is possible in principle; the stamp check catches the
-common case.
+x86-64 (total store order) that is all the ordering needed. CPython exposes no memory fence, so on
+CPUs that may reorder stores (ARM, POWER, RISC-V) a ring takes the *locked* path: both sides make
+every access to its shared words under the segment's lock (:class:`~.segment.SegmentLock`), as the
+launch decided in the channel's description (:mod:`.ordering`; ``COCO_SHM_LOCKED=1`` forces it).
 """
 
 from __future__ import annotations
@@ -55,12 +75,17 @@ import numpy as np
 from ..connections import EMPTY, Connection
 from ..errors import ChannelError, CocoError, FileWriteError
 from ..policy import BufferPolicy, ConnectionPolicy
-from .segment import SHM_DIR, Segment, rename, shm_open, unlink
+from .segment import SHM_DIR, Segment, SegmentLock, rename, shm_open, unlink
 
 HEADER = 64
-OFFERED, STORED, READ, CURSOR, SLOTS, CAPACITY, FINISHED = range(7)
+"""Bytes of the ring's header (its counters, then unused words)."""
+OFFERED, STORED, READ, CURSOR, FINISHED = range(5)
+"""The header's words (see the module's docstring)."""
 SLOT_HEADER = 32
-"""Per slot: stamp, length, where the value is (0: in the slot, 1: in a segment of its own), unused."""
+"""Bytes of a slot's header, before its value."""
+STAMP, LENGTH, LARGE = range(3)
+"""The words of a slot's header: the item's index + 1 (0 while written), the value's bytes, and
+where the value is (0: in the slot, 1: in a segment of its own)."""
 RETRIES = 10_000
 """Reads of a slot that keeps changing before the reader gives up for this call (a writer that died
 half-way through a slot would otherwise keep it spinning)."""
@@ -86,6 +111,9 @@ class ChannelSpec:
     control segment (one pool for every reader of a pooled output)."""
     reader: int = 0
     """Frames: this connection's reader number, its counter's place."""
+    locked: bool = False
+    """Values: whether both ends take the ring's locked path (decided once per launch, by the CPU:
+    :func:`coco_core.shm.ordering.rings_locked`)."""
 
 
 def large_name(spec: ChannelSpec, index: int) -> str:
@@ -128,6 +156,9 @@ class _Ring:
         """The ring as 64-bit words: slot ``i``'s header starts at word ``i * stride // 8``, so headers
         are read and written without making a view per access."""
         self.slot_words = self.stride // 8
+        self.lock = SegmentLock(self.segment) if spec.locked else None
+        """The locked path's critical section (None: the unlocked path, on a CPU that keeps stores
+        in order)."""
 
     def close(self) -> None:
         self.counters.release()
@@ -140,24 +171,28 @@ class ShmConnection(Connection):
 
     __slots__ = ("ring", "mode")
 
-    def __init__(self, spec: ChannelSpec) -> None:  # noqa: D107 - the counters are properties here
-        self.policy = spec.policy
-        self.source = None
-        self.sink = None
-        self.trigger = None
+    def __init__(self, spec: ChannelSpec) -> None:
+        super().__init__(spec.policy)
         self.ring = _Ring(spec)
         self.mode = spec.policy.data
 
     @property
-    def written(self) -> int:  # type: ignore[override]  # the counter lives in shared memory
+    def written(self) -> int:
         return int(self.ring.counters[OFFERED])
 
     @property
-    def read(self) -> int:  # type: ignore[override]  # the counter lives in shared memory
+    def read(self) -> int:
         return int(self.ring.counters[READ])
 
     @property
     def pending(self) -> int:
+        lock = self.ring.lock
+        if lock is None:
+            return self._pending()
+        with lock:
+            return self._pending()
+
+    def _pending(self) -> int:
         counters = self.ring.counters
         waiting = counters[STORED] - counters[CURSOR]
         if self.mode is BufferPolicy.DATA:
@@ -167,8 +202,13 @@ class ShmConnection(Connection):
     @property
     def writer_finished(self) -> bool:
         """Whether the writer's activity has finished (the writer process set ``FINISHED``): a natural
-        stop lets the reader's activity stop only then, so that the last values are read."""
-        return bool(self.ring.counters[FINISHED])
+        stop lets the reader's activity stop only then, so that the last values are read (on the
+        locked path, the values stored before are then visible too)."""
+        lock = self.ring.lock
+        if lock is None:
+            return bool(self.ring.counters[FINISHED])
+        with lock:
+            return bool(self.ring.counters[FINISHED])
 
     @property
     def label(self) -> str:
@@ -193,7 +233,12 @@ class ShmWriter(ShmConnection):
 
     def writer_done(self) -> None:
         """Tell the reader's process that nothing more will come (see :attr:`writer_finished`)."""
-        self.ring.counters[FINISHED] = 1
+        lock = self.ring.lock
+        if lock is None:
+            self.ring.counters[FINISHED] = 1
+            return
+        with lock:
+            self.ring.counters[FINISHED] = 1
 
     def _store_large(self, index: int, parts: list[Any], size: int) -> None:
         """Item ``index``'s value (``parts``, ``size`` bytes) in a segment of its own; a
@@ -225,7 +270,6 @@ class ShmWriter(ShmConnection):
 
     def push(self, value: Any) -> None:
         ring = self.ring
-        counters = ring.counters
         buffers: list[pickle.PickleBuffer] = []
         try:
             out = io.BytesIO()
@@ -238,21 +282,36 @@ class ShmWriter(ShmConnection):
             raise ChannelError(f"connection {ring.spec.label}: {type(value).__name__} value cannot be sent to "
                                f"another process: {error}") from None
         table = struct.pack(f"<I{len(raws) + 1}Q", len(raws), len(data), *(raw.nbytes for raw in raws))
+        lock = ring.lock
+        if lock is None:
+            stored = self._store(table, data, raws)
+        else:
+            with lock:
+                stored = self._store(table, data, raws)
+        trigger = self.trigger
+        if stored and trigger is not None:
+            trigger()
+
+    def _store(self, table: bytes, data: bytes, raws: list[memoryview]) -> bool:
+        """Place one encoded value in the ring (the seqlock's writer side); False when a full BUFFER
+        refused it."""
+        ring = self.ring
+        counters = ring.counters
         size = len(table) + len(data) + sum(raw.nbytes for raw in raws)
         counters[OFFERED] += 1
         stored = counters[STORED]
         if self.mode is BufferPolicy.BUFFER and stored - counters[CURSOR] >= ring.slots:
-            return  # full: the new value is refused, as an in-process BUFFER refuses it
+            return False  # full: the new value is refused, as an in-process BUFFER refuses it
         large = size > ring.capacity
         if large:  # stored before the slot changes: a value that does not fit leaves the ring as it was
             self._store_large(stored, [table, data, *raws], size)
         index = stored % ring.slots
         words, word = ring.words, index * ring.slot_words
-        if words[word + 2] and words[word] > counters[CURSOR]:  # a large item nobody read: its segment goes
-            unlink(large_name(ring.spec, words[word] - 1))
-        words[word] = 0  # being written: a reader of this slot retries
-        words[word + 1] = size
-        words[word + 2] = large
+        if words[word + LARGE] and words[word + STAMP] > counters[CURSOR]:  # a large item nobody read goes
+            unlink(large_name(ring.spec, words[word + STAMP] - 1))
+        words[word + STAMP] = 0  # being written: a reader of this slot retries
+        words[word + LENGTH] = size
+        words[word + LARGE] = large
         if not large:
             target, at = ring.map, HEADER + index * ring.stride + SLOT_HEADER
             target[at:at + len(table)] = table
@@ -262,13 +321,14 @@ class ShmWriter(ShmConnection):
             for raw in raws:  # arrays go from their own memory into the slot: one copy
                 target[at:at + raw.nbytes] = raw
                 at += raw.nbytes
-        words[word] = stored + 1
+        words[word + STAMP] = stored + 1
         counters[STORED] = stored + 1
-        trigger = self.trigger
-        if trigger is not None:
-            trigger()
+        return True
 
     def pop(self) -> Any:
+        raise CocoError(f"connection {self.ring.spec.label}: the writer's end cannot be read")
+
+    def skip(self, count: int = 1) -> None:
         raise CocoError(f"connection {self.ring.spec.label}: the writer's end cannot be read")
 
 
@@ -315,6 +375,17 @@ class ShmReader(ShmConnection):
         self.ring.counters[READ] -= count
 
     def pop(self) -> Any:
+        lock = self.ring.lock
+        if lock is None:
+            data = self._take()
+        else:
+            with lock:
+                data = self._take()
+        return EMPTY if data is None else _decode(data)
+
+    def _take(self) -> bytearray | memoryview | None:
+        """The next item's bytes, as the policy picks it (the seqlock's reader side); None when
+        there is none, or when the writer stopped in the middle of a slot (it died)."""
         ring = self.ring
         counters = ring.counters
         slots = ring.slots
@@ -322,7 +393,7 @@ class ShmReader(ShmConnection):
             stored = counters[STORED]
             cursor = counters[CURSOR]
             if stored == cursor:
-                return EMPTY
+                return None
             if self.mode is BufferPolicy.DATA:
                 index = stored - 1  # the newest, once
             elif stored - cursor > slots:
@@ -331,10 +402,10 @@ class ShmReader(ShmConnection):
                 index = cursor
             slot = index % slots
             words, word = ring.words, slot * ring.slot_words
-            before = words[word]
+            before = words[word + STAMP]
             if before != index + 1:  # being written, or already overwritten: look again
                 continue
-            size, large = words[word + 1], words[word + 2]
+            size, large = words[word + LENGTH], words[word + LARGE]
             data: bytearray | memoryview | None
             if large:
                 data = self._large(index, size)
@@ -343,7 +414,7 @@ class ShmReader(ShmConnection):
             else:
                 start = HEADER + slot * ring.stride + SLOT_HEADER
                 data = bytearray(ring.map[start:start + size])
-            if words[word] != before:  # overwritten during the copy
+            if words[word + STAMP] != before:  # overwritten during the copy
                 continue
             counters[CURSOR] = index + 1
             counters[READ] += 1
@@ -351,10 +422,10 @@ class ShmReader(ShmConnection):
                 rename(large_name(ring.spec, index), spare_name(ring.spec, index))
             if self.mode is BufferPolicy.DATA:  # the item before, if skipped, will never be read either
                 other = (index - 1) % slots * ring.slot_words
-                if words[other] == index and words[other + 2]:
+                if words[other + STAMP] == index and words[other + LARGE]:
                     unlink(large_name(ring.spec, index - 1))
-            return _decode(data)
-        return EMPTY  # the writer stopped in the middle of a slot (it died): nothing to read
+            return data
+        return None  # the writer stopped in the middle of a slot (it died): nothing to read
 
 
 def _array(buffer: Any, dtype: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -404,6 +475,9 @@ class ChannelStats(ShmConnection):
     """A read-only view of a channel's counters (for a process that holds neither end)."""
 
     __slots__ = ()
+
+    def skip(self, count: int = 1) -> None:
+        raise CocoError("a ChannelStats view cannot be read")
 
     def push(self, value: Any) -> None:
         raise CocoError("a ChannelStats view cannot be written")

@@ -11,23 +11,23 @@ new generation number, when the size changes: readers that still hold the old on
 mapping). A reader gets a numpy array *over* the slot's segment: no copy, whatever the frame size.
 
 State changes are short critical sections under a ``flock`` on the control segment (between
-processes) and a thread lock (between threads of one process, which share the flock).
+processes) and a thread lock (between threads of one process, which share the flock):
+:class:`~.segment.SegmentLock`, whose kernel lock orders the pixels written before a publish
+before the reads after a take on any CPU.
 """
 
 from __future__ import annotations
 
-import fcntl
 import pickle
-import threading
 from typing import Any
 
 import numpy as np
 
-from ..connections import Connection
+from ..connections import CountedConnection
 from ..errors import CocoError, PoolError
-from ..pool import PoolConnection, Slot, SlotState
+from ..pool import FramePool, PoolReader, Slot, SlotState
 from .channel import ChannelSpec
-from .segment import Segment, unlink
+from .segment import Segment, SegmentLock, unlink
 
 HEADER = 64
 PUBLISHED, STALLS, REUSED, NEWEST, SLOTS = range(5)
@@ -46,39 +46,28 @@ def control_size(slots: int, readers: int) -> int:
     return HEADER + slots * RECORD + readers * 8
 
 
-class _Locked:
-    """The pool's critical section: a thread lock, then the flock of the control segment."""
-
-    def __init__(self, fd: int) -> None:
-        self.fd = fd
-        self.lock = threading.Lock()
-
-    def __enter__(self) -> None:
-        self.lock.acquire()
-        fcntl.flock(self.fd, fcntl.LOCK_EX)
-
-    def __exit__(self, *exc: object) -> None:
-        fcntl.flock(self.fd, fcntl.LOCK_UN)
-        self.lock.release()
-
-
-class ShmFramePool:
-    """A frame pool whose slots live in shared memory: the writer's process puts it on its pooled
-    output port (``port.pool``); every reader process attaches one to read from it."""
+class ShmFramePool(FramePool):
+    """A frame pool whose slots live in shared memory: the writer's process gives it to its pooled
+    output port (:meth:`~coco_core.ports.PooledOutputPort.use_pool`); every reader process attaches
+    one to read from it."""
 
     def __init__(self, spec: ChannelSpec) -> None:
         self.spec = spec
         self.control = Segment(spec.segment)
         self.header = self.control.view[:HEADER].cast("q")
-        self.count = int(self.header[SLOTS])
-        at = HEADER + self.count * RECORD
+        self._count = int(self.header[SLOTS])
+        at = HEADER + self._count * RECORD
         self.reads = self.control.view[at:at + spec.readers * 8].cast("q")
         """The ``read`` counter of every reader in another process (each has one writer: its reader)."""
-        self._locked = _Locked(self.control.fd)
+        self._locked = SegmentLock(self.control)
         self._data: dict[tuple[int, int], Segment] = {}
         """(slot, generation) -> its mapped pixel segment, in this process."""
 
-    # --- what FramePool's users read ------------------------------------------------------------
+    # --- the counters of the FramePool protocol -------------------------------------------------
+    @property
+    def count(self) -> int:
+        return self._count
+
     @property
     def published(self) -> int:
         return int(self.header[PUBLISHED])
@@ -92,24 +81,15 @@ class ShmFramePool:
         return int(self.header[REUSED])
 
     @property
-    def newest(self) -> Slot | None:
-        """The newest published slot's number and sequence (a stand-in Slot, for ``pending``)."""
-        index = int(self.header[NEWEST])
-        if index < 0:
-            return None
-        slot = Slot(self, index)  # type: ignore[arg-type]
-        slot.seq = int(self._record(index)[SEQ])
-        return slot
-
-    @property
-    def slots(self) -> list[int]:
-        return list(range(self.count))
+    def newest_seq(self) -> int:
+        with self._locked:  # the newest slot and its sequence number, as one publish left them
+            index = int(self.header[NEWEST])
+            return int(self._record(index)[SEQ]) if index >= 0 else 0
 
     def states(self) -> list[SlotState]:
         with self._locked:
-            return [STATES[self._record(index)[STATE]] for index in range(self.count)]
+            return [STATES[self._record(index)[STATE]] for index in range(self._count)]
 
-    # --- the protocol ---------------------------------------------------------------------------
     def _record(self, index: int) -> memoryview:
         offset = HEADER + index * RECORD
         return self.control.view[offset:offset + DTYPE_AT].cast("q")
@@ -118,6 +98,7 @@ class ShmFramePool:
         offset = HEADER + index * RECORD + at
         return self.control.view[offset:offset + size]
 
+    # --- the protocol ---------------------------------------------------------------------------
     def acquire(self, shape: tuple[int, ...], dtype: Any = np.uint8) -> Slot | None:
         """A slot to write into (WRITING), its array a view of shared memory; None (a stall) when
         every slot is in use."""
@@ -137,13 +118,13 @@ class ShmFramePool:
             if not same or record[NBYTES] < nbytes or record[GENERATION] == 0:
                 self._reallocate(index, record, shape, dtype, nbytes)
             generation = int(record[GENERATION])
-        slot = Slot(self, index)  # type: ignore[arg-type]
+        slot = Slot(self, index)
         slot.state = SlotState.WRITING
         slot.array = self._array(index, generation, shape, dtype)
         return slot
 
     def _free_slot(self) -> int | None:
-        for index in range(self.count):
+        for index in range(self._count):
             if self._record(index)[STATE] == CODE[SlotState.FREE]:
                 return index
         newest = int(self.header[NEWEST])  # only the newest frame can be READY: replace it if unread
@@ -220,7 +201,7 @@ class ShmFramePool:
             stamp_bytes = self._bytes(index, STAMP_AT, STAMP_SIZE)
             size = int.from_bytes(stamp_bytes[:8], "little")
             stamp = bytes(stamp_bytes[8:8 + size])
-        slot = Slot(self, index)  # type: ignore[arg-type]
+        slot = Slot(self, index)
         slot.state, slot.seq, slot.readers = SlotState.READING, seq, 1
         slot.stamp = pickle.loads(stamp) if size else None
         slot.array = self._array(index, generation, shape, dtype)
@@ -240,7 +221,7 @@ class ShmFramePool:
 
     def unlink_slots(self) -> None:
         """Remove the pixel segments' names (the launcher's arena removes the control segment)."""
-        for index in range(self.count):
+        for index in range(self._count):
             generation = int(self._record(index)[GENERATION])
             if generation:
                 unlink(self._data_name(index, generation))
@@ -254,24 +235,21 @@ class ShmFramePool:
         self.control.close()
 
 
-class ShmPoolReader(PoolConnection):
+class ShmPoolReader(PoolReader):
     """The reader's end of a pooled channel: the newest frame, once, as a slot over shared memory.
-    A :class:`PoolConnection` in all but where its pool and its ``read`` counter live, so that the
-    input port treats it as one (no OLD_DATA of a released slot; skipped frames released)."""
+    The same :class:`PoolReader` as a reader in the writer's process, its pool and its ``read``
+    counter in shared memory (so that the launcher has the figures of a reader whose process died)."""
 
     __slots__ = ("spec",)
 
-    def __init__(self, spec: ChannelSpec) -> None:  # noqa: D107 - counters are properties
-        self.policy = spec.policy
-        self.source = None
-        self.sink = None
-        self.trigger = None
+    pool: ShmFramePool
+
+    def __init__(self, spec: ChannelSpec) -> None:
+        super().__init__(ShmFramePool(spec), spec.policy)
         self.spec = spec
-        self.pool = ShmFramePool(spec)  # type: ignore[assignment]  # FramePool's interface, in shared memory
-        self._seen = 0
 
     @property
-    def written(self) -> int:  # type: ignore[override]  # the counter lives in shared memory
+    def written(self) -> int:
         return self.pool.published
 
     @property
@@ -280,18 +258,18 @@ class ShmPoolReader(PoolConnection):
         return f"{source} -> {sink}"
 
     @property
-    def read(self) -> int:  # the counter lives in shared memory
-        return int(self.pool.reads[self.spec.reader])  # type: ignore[attr-defined]
+    def read(self) -> int:
+        return int(self.pool.reads[self.spec.reader])
 
     @read.setter
     def read(self, value: int) -> None:
-        self.pool.reads[self.spec.reader] = value  # type: ignore[attr-defined]
+        self.pool.reads[self.spec.reader] = value
 
     def push(self, value: Any) -> None:
         raise CocoError(f"connection {self.spec.label}: the reader's end cannot be written")
 
 
-class FrameStats(Connection):
+class FrameStats(CountedConnection):
     """A read-only view of one pooled channel's counters, for the launcher when the reader's process
     died: frames published, the reader's ``read`` from shared memory, nothing pending (the reader
     is gone)."""
@@ -323,7 +301,7 @@ class FrameStats(Connection):
         return 0
 
 
-class ShmFrameNotifier(Connection):
+class ShmFrameNotifier(CountedConnection):
     """The writer's end of a pooled channel: the frame is already in the shared pool (published by
     the port), so a write only counts and wakes the reader's process."""
 

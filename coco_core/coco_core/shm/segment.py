@@ -10,8 +10,10 @@ was killed, its orphaned children) unlinks, and every segment of a launch shares
 
 from __future__ import annotations
 
+import fcntl
 import mmap
 import os
+import threading
 from pathlib import Path
 
 import _posixshmem
@@ -110,3 +112,31 @@ def sweep(launch: str) -> list[str]:
     for name in names:
         unlink(name)
     return names
+
+
+class SegmentLock:
+    """A critical section over one segment, between processes and between the threads of one: a
+    thread lock, then an exclusive ``flock`` on the segment's descriptor. A ``flock`` belongs to
+    the open file, which the threads of a process share, hence the thread lock; each process (each
+    :class:`Segment`) opens the segment itself, so their ``flock`` calls exclude each other. The
+    kernel's lock is a full barrier: what one holder stored is what the next one loads, on any CPU
+    (which the rings' unlocked path cannot promise where stores may be reordered, see
+    :mod:`.ordering`)."""
+
+    __slots__ = ("fd", "_threads")
+
+    def __init__(self, segment: Segment) -> None:
+        self.fd = segment.fd
+        self._threads = threading.Lock()
+
+    def __enter__(self) -> None:
+        self._threads.acquire()
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX)
+        except BaseException:
+            self._threads.release()
+            raise
+
+    def __exit__(self, *exc: object) -> None:
+        fcntl.flock(self.fd, fcntl.LOCK_UN)
+        self._threads.release()

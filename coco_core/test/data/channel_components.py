@@ -98,7 +98,7 @@ class FrameSource(Component):
     def on_stop(self) -> None:
         if self.path:
             states = " ".join(state.value for state in self.frames.pool.states())
-            Path(self.path).write_text(f"slots {len(self.frames.pool.slots)}\nstates {states}\n")
+            Path(self.path).write_text(f"slots {self.frames.pool.count}\nstates {states}\n")
 
 
 class FrameSource8(FrameSource):
