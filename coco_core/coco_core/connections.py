@@ -16,7 +16,7 @@ import logging
 import sys
 import threading
 from collections import deque
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 from .errors import PolicyError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -59,6 +59,12 @@ class Connection:
     """
 
     __slots__ = ("source", "sink", "policy", "written", "read", "trigger", "__weakref__")
+
+    carries_stamps: ClassVar[bool] = False
+    """Whether the writing port hands this connection :class:`~coco_core.stamps.Message` objects
+    (payload and stamp) instead of bare values: the connections inside one process do; the others
+    (pooled frames, shared-memory channels to another process) get the bare value, so their reader
+    sees no message stamp (only the one a :class:`~coco_core.stamps.Stamped` value carries)."""
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         self.policy = policy
@@ -136,6 +142,7 @@ class DataConnection(Connection):
     """DATA, LOCK_FREE / UNSYNC: the latest value and its sequence number, swapped as one tuple."""
 
     __slots__ = ("_cell", "_seen")
+    carries_stamps = True
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
@@ -195,6 +202,7 @@ class BufferConnection(Connection):
     """
 
     __slots__ = ("_queue", "_size")
+    carries_stamps = True
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
@@ -249,6 +257,7 @@ class CircularConnection(Connection):
     """CIRCULAR, LOCK_FREE / UNSYNC: bounded FIFO whose append pushes the oldest item out atomically."""
 
     __slots__ = ("_queue",)
+    carries_stamps = True
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)

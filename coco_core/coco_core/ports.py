@@ -8,12 +8,14 @@ the connection's policy decides what happens to data the reader has not taken.
 from __future__ import annotations
 
 import copy
+import time
 from typing import TYPE_CHECKING, Any, Callable
 
 from .connections import EMPTY, Connection
 from .errors import PolicyError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
 from .pool import DEFAULT_SLOTS, FramePool, PoolConnection, Slot
+from .stamps import Message, Stamp, Stamped
 
 if TYPE_CHECKING:
     from .component import Component
@@ -62,6 +64,11 @@ class OutputPort(Port):
 
     Connections made *shared* (:meth:`share`) take turns instead: each value goes to one of them.
     That is how a farm's source feeds its workers, each of which then processes different values.
+
+    Every write is stamped (FlowVR's stamp list, :attr:`stamp`): the message's number on this port,
+    this port as its source, the iteration of the writing activity, and the acquisition time (a
+    :class:`~coco_core.stamps.Stamped` value's own, else the time of the write). The connections
+    inside the process carry the stamp beside the value.
     """
 
     def __init__(self, type_: Any = object, doc: str = "") -> None:
@@ -70,19 +77,37 @@ class OutputPort(Port):
         """The connections that receive every value."""
         self._shared: list[Connection] = []
         self._turn = 0
+        self._written = 0
+        self.stamp: Stamp | None = None
+        """The stamp of the last message written; None before the first."""
 
     def bind(self, owner: Component, name: str | None = None) -> OutputPort:
         port = super().bind(owner, name)
         assert isinstance(port, OutputPort)
-        port._every, port._shared, port._turn = [], [], 0
+        port._every, port._shared, port._turn, port._written, port.stamp = [], [], 0, 0, None
         return port
 
     def write(self, value: Any) -> None:
         """Offer ``value`` to every connection, and to one of the shared ones; never blocks."""
+        message = Message(value, self._stamp(value))
         for connection in self._every:
-            connection.push(value)
+            connection.push(message if connection.carries_stamps else value)
         if self._shared:
-            self._hand_over(value)
+            self._hand_over(message)
+
+    def _stamp(self, value: Any) -> Stamp:
+        """The stamp of the write of ``value`` (kept as :attr:`stamp`)."""
+        self._written += 1
+        owner = self.owner
+        activity = owner.activity if owner is not None else None
+        iteration = activity.stats.cycles if activity is not None else -1
+        if isinstance(value, Stamped):
+            origin = value.stamp
+            stamp = Stamp(origin.time, self._written, self.qualified_name, origin.steps, iteration)
+        else:
+            stamp = Stamp(time.perf_counter(), self._written, self.qualified_name, (), iteration)
+        self.stamp = stamp
+        return stamp
 
     def add_connection(self, connection: Connection) -> None:
         connection.source = self
@@ -96,8 +121,8 @@ class OutputPort(Port):
         self._every.remove(connection)
         self._shared.append(connection)
 
-    def _hand_over(self, value: Any) -> None:
-        """Give ``value`` to the next shared connection with nothing pending (a worker that is free,
+    def _hand_over(self, message: Message) -> None:
+        """Give ``message`` to the next shared connection with nothing pending (a worker that is free,
         as the original CoCo's farm prefers), or else to the next in turn, whose policy then
         decides (a full buffer refuses it, which its counters show as a drop)."""
         shared = self._shared
@@ -109,7 +134,7 @@ class OutputPort(Port):
                 chosen = candidate
                 break
         self._turn = (shared.index(chosen) + 1) % count
-        chosen.push(value)
+        chosen.push(message if chosen.carries_stamps else message.value)
 
 
 class PooledOutputPort(OutputPort):
@@ -135,7 +160,9 @@ class PooledOutputPort(OutputPort):
         return self.pool.acquire(shape, dtype)
 
     def write(self, slot: Slot) -> None:
-        """Publish a filled slot to every reader."""
+        """Publish a filled slot to every reader (its connections carry no message stamp: the slot is
+        handed over as it is; :attr:`stamp` still says what was written)."""
+        self._stamp(slot)
         self.pool.publish(slot)
         for connection in self.connections:
             connection.push(slot)
@@ -162,6 +189,10 @@ class InputPort(Port):
         self._next = 0
         self._last: Any = None
         self._has_last = False
+        self.stamp: Stamp | None = None
+        """The stamp of the value the last read returned (new or old): the message's stamp inside
+        one process, a :class:`~coco_core.stamps.Stamped` value's own otherwise; None for a plain
+        value that crossed without one (a pooled frame, a channel from another process)."""
         self._keeps_last = True
         self._wake: Callable[[], None] | None = None
         self._triggering: list[Connection] = []
@@ -171,6 +202,7 @@ class InputPort(Port):
         port = super().bind(owner, name)
         assert isinstance(port, InputPort)
         port._next, port._last, port._has_last, port._keeps_last, port._wake = 0, None, False, True, None
+        port.stamp = None
         port._triggering = []
         return port
 
@@ -210,24 +242,31 @@ class InputPort(Port):
         connections = self.connections
         count = len(connections)
         if count == 1:
-            value = connections[0].pop()
-            if value is not EMPTY:
-                if self._keeps_last:
-                    self._last, self._has_last = value, True
-                return NEW_DATA, value
+            item = connections[0].pop()
+            if item is not EMPTY:
+                return NEW_DATA, self._took(item)
         elif count:
             start = self._next
             for offset in range(count):
                 index = (start + offset) % count
-                value = connections[index].pop()
-                if value is not EMPTY:
+                item = connections[index].pop()
+                if item is not EMPTY:
                     self._next = (index + 1) % count
-                    if self._keeps_last:
-                        self._last, self._has_last = value, True
-                    return NEW_DATA, value
+                    return NEW_DATA, self._took(item)
         if self._has_last:
             return OLD_DATA, self._last
         return NO_DATA, None
+
+    def _took(self, item: Any) -> Any:
+        """The value of ``item`` (a :class:`~coco_core.stamps.Message` or a bare value) taken from a
+        connection, its stamp kept as :attr:`stamp` and the value as the last one."""
+        if type(item) is Message:
+            value, self.stamp = item.value, item.stamp
+        else:
+            value, self.stamp = item, item.stamp if isinstance(item, Stamped) else None
+        if self._keeps_last:
+            self._last, self._has_last = value, True
+        return value
 
     def read_newest(self) -> tuple[ReadStatus, Any]:
         """Like :meth:`read`, for a consumer that wants only the newest value: everything waiting is
@@ -252,9 +291,7 @@ class InputPort(Port):
                     newest.release()
             newest, newest_connection = value, connection
         if newest_connection is not None:
-            if self._keeps_last:
-                self._last, self._has_last = newest, True
-            return NEW_DATA, newest
+            return NEW_DATA, self._took(newest)
         if self._has_last:
             return OLD_DATA, self._last
         return NO_DATA, None
