@@ -19,7 +19,7 @@ import logging
 import sys
 import threading
 from collections import deque
-from typing import Callable, Iterable
+from typing import TYPE_CHECKING, Callable, Iterable
 
 from .component import Component
 from .drivers import DEFAULT_SPIN, Driver, MainThreadDriver, ThreadDriver
@@ -29,6 +29,9 @@ from .lifecycle import StartGate
 from .period import PeriodGrid, check_period
 from .profiling import ActivityStats
 from .scheduling import SchedulingRequest
+
+if TYPE_CHECKING:
+    from .iteration import IterationPorts
 
 log = logging.getLogger("coco")
 
@@ -76,6 +79,9 @@ class Activity:
         """Set when the application's :class:`~coco_core.lifecycle.StartGate` opens, or on a stop."""
         self.gate: StartGate | None = None
         """The start gate of the application (set by ``Application.start``); None: none to wait for."""
+        self.iteration: IterationPorts | None = None
+        """The activity's ``beginit``/``endit`` ports (:mod:`.iteration`), made when a connection
+        names one; None: the cycles wait for nothing and announce nothing."""
         for component in components:
             self.add(component)
 
@@ -212,12 +218,17 @@ class Activity:
         """One activation: queued operation calls, then every component in order."""
         if self._ops:
             self._run_pending()
+        iteration = self.iteration
+        if iteration is not None and not iteration.begin():
+            return  # no message on beginit (FlowVR's module waits for one): no cycle
         try:
             for position, component in enumerate(self.components):
                 self.current, self._position = component, position
                 component.step()
         finally:  # a stale position would keep later wake-ups from waking the activity
             self.current, self._position = None, sys.maxsize
+        if iteration is not None:
+            iteration.end()
         self.stats.cycles += 1
 
     def finish(self) -> None:

@@ -16,8 +16,11 @@ from .application import Application
 from .attributes import AttributeValueError
 from .component import Component, ErrorPolicy
 from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, did_you_mean
-from .model import ActivitySpec, AppSpec, ComponentSpec, LogSpec
+from .filters import FILTERS, Filter, Greedy, MaxFrequency, PreSignal
+from .iteration import port_of
+from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
 from .policy import ConnectionPolicy
+from .ports import Port
 from .processes.placement import LAUNCHER, Placement
 from .scheduling import SchedulingRequest
 
@@ -185,15 +188,15 @@ class _Builder:
             except (CocoError, ValueError, KeyError) as error:
                 self.fail(error, activity_spec)
         for connection_spec in spec.connections:
-            if placement.crosses(connection_spec) or placement.process_of(connection_spec.src.component) != process:
+            if placement.crosses(connection_spec) or placement.process_of_ref(connection_spec.src) != process:
                 continue  # another process's, or a shared-memory channel made by the process level
-            if {connection_spec.src.component, connection_spec.dest.component} & self.missing:
+            if {ref.component for ref in (connection_spec.src, connection_spec.dest) if not ref.activity} & self.missing:
                 continue
             try:
-                connection = app.connect(str(connection_spec.src), str(connection_spec.dest),
-                                         ConnectionPolicy(connection_spec.data, connection_spec.policy,
-                                                          max(1, connection_spec.buffersize)),
-                                         event=connection_spec.event)
+                policy = ConnectionPolicy(connection_spec.data, connection_spec.policy, max(1, connection_spec.buffersize))
+                connection = app.connect(_port(app, connection_spec.src), _port(app, connection_spec.dest), policy,
+                                         event=_event(connection_spec),
+                                         connection=_filter(connection_spec.filter, policy))
                 if connection_spec.shared and connection.source is not None:
                     connection.source.share(connection)
             except (CocoError, ValueError, KeyError) as error:
@@ -204,6 +207,30 @@ class _Builder:
             self.fail(problem, locations.get(id(subject)))
         self.check()
         return app
+
+
+def _port(app: Application, ref: PortRef) -> str | Port:
+    """The port ``ref`` names: ``component.port``, or an activity's ``beginit``/``endit``."""
+    return port_of(app.activity(ref.component), ref.port) if ref.activity else str(ref)
+
+
+def _event(spec: ConnectionSpec) -> bool | None:
+    """Whether a write wakes the reader: a Greedy connection does not unless the file says so (its
+    reader runs at its own rate and takes the newest when it runs), others as the file or port says."""
+    if spec.event is None and spec.filter is not None and spec.filter.type == Greedy.name:
+        return False
+    return spec.event
+
+
+def _filter(spec: FilterSpec | None, policy: ConnectionPolicy) -> Filter | None:
+    """The filter ``spec`` describes, with ``policy``'s buffer size; None without one."""
+    if spec is None:
+        return None
+    if spec.type == PreSignal.name:
+        return PreSignal(policy, spec.tokens)
+    if spec.type == MaxFrequency.name:
+        return MaxFrequency(policy, spec.hz)
+    return FILTERS[spec.type](policy)
 
 
 def build_application(spec: AppSpec, process: str = LAUNCHER, allow_unknown: bool = False) -> Application:

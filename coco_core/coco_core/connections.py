@@ -128,6 +128,10 @@ class Connection:
         sink = self.sink.qualified_name if self.sink else "?"
         return f"{source} -> {sink}"
 
+    def describe(self) -> str:
+        """What stores the values, for ``--check`` and the profile: the policy, or a filter's name."""
+        return str(self.policy)
+
     def counters(self) -> dict[str, int]:
         """Snapshot of the flow counters, for the profiler and diagnostics."""
         return {"written": self.written, "read": self.read, "dropped": self.dropped, "pending": self.pending}

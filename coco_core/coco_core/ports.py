@@ -224,6 +224,12 @@ class InputPort(Port):
             connection.trigger = wake
 
     @property
+    def pending(self) -> int:
+        """How many new values wait on this port's connections (a reader that takes the backlog it
+        found, and no more, reads this first)."""
+        return sum(connection.pending for connection in self.connections)
+
+    @property
     def triggers(self) -> bool:
         """Whether any connection into this port wakes the component's activity."""
         return bool(self._triggering)
