@@ -130,7 +130,8 @@ def _filter(reader: FileReader, element: Element, data: BufferPolicy, size: int)
         if kind:
             reader.error(f'<filter> type="{kind}" is not a filter; expected one of: {", ".join(FILTERS)}', element)
         return None
-    values = reader.attributes(element, ("type", *FILTER_ATTRIBUTES[kind]), required=("type", *FILTER_ATTRIBUTES[kind]))
+    required = ("type", "hz") if kind == "MaxFrequency" else ("type",)
+    values = reader.attributes(element, ("type", *FILTER_ATTRIBUTES[kind]), required=required)
     reader.empty(element)
     if data is not BufferPolicy.DATA:
         reader.error(f'a connection with a <filter> keeps what its filter keeps: leave out data="{data.value}" '
