@@ -32,7 +32,7 @@ from typing import Any, ClassVar
 from .connections import EMPTY, Connection
 from .errors import PolicyError
 from .policy import ConnectionPolicy
-from .stamps import Message, Stamp
+from .stamps import Message
 
 
 class Filter(Connection):
@@ -80,7 +80,7 @@ class Filter(Connection):
 
     def _token(self, number: int) -> Message:
         """A message the filter itself adds: no payload, stamped by the filter."""
-        return Message(None, Stamp(time.perf_counter(), number, f"{self.name}({self.label})"))
+        return Message(None, time.perf_counter(), number, f"{self.name}({self.label})", -1)
 
     def describe(self) -> str:
         """The filter and its parameters, for ``--check`` and the profile."""

@@ -8,7 +8,7 @@ the connection's policy decides what happens to data the reader has not taken.
 from __future__ import annotations
 
 import copy
-import time
+from time import perf_counter
 from typing import TYPE_CHECKING, Any, Callable
 
 from .connections import EMPTY, Connection
@@ -18,6 +18,7 @@ from .pool import DEFAULT_SLOTS, FramePool, PoolConnection, Slot
 from .stamps import Message, Stamp, Stamped
 
 if TYPE_CHECKING:
+    from .activity import Activity
     from .component import Component
 
 
@@ -78,36 +79,47 @@ class OutputPort(Port):
         self._shared: list[Connection] = []
         self._turn = 0
         self._written = 0
-        self.stamp: Stamp | None = None
-        """The stamp of the last message written; None before the first."""
+        self._source = ""
+        """``component.port``, the source of this port's messages (set by :meth:`bind`)."""
+        self._activity: Activity | None = None
+        self.last: Message | None = None
+        """The last message written; None before the first."""
 
     def bind(self, owner: Component, name: str | None = None) -> OutputPort:
         port = super().bind(owner, name)
         assert isinstance(port, OutputPort)
-        port._every, port._shared, port._turn, port._written, port.stamp = [], [], 0, 0, None
+        port._every, port._shared, port._turn, port._written, port.last = [], [], 0, 0, None
+        port._activity = None
+        port._source = port.qualified_name
         return port
 
     def write(self, value: Any) -> None:
         """Offer ``value`` to every connection, and to one of the shared ones; never blocks."""
-        message = Message(value, self._stamp(value))
+        message = self._message(value)
         for connection in self._every:
             connection.push(message if connection.carries_stamps else value)
         if self._shared:
             self._hand_over(message)
 
-    def _stamp(self, value: Any) -> Stamp:
-        """The stamp of the write of ``value`` (kept as :attr:`stamp`)."""
+    def _message(self, value: Any) -> Message:
+        """``value`` with the stamp of this write (kept as :attr:`last`)."""
         self._written += 1
-        owner = self.owner
-        activity = owner.activity if owner is not None else None
-        iteration = activity.stats.cycles if activity is not None else -1
-        if isinstance(value, Stamped):
-            origin = value.stamp
-            stamp = Stamp(origin.time, self._written, self.qualified_name, origin.steps, iteration)
-        else:
-            stamp = Stamp(time.perf_counter(), self._written, self.qualified_name, (), iteration)
-        self.stamp = stamp
-        return stamp
+        activity = self._activity or self._find_activity()
+        message = Message(value, perf_counter(), self._written, self._source,
+                          activity.stats.cycles if activity is not None else -1)
+        self.last = message
+        return message
+
+    def _find_activity(self) -> Activity | None:
+        """The activity of the owner (kept once there is one: a component never changes activity),
+        whose cycle number stamps the messages."""
+        self._activity = self.owner.activity if self.owner is not None else None
+        return self._activity
+
+    @property
+    def stamp(self) -> Stamp | None:
+        """The stamp of the last message written; None before the first."""
+        return None if self.last is None else self.last.stamp
 
     def add_connection(self, connection: Connection) -> None:
         connection.source = self
@@ -162,7 +174,7 @@ class PooledOutputPort(OutputPort):
     def write(self, slot: Slot) -> None:
         """Publish a filled slot to every reader (its connections carry no message stamp: the slot is
         handed over as it is; :attr:`stamp` still says what was written)."""
-        self._stamp(slot)
+        self._message(slot)
         self.pool.publish(slot)
         for connection in self.connections:
             connection.push(slot)
@@ -189,10 +201,8 @@ class InputPort(Port):
         self._next = 0
         self._last: Any = None
         self._has_last = False
-        self.stamp: Stamp | None = None
-        """The stamp of the value the last read returned (new or old): the message's stamp inside
-        one process, a :class:`~coco_core.stamps.Stamped` value's own otherwise; None for a plain
-        value that crossed without one (a pooled frame, a channel from another process)."""
+        self._taken: Any = None
+        """What the last new value came as: a :class:`~coco_core.stamps.Message`, or the bare value."""
         self._keeps_last = True
         self._wake: Callable[[], None] | None = None
         self._triggering: list[Connection] = []
@@ -202,7 +212,7 @@ class InputPort(Port):
         port = super().bind(owner, name)
         assert isinstance(port, InputPort)
         port._next, port._last, port._has_last, port._keeps_last, port._wake = 0, None, False, True, None
-        port.stamp = None
+        port._taken = None
         port._triggering = []
         return port
 
@@ -249,8 +259,12 @@ class InputPort(Port):
         count = len(connections)
         if count == 1:
             item = connections[0].pop()
-            if item is not EMPTY:
-                return NEW_DATA, self._took(item)
+            if item is not EMPTY:  # _took, inlined: the common case
+                self._taken = item
+                value = item.value if type(item) is Message else item
+                if self._keeps_last:
+                    self._last, self._has_last = value, True
+                return NEW_DATA, value
         elif count:
             start = self._next
             for offset in range(count):
@@ -266,13 +280,21 @@ class InputPort(Port):
     def _took(self, item: Any) -> Any:
         """The value of ``item`` (a :class:`~coco_core.stamps.Message` or a bare value) taken from a
         connection, its stamp kept as :attr:`stamp` and the value as the last one."""
-        if type(item) is Message:
-            value, self.stamp = item.value, item.stamp
-        else:
-            value, self.stamp = item, item.stamp if isinstance(item, Stamped) else None
+        self._taken = item
+        value = item.value if type(item) is Message else item
         if self._keeps_last:
             self._last, self._has_last = value, True
         return value
+
+    @property
+    def stamp(self) -> Stamp | None:
+        """The stamp of the value the last read returned (new or old): the message's stamp inside
+        one process, a :class:`~coco_core.stamps.Stamped` value's own otherwise; None for a plain
+        value that came without one (a pooled frame, a channel from another process)."""
+        item = self._taken
+        if type(item) is Message:
+            return item.stamp
+        return item.stamp if isinstance(item, Stamped) else None
 
     def read_newest(self) -> tuple[ReadStatus, Any]:
         """Like :meth:`read`, for a consumer that wants only the newest value: everything waiting is

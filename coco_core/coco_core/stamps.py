@@ -72,16 +72,32 @@ def unstamped(value: T | Stamped[T]) -> tuple[T, Stamp | None]:
 
 
 class Message:
-    """A value as it travels on a connection inside one process: the payload and the stamp the
-    writing port gave it. The port wraps and the reading port unwraps, so components see the plain
-    value (a :class:`Stamped` one included, unchanged) and the stamp is read beside it
-    (:attr:`InputPort.stamp <coco_core.ports.InputPort.stamp>`), or alone by a filter."""
+    """A value as it travels on a connection inside one process: the payload and the fields of the
+    stamp the writing port gave it. The port wraps and the reading port unwraps, so components see
+    the plain value (a :class:`Stamped` one included, unchanged) and the stamp is read beside it
+    (:attr:`InputPort.stamp <coco_core.ports.InputPort.stamp>`), or alone by a filter.
 
-    __slots__ = ("value", "stamp")
+    The :class:`Stamp` object is made only when asked for (:attr:`stamp`): a write costs a few
+    slot stores, not a frozen dataclass, since most messages are read without their stamp."""
 
-    def __init__(self, value: object, stamp: Stamp) -> None:
+    __slots__ = ("value", "time", "seq", "source", "it")
+
+    def __init__(self, value: object, time: float, seq: int, source: str, it: int) -> None:
         self.value = value
-        self.stamp = stamp
+        self.time = time
+        """When it was written (``perf_counter`` seconds)."""
+        self.seq = seq
+        self.source = source
+        self.it = it
+
+    @property
+    def stamp(self) -> Stamp:
+        """The message's stamp: a :class:`Stamped` value's acquisition time and steps, else the
+        time of the write."""
+        value = self.value
+        if isinstance(value, Stamped):
+            return Stamp(value.stamp.time, self.seq, self.source, value.stamp.steps, self.it)
+        return Stamp(self.time, self.seq, self.source, (), self.it)
 
     def __repr__(self) -> str:
-        return f"<Message it={self.stamp.it} seq={self.stamp.seq} from {self.stamp.source}>"
+        return f"<Message it={self.it} seq={self.seq} from {self.source}>"

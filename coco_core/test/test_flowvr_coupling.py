@@ -23,7 +23,7 @@ from coco_core.errors import ConfigErrors
 from coco_core.filters import Greedy, MaxFrequency, PreSignal
 from coco_core.iteration import port_of
 from coco_core.policy import NEW_DATA, NO_DATA, OLD_DATA
-from coco_core.stamps import Message, Stamp
+from coco_core.stamps import Message
 from coco_core.xml import parse_application_string
 
 BUFFERED = ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 100)
@@ -47,7 +47,7 @@ class Sink(Component):
 
 
 def message(number: int) -> Message:
-    return Message(number, Stamp(time.perf_counter(), number, "test.out", number))
+    return Message(number, time.perf_counter(), number, "test.out", number)
 
 
 # --- beginit / endit ------------------------------------------------------------------------------

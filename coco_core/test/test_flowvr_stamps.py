@@ -75,7 +75,7 @@ def test_a_stamped_value_reaches_the_reader_unchanged_and_its_acquisition_time_i
     assert stamp is not None
     assert (stamp.time, stamp.seq, stamp.source, stamp.it) == (12.0, 1, "writer.out", -1)
     # Reused: the old value keeps its stamp.
-    assert reader.sample.read() == (OLD_DATA, sent) and reader.sample.stamp is stamp
+    assert reader.sample.read() == (OLD_DATA, sent) and reader.sample.stamp == stamp
 
 
 def test_a_value_pushed_on_a_connection_directly_is_read_as_before():
