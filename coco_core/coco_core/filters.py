@@ -16,6 +16,8 @@ their payload.
 - :class:`Greedy` gives the reader, each time it asks, the newest message written, or nothing new
   (the reader then reuses the last one, ``OLD_DATA``): writer and reader run at their own rates
   (FlowVR's GreedySynchronizor + FilterIt pair, Figure 1 d).
+- :class:`Merge` joins the connections into one input port: once each holds a message, the reader
+  gets one tuple of their values, stamped as the first connection's message (FlowVR's FilterMerge).
 
 Every filter keeps the counting contract of :class:`~coco_core.connections.Connection` (a token a
 filter adds counts as written; a message it discards, as dropped), so the profile shows them.
@@ -191,5 +193,71 @@ class Greedy(Filter):
         return self.pop()
 
 
-FILTERS: dict[str, type[Filter]] = {cls.name: cls for cls in (PreSignal, MaxFrequency, Greedy)}
+class MergeGroup:
+    """The connections of one :class:`Merge`, in order: what the reader gets is one message from
+    each, taken together when each has one."""
+
+    def __init__(self) -> None:
+        self.inputs: list[Merge] = []
+
+    def ready(self) -> bool:
+        """Whether every input holds a message (only the reader takes them: this stays true)."""
+        return all(connection.pending for connection in self.inputs)
+
+    def take(self) -> Any:
+        """One message from each input, merged; :data:`EMPTY` unless each has one."""
+        if not self.ready():
+            return EMPTY
+        items = [Filter.pop(connection) for connection in self.inputs]
+        values = tuple(item.value if type(item) is Message else item for item in items)
+        first = items[0]
+        if type(first) is Message:
+            return Message(values, first.time, first.seq, first.source, first.it)
+        return values
+
+    def skip(self) -> None:
+        """Count the messages of a merged message the reader took and discarded as dropped."""
+        for connection in self.inputs:
+            connection.skip()
+
+
+class Merge(Filter):
+    """One input of a merge: the connections into one input port that each carry this filter form
+    one :class:`MergeGroup` (in the order they were made, the file's). The reader's port reads the
+    merged message through the first of them: the tuple of one value of each connection, stamped
+    as the first's message (FlowVR's FilterMerge: in0's stamp, the data of in0, in1, ...); it waits
+    until each connection holds a message, and each keeps its own FIFO (``buffersize``) meanwhile.
+    FlowVR builds a binary tree of such filters for many inputs across hosts; in one process one
+    merge takes any number."""
+
+    __slots__ = ("group", "index")
+    name = "Merge"
+
+    def __init__(self, policy: ConnectionPolicy, group: MergeGroup) -> None:
+        super().__init__(policy)
+        self.group = group
+        self.index = len(group.inputs)
+        group.inputs.append(self)
+
+    def pop(self) -> Any:
+        return self.group.take() if self.index == 0 else EMPTY
+
+    def pop_newest(self) -> Any:
+        """The newest merged message; every older complete one counts as dropped on each input."""
+        newest = self.pop()
+        if newest is EMPTY:
+            return EMPTY
+        while (merged := self.pop()) is not EMPTY:
+            self.group.skip()
+            newest = merged
+        return newest
+
+    def ready_at(self) -> float | None:
+        return 0.0 if self.index == 0 and self.group.ready() else None
+
+    def describe(self) -> str:
+        return f"Merge(in{self.index} of {len(self.group.inputs)})"
+
+
+FILTERS: dict[str, type[Filter]] = {cls.name: cls for cls in (PreSignal, MaxFrequency, Greedy, Merge)}
 """Every filter by its XML name."""

@@ -20,7 +20,7 @@ from coco_core import (
 from coco_core.builder import build_application
 from coco_core.connections import EMPTY
 from coco_core.errors import ConfigErrors
-from coco_core.filters import Greedy, MaxFrequency, PreSignal
+from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup, PreSignal
 from coco_core.iteration import port_of
 from coco_core.policy import NEW_DATA, NO_DATA, OLD_DATA
 from coco_core.stamps import Message
@@ -210,7 +210,7 @@ def test_wrong_coupling_xml_is_reported_with_its_line_and_what_was_expected():
     [both] = errors_of(src='task="producer" activity="consume" port="endit"')
     assert "needs either task= (a component) or activity=" in both
     [unknown] = errors_of(filter='<filter type="Greddy"/>')
-    assert unknown.startswith("app.xml:15:") and "expected one of: PreSignal, MaxFrequency, Greedy" in unknown
+    assert unknown.startswith("app.xml:15:") and "expected one of: PreSignal, MaxFrequency, Greedy, Merge" in unknown
     [tokens] = errors_of(filter='<filter type="PreSignal" tokens="3"/>')
     assert "needs buffersize >= 3" in tokens
     [hz] = errors_of(filter='<filter type="MaxFrequency" hz="0"/>')
@@ -228,3 +228,62 @@ def test_an_activity_port_connection_between_processes_is_refused():
     with pytest.raises(ConfigErrors) as raised:
         build_application(parse_application_string(text, filename="app.xml"))
     assert any("works inside one process in this version" in str(error) for error in raised.value.errors)
+
+
+# --- Merge ----------------------------------------------------------------------------------------
+
+class Taker(Component):
+    sample = InputPort(object)
+
+
+def test_merge_gives_one_tuple_once_each_connection_has_a_message_stamped_as_the_first(make_app):
+    app = make_app()
+    first, second, taker = app.add(Ticker("first")), app.add(Ticker("second")), app.add(Taker("taker"))
+    group = MergeGroup()
+    into_first = app.connect(first.out, taker.sample, connection=Merge(ConnectionPolicy(size=4), group))
+    into_second = app.connect(second.out, taker.sample, connection=Merge(ConnectionPolicy(size=4), group))
+    first.out.write(1)
+    first.out.write(2)
+    assert taker.sample.read() == (NO_DATA, None)  # the second has nothing yet
+    second.out.write(10)
+    assert taker.sample.read() == (NEW_DATA, (1, 10))
+    stamp = taker.sample.stamp
+    assert stamp is not None and (stamp.source, stamp.seq) == ("first.out", 1)
+    assert taker.sample.read() == (OLD_DATA, (1, 10))
+    second.out.write(20)
+    first.out.write(3)
+    second.out.write(30)
+    assert taker.sample.read_newest() == (NEW_DATA, (3, 30))  # (2, 20) skipped: dropped on both
+    assert into_first.counters() == {"written": 3, "read": 2, "dropped": 1, "pending": 0}
+    assert into_second.counters() == {"written": 3, "read": 2, "dropped": 1, "pending": 0}
+    assert into_first.describe() == "Merge(in0 of 2)" and into_second.describe() == "Merge(in1 of 2)"
+
+
+MERGE = """<package name="merged">
+    <components>
+        <component><name>left</name><task>CostlyProducer</task></component>
+        <component><name>right</name><task>CostlyProducer</task></component>
+        <component><name>{sink}</name><task>{task}</task></component>
+    </components>
+    <connections>
+        <connection buffersize="3"><src task="left" port="out"/><dest task="{sink}" port="{port}"/><filter type="Merge"/></connection>
+        <connection buffersize="3"><src task="right" port="out"/><dest task="{sink}" port="{port}"/><filter type="Merge"/></connection>
+    </connections>
+</package>"""
+
+
+def test_the_xml_merges_the_connections_into_one_port_in_file_order():
+    app = build_application(parse_application_string(MERGE.format(sink="relay", task="Relay", port="input"),
+                                                      filename="app.xml"))
+    left, right = app.connections
+    assert isinstance(left, Merge) and isinstance(right, Merge) and left.group is right.group
+    assert (left.index, right.index) == (0, 1) and left.source.qualified_name == "left.out"  # type: ignore[union-attr]
+
+
+def test_a_merge_into_a_port_that_does_not_take_tuples_is_an_error():
+    with pytest.raises(ConfigErrors) as raised:
+        build_application(parse_application_string(MERGE.format(sink="consumer", task="CostlyConsumer",
+                                                                 port="item"), filename="app.xml"))
+    [first, *_] = [str(error) for error in raised.value.errors]
+    assert first.startswith("app.xml:8:") and "a Merge gives consumer.item a tuple" in first
+    assert "merge into a port of type tuple or object" in first

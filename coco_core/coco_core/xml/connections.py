@@ -117,13 +117,14 @@ def _port(
     )
 
 
-FILTER_ATTRIBUTES = {"PreSignal": ("tokens",), "MaxFrequency": ("hz",), "Greedy": ()}
+FILTER_ATTRIBUTES = {"PreSignal": ("tokens",), "MaxFrequency": ("hz",), "Greedy": (), "Merge": ()}
 """Each filter's own attributes (beside ``type``)."""
 
 
 def _filter(reader: FileReader, element: Element, data: BufferPolicy, size: int) -> FilterSpec | None:
-    """``<filter type="PreSignal" tokens="N"/>``, ``<filter type="MaxFrequency" hz="F"/>`` or
-    ``<filter type="Greedy"/>``: the filter decides the buffering, so ``data`` stays DATA."""
+    """``<filter type="PreSignal" tokens="N"/>``, ``<filter type="MaxFrequency" hz="F"/>``,
+    ``<filter type="Greedy"/>`` or ``<filter type="Merge"/>``: the filter decides the buffering, so
+    ``data`` stays DATA."""
     kind = (reader.attribute(element, "type") or "").strip()
     if kind not in FILTERS:
         reader.check_attributes(element, ("hz", "tokens", "type"), required=("type",))
