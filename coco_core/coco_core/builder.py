@@ -17,7 +17,7 @@ from .attributes import AttributeValueError
 from .component import Component, ErrorPolicy
 from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, WiringError, did_you_mean
 from .filters import FILTERS, Filter, Greedy, MaxFrequency, Merge, MergeGroup, PreSignal
-from .iteration import port_of
+from .iteration import IterationPorts, port_of
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
 from .policy import ConnectionPolicy
 from .ports import InputPort, Port, type_name
@@ -244,7 +244,11 @@ def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup
 
 
 def _check_merged(port: InputPort) -> None:
-    """A Merge gives its reader tuples: the input port must take them."""
+    """A Merge gives its reader tuples: the input port must take them; an activity's beginit
+    already waits for a message on each of its connections."""
+    if isinstance(port.owner, IterationPorts):
+        raise WiringError(f"{port.qualified_name} waits for a message on each of its connections already: "
+                          "connect them without a Merge")
     if not types_compatible(tuple, port.type):
         raise WiringError(f"a Merge gives {port.qualified_name} a tuple of its connections' values, and that "
                           f"port takes {type_name(port.type)}; merge into a port of type tuple or object")

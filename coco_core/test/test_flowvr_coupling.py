@@ -287,3 +287,13 @@ def test_a_merge_into_a_port_that_does_not_take_tuples_is_an_error():
     [first, *_] = [str(error) for error in raised.value.errors]
     assert first.startswith("app.xml:8:") and "a Merge gives consumer.item a tuple" in first
     assert "merge into a port of type tuple or object" in first
+
+
+def test_a_merge_into_a_beginit_is_an_error_since_beginit_waits_for_each_connection_already():
+    text = MERGE.format(sink="relay", task="Relay", port="input").replace(
+        '<dest task="relay" port="input"/>', '<dest activity="loop" port="beginit"/>').replace(
+        "</connections>", "</connections><activities><activity name=\"loop\"><schedule type=\"triggered\"/>"
+                          "<components><component name=\"relay\"/></components></activity></activities>")
+    with pytest.raises(ConfigErrors) as raised:
+        build_application(parse_application_string(text, filename="app.xml"))
+    assert "loop.beginit waits for a message on each of its connections already" in str(raised.value)
