@@ -198,7 +198,7 @@ class Application:
             connection = self._make(out, policy)
         elif isinstance(out, PooledOutputPort):
             raise WiringError(f"{out.qualified_name} is a pooled output: its frames go to every reader as they "
-                              f"are and cannot pass through {connection!r}")
+                              f"are and cannot pass through a {connection.describe()} filter")
         out.add_connection(connection)
         into.add_connection(connection, event)
         if connection.pending and connection.trigger is not None:

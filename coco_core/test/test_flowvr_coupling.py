@@ -297,3 +297,16 @@ def test_a_merge_into_a_beginit_is_an_error_since_beginit_waits_for_each_connect
     with pytest.raises(ConfigErrors) as raised:
         build_application(parse_application_string(text, filename="app.xml"))
     assert "loop.beginit waits for a message on each of its connections already" in str(raised.value)
+
+
+def test_a_pooled_output_cannot_pass_through_a_filter(make_app):
+    from coco_core import PooledOutputPort, WiringError
+
+    class Camera(Component):
+        frames = PooledOutputPort(4)
+
+    app = make_app()
+    camera, taker = app.add(Camera("camera")), app.add(Taker("taker"))
+    with pytest.raises(WiringError, match="camera.frames is a pooled output: .* cannot pass through a Greedy filter"):
+        app.connect(camera.frames, taker.sample, connection=Greedy(ConnectionPolicy()))
+    assert app.connections == []
