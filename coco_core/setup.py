@@ -32,6 +32,8 @@ setup(
             'TransformationInterface = coco_core.transforms.interface:TransformationInterface',
             'JointSequence = coco_core.transforms.joint_sequence:JointSequence',
             'Relay = coco_core.relay:Relay',
+            'CostlyProducer = coco_core.demo.coupling:CostlyProducer',
+            'CostlyConsumer = coco_core.demo.coupling:CostlyConsumer',
         ],
     },
 )

@@ -21,6 +21,9 @@ _EXPORTS = {
     "Component": "component", "ErrorPolicy": "component", "UnknownNameError": "component",
     "Connection": "connections",
     "CocoError": "errors", "ConfigError": "errors", "ConfigErrors": "errors", "Location": "errors",
+    "Greedy": "filters", "MaxFrequency": "filters", "Merge": "filters", "MergeGroup": "filters",
+    "PreSignal": "filters",
+    "iteration_ports": "iteration",
     "Operation": "operations", "current_activity": "operations", "operation": "operations",
     "NEW_DATA": "policy", "NO_DATA": "policy", "OLD_DATA": "policy", "BufferPolicy": "policy",
     "ConnectionPolicy": "policy", "ReadStatus": "policy", "SyncPolicy": "policy",
@@ -28,7 +31,7 @@ _EXPORTS = {
     "InputPort": "ports", "OutputPort": "ports", "PooledOutputPort": "ports",
     "register": "registry",
     "SchedulingRequest": "scheduling",
-    "Stamp": "stamps", "Stamped": "stamps",
+    "Message": "stamps", "Stamp": "stamps", "Stamped": "stamps",
 }
 
 __all__ = sorted(_EXPORTS)
@@ -50,10 +53,12 @@ if TYPE_CHECKING:
     from .component import Component, ErrorPolicy, UnknownNameError
     from .connections import Connection
     from .errors import CocoError, ConfigError, ConfigErrors, Location
+    from .filters import Greedy, MaxFrequency, Merge, MergeGroup, PreSignal
+    from .iteration import iteration_ports
     from .operations import Operation, current_activity, operation
     from .policy import NEW_DATA, NO_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, ReadStatus, SyncPolicy
     from .pool import FramePool, LocalFramePool, Slot, SlotState
     from .ports import InputPort, OutputPort, PooledOutputPort
     from .registry import register
     from .scheduling import SchedulingRequest
-    from .stamps import Stamp, Stamped
+    from .stamps import Message, Stamp, Stamped

@@ -19,7 +19,7 @@ import logging
 import sys
 import threading
 from collections import deque
-from typing import Callable, Iterable
+from typing import TYPE_CHECKING, Callable, Iterable
 
 from .component import Component
 from .drivers import Driver, MainThreadDriver, ThreadDriver
@@ -29,6 +29,9 @@ from .lifecycle import StartGate
 from .profiling import ActivityStats
 from .schedule import DEFAULT_SPIN, Schedule
 from .scheduling import SchedulingRequest
+
+if TYPE_CHECKING:
+    from .iteration import IterationPorts
 
 log = logging.getLogger("coco")
 
@@ -79,6 +82,9 @@ class Activity:
         self.garbage: GarbageBetweenCycles | None = None
         """The process's garbage collections, run between this (periodic) activity's cycles by its
         thread driver (``<process gc="between_cycles">``, see :mod:`.garbage`); None: CPython's own."""
+        self.iteration: IterationPorts | None = None
+        """The activity's ``beginit``/``endit`` ports (:mod:`.iteration`), made when a connection
+        names one; None: the cycles wait for nothing and announce nothing."""
         for component in components:
             self.add(component)
 
@@ -232,12 +238,17 @@ class Activity:
         """One activation: queued operation calls, then every component in order."""
         if self._ops:
             self._run_pending()
+        iteration = self.iteration
+        if iteration is not None and not iteration.begin():
+            return  # no message on beginit (FlowVR's module waits for one): no cycle
         try:
             for position, component in enumerate(self.components):
                 self.current, self._position = component, position
                 component.step()
         finally:  # a stale position would keep later wake-ups from waking the activity
             self.current, self._position = None, sys.maxsize
+        if iteration is not None:
+            iteration.end()
         self.stats.cycles += 1
 
     def finish(self) -> None:

@@ -174,10 +174,12 @@ class Application:
         return self.component(component).port(port)
 
     def connect(self, source: str | Port, sink: str | Port,
-                policy: ConnectionPolicy | None = None, event: bool | None = None) -> Connection:
+                policy: ConnectionPolicy | None = None, event: bool | None = None,
+                connection: Connection | None = None) -> Connection:
         """Connect an output to an input (``"camera.image"`` or port objects) with ``policy``.
 
         ``event`` overrides whether writes on this connection wake the sink's triggered activity.
+        ``connection``: the storage to use instead of the policy's (a :mod:`filter <.filters>`).
         """
         policy = policy or ConnectionPolicy()
         out, into = self._port(source), self._port(sink)
@@ -192,9 +194,15 @@ class Application:
         if not types_compatible(out.type, into.type):
             raise WiringError(f"cannot connect {out.qualified_name} ({type_name(out.type)}) to "
                                    f"{into.qualified_name} ({type_name(into.type)}): types differ")
-        connection = self._make(out, policy)
+        if connection is None:
+            connection = self._make(out, policy)
+        elif isinstance(out, PooledOutputPort):
+            raise WiringError(f"{out.qualified_name} is a pooled output: its frames go to every reader as they "
+                              f"are and cannot pass through a {connection.describe()} filter")
         out.add_connection(connection)
         into.add_connection(connection, event)
+        if connection.pending and connection.trigger is not None:
+            connection.trigger()  # it holds values from the start (a PreSignal's tokens): as if written now
         self.connections.append(connection)
         return connection
 

@@ -12,12 +12,15 @@ from pathlib import Path
 
 from . import registry
 from .activity import Activity, PeriodicActivity, TriggeredActivity
-from .application import Application
+from .application import Application, types_compatible
 from .attributes import AttributeValueError
 from .component import Component, ErrorPolicy
-from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, did_you_mean
-from .model import ActivitySpec, AppSpec, ComponentSpec, LogSpec
+from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, WiringError, did_you_mean
+from .filters import FILTERS, Filter, Greedy, MaxFrequency, Merge, MergeGroup, PreSignal
+from .iteration import IterationPorts, port_of
+from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
 from .policy import ConnectionPolicy
+from .ports import InputPort, Port, type_name
 from .processes.placement import LAUNCHER, Placement
 from .scheduling import SchedulingRequest
 
@@ -178,16 +181,22 @@ class _Builder:
                         activity.add(app.component(name))
             except (CocoError, ValueError, KeyError) as error:
                 self.fail(error, activity_spec)
+        merges: dict[str, MergeGroup] = {}
+        """The Merge of each input port that has one (its connections in file order)."""
         for connection_spec in spec.connections:
-            if placement.crosses(connection_spec) or placement.process_of(connection_spec.src.component) != process:
+            if placement.crosses(connection_spec) or placement.process_of_ref(connection_spec.src) != process:
                 continue  # another process's, or a shared-memory channel made by the process level
-            if {connection_spec.src.component, connection_spec.dest.component} & self.missing:
+            if {ref.component for ref in (connection_spec.src, connection_spec.dest) if not ref.activity} & self.missing:
                 continue
             try:
-                connection = app.connect(str(connection_spec.src), str(connection_spec.dest),
-                                         ConnectionPolicy(connection_spec.data, connection_spec.policy,
-                                                          max(1, connection_spec.buffersize)),
-                                         event=connection_spec.event)
+                policy = ConnectionPolicy(connection_spec.data, connection_spec.policy, max(1, connection_spec.buffersize))
+                merged = connection_spec.filter is not None and connection_spec.filter.type == Merge.name
+                group = merges.setdefault(str(connection_spec.dest), MergeGroup()) if merged else None
+                connection = app.connect(_port(app, connection_spec.src), _port(app, connection_spec.dest), policy,
+                                         event=_event(connection_spec),
+                                         connection=_filter(connection_spec.filter, policy, group))
+                if isinstance(connection, Merge) and connection.sink is not None:
+                    _check_merged(connection.sink)
                 if connection_spec.shared and connection.source is not None:
                     connection.source.share(connection)
             except (CocoError, ValueError, KeyError) as error:
@@ -198,6 +207,45 @@ class _Builder:
             self.fail(problem, locations.get(id(subject)))
         self.check()
         return app
+
+
+def _port(app: Application, ref: PortRef) -> str | Port:
+    """The port ``ref`` names: ``component.port``, or an activity's ``beginit``/``endit``."""
+    return port_of(app.activity(ref.component), ref.port) if ref.activity else str(ref)
+
+
+def _event(spec: ConnectionSpec) -> bool | None:
+    """Whether a write wakes the reader: a Greedy connection does not unless the file says so (its
+    reader runs at its own rate and takes the newest when it runs), others as the file or port says."""
+    if spec.event is None and spec.filter is not None and spec.filter.type == Greedy.name:
+        return False
+    return spec.event
+
+
+def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup | None) -> Filter | None:
+    """The filter ``spec`` describes, with ``policy``'s buffer size (a Merge joins ``merge``, its
+    input port's); None without one."""
+    if spec is None:
+        return None
+    if spec.type == PreSignal.name:
+        return PreSignal(policy, spec.tokens)
+    if spec.type == MaxFrequency.name:
+        return MaxFrequency(policy, spec.hz)
+    if spec.type == Merge.name:
+        assert merge is not None  # the caller gives the port's group
+        return Merge(policy, merge)
+    return FILTERS[spec.type](policy)
+
+
+def _check_merged(port: InputPort) -> None:
+    """A Merge gives its reader tuples: the input port must take them; an activity's beginit
+    already waits for a message on each of its connections."""
+    if isinstance(port.owner, IterationPorts):
+        raise WiringError(f"{port.qualified_name} waits for a message on each of its connections already: "
+                          "connect them without a Merge")
+    if not types_compatible(tuple, port.type):
+        raise WiringError(f"a Merge gives {port.qualified_name} a tuple of its connections' values, and that "
+                          f"port takes {type_name(port.type)}; merge into a port of type tuple or object")
 
 
 def build_application(spec: AppSpec, process: str = LAUNCHER, allow_unknown: bool = False) -> Application:

@@ -17,7 +17,7 @@ import logging
 import sys
 import threading
 from collections import deque
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 from .errors import PolicyError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -62,6 +62,12 @@ class Connection(abc.ABC):
     """
 
     __slots__ = ("source", "sink", "policy", "trigger", "__weakref__")
+
+    carries_stamps: ClassVar[bool] = False
+    """Whether the writing port hands this connection :class:`~coco_core.stamps.Message` objects
+    (payload and stamp) instead of bare values: the connections inside one process do; the others
+    (pooled frames, shared-memory channels to another process) get the bare value, so their reader
+    sees no message stamp (only the one a :class:`~coco_core.stamps.Stamped` value carries)."""
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         self.policy = policy
@@ -133,6 +139,10 @@ class Connection(abc.ABC):
         sink = self.sink.qualified_name if self.sink else "?"
         return f"{source} -> {sink}"
 
+    def describe(self) -> str:
+        """What stores the values, for ``--check`` and the profile: the policy, or a filter's name."""
+        return str(self.policy)
+
     def counters(self) -> dict[str, int]:
         """Snapshot of the flow counters, for the profiler and diagnostics."""
         return {"written": self.written, "read": self.read, "dropped": self.dropped, "pending": self.pending}
@@ -166,6 +176,7 @@ class DataConnection(CountedConnection):
     """DATA, LOCK_FREE / UNSYNC: the latest value and its sequence number, swapped as one tuple."""
 
     __slots__ = ("_cell", "_seen")
+    carries_stamps = True
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
@@ -225,6 +236,7 @@ class BufferConnection(CountedConnection):
     """
 
     __slots__ = ("_queue", "_size")
+    carries_stamps = True
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
@@ -279,6 +291,7 @@ class CircularConnection(CountedConnection):
     """CIRCULAR, LOCK_FREE / UNSYNC: bounded FIFO whose append pushes the oldest item out atomically."""
 
     __slots__ = ("_queue",)
+    carries_stamps = True
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)

@@ -109,7 +109,7 @@ def _activity_lines(app: Application, deployment: Deployment, indent: str) -> li
 
 
 def _connection_line(connection: Connection, indent: str) -> str:
-    return f"{indent}{connection.source.qualified_name} -> {connection.sink.qualified_name}  {connection.policy}"  # type: ignore[union-attr]
+    return f"{indent}{connection.source.qualified_name} -> {connection.sink.qualified_name}  {connection.describe()}"  # type: ignore[union-attr]
 
 
 def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, allow_unknown: bool = False) -> str:
@@ -146,7 +146,7 @@ def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, 
     if crossing:
         lines.append("  between processes (shared memory):")
         for connection in crossing:
-            src, dest = placement.process_of(connection.src.component), placement.process_of(connection.dest.component)
+            src, dest = placement.process_of_ref(connection.src), placement.process_of_ref(connection.dest)
             policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
             lines.append(f"    {connection.src} -> {connection.dest}  {policy}  "
                          f"({src or 'launcher'} -> {dest or 'launcher'})")

@@ -41,14 +41,30 @@ class ComponentSpec:
 
 @dataclass
 class PortRef:
-    """``<src task="..." port="..."/>`` or ``<dest .../>``: a port of a component instance."""
+    """``<src task="..." port="..."/>`` or ``<dest .../>``: a port of a component instance, or with
+    ``activity="..."`` the ``beginit``/``endit`` port of an activity (:mod:`coco_core.iteration`)."""
 
     component: str
+    """The component's instance name, or the activity's name when :attr:`activity`."""
     port: str
     location: Location | None = None
+    activity: bool = False
 
     def __str__(self) -> str:
         return f"{self.component}.{self.port}"
+
+
+@dataclass
+class FilterSpec:
+    """``<filter type="..." .../>`` of a connection: the FlowVR filter that is its storage
+    (:mod:`coco_core.filters`)."""
+
+    type: str
+    tokens: int = 1
+    """PreSignal: the messages it starts with."""
+    hz: float = 0.0
+    """MaxFrequency: the most messages it forwards per second."""
+    location: Location | None = None
 
 
 @dataclass
@@ -67,6 +83,8 @@ class ConnectionSpec:
     shared: bool = False
     """The source hands each value to one of its shared connections instead of all of them (a
     ``<farm>``'s source feeding its workers)."""
+    filter: FilterSpec | None = None
+    """The filter on the connection's path; None: the policy's plain storage."""
 
 
 @dataclass

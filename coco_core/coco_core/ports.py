@@ -8,14 +8,17 @@ the connection's policy decides what happens to data the reader has not taken.
 from __future__ import annotations
 
 import copy
+from time import perf_counter
 from typing import TYPE_CHECKING, Any, Callable
 
 from .connections import EMPTY, Connection
 from .errors import PolicyError, PoolError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
 from .pool import DEFAULT_SLOTS, FramePool, LocalFramePool, PoolConnection, PoolReader, Slot
+from .stamps import Message, Stamp, Stamped
 
 if TYPE_CHECKING:
+    from .activity import Activity
     from .component import Component
 
 
@@ -62,6 +65,11 @@ class OutputPort(Port):
 
     Connections made *shared* (:meth:`share`) take turns instead: each value goes to one of them.
     That is how a farm's source feeds its workers, each of which then processes different values.
+
+    Every write is stamped (FlowVR's stamp list, :attr:`stamp`): the message's number on this port,
+    this port as its source, the iteration of the writing activity, and the acquisition time (a
+    :class:`~coco_core.stamps.Stamped` value's own, else the time of the write). The connections
+    inside the process carry the stamp beside the value.
     """
 
     def __init__(self, type_: Any = object, doc: str = "") -> None:
@@ -70,19 +78,48 @@ class OutputPort(Port):
         """The connections that receive every value."""
         self._shared: list[Connection] = []
         self._turn = 0
+        self._written = 0
+        self._source = ""
+        """``component.port``, the source of this port's messages (set by :meth:`bind`)."""
+        self._activity: Activity | None = None
+        self.last: Message | None = None
+        """The last message written; None before the first."""
 
     def bind(self, owner: Component, name: str | None = None) -> OutputPort:
         port = super().bind(owner, name)
         assert isinstance(port, OutputPort)
-        port._every, port._shared, port._turn = [], [], 0
+        port._every, port._shared, port._turn, port._written, port.last = [], [], 0, 0, None
+        port._activity = None
+        port._source = port.qualified_name
         return port
 
     def write(self, value: Any) -> None:
         """Offer ``value`` to every connection, and to one of the shared ones; never blocks."""
+        message = self._message(value)
         for connection in self._every:
-            connection.push(value)
+            connection.push(message if connection.carries_stamps else value)
         if self._shared:
-            self._hand_over(value)
+            self._hand_over(message)
+
+    def _message(self, value: Any) -> Message:
+        """``value`` with the stamp of this write (kept as :attr:`last`)."""
+        self._written += 1
+        activity = self._activity or self._find_activity()
+        message = Message(value, perf_counter(), self._written, self._source,
+                          activity.stats.cycles if activity is not None else -1)
+        self.last = message
+        return message
+
+    def _find_activity(self) -> Activity | None:
+        """The activity of the owner (kept once there is one: a component never changes activity),
+        whose cycle number stamps the messages."""
+        self._activity = self.owner.activity if self.owner is not None else None
+        return self._activity
+
+    @property
+    def stamp(self) -> Stamp | None:
+        """The stamp of the last message written; None before the first."""
+        return None if self.last is None else self.last.stamp
 
     def add_connection(self, connection: Connection) -> None:
         connection.source = self
@@ -96,8 +133,8 @@ class OutputPort(Port):
         self._every.remove(connection)
         self._shared.append(connection)
 
-    def _hand_over(self, value: Any) -> None:
-        """Give ``value`` to the next shared connection with nothing pending (a worker that is free,
+    def _hand_over(self, message: Message) -> None:
+        """Give ``message`` to the next shared connection with nothing pending (a worker that is free,
         as the original CoCo's farm prefers), or else to the next in turn, whose policy then
         decides (a full buffer refuses it, which its counters show as a drop)."""
         shared = self._shared
@@ -109,7 +146,7 @@ class OutputPort(Port):
                 chosen = candidate
                 break
         self._turn = (shared.index(chosen) + 1) % count
-        chosen.push(value)
+        chosen.push(message if chosen.carries_stamps else message.value)
 
 
 class PooledOutputPort(OutputPort):
@@ -162,7 +199,9 @@ class PooledOutputPort(OutputPort):
         return self.pool.acquire(shape, dtype)
 
     def write(self, slot: Slot) -> None:
-        """Publish a filled slot to every reader."""
+        """Publish a filled slot to every reader (its connections carry no message stamp: the slot is
+        handed over as it is; :attr:`stamp` still says what was written)."""
+        self._message(slot)
         self.pool.publish(slot)
         for connection in self.connections:
             connection.push(slot)
@@ -189,6 +228,8 @@ class InputPort(Port):
         self._next = 0
         self._last: Any = None
         self._has_last = False
+        self._taken: Any = None
+        """What the last new value came as: a :class:`~coco_core.stamps.Message`, or the bare value."""
         self._keeps_last = True
         self._wake: Callable[[], None] | None = None
         self._triggering: list[Connection] = []
@@ -198,6 +239,7 @@ class InputPort(Port):
         port = super().bind(owner, name)
         assert isinstance(port, InputPort)
         port._next, port._last, port._has_last, port._keeps_last, port._wake = 0, None, False, True, None
+        port._taken = None
         port._triggering = []
         return port
 
@@ -219,6 +261,12 @@ class InputPort(Port):
             connection.trigger = wake
 
     @property
+    def pending(self) -> int:
+        """How many new values wait on this port's connections (a reader that takes the backlog it
+        found, and no more, reads this first)."""
+        return sum(connection.pending for connection in self.connections)
+
+    @property
     def triggers(self) -> bool:
         """Whether any connection into this port wakes the component's activity."""
         return bool(self._triggering)
@@ -237,8 +285,10 @@ class InputPort(Port):
         connections = self.connections
         count = len(connections)
         if count == 1:
-            value = connections[0].pop()
-            if value is not EMPTY:
+            item = connections[0].pop()
+            if item is not EMPTY:  # _took, inlined: the common case
+                self._taken = item
+                value = item.value if type(item) is Message else item
                 if self._keeps_last:
                     self._last, self._has_last = value, True
                 return NEW_DATA, value
@@ -246,15 +296,32 @@ class InputPort(Port):
             start = self._next
             for offset in range(count):
                 index = (start + offset) % count
-                value = connections[index].pop()
-                if value is not EMPTY:
+                item = connections[index].pop()
+                if item is not EMPTY:
                     self._next = (index + 1) % count
-                    if self._keeps_last:
-                        self._last, self._has_last = value, True
-                    return NEW_DATA, value
+                    return NEW_DATA, self._took(item)
         if self._has_last:
             return OLD_DATA, self._last
         return NO_DATA, None
+
+    def _took(self, item: Any) -> Any:
+        """The value of ``item`` (a :class:`~coco_core.stamps.Message` or a bare value) taken from a
+        connection, its stamp kept as :attr:`stamp` and the value as the last one."""
+        self._taken = item
+        value = item.value if type(item) is Message else item
+        if self._keeps_last:
+            self._last, self._has_last = value, True
+        return value
+
+    @property
+    def stamp(self) -> Stamp | None:
+        """The stamp of the value the last read returned (new or old): the message's stamp inside
+        one process, a :class:`~coco_core.stamps.Stamped` value's own otherwise; None for a plain
+        value that came without one (a pooled frame, a channel from another process)."""
+        item = self._taken
+        if type(item) is Message:
+            return item.stamp
+        return item.stamp if isinstance(item, Stamped) else None
 
     def read_newest(self) -> tuple[ReadStatus, Any]:
         """Like :meth:`read`, for a consumer that wants only the newest value: everything waiting is
@@ -279,9 +346,7 @@ class InputPort(Port):
                     newest.release()
             newest, newest_connection = value, connection
         if newest_connection is not None:
-            if self._keeps_last:
-                self._last, self._has_last = newest, True
-            return NEW_DATA, newest
+            return NEW_DATA, self._took(newest)
         if self._has_last:
             return OLD_DATA, self._last
         return NO_DATA, None

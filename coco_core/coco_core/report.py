@@ -101,7 +101,7 @@ def connection_rows(connections: Iterable[Connection]) -> list[list[str]]:
     rows = []
     for connection in connections:
         counters = connection.counters()
-        rows.append([connection.label, str(connection.policy), str(counters["written"]), str(counters["read"]),
+        rows.append([connection.label, connection.describe(), str(counters["written"]), str(counters["read"]),
                      str(counters["dropped"]), str(counters["pending"])])
     return rows
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 from ..errors import ConfigError
 from ..files import MiB
-from ..model import AppSpec, ConnectionSpec, ProcessSpec
+from ..model import AppSpec, ConnectionSpec, PortRef, ProcessSpec
 from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from ..shm import layout, ring_size
 from ..shm.segment import SHM_DIR, free_bytes
@@ -59,8 +59,12 @@ class Placement:
     def process_of(self, component: str) -> str:
         return self.of_component.get(component, LAUNCHER)
 
+    def process_of_ref(self, ref: PortRef) -> str:
+        """The process of the component, or activity (``beginit``/``endit``), that ``ref`` names."""
+        return self.of_activity.get(ref.component, LAUNCHER) if ref.activity else self.process_of(ref.component)
+
     def crosses(self, connection: ConnectionSpec) -> bool:
-        return self.process_of(connection.src.component) != self.process_of(connection.dest.component)
+        return self.process_of_ref(connection.src) != self.process_of_ref(connection.dest)
 
     def crossing(self, spec: AppSpec) -> list[ConnectionSpec]:
         """The connections of ``spec`` that join two processes, in file order."""
@@ -73,6 +77,14 @@ class Placement:
         errors = []
         free, needed = free_bytes(), 0
         for connection in self.crossing(spec):
+            if connection.filter is not None or connection.src.activity or connection.dest.activity:
+                what = f"a {connection.filter.type} filter" if connection.filter else "an activity's beginit/endit"
+                errors.append(ConfigError(
+                    f"connection {connection.src} -> {connection.dest} joins process "
+                    f"{self.process_of_ref(connection.src) or 'launcher'!r} and process "
+                    f"{self.process_of_ref(connection.dest) or 'launcher'!r}: {what} works inside one process "
+                    "in this version (put both ends in one process)", connection.location))
+                continue
             if connection.data is not BufferPolicy.POOL:  # a pool's control segment is a few kB
                 policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
                 size = ring_size(*layout(policy, None))
@@ -85,7 +97,7 @@ class Placement:
                         "buffersize, or both ends in one process)", connection.location))
                     free = sys.maxsize  # one error says it
             if connection.policy is SyncPolicy.UNSYNC:
-                src, dest = self.process_of(connection.src.component), self.process_of(connection.dest.component)
+                src, dest = self.process_of_ref(connection.src), self.process_of_ref(connection.dest)
                 errors.append(ConfigError(
                     f"UNSYNC connection {connection.src} -> {connection.dest} joins process "
                     f"{src or 'launcher'!r} and process {dest or 'launcher'!r}; UNSYNC is only valid inside "

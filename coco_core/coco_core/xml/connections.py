@@ -1,16 +1,21 @@
-"""``<connection>``: which output port feeds which input port, and with which policy.
+"""``<connection>``: which output port feeds which input port, and with which policy or filter.
 
-Only the component names can be checked once the whole application is read (see
-:mod:`.references`); port names and types are checked by the builder, which knows the classes.
+Only the component and activity names can be checked once the whole application is read (see
+:mod:`.references`); port names and types are checked by the builder, which knows the classes. An
+end may name an activity's ``beginit``/``endit`` port (``<src activity="..." port="endit"/>``,
+:mod:`coco_core.iteration`), and a ``<filter>`` child puts a FlowVR filter on the connection's path
+(:mod:`coco_core.filters`).
 """
 
 from __future__ import annotations
 
-from ..model import ConnectionSpec, PortRef
+from ..filters import FILTERS
+from ..iteration import BEGIN, END, PORTS
+from ..model import ConnectionSpec, FilterSpec, PortRef
 from ..policy import BufferPolicy, SyncPolicy
 from .reader import CONDITIONS, FileReader
 from .tree import Element
-from .values import parse_bool, parse_int
+from .values import parse_bool, parse_int, parse_number
 
 CONNECTION_ATTRIBUTES = ("buffersize", "data", "event", "policy", "transport", *CONDITIONS)
 BUFFER_POLICIES = tuple(policy.value for policy in BufferPolicy)
@@ -33,9 +38,11 @@ def read_connection(reader: FileReader, element: Element) -> ConnectionSpec | No
         )
     size = _buffer_size(reader, element, values, data)
     event = reader.parsed(element, values, "event", parse_bool)
-    children = reader.children(element, ("dest", "src"))
+    children = reader.children(element, ("dest", "filter", "src"))
     src = _port(reader, element, children, "src")
     dest = _port(reader, element, children, "dest")
+    filter_element = reader.once(element, children, "filter")
+    filter_spec = None if filter_element is None else _filter(reader, filter_element, data, size)
     if src is None or dest is None:
         return None
     return ConnectionSpec(
@@ -47,6 +54,7 @@ def read_connection(reader: FileReader, element: Element) -> ConnectionSpec | No
         buffersize=size,
         event=event,
         location=element.location,
+        filter=filter_spec,
     )
 
 
@@ -88,10 +96,62 @@ def _port(
     if element is None:
         reader.error(f'<connection> needs a <{tag} task="..." port="..."/>', connection)
         return None
-    values = reader.attributes(element, ("port", "task"), required=("port", "task"))
+    values = reader.attributes(element, ("activity", "port", "task"), required=("port",))
     reader.empty(element)
+    port = values.get("port", "").strip()
+    if ("task" in element.attributes) == ("activity" in element.attributes):
+        reader.error(f"<{tag}> needs either task= (a component) or activity= (an activity's "
+                     f"{' or '.join(PORTS)} port), not both", element)
+        return None
+    if "activity" in element.attributes:
+        expected = END if tag == "src" else BEGIN
+        if port != expected:
+            reader.error(f'<{tag} activity=...> port="{port}": an activity\'s ports are {" and ".join(PORTS)}, '
+                         f"and a connection {'starts at' if tag == 'src' else 'ends at'} its {expected}", element)
+            return None
+        return PortRef(values.get("activity", "").strip(), port, element.location, activity=True)
     return PortRef(
         component=values.get("task", "").strip(),
-        port=values.get("port", "").strip(),
+        port=port,
         location=element.location,
     )
+
+
+FILTER_ATTRIBUTES = {"PreSignal": ("tokens",), "MaxFrequency": ("hz",), "Greedy": (), "Merge": ()}
+"""Each filter's own attributes (beside ``type``)."""
+
+
+def _filter(reader: FileReader, element: Element, data: BufferPolicy, size: int) -> FilterSpec | None:
+    """``<filter type="PreSignal" tokens="N"/>``, ``<filter type="MaxFrequency" hz="F"/>``,
+    ``<filter type="Greedy"/>`` or ``<filter type="Merge"/>``: the filter decides the buffering, so
+    ``data`` stays DATA."""
+    kind = (reader.attribute(element, "type") or "").strip()
+    if kind not in FILTERS:
+        reader.check_attributes(element, ("hz", "tokens", "type"), required=("type",))
+        if kind:
+            reader.error(f'<filter> type="{kind}" is not a filter; expected one of: {", ".join(FILTERS)}', element)
+        return None
+    required = ("type", "hz") if kind == "MaxFrequency" else ("type",)
+    values = reader.attributes(element, ("type", *FILTER_ATTRIBUTES[kind]), required=required)
+    reader.empty(element)
+    if data is not BufferPolicy.DATA:
+        reader.error(f'a connection with a <filter> keeps what its filter keeps: leave out data="{data.value}" '
+                     f"(buffersize= bounds the filter's buffer)", element)
+    spec = FilterSpec(kind, location=element.location)
+    if kind == "PreSignal":
+        tokens = reader.parsed(element, values, "tokens", lambda text: parse_int(text, "a whole number >= 0"))
+        if tokens is not None and tokens < 0:
+            reader.error(f'<filter> attribute tokens="{tokens}": expected a whole number >= 0', element)
+        spec.tokens = max(0, tokens or 0) if tokens is not None else 1
+        if spec.tokens > size:
+            reader.error(f"a PreSignal with {spec.tokens} tokens needs buffersize >= {spec.tokens} on its "
+                         f"connection (it holds them all at the start), got {size}", element)
+    elif kind == "MaxFrequency":
+        hz = reader.parsed(element, values, "hz", lambda text: parse_number(text, "a frequency in Hz > 0"))
+        if hz is not None and not 0 < hz < float("inf"):
+            reader.error(f'<filter> attribute hz="{values.get("hz")}": expected a frequency in Hz > 0', element)
+            hz = None
+        spec.hz = hz or 0.0
+        if hz is None:
+            return None
+    return spec

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from .tree import Element
 
-EXTENSION_ELEMENTS = ("choice", "process", "transforms")
+EXTENSION_ELEMENTS = ("choice", "filter", "process", "transforms")
 """Elements the original CoCo does not have."""
 EXTENSION_ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "package": ("on_error",),
@@ -30,6 +30,8 @@ EXTENSION_ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "activity": ("name",),
     "farm": ("name",),
     "schedule": ("main", "nice"),
+    "src": ("activity",),
+    "dest": ("activity",),
 }
 """Attributes, by element, that the original CoCo does not have."""
 

@@ -56,9 +56,14 @@ def check_draft(draft: Draft) -> list[ConfigError]:
             first_scheduled[name] = (scheduled.activity, location)
 
     every_name = list(instances)
+    activities = [activity.name for activity in draft.activities]
     for connection in draft.connections:
         for tag, ref in (("src", connection.src), ("dest", connection.dest)):
-            known(ref.component, ref.location, f'<{tag} task="{ref.component}">', every_name)
+            if not ref.activity:
+                known(ref.component, ref.location, f'<{tag} task="{ref.component}">', every_name)
+            elif ref.component not in activities:
+                errors.append(ConfigError(f'<{tag} activity="{ref.component}"> is not a defined activity; '
+                                          f"{did_you_mean(ref.component, activities)}", ref.location))
 
     _check_activities(draft.activities, errors)
     _check_processes(draft.processes, draft.activities, errors)

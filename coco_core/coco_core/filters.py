@@ -1,0 +1,263 @@
+"""Filters on connections (FlowVR's): the coupling of two activities, chosen in the application file.
+
+A FlowVR filter sits in a connection's path and sees its whole input buffer: it may hold messages
+back, add some, drop some or pick one, which a module (that only sees the newest) cannot. Here a
+filter *is* the connection's storage: a :class:`~coco_core.connections.CountedConnection` whose ``push``
+runs in the writer's thread and whose ``pop`` runs in the reader's, so a filter costs no thread of
+its own. It reads the stamps of the messages it holds (:class:`~coco_core.stamps.Message`), never
+their payload.
+
+- :class:`PreSignal` starts with ``tokens`` messages, then forwards what comes in order: it boots a
+  cycle (FlowVR's FilterPreSignal; Figure 1 b of the FlowVR paper: the consumer's ``endit`` back to
+  the producer's ``beginit`` makes the producer run once per consumption).
+- :class:`MaxFrequency` forwards its messages no closer together than ``1/hz`` (the first at once):
+  into an activity's ``beginit``, from its own ``endit``, a clock's or a consumer's, it bounds that
+  activity's rate (FlowVR's MaxFrequencySynchronizor, Figure 1 c).
+- :class:`Greedy` gives the reader, each time it asks, the newest message written, or nothing new
+  (the reader then reuses the last one, ``OLD_DATA``): writer and reader run at their own rates
+  (FlowVR's GreedySynchronizor + FilterIt pair, Figure 1 d).
+- :class:`Merge` joins the connections into one input port: once each holds a message, the reader
+  gets one tuple of their values, stamped as the first connection's message (FlowVR's FilterMerge).
+
+Every filter keeps the counting contract of :class:`~coco_core.connections.Connection` (a token a
+filter adds counts as written; a message it discards, as dropped), so the profile shows them.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import deque
+from typing import Any, ClassVar
+
+from .connections import EMPTY, CountedConnection
+from .errors import PolicyError
+from .policy import ConnectionPolicy
+from .stamps import Message
+
+
+class Filter(CountedConnection):
+    """A connection whose storage is a filter: a bounded FIFO under a lock, by default.
+
+    ``policy.size`` bounds the buffer (a message written to a full one is refused and counted as
+    dropped, as a BUFFER connection's); writer and reader may be in any two threads."""
+
+    __slots__ = ("_lock", "_queue", "_size")
+
+    carries_stamps = True
+    name: ClassVar[str] = ""
+    """The filter's name in the XML's ``<filter type="...">``."""
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self._lock = threading.Lock()
+        self._queue: deque[Any] = deque()
+        self._size = policy.size
+
+    def push(self, value: Any) -> None:
+        with self._lock:
+            self.written += 1
+            if len(self._queue) >= self._size:
+                return
+            self._queue.append(value)
+        if self.trigger is not None:
+            self.trigger()
+
+    def pop(self) -> Any:
+        with self._lock:
+            if self._queue:
+                self.read += 1
+                return self._queue.popleft()
+            return EMPTY
+
+    @property
+    def pending(self) -> int:
+        return len(self._queue)
+
+    def ready_at(self) -> float | None:
+        """When the next message may be taken (``time.perf_counter`` seconds; 0: now), or None when
+        there is none. An activity's ``beginit`` waits for it (:mod:`coco_core.iteration`)."""
+        return 0.0 if self._queue else None
+
+    def _token(self, number: int) -> Message:
+        """A message the filter itself adds: no payload, stamped by the filter."""
+        return Message(None, time.perf_counter(), number, f"{self.name}({self.label})", -1)
+
+    def describe(self) -> str:
+        """The filter and its parameters, for ``--check`` and the profile."""
+        return self.name
+
+    def __repr__(self) -> str:
+        return f"<{self.describe()} {self.label}>"
+
+
+class PreSignal(Filter):
+    """Starts with ``tokens`` messages, then forwards every message in order (FlowVR's
+    FilterPreSignal): a cycle of activities needs a first message to start."""
+
+    __slots__ = ("tokens",)
+    name = "PreSignal"
+
+    def __init__(self, policy: ConnectionPolicy, tokens: int = 1) -> None:
+        if tokens < 0:
+            raise PolicyError(f"PreSignal needs tokens >= 0, got {tokens}")
+        if tokens > policy.size:
+            raise PolicyError(f"PreSignal with {tokens} tokens needs a buffer of at least {tokens} messages "
+                              f"(buffersize), got {policy.size}")
+        super().__init__(policy)
+        self.tokens = tokens
+        for number in range(1, tokens + 1):
+            self.written += 1
+            self._queue.append(self._token(number))
+
+    def describe(self) -> str:
+        return f"PreSignal(tokens={self.tokens})"
+
+
+class MaxFrequency(Filter):
+    """Forwards its messages in order, the first at once and each later one no earlier than
+    ``1/hz`` after the one before was taken (FlowVR's MaxFrequencySynchronizor: min(incoming rate,
+    hz)). It starts with one token, so that an activity whose ``endit`` comes back to its own
+    ``beginit`` through it starts."""
+
+    __slots__ = ("hz", "_interval", "_taken_at")
+    name = "MaxFrequency"
+
+    def __init__(self, policy: ConnectionPolicy, hz: float) -> None:
+        if not (math.isfinite(hz) and hz > 0):
+            raise PolicyError(f"MaxFrequency needs hz > 0, got {hz}")
+        super().__init__(policy)
+        self.hz = hz
+        self._interval = 1.0 / hz
+        self._taken_at = -math.inf
+        self.written += 1
+        self._queue.append(self._token(1))
+
+    def ready_at(self) -> float | None:
+        if not self._queue:
+            return None
+        return max(0.0, self._taken_at + self._interval)
+
+    def pop(self) -> Any:
+        with self._lock:
+            now = time.perf_counter()
+            if not self._queue or now < self._taken_at + self._interval:
+                return EMPTY
+            self._taken_at = now
+            self.read += 1
+            return self._queue.popleft()
+
+    def describe(self) -> str:
+        return f"MaxFrequency(hz={self.hz:g})"
+
+
+class Greedy(Filter):
+    """The newest message written, once, to a reader that asks at its own rate: a write replaces
+    the message not taken yet (counted as dropped), a read with nothing newer gets nothing (the
+    input port then returns the last value again, ``OLD_DATA``: the reader is told to reuse it).
+
+    FlowVR builds this pattern from a GreedySynchronizor (on each of the reader's ``endIt``, the
+    stamp of the newest message) and a FilterIt (forward that message, discard the older): inside
+    one process both are the one choice made at the reader's request, here."""
+
+    __slots__ = ("reused", "_delivered")
+    name = "Greedy"
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(ConnectionPolicy(policy.data, policy.sync, 1))
+        self.reused = 0
+        """Reads that found nothing newer than the message the reader had (it reuses that one)."""
+        self._delivered = False
+
+    def push(self, value: Any) -> None:
+        with self._lock:
+            self.written += 1
+            self._queue.clear()  # the one not taken is dropped (written - read - pending)
+            self._queue.append(value)
+        if self.trigger is not None:
+            self.trigger()
+
+    def pop(self) -> Any:
+        with self._lock:
+            if self._queue:
+                self.read += 1
+                self._delivered = True
+                return self._queue.popleft()
+            if self._delivered:
+                self.reused += 1
+            return EMPTY
+
+    def pop_newest(self) -> Any:
+        """The one message held is the newest: a second look would count a reuse."""
+        return self.pop()
+
+
+class MergeGroup:
+    """The connections of one :class:`Merge`, in order: what the reader gets is one message from
+    each, taken together when each has one."""
+
+    def __init__(self) -> None:
+        self.inputs: list[Merge] = []
+
+    def ready(self) -> bool:
+        """Whether every input holds a message (only the reader takes them: this stays true)."""
+        return all(connection.pending for connection in self.inputs)
+
+    def take(self) -> Any:
+        """One message from each input, merged; :data:`EMPTY` unless each has one."""
+        if not self.ready():
+            return EMPTY
+        items = [Filter.pop(connection) for connection in self.inputs]
+        values = tuple(item.value if type(item) is Message else item for item in items)
+        first = items[0]
+        if type(first) is Message:
+            return Message(values, first.time, first.seq, first.source, first.it)
+        return values
+
+    def skip(self) -> None:
+        """Count the messages of a merged message the reader took and discarded as dropped."""
+        for connection in self.inputs:
+            connection.skip()
+
+
+class Merge(Filter):
+    """One input of a merge: the connections into one input port that each carry this filter form
+    one :class:`MergeGroup` (in the order they were made, the file's). The reader's port reads the
+    merged message through the first of them: the tuple of one value of each connection, stamped
+    as the first's message (FlowVR's FilterMerge: in0's stamp, the data of in0, in1, ...); it waits
+    until each connection holds a message, and each keeps its own FIFO (``buffersize``) meanwhile.
+    FlowVR builds a binary tree of such filters for many inputs across hosts; in one process one
+    merge takes any number."""
+
+    __slots__ = ("group", "index")
+    name = "Merge"
+
+    def __init__(self, policy: ConnectionPolicy, group: MergeGroup) -> None:
+        super().__init__(policy)
+        self.group = group
+        self.index = len(group.inputs)
+        group.inputs.append(self)
+
+    def pop(self) -> Any:
+        return self.group.take() if self.index == 0 else EMPTY
+
+    def pop_newest(self) -> Any:
+        """The newest merged message; every older complete one counts as dropped on each input."""
+        newest = self.pop()
+        if newest is EMPTY:
+            return EMPTY
+        while (merged := self.pop()) is not EMPTY:
+            self.group.skip()
+            newest = merged
+        return newest
+
+    def ready_at(self) -> float | None:
+        return 0.0 if self.index == 0 and self.group.ready() else None
+
+    def describe(self) -> str:
+        return f"Merge(in{self.index} of {len(self.group.inputs)})"
+
+
+FILTERS: dict[str, type[Filter]] = {cls.name: cls for cls in (PreSignal, MaxFrequency, Greedy, Merge)}
+"""Every filter by its XML name."""

@@ -1,0 +1,103 @@
+"""Message stamps (FlowVR's stamp list): every write on a port is stamped with the message's number,
+the writing port and the iteration of the writing activity, read beside the value."""
+
+from __future__ import annotations
+
+from coco_core import (
+    BufferPolicy,
+    Component,
+    ConnectionPolicy,
+    InputPort,
+    OutputPort,
+    PeriodicActivity,
+    SyncPolicy,
+    TriggeredActivity,
+)
+from coco_core.policy import NEW_DATA, OLD_DATA
+from coco_core.stamps import Stamp, Stamped
+
+BUFFERED = ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 100)
+
+
+class Counter(Component):
+    """Writes its update count, plain."""
+
+    out = OutputPort(int)
+
+    def init(self) -> None:
+        self.count = 0
+
+    def on_update(self) -> None:
+        self.out.write(self.count)
+        self.count += 1
+
+
+class Collector(Component):
+    """Keeps every value read with its stamp."""
+
+    sample = InputPort(object, event=True)
+
+    def init(self) -> None:
+        self.got: list[tuple[object, Stamp | None]] = []
+
+    def on_update(self) -> None:
+        for value in self.sample.read_all():
+            self.got.append((value, self.sample.stamp))
+
+
+def test_each_write_carries_its_iteration_source_and_number(make_app, wait_until):
+    app = make_app()
+    counter, collector = app.add(Counter("counter")), app.add(Collector("collector"))
+    app.connect("counter.out", "collector.sample", BUFFERED)
+    app.add_activity(PeriodicActivity("producing", 0.002, [counter]))
+    app.add_activity(TriggeredActivity("collecting", [collector]))
+    app.start()
+    assert wait_until(lambda: len(collector.got) >= 5)
+    app.stop()
+    for index, (value, stamp) in enumerate(collector.got):
+        assert stamp is not None
+        # The counter writes once a cycle: its value is the cycle number, its activity's iteration.
+        assert (stamp.it, stamp.seq, stamp.source) == (value, index + 1, "counter.out")
+    times = [stamp.time for _, stamp in collector.got if stamp is not None]
+    assert times == sorted(times)
+    assert counter.out.stamp is not None and counter.out.stamp.seq == len(collector.got)
+
+
+def test_a_stamped_value_reaches_the_reader_unchanged_and_its_acquisition_time_is_the_messages(make_app):
+    app = make_app()
+    writer, reader = app.add(Counter("writer")), app.add(Collector("reader"))
+    app.connect("writer.out", "reader.sample")
+    sent = Stamped(3.5, Stamp(12.0, 7, "camera"))
+    writer.out.write(sent)
+    status, value = reader.sample.read()
+    assert status is NEW_DATA and value is sent
+    stamp = reader.sample.stamp
+    assert stamp is not None
+    assert (stamp.time, stamp.seq, stamp.source, stamp.it) == (12.0, 1, "writer.out", -1)
+    # Reused: the old value keeps its stamp.
+    assert reader.sample.read() == (OLD_DATA, sent) and reader.sample.stamp == stamp
+
+
+def test_a_value_pushed_on_a_connection_directly_is_read_as_before():
+    """Code that pushes bare values into a connection (a channel from another process does) still
+    reads them; a Stamped one brings its own stamp."""
+    from coco_core.connections import make_connection
+
+    port = InputPort(object).bind(Collector("reader"), "sample")
+    connection = make_connection(ConnectionPolicy())
+    port.add_connection(connection)
+    connection.push(4)
+    assert port.read() == (NEW_DATA, 4) and port.stamp is None
+    stamped = Stamped(5, Stamp(1.0, 2, "elsewhere"))
+    connection.push(stamped)
+    assert port.read() == (NEW_DATA, stamped) and port.stamp is stamped.stamp
+
+
+def test_the_newest_read_takes_the_newest_messages_stamp(make_app):
+    app = make_app()
+    writer, reader = app.add(Counter("writer")), app.add(Collector("reader"))
+    app.connect("writer.out", "reader.sample", BUFFERED)
+    for value in range(4):
+        writer.out.write(value)
+    assert reader.sample.read_newest() == (NEW_DATA, 3)
+    assert reader.sample.stamp is not None and reader.sample.stamp.seq == 4
