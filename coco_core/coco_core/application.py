@@ -11,7 +11,7 @@ import logging
 import threading
 import time
 from types import UnionType
-from typing import Callable, Union, get_args, get_origin
+from typing import Callable, Protocol, Union, get_args, get_origin
 from .activity import Activity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
@@ -51,6 +51,15 @@ def types_compatible(source: object, sink: object) -> bool:
     return source == sink
 
 
+class ApplicationHost(Protocol):
+    """What may host a process's part of an application besides CoCo's own threads: it starts with
+    the application and is closed after it stopped (the ROS launcher's ``ExecutorHost``)."""
+
+    def start(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
 class Application:
     """A set of components, connections and activities that start and stop together."""
 
@@ -64,6 +73,7 @@ class Application:
         """Components that another process of the application runs -> that process."""
         self.router: Router | None = None
         """What carries operation calls to the other processes (set by the process level)."""
+        self._host: ApplicationHost | None = None
         self._components: dict[str, Component] = {}
         self.activities: dict[str, Activity] = {}
         self.connections: list[Connection] = []
@@ -93,6 +103,22 @@ class Application:
         exit non-zero and summaries report it, although the application ran on what was readable.
         With processes, each process's list also holds what the others found (the process level
         passes it on), so that a summary sees the damage of the whole application."""
+
+    # --- host ------------------------------------------------------------------------------------
+    @property
+    def host(self) -> ApplicationHost | None:
+        """What hosts this process's part beyond CoCo's own threads (the ROS launcher's
+        ``coco_ros.hosting.ExecutorHost``: its node, callback groups, wait sets); None: none."""
+        return self._host
+
+    def hosted_by(self, host: ApplicationHost) -> None:
+        """Give this process's part its host, once and before it starts (components reach it
+        through ``app.host``, e.g. ``coco_ros.hosting.ros_node``)."""
+        if self._started:
+            raise CocoError(f"application {self.name} already started: its host cannot change")
+        if self._host is not None and self._host is not host:
+            raise CocoError(f"application {self.name} is hosted by {self._host!r} already")
+        self._host = host
 
     # --- composition ----------------------------------------------------------------------------
     def add(self, component: Component, activity: Activity | str | None = None) -> Component:

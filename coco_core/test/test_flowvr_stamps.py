@@ -41,8 +41,8 @@ class Collector(Component):
         self.got: list[tuple[object, Stamp | None]] = []
 
     def on_update(self) -> None:
-        for value in self.sample.read_all():
-            self.got.append((value, self.sample.stamp))
+        while (read := self.sample.read())[0] is NEW_DATA:  # each value with its own stamp
+            self.got.append((read[1], self.sample.stamp))
 
 
 def test_each_write_carries_its_iteration_source_and_number(make_app, wait_until):

@@ -10,11 +10,11 @@ ROSInterface, TFBridge and BagReplay work in a child as in the launcher.
 from __future__ import annotations
 
 import sys
-from typing import Any
 
 from coco_core import Application
 from coco_core.deployment import deployed
 from coco_core.processes.child import ChildProcess, main
+from coco_core.processes.messages import Config
 
 from .hosting import ExecutorHost
 from .launcher import node_name, run_hosted
@@ -43,20 +43,20 @@ def without_node_renames(ros_args: list[str]) -> list[str]:
 class RosChildProcess(ChildProcess):
     """A child that hosts its part of the application in an rclpy node."""
 
-    def run_app(self, app: Application, config: dict[str, Any]) -> bool:
+    def run_app(self, app: Application, config: Config) -> bool:
         import rclpy
         from rclpy.node import Node
         from rclpy.signals import SignalHandlerOptions
 
-        rclpy.init(args=["launcher", *without_node_renames(config["ros_args"])],
+        rclpy.init(args=["launcher", *without_node_renames(config.host["ros_args"])],
                    signal_handler_options=SignalHandlerOptions.NO)
         node = None
         try:
-            node = Node(f"{config['node']}_{node_name(app.process)}", automatically_declare_parameters_from_overrides=True)
+            node = Node(f"{config.host['node']}_{node_name(app.process)}", automatically_declare_parameters_from_overrides=True)
             # The launcher resolved the args (its -p values included) and reported the -p values no arg
             # takes: a child's node shows the args and refuses changes as the launcher's does.
-            ArgParameters(node, config["spec"]).declare({})
-            deployment = config["deployment"]
+            ArgParameters(node, config.spec).declare({})
+            deployment = config.deployment
             host = ExecutorHost(node, app, deployment)
             executor = host.create_executor()
             executor.add_node(node)

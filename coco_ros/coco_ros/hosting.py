@@ -387,8 +387,8 @@ class ExecutorHost:
     Every activity, hosted or not, gets a mutually exclusive callback group (:meth:`callback_group`):
     the ROS entities of its components (subscriptions, timers) belong there, so that they never run
     at the same time as the activity's cycle when it is hosted.
-    The node and the host are reachable from the application (``app.ros_node``, ``app.ros_host``) and
-    so from any component (:func:`ros_node`, :func:`callback_group`).
+    The host is the application's (``app.host``), and so the node is reachable from any component
+    (:func:`ros_node`, :func:`callback_group`).
     """
 
     def __init__(self, node: Node, app: Application, deployment: Deployment) -> None:
@@ -414,8 +414,7 @@ class ExecutorHost:
             else:
                 self.groups[name] = MutuallyExclusiveCallbackGroup()
                 self.hosted[name] = ExecutorDriver(self, activity, self.groups[name])
-        app.ros_node = node  # type: ignore[attr-defined]
-        app.ros_host = self  # type: ignore[attr-defined]
+        app.hosted_by(self)
 
     def callback_group(self, activity: Activity | str) -> CallbackGroup:
         """The callback group of ``activity`` (by object or name)."""
@@ -545,10 +544,15 @@ def ros_node(app_or_component: Application | Component) -> Node:
     Raises :class:`CocoError` when the application is not run by the ROS launcher.
     """
     app = app_or_component.app if isinstance(app_or_component, Component) else app_or_component
-    node = getattr(app, "ros_node", None)
-    if node is None:
+    return _host_of(app).node
+
+
+def _host_of(app: Application | None) -> ExecutorHost:
+    """The ROS host of ``app``, or the error that says how to run it with one."""
+    host = app.host if app is not None else None
+    if not isinstance(host, ExecutorHost):
         raise _not_hosted(app)
-    return node
+    return host
 
 
 def _not_hosted(app: Application | None) -> CocoError:
@@ -563,10 +567,7 @@ def _scheduled(component: Component) -> tuple[ExecutorHost, Activity | None]:
     top = component
     while top.owner is not None:
         top = top.owner
-    host: ExecutorHost | None = getattr(top.app, "ros_host", None)
-    if host is None:
-        raise _not_hosted(top.app)
-    return host, top.activity
+    return _host_of(top.app), top.activity
 
 
 def callback_group(component: Component) -> CallbackGroup:

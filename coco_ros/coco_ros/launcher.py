@@ -14,7 +14,7 @@ on the activity's own loop (:mod:`coco_ros.hosting` decides, ``--threads`` overr
 SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran
 (:mod:`coco_core.signals`: the rules and the exit statuses).
 
-Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.ros_node``).
+Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.host.node``).
 """
 
 from __future__ import annotations

@@ -35,7 +35,23 @@ from ..memory_lock import lock_memory
 from ..report import snapshot
 from .channels import attach
 from .control import ControlLink
-from .remote import serve_call, settle
+from .messages import (
+    BuildFailed,
+    Built,
+    Call,
+    Config,
+    Configured,
+    Damage,
+    Outcome,
+    ProfileRequest,
+    Run,
+    SetPeriod,
+    Start,
+    Stop,
+    Stopped,
+    StopRequest,
+)
+from .remote import call_over, serve_call
 
 log = logging.getLogger("coco")
 
@@ -107,70 +123,55 @@ class ChildProcess:
 
     def run(self) -> int:
         config = self.link.receive()
-        if config is None or config.get("kind") != "config":
+        if not isinstance(config, Config):
             return 2
-        process: str = config["process"]
+        process = config.process
         name_process(process)
-        self.launch = config["launch"]
-        logging.basicConfig(level=config["log_level"],
-                            format=f"[%(levelname)s] %(name)s[{process}]: %(message)s")
-        spec = config["spec"]
+        self.launch = config.launch
+        logging.basicConfig(level=config.log_level, format=f"[%(levelname)s] %(name)s[{process}]: %(message)s")
+        spec = config.spec
         placement = next(p for p in spec.processes if p.name == process)
         apply_process_placement(placement.affinity, placement.nice)
         if placement.lock_memory and (refused := lock_memory()):
             log.warning("process %s: %s", process, refused)
         try:
             app = self.app = build_application(spec, process)
+            drive(app, config.deployment, config.wakes)
+            attach(app, config.plans, config.wakes)
         except CocoError as error:
-            self.link.send("error", text=str(error))
-            return 1
-        try:
-            drive(app, config["deployment"], config["wakes"])
-            attach(app, config["plans"], config["wakes"])
-        except CocoError as error:
-            self.link.send("error", text=str(error))
+            self.link.send(BuildFailed(str(error)))
             return 1
         app.add_stop_listener(self._stop_requested_here)
         if placement.gc == "between_cycles":
             self.garbage = collect_between_cycles(app)
         app.add_damage_listener(self._damage_found_here)
-        app.gate.hold(self._configured)  # the launcher's word ("run") opens it
+        app.gate.hold(self._configured)  # the launcher's word (Run) opens it
         app.router = self
-        self.link.send("built")
-        while True:  # every process builds, then all start: wait for the word
-            try:
-                message = self.link.receive()
-            except EOFError:  # the launcher is gone
-                return 1
-            if message is not None and message["kind"] == "start":
-                break
-            if message is not None and message["kind"] == "stop":
-                return 0
-            if message is not None and message["kind"] == "damage":  # another process's, found while building
-                app.report_damage(message["what"], here=False)
-        listener = threading.Thread(target=self._serve, name="coco:control", daemon=True)
+        self.link.send(Built())
+        # Every process builds, then all start: wait for the word (damage found while building comes too).
+        word = self.link.serve({Damage: lambda message: app.report_damage(message.what, here=False)},
+                               until=(Start, Stop))
+        if not isinstance(word, Start):
+            return 0 if isinstance(word, Stop) else 1  # told to stop, or the launcher is gone
+        listener = threading.Thread(target=self._serve, args=(app,), name="coco:control", daemon=True)
         listener.start()
         clean = self.run_app(app, config)
         if self.garbage is not None:
             log.info("process %s: %s", process, self.garbage.describe())
         failed = stopped_by_a_failure(app)  # a component's error policy, or damaged input
-        self.link.send("stopped", clean=clean, failed=failed, snapshot=snapshot(app, process))
+        self.link.send(Stopped(clean, failed, snapshot(app, process)))
         return 0 if clean else 1
 
     def call(self, process: str, component: str, operation: str, args: tuple[Any, ...],
              kwargs: dict[str, Any]) -> Future[Any]:
         """An operation of a component in another process (the :class:`Router` protocol): the
         launcher runs it or passes it to the process that runs it."""
-        future: Future[Any] = Future()
-        target = f"{component}.{operation}"
-        self.link.request("call", lambda message: settle(future, message, process, target), process=process,
-                          component=component, operation=operation, args=args, kwargs=kwargs)
-        return future
+        return call_over(self.link, process, component, operation, args, kwargs)
 
-    def run_app(self, app: Application, config: dict[str, Any]) -> bool:
+    def run_app(self, app: Application, config: Config) -> bool:
         """Run this process's part until a stop; whether it stopped cleanly. A launcher with more to
         host (the ROS launcher's node and executor) runs its children with a subclass."""
-        deployed(app, config["deployment"])
+        deployed(app, config.deployment)
         app.run()
         return app.stop()
 
@@ -179,51 +180,38 @@ class ChildProcess:
         A ``gc="between_cycles"`` process freezes what it built now, before the first cycle."""
         if self.garbage is not None:
             self.garbage.take_over()
-        self.link.send("configured")
+        self.link.send(Configured())
 
     def _stop_requested_here(self, reason: str) -> None:
         """A stop that began in this process (a component's error policy) stops the whole application."""
         if not reason.startswith("launcher:"):
             assert self.app is not None  # it is the app that calls its stop listeners
-            self.link.send("stop_request", reason=reason, hard=self.app.stop_is_hard)
+            self.link.send(StopRequest(reason, self.app.stop_is_hard))
 
     def _damage_found_here(self, what: str) -> None:
         """Damaged input found in this process: the launcher records it and passes it on to the
         other processes, whose summaries report it too."""
-        self.link.send("damage", what=what)
+        self.link.send(Damage(what))
 
-    def _serve(self) -> None:
-        app = self.app
-        assert app is not None
-        while True:
-            try:
-                message = self.link.receive()
-            except EOFError:  # the launcher is gone
-                self.link.abandon("the launcher is gone")
-                app.request_stop("launcher: gone", hard=True)
-                return
-            if message is not None:
-                self._handle(app, message)
+    def _serve(self, app: Application) -> None:
+        """The launcher's messages while the application runs; when the launcher is gone, stop."""
+        self.link.serve({
+            Run: lambda _: app.gate.open(),
+            Stop: lambda message: app.request_stop(f"launcher: {message.reason}", hard=message.hard),
+            Damage: lambda message: app.report_damage(message.what, here=False),
+            ProfileRequest: lambda message: self.link.answer(message, Outcome(True, snapshot(app, app.process))),
+            Call: lambda message: serve_call(app, message, lambda outcome: self.link.answer(message, outcome)),
+            SetPeriod: lambda message: self._set_period(app, message),
+        })
+        self.link.abandon("the launcher is gone")
+        app.request_stop("launcher: gone", hard=True)
 
-    def _handle(self, app: Application, message: dict[str, Any]) -> None:
-        kind = message["kind"]
-        if kind == "run":
-            app.gate.open()
-        elif kind == "stop":
-            app.request_stop(f"launcher: {message['reason']}", hard=message.get("hard", True))
-        elif kind == "damage":
-            app.report_damage(message["what"], here=False)
-        elif kind == "profile":
-            self.link.send("result", id=message["id"], ok=True, value=snapshot(app, app.process))
-        elif kind == "call":
-            serve_call(app, message, lambda result: self.link.send("result", id=message["id"], **result))
-        elif kind == "result":
-            self.link.answered(message)
-        elif kind == "set_period":
-            try:
-                app.set_period(message["activity"], message["period"])
-            except CocoError as error:
-                log.error("%s", error)
+    @staticmethod
+    def _set_period(app: Application, message: SetPeriod) -> None:
+        try:
+            app.set_period(message.activity, message.period)
+        except CocoError as error:
+            log.error("%s", error)
 
 
 def main(argv: list[str] | None = None, kind: type[ChildProcess] = ChildProcess) -> int:

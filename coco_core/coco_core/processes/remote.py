@@ -16,9 +16,11 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 from ..errors import CocoError, RemoteError
 from ..operations import current_activity
+from .messages import Call, Outcome
 
 if TYPE_CHECKING:
     from ..application import Application
+    from .control import ControlLink
 
 
 class Router(Protocol):
@@ -61,28 +63,39 @@ class RemoteOperation:
         return f"<RemoteOperation {self.component}.{self.name} in process {self.process or 'launcher'}>"
 
 
-def outcome(future: Future[Any]) -> dict[str, Any]:
-    """A finished local call's result as a message: the value, or the exception as text."""
+def outcome(future: Future[Any]) -> Outcome:
+    """A finished local call's outcome: the value, or the exception as text."""
     error = future.exception()
     if error is None:
-        return {"ok": True, "value": future.result()}
+        return Outcome(True, future.result())
     text = "".join(traceback.format_exception(type(error), error, error.__traceback__))
-    return {"ok": False, "type": type(error).__name__, "message": str(error), "traceback": text}
+    return Outcome(False, type=type(error).__name__, message=str(error), traceback=text)
 
 
-def settle(future: Future[Any], message: dict[str, Any], process: str, target: str) -> None:
-    """Complete the caller's ``future`` from a result message."""
-    if message["ok"]:
-        future.set_result(message["value"])
+def settle(future: Future[Any], result: Outcome, process: str, target: str) -> None:
+    """Complete the caller's ``future`` from the outcome of its call."""
+    if result.ok:
+        future.set_result(result.value)
     else:
-        future.set_exception(RemoteError(process, target, message["type"], message["message"], message["traceback"]))
+        future.set_exception(RemoteError(process, target, result.type, result.message, result.traceback))
 
 
-def serve_call(app: Application, message: dict[str, Any], reply: Callable[[dict[str, Any]], object]) -> None:
+def call_over(link: ControlLink, process: str, component: str, operation: str, args: tuple[Any, ...],
+              kwargs: dict[str, Any]) -> Future[Any]:
+    """Ask the other end of ``link`` for an operation of ``component`` in ``process`` (the
+    :class:`Router` protocol of the launcher and of a child alike)."""
+    future: Future[Any] = Future()
+    target = f"{component}.{operation}"
+    link.request(Call(process=process, component=component, operation=operation, args=args, kwargs=kwargs),
+                 lambda result: settle(future, result, process, target))
+    return future
+
+
+def serve_call(app: Application, call: Call, reply: Callable[[Outcome], object]) -> None:
     """Run a call that arrived from another process on a component of this one; ``reply`` gets the
     outcome once the component's activity ran it."""
     try:
-        future = app.operation(message["component"], message["operation"])(*message["args"], **message["kwargs"])
+        future = app.operation(call.component, call.operation)(*call.args, **call.kwargs)
     except Exception as error:  # an unknown name: the caller gets the explanation
         failed: Future[Any] = Future()
         failed.set_exception(error)
@@ -91,14 +104,13 @@ def serve_call(app: Application, message: dict[str, Any], reply: Callable[[dict[
     future.add_done_callback(lambda done: reply(_picklable(outcome(done))))
 
 
-def _picklable(result: dict[str, Any]) -> dict[str, Any]:
+def _picklable(result: Outcome) -> Outcome:
     """``result``, or an error saying the value cannot cross the process boundary."""
     import pickle
 
-    if result["ok"]:
+    if result.ok:
         try:
-            pickle.dumps(result["value"])
+            pickle.dumps(result.value)
         except Exception as error:
-            return {"ok": False, "type": type(error).__name__,
-                    "message": f"the result cannot be sent to another process: {error}", "traceback": ""}
+            return Outcome.failure(type(error).__name__, f"the result cannot be sent to another process: {error}")
     return result

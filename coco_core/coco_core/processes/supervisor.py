@@ -38,10 +38,26 @@ from ..errors import ProcessError
 from ..lifecycle import STOP_TIMEOUT
 from ..model import AppSpec
 from ..report import ProfileSnapshot, connection_rows, render, snapshot
-from .control import ControlLink, failed
+from .control import ControlLink
+from .messages import (
+    BuildFailed,
+    Built,
+    Call,
+    Config,
+    Configured,
+    Damage,
+    Outcome,
+    ProfileRequest,
+    Run,
+    SetPeriod,
+    Start,
+    Stop,
+    Stopped,
+    StopRequest,
+)
 from .channels import ChannelPlan, attach, plan_channels, reader_stats, wake_targets
 from .placement import LAUNCHER, Placement
-from .remote import serve_call, settle
+from .remote import call_over, serve_call
 
 if TYPE_CHECKING:
     from ..shm import Arena
@@ -75,9 +91,9 @@ def _exited(popen: subprocess.Popen[bytes], timeout: float) -> bool:
     return True
 
 
-def _deliver(future: Future[Any], message: dict[str, Any]) -> None:
+def _deliver(future: Future[Any], outcome: Outcome) -> None:
     """A child's answer to a request, into the future the launcher waits on."""
-    future.set_result(message.get("value"))
+    future.set_result(outcome.value)
 
 
 @dataclass
@@ -133,7 +149,7 @@ class ProcessDriver:
         self.supervisor.stop_child(self.child, self.supervisor.app.stop_reason or "stop requested")
 
     def set_period(self, period: float) -> None:
-        self.child.link.send("set_period", activity=self.activity.name, period=period)
+        self.child.link.send(SetPeriod(self.activity.name, period))
 
     def join(self, timeout: float | None = None) -> bool:
         return self.child.stopped.wait(timeout)
@@ -211,8 +227,8 @@ class ProcessSupervisor:
                 start_new_session=True)  # a terminal's Ctrl-C reaches the launcher, which stops them
         finally:
             os.close(theirs)
-        link.send("config", spec=self.spec, process=name, launch=self.launch_id, wakes=self._wakes,
-                  plans=self.plans, deployment=self.deployment, log_level=self.log_level, **self.child_config)
+        link.send(Config(self.spec, name, self.launch_id, self._wakes, self.plans, self.deployment, self.log_level,
+                         self.child_config))
         return Child(name, link, popen, activities)
 
     def _wait_built(self, child: Child) -> None:
@@ -222,11 +238,10 @@ class ProcessSupervisor:
                 message = child.link.receive(timeout=0.1)
             except EOFError:
                 message = None
-            if message is not None:
-                if message["kind"] == "built":
-                    return
-                if message["kind"] == "error":
-                    raise ProcessError(f"process {child.name}: {message['text']}")
+            if isinstance(message, Built):
+                return
+            if isinstance(message, BuildFailed):
+                raise ProcessError(f"process {child.name}: {message.text}")
             code = child.popen.poll()
             if code is not None:
                 raise ProcessError(f"process {child.name} ended while building its components "
@@ -240,7 +255,7 @@ class ProcessSupervisor:
         if self.app.stop_requested:
             return
         for child in self.children.values():
-            child.link.send("run")
+            child.link.send(Run())
 
     def start_child(self, child: Child) -> None:
         """Tell ``child`` to start (configure) its activities, once: every process was built by now;
@@ -249,33 +264,18 @@ class ProcessSupervisor:
             if child.started:
                 return
             child.started = True
-        child.link.send("start")
+        child.link.send(Start())
 
     # --- running --------------------------------------------------------------------------------
     def _watch(self, child: Child) -> None:
         """Read the child's messages until it is gone; a death that nobody asked for stops the app."""
-        while True:
-            try:
-                message = child.link.receive()
-            except EOFError:
-                break
-            if message is None:
-                continue
-            kind = message["kind"]
-            if kind == "configured":
-                for name in child.activities:
-                    self.app.gate.configured(name)
-            elif kind == "stopped":
-                child.clean, child.failed, child.last = message["clean"], message["failed"], message["snapshot"]
-            elif kind == "damage":
-                self.app.report_damage(message["what"], here=False)
-                self._pass_on_damage(message["what"], found_by=child)
-            elif kind == "stop_request":
-                self.app.request_stop(f"process {child.name}: {message['reason']}", hard=message.get("hard", True))
-            elif kind == "result":
-                child.link.answered(message)
-            elif kind == "call":
-                self._route(child, message)
+        child.link.serve({
+            Configured: lambda _: self._configured(child),
+            Stopped: lambda message: self._stopped(child, message),
+            Damage: lambda message: self._damaged(child, message),
+            StopRequest: lambda message: self._stop_requested(child, message),
+            Call: lambda message: self._route(child, message),
+        })
         code = child.popen.wait()
         child.stopped.set()
         self.app.progress.advance()
@@ -288,6 +288,20 @@ class ProcessSupervisor:
             self.failure = self.failure or f"process {child.name} died: {what}"
         self.app.request_stop(f"process {child.name} died ({what})", hard=True)
 
+    def _configured(self, child: Child) -> None:
+        for name in child.activities:
+            self.app.gate.configured(name)
+
+    def _stopped(self, child: Child, message: Stopped) -> None:
+        child.clean, child.failed, child.last = message.clean, message.failed, message.snapshot
+
+    def _stop_requested(self, child: Child, message: StopRequest) -> None:
+        self.app.request_stop(f"process {child.name}: {message.reason}", hard=message.hard)
+
+    def _damaged(self, child: Child, message: Damage) -> None:
+        self.app.report_damage(message.what, here=False)
+        self._pass_on_damage(message.what, found_by=child)
+
     def _pass_on_damage(self, what: str, found_by: Child | None = None) -> None:
         """Damaged input that one process found (a child, or the launcher's own components) goes to
         every other process's :attr:`Application.damage`: a summary written in one process (the
@@ -296,7 +310,7 @@ class ProcessSupervisor:
         process found before it asked the application to stop reaches the others before the stop."""
         for child in self.children.values():
             if child is not found_by:
-                child.link.send("damage", what=what)
+                child.link.send(Damage(what))
 
     def stop_child(self, child: Child, reason: str) -> None:
         """Tell ``child`` to stop, once (every stand-in of its activities asks, when the application
@@ -307,32 +321,25 @@ class ProcessSupervisor:
             if child.stop_sent and (child.hard_stop_sent or not hard):
                 return
             child.stop_sent, child.hard_stop_sent = True, hard
-        child.link.send("stop", reason=reason, hard=hard)
+        child.link.send(Stop(reason, hard))
 
     def call(self, process: str, component: str, operation: str, args: tuple[Any, ...],
              kwargs: dict[str, Any]) -> Future[Any]:
         """An operation of a component that child ``process`` runs (the :class:`Router` protocol)."""
-        future: Future[Any] = Future()
-        target = f"{component}.{operation}"
-        self.children[process].link.request("call", lambda message: settle(future, message, process, target),
-                                             component=component, operation=operation, args=args, kwargs=kwargs)
-        return future
+        return call_over(self.children[process].link, process, component, operation, args, kwargs)
 
-    def _route(self, caller: Child, message: dict[str, Any]) -> None:
+    def _route(self, caller: Child, call: Call) -> None:
         """A child calls an operation of another process: run it here, or pass it on and pass back
-        the result as it came (so the exception's own type name reaches the caller)."""
-        def reply(result: dict[str, Any]) -> None:
-            result = {key: value for key, value in result.items() if key not in ("kind", "id")}
-            caller.link.send("result", id=message["id"], **result)
+        the outcome as it came (so the exception's own type name reaches the caller)."""
+        def reply(outcome: Outcome) -> None:
+            caller.link.answer(call, outcome)
 
-        process = message["process"]
-        if process == LAUNCHER:
-            serve_call(self.app, message, reply)
-        elif process in self.children:
-            self.children[process].link.request("call", reply, component=message["component"],
-                              operation=message["operation"], args=message["args"], kwargs=message["kwargs"])
+        if call.process == LAUNCHER:
+            serve_call(self.app, call, reply)
+        elif call.process in self.children:
+            self.children[call.process].link.request(call, reply)
         else:
-            reply(failed("ProcessError", f"no process {process!r}"))
+            reply(Outcome.failure("ProcessError", f"no process {call.process!r}"))
 
     def snapshots(self) -> list[ProfileSnapshot]:
         """The launcher's profile and every child's (its last one once it stopped)."""
@@ -341,7 +348,7 @@ class ProcessSupervisor:
         for child in self.children.values():
             future: Future[Any] = Future()
             if not child.stopped.is_set():
-                child.link.request("profile", partial(_deliver, future))
+                child.link.request(ProfileRequest(), partial(_deliver, future))
             waiting.append((child, future))
         deadline = time.monotonic() + PROFILE_TIMEOUT
         for child, future in waiting:
