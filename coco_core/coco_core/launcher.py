@@ -14,14 +14,14 @@ import contextlib
 import logging
 import sys
 import threading
-from typing import Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Protocol, Sequence
 
 from . import registry
 from .applications import find_application
 from .application import Application
 from .builder import build_application, configure_logging
 from .connections import Connection
-from .deployment import Deployment, deployed, plan_deployment
+from .deployment import Deployment, LaunchOptions, deployed, plan_deployment
 from .errors import CocoError, ConfigError, ConfigErrors, Interrupted
 from .model import AppSpec
 from .policy import ConnectionPolicy
@@ -226,41 +226,119 @@ def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
     return spec, app
 
 
-def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> int:
-    """Load, build and run according to parsed ``options``; returns the exit code. ``signals``: the
-    launcher's signal handling when the entry point installed it already."""
+HUNG = 3
+"""What :func:`launch` returns when an activity did not stop within a second (its thread is
+abandoned): the entry point then exits with 1 at once instead of waiting for that thread."""
+
+
+class LaunchHost(Protocol):
+    """What a launcher plugs in to run its process's part of an application: plain threads
+    (:class:`PlainHost`, ``coco-launch``) or an rclpy node (``coco_ros.launcher.RosHost``). The
+    rest of a launch (the deployment plan, the child processes, the profile, the exit status) is
+    :func:`launch`'s, the same for every host."""
+
+    prog: str
+    """How the launcher names itself in its messages."""
+    child_module: str
+    """The module a child process runs (``python -m``): it hosts its part as this host does."""
+
+    def launch_options(self, options: argparse.Namespace) -> LaunchOptions:
+        """What of the command line decides where activities run (the deployment plan's options)."""
+
+    def child_config(self) -> dict[str, Any]:
+        """What every child's host needs beyond the plan (:attr:`~.processes.messages.Config.host`)."""
+
+    def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
+            processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
+        """Host and run the launcher's part until a stop; whether the stop was clean."""
+
+
+class PlainHost:
+    """``coco-launch``: every activity on CoCo's own threads (:class:`LaunchHost`)."""
+
+    prog = "coco-launch"
+    child_module = "coco_core.processes.child"
+
+    def launch_options(self, options: argparse.Namespace) -> LaunchOptions:
+        return LaunchOptions()
+
+    def child_config(self) -> dict[str, Any]:
+        return {}
+
+    def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
+            processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
+        deployed(app, deployment)
+        signals.attach(app)
+        with launcher_services(app, options, processes):
+            app.run(options.duration)
+        return app.stop()
+
+
+def begin(options: argparse.Namespace, prog: str) -> int | None:
+    """What every launcher does first: logging, ``--list``, a missing file; an exit code when that
+    ends the launch, else None."""
     logging.basicConfig(level=options.log_level, format="[%(levelname)s] %(name)s: %(message)s")
     if options.list:
         print(list_components())
         return 0
     if options.app is None:
-        print("coco-launch: an application file is needed (or --list)", file=sys.stderr)
+        print(f"{prog}: an application file is needed (or --list)", file=sys.stderr)
         return 2
+    return None
+
+
+def check(options: argparse.Namespace, signals: LaunchSignals, host: LaunchHost,
+          parameters: Mapping[str, str] | None = None) -> int:
+    """``--check``: load and build (``parameters``: values for the file's args below the command
+    line's, the ROS launcher's node parameters), print the tree with the deployment plan, run nothing."""
+    try:
+        spec, app = load_and_build(options, signals, parameters)
+        deployment = plan_deployment(spec, host.launch_options(options))
+        signals.check()
+        print(describe(spec, app, deployment, options.allow_unknown))
+    except CocoError as error:
+        return failure(host.prog, error)
+    return 0
+
+
+def launch(spec: AppSpec, app: Application, options: argparse.Namespace, signals: LaunchSignals,
+           host: LaunchHost) -> int:
+    """Run a built application with ``host``: plan its deployment, start its child processes, let the
+    host run the launcher's part to its stop; the exit code: 0 after a clean stop, 1 when a component
+    stopped the application, damage was found or a child died, :data:`HUNG` when an activity did not
+    stop in time, 128 + the signal number after a second Ctrl-C (:mod:`coco_core.signals`)."""
+    deployment = plan_deployment(spec, host.launch_options(options))
+    level = logging.getLevelName(options.log_level)
+    configure_logging(spec.log, level)  # may open the file's log
+    with process_level(spec, app, deployment, level, child_module=host.child_module,
+                       child_config=host.child_config()) as processes:
+        clean = host.run(spec, app, deployment, options, processes, signals)
+    if signals.forced:
+        return INTERRUPTED
+    if not clean:
+        return HUNG
+    return 1 if stopped_by_a_failure(app) or (processes is not None and processes.failed) else 0
+
+
+def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> int:
+    """Load, build and run according to parsed ``options``; returns the exit code. ``signals``: the
+    launcher's signal handling when the entry point installed it already."""
+    host = PlainHost()
+    early = begin(options, host.prog)
+    if early is not None:
+        return early
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
+    if options.check:
+        return check(options, signals, host)
     try:
         spec, app = load_and_build(options, signals)
-        deployment = plan_deployment(spec)
         signals.check()
-        if options.check:
-            print(describe(spec, app, deployment, options.allow_unknown))
-            return 0
-    except CocoError as error:
-        return failure("coco-launch", error)
-    try:
-        configure_logging(spec.log, logging.getLevelName(options.log_level))  # may open the file's log
-        with process_level(spec, app, deployment, logging.getLevelName(options.log_level)) as processes:
-            deployed(app, deployment)
-            signals.attach(app)
-            with launcher_services(app, options, processes):
-                app.run(options.duration)
-            clean = app.stop()
-    except CocoError as error:  # interrupted while the children started, or a child could not be built
-        return failure("coco-launch", error)
-    failed = stopped_by_a_failure(app) or (processes is not None and processes.failed)
-    status = 0 if clean and not failed else 1
-    if signals.forced or not clean:  # a second Ctrl-C, or an activity that did not stop: leave now
-        leave(INTERRUPTED if signals.forced else status)
-    return status
+        code = launch(spec, app, options, signals, host)
+    except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
+        return failure(host.prog, error)
+    if code in (HUNG, INTERRUPTED):  # an activity that did not stop, or a second Ctrl-C: leave now
+        leave(1 if code == HUNG else code)
+    return code
 
 
 def main(argv: Sequence[str] | None = None, signals: LaunchSignals | None = None) -> int:

@@ -12,12 +12,10 @@ from __future__ import annotations
 import sys
 
 from coco_core import Application
-from coco_core.deployment import deployed
 from coco_core.processes.child import ChildProcess, main
 from coco_core.processes.messages import Config
 
-from .hosting import ExecutorHost
-from .launcher import node_name, run_hosted
+from .launcher import host_in_node, node_name, run_hosted
 from .parameters import ArgParameters
 from .rosout import RosoutLogging
 
@@ -56,11 +54,7 @@ class RosChildProcess(ChildProcess):
             # The launcher resolved the args (its -p values included) and reported the -p values no arg
             # takes: a child's node shows the args and refuses changes as the launcher's does.
             ArgParameters(node, config.spec).declare({})
-            deployment = config.deployment
-            host = ExecutorHost(node, app, deployment)
-            executor = host.create_executor()
-            executor.add_node(node)
-            deployed(app, deployment)
+            host, executor = host_in_node(node, app, config.deployment)
             with RosoutLogging(node):  # this process's log lines on /rosout, under its node's name
                 clean = run_hosted(app, host, executor)
             if clean:

@@ -25,29 +25,29 @@ import re
 import sys
 from functools import partial
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 from coco_core import Application, CocoError
 from coco_core.errors import Interrupted
 from coco_core.model import AppSpec
 from coco_core.applications import find_application
-from coco_core.builder import configure_logging
-from coco_core.deployment import Host, LaunchOptions, deployed, plan_deployment
+from coco_core.deployment import Deployment, Host, LaunchOptions, deployed
 from coco_core.launcher import (
-    parse_assignments,
-    describe,
+    HUNG,
+    begin,
+    check,
     failure,
+    launch,
     launcher_services,
-    list_components,
     load_and_build,
     make_parser,
-    stopped_by_a_failure,
+    parse_assignments,
 )
-from coco_core.processes.level import process_level
 from coco_core.processes.supervisor import ProcessSupervisor
 from coco_core.report import snapshot
 from coco_core.signals import INTERRUPTED, LaunchSignals, leave
 from coco_core.xml import load_application
+from rclpy.executors import Executor
 from rclpy.node import Node
 
 from .fastdds_segments import remove_abandoned
@@ -63,9 +63,6 @@ log = logging.getLogger("coco")
 PROG = "ros2 run coco_ros launcher"
 _NAME = "launcher"
 """How the launcher names itself in its error messages."""
-HUNG = 3
-"""What :func:`run` returns when an activity did not stop within a second (its thread is abandoned);
-:func:`main` then exits with 1 at once instead of waiting for that thread."""
 
 
 def make_ros_parser() -> argparse.ArgumentParser:
@@ -133,13 +130,9 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
     application ran or a second Ctrl-C during its stop (:mod:`coco_core.signals`), :data:`HUNG`
     when an activity did not stop in time.
     """
-    logging.basicConfig(level=options.log_level, format="[%(levelname)s] %(name)s: %(message)s")
-    if options.list:
-        print(list_components())
-        return 0
-    if options.app is None:
-        print(f"{_NAME}: an application file is needed (or --list)", file=sys.stderr)
-        return 2
+    early = begin(options, _NAME)
+    if early is not None:
+        return early
     signals = signals or LaunchSignals().install()  # before anything is read: a Ctrl-C at any moment counts
     if options.managed and options.executor_threads is not None:
         print(f"{_NAME}: --managed needs the default hosting (a wait set per activity): with --executor-threads the "
@@ -150,7 +143,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         # No -p / --params-file: the file is loaded and built before rclpy starts, so a wrong one is
         # reported before any node appears.
         if options.check:
-            return _check(options, signals)
+            return check(options, signals, RosHost(options))
         try:
             built = load_and_build(options, signals)
         except CocoError as error:
@@ -172,9 +165,12 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         node = node_type(node_name(name), automatically_declare_parameters_from_overrides=True)
         given = given_parameters(node)
         if options.check:
-            return _check(options, signals, given)
+            return check(options, signals, RosHost(options), given)
         with RosoutLogging(node):  # CoCo's log lines on /rosout too, from here on
-            return _launch(node, options, ros_args, signals, given, built)
+            spec, app = built or load_and_build(options, signals, given)
+            ArgParameters(node, spec).declare(given)
+            signals.check()
+            return launch(spec, app, options, signals, RosHost(options, node, ros_args))
     except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(_NAME, error)
     finally:
@@ -198,24 +194,33 @@ def sets_parameters(ros_args: Sequence[str]) -> bool:
     return any(word in ("-p", "--param", "--params-file") for word in ros_args)
 
 
-def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], signals: LaunchSignals,
-            parameters: dict[str, str], built: tuple[AppSpec, Application] | None = None) -> int:
-    """Load and build the application (``parameters``: the node's ``-p`` values) unless ``built``
-    already, declare its args on ``node``, start its child processes, host its activities and run it
-    to its stop."""
-    spec, app = built or load_and_build(options, signals, parameters)
-    ArgParameters(node, spec).declare(parameters)
-    signals.check()
-    configure_logging(spec.log, logging.getLevelName(options.log_level))
-    deployment = plan_deployment(spec, launch_options(options))
-    child_config = {"node": node.get_name(), "ros_args": list(ros_args)}
-    with process_level(spec, app, deployment, logging.getLevelName(options.log_level), child_module="coco_ros.child",
-                       child_config=child_config) as processes:
-        host = ExecutorHost(node, app, deployment)
-        executor = host.create_executor()
-        executor.add_node(node)
-        log.info("node %s hosts application %s", node.get_fully_qualified_name(), app.name)
-        deployed(app, deployment)
+class RosHost:
+    """The ROS launcher's host (:class:`coco_core.launcher.LaunchHost`): the launcher's process's
+    part in an rclpy node (a wait set per hosted activity, or the node's executor), the profile on
+    /diagnostics, operations as services, optionally a managed (lifecycle) node; its children host
+    their parts in nodes of their own (:mod:`.child`) by the same deployment plan."""
+
+    prog = _NAME
+    child_module = "coco_ros.child"
+
+    def __init__(self, options: argparse.Namespace, node: Node | None = None, ros_args: Sequence[str] = ()) -> None:
+        self.options = options
+        self.node = node
+        """The launcher's node (None for ``--check``, which runs nothing)."""
+        self.ros_args = list(ros_args)
+
+    def launch_options(self, options: argparse.Namespace) -> LaunchOptions:
+        return launch_options(options)
+
+    def child_config(self) -> dict[str, Any]:
+        assert self.node is not None
+        return {"node": self.node.get_name(), "ros_args": self.ros_args}
+
+    def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
+            processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
+        node = self.node
+        assert node is not None
+        host, executor = host_in_node(node, app, deployment)
         if (options.executor_threads or 1) > 1:
             log.warning("--executor-threads %d: rclpy's MultiThreadedExecutor hosts the activities; it missed "
                         "wake-ups in docs/benchmarks.md (Figure 6: p99 2.4-566x a plain node, messages lost "
@@ -227,21 +232,23 @@ def _launch(node: Node, options: argparse.Namespace, ros_args: Sequence[str], si
             managed = None
             if isinstance(node, ManagedLauncherNode):
                 managed = node.managed = ManagedApplication(app, host)
-            code = _run_hosted(app, host, executor, options, processes, managed)
-        return INTERRUPTED if signals.forced else code
+            with launcher_services(app, options, processes):
+                clean = run_hosted(app, host, executor, options.duration, managed)
+        if clean:  # else a hung on_update keeps an executor worker busy: the entry point leaves at once
+            host.close()
+        return clean
 
 
-def _check(options: argparse.Namespace, signals: LaunchSignals, parameters: dict[str, str] | None = None) -> int:
-    """``--check``: load and build (``parameters``: the node's ``-p`` values), print the tree and the
-    hosting, run nothing."""
-    try:
-        spec, app = load_and_build(options, signals, parameters)
-        deployment = plan_deployment(spec, launch_options(options))
-        signals.check()
-        print(describe(spec, app, deployment, options.allow_unknown))
-    except CocoError as error:
-        return failure(_NAME, error)
-    return 0
+def host_in_node(node: Node, app: Application, deployment: Deployment) -> tuple[ExecutorHost, Executor]:
+    """Host this process's part of ``app`` in ``node`` by ``deployment`` (the launcher's process and
+    every child's alike), check its drivers against the plan and log where each activity runs;
+    the host and the executor to spin."""
+    host = ExecutorHost(node, app, deployment)
+    executor = host.create_executor()
+    executor.add_node(node)
+    log.info("node %s hosts application %s", node.get_fully_qualified_name(), app.name)
+    deployed(app, deployment)
+    return host, executor
 
 
 def launch_options(options: argparse.Namespace) -> LaunchOptions:
@@ -262,21 +269,6 @@ def application_name(options: argparse.Namespace, signals: LaunchSignals) -> str
         raise
     except CocoError:
         return Path(options.app).stem
-
-
-def _run_hosted(app: Application, host: ExecutorHost, executor: object, options: argparse.Namespace,
-                processes: ProcessSupervisor | None = None, managed: ManagedApplication | None = None) -> int:
-    """Start ``app`` with ``host`` (at the lifecycle's configure and activate when ``managed``), spin
-    ``executor`` until a stop is asked, stop cleanly."""
-    with launcher_services(app, options, processes):
-        clean = run_hosted(app, host, executor, options.duration, managed)
-    if not clean:
-        # A hung on_update keeps an executor worker (or a daemon thread) busy; Python would wait for
-        # the worker at exit, so the entry point leaves at once (see main).
-        return HUNG
-    host.close()
-    failed = stopped_by_a_failure(app) or (processes is not None and processes.failed)
-    return 1 if failed else 0
 
 
 def run_hosted(app: Application, host: ExecutorHost, executor: object, duration: float | None = None,
