@@ -112,12 +112,34 @@ def _connection_line(connection: Connection, indent: str) -> str:
     return f"{indent}{connection.source.qualified_name} -> {connection.sink.qualified_name}  {connection.describe()}"  # type: ignore[union-attr]
 
 
+def _composite_lines(spec: AppSpec) -> list[str]:
+    """The composite instances (FlowVR's hierarchy): each with its file, where it is made, its args,
+    exposed ports and own parts, indented under the instance it is in."""
+    if not spec.composites:
+        return []
+    lines = ["  composites:"]
+    for composite in spec.composites:
+        indent = "    " + "  " * composite.name.count("/")
+        args = ", ".join(f"{name}={value}" for name, value in composite.args.items())
+        lines.append(f"{indent}{composite.name}: {composite.file} (at {composite.location})")
+        if args:
+            lines.append(f"{indent}  args: {args}")
+        for name, target in composite.ports.items():
+            lines.append(f"{indent}  port {name} -> {target}" + (" (activity)" if target.activity else ""))
+        if composite.components:
+            lines.append(f"{indent}  components: {', '.join(composite.components)}")
+        if composite.activities:
+            lines.append(f"{indent}  activities: {', '.join(composite.activities)}")
+    return lines
+
+
 def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, allow_unknown: bool = False) -> str:
     """The scheduling tree for ``--check``: processes (when the file has any), activities with what
     drives each and why (the deployment plan every process of the run executes), components and
     connections. Every child's part is built here too (``init`` only, nothing runs), so a wrong
     component in any process is reported now."""
-    lines = [f"application {launcher_part.name}", f"  deployment: {deployment.options.describe()}"]
+    lines = [f"application {launcher_part.name}", f"  deployment: {deployment.options.describe()}",
+             *_composite_lines(spec)]
     if not spec.processes:
         lines += _activity_lines(launcher_part, deployment, "  ")
         lines += [_connection_line(connection, "  ") for connection in launcher_part.connections]
