@@ -1,6 +1,6 @@
 """``coco-launch``: run a CoCo application file without ROS.
 
-    coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown]] [--list]
+    coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown] [--graph FILE]] [--list]
 
 Ctrl-C (or SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran in
 its own thread (:mod:`coco_core.signals` has the rules and the exit statuses). The ROS 2 launcher
@@ -21,6 +21,7 @@ from .applications import find_application
 from .application import Application
 from .builder import build_application, configure_logging
 from .connections import Connection
+from .dataflow_graph import check_graph_file, write_graph
 from .deployment import Deployment, deployed, plan_deployment
 from .errors import CocoError, ConfigError, ConfigErrors, Interrupted
 from .model import AppSpec
@@ -62,6 +63,10 @@ def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
     parser.add_argument("--allow-unknown", action="store_true",
                         help="with --check: report components that no installed package provides as "
                              "warnings, and check the rest of the structure")
+    parser.add_argument("--graph", metavar="FILE",
+                        help="with --check: write the data-flow graph (processes, activities, components, "
+                             "connections with their policies, filters) as Graphviz DOT (FILE.dot or .gv), or "
+                             "render it with Graphviz's dot (FILE.svg, .png or .pdf, with FILE.dot beside it)")
     parser.add_argument("--list", action="store_true", help="list the installed components and exit")
     parser.add_argument("--transforms-server", type=int, metavar="PORT",
                         help="serve the transformation graph (REST, WebSocket, web page) on 127.0.0.1:PORT "
@@ -175,6 +180,14 @@ def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, 
     return "\n".join(lines)
 
 
+def run_check(options: argparse.Namespace, spec: AppSpec, app: Application, deployment: Deployment) -> None:
+    """What ``--check`` does in both launchers once the application is built: print the tree, and
+    write the data-flow graph when ``--graph`` asks for it."""
+    print(describe(spec, app, deployment, options.allow_unknown))
+    if options.graph is not None:
+        print(f"data-flow graph written to {', '.join(write_graph(spec, options.graph))}")
+
+
 def start_profile_printer(report: Callable[[], str], every: float) -> threading.Event:
     """Print ``report()`` every ``every`` seconds until the returned event is set."""
     done = threading.Event()
@@ -238,6 +251,10 @@ def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
     if options.allow_unknown and not options.check:
         raise CocoError("--allow-unknown goes with --check only: an application without some of its "
                         "components cannot run")
+    if options.graph is not None:
+        if not options.check:
+            raise CocoError("--graph goes with --check: it draws the application instead of running it")
+        check_graph_file(options.graph)  # a wrong name fails before the file is read
     args = parse_assignments(options.args)
     log.debug("reading %s", options.app)
     with signals.loading():
@@ -264,7 +281,7 @@ def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> in
         deployment = plan_deployment(spec)
         signals.check()
         if options.check:
-            print(describe(spec, app, deployment, options.allow_unknown))
+            run_check(options, spec, app, deployment)
             return 0
     except CocoError as error:
         return failure("coco-launch", error)

@@ -1,6 +1,6 @@
 """``launcher`` of ``coco_ros``: run a CoCo application file inside one rclpy node.
 
-    ros2 run coco_ros launcher app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown]] [--list]
+    ros2 run coco_ros launcher app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown] [--graph FILE]] [--list]
                                [--threads NAME[,NAME]] [--all-threads] [--executor-threads N] [--managed]
                                [--ros-args -r __node:=NAME -p param:=value ...]
 
@@ -35,7 +35,7 @@ from coco_core.builder import configure_logging
 from coco_core.deployment import Host, LaunchOptions, deployed, plan_deployment
 from coco_core.launcher import (
     parse_assignments,
-    describe,
+    run_check,
     failure,
     launcher_services,
     list_components,
@@ -238,7 +238,7 @@ def _check(options: argparse.Namespace, signals: LaunchSignals, parameters: dict
         spec, app = load_and_build(options, signals, parameters)
         deployment = plan_deployment(spec, launch_options(options))
         signals.check()
-        print(describe(spec, app, deployment, options.allow_unknown))
+        run_check(options, spec, app, deployment)
     except CocoError as error:
         return failure(_NAME, error)
     return 0
