@@ -342,3 +342,26 @@ def test_outer_connections_may_use_the_policy_they_need(tmp_path):
       <src task="cam2" port="raw"/><dest task="rec1" port="values"/></connection>"""))
     last = spec.connections[-1]
     assert (str(last.src), last.data, last.buffersize) == ("cam2/gen.sample", BufferPolicy.CIRCULAR, 3)
+
+
+def test_a_value_the_builder_refuses_names_the_instance_that_gave_it(tmp_path):
+    spec = load_application(two_instances(tmp_path, second_args='<arg name="frequency" value="2"/>'
+                                                                 '<arg name="window" value="wide"/>'))
+    with pytest.raises(ConfigErrors) as raised:
+        build_application(spec)
+    [error] = raised.value.errors
+    assert str(error.location) == f"{tmp_path / 'parts' / 'pipeline.xml'}:14"
+    assert error.message == (f"attribute cam2/filter.window (int): expected an integer, got 'wide' (in composite "
+                             f"instance 'cam2' of {tmp_path / 'parts' / 'pipeline.xml'}, instantiated at "
+                             f"{tmp_path / 'app.xml'}:7)")
+
+
+def test_a_wrong_port_behind_an_exposed_port_is_reported_at_the_outer_connection(tmp_path):
+    spec = load_application(two_instances(tmp_path, outer="""<connection>
+      <src task="cam1" port="raw"/><dest task="cam2/filter" port="window"/></connection>"""))
+    with pytest.raises(ConfigErrors) as raised:
+        build_application(spec)
+    [error] = raised.value.errors
+    assert error.location.file == str(tmp_path / "app.xml") and error.location.line == 16
+    assert "cam2/filter" in error.message and "window" in error.message
+    assert "(in composite instance" not in error.message  # the connection is the application's
