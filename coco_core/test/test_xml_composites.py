@@ -365,3 +365,22 @@ def test_a_wrong_port_behind_an_exposed_port_is_reported_at_the_outer_connection
     assert error.location.file == str(tmp_path / "app.xml") and error.location.line == 16
     assert "cam2/filter" in error.message and "window" in error.message
     assert "(in composite instance" not in error.message  # the connection is the application's
+
+
+def test_the_rgbd_example_gives_each_camera_its_own_mesh_pipeline():
+    """config/composite_rgbd_meshes.xml: the issue's two cameras, each with its own RGB-D -> mesh
+    pipeline (config/composites/rgbd_mesh.xml), each mesh into a tree builder of the application."""
+    spec = load_application(CONFIG / "composite_rgbd_meshes.xml", args={"bag": "/data/session"})
+    assert [c.name for c in spec.composites] == ["front", "side"]
+    components = {c.name: c for c in spec.all_components()}
+    assert [name for name in components if name.startswith(("front/", "side/"))] == [
+        "front/camera", "front/recording", "front/mesher", "side/camera", "side/recording", "side/mesher"]
+    strides = {name: {a.name: a.value for a in components[name].attributes}["stride"]
+               for name in ("front/mesher", "side/mesher")}
+    assert strides == {"front/mesher": "2", "side/mesher": "4"}
+    assert {a.name: a.value for a in components["side/recording"].attributes}["path"] == "/data/session"
+    assert {a.name: a.schedule.period_ms for a in spec.activities if a.name.endswith("acquisition")} == {
+        "front/acquisition": 33.0, "side/acquisition": 66.0}
+    assert [(str(c.src), str(c.dest), c.data) for c in spec.connections[-2:]] == [
+        ("front/mesher.mesh", "front_tree.cloud", BufferPolicy.POOL),
+        ("side/mesher.mesh", "side_tree.cloud", BufferPolicy.POOL)]
