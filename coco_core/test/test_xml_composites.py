@@ -259,7 +259,7 @@ def test_unresolved_ports_and_names_are_each_reported_once_with_the_instance(tmp
          "own activities run its components; name one of its exposed ports, or schedule components of the application"),
         ("inner.xml", 3, "exposed port 'out' names 'c/filtr', which is not a component of the composite; "
          "did you mean 'c/filter'? valid: c/filter" + context),
-        ("inner.xml", 4, "exposed port 'tick' names 'c/nowhere', which is not a activity of the composite; "
+        ("inner.xml", 4, "exposed port 'tick' names 'c/nowhere', which is not an activity of the composite; "
          "valid: c/run" + context),
         ("inner.xml", 8, "<src task=\"c/gen\"> is not a defined component; valid: c/filter" + context),
         ("inner.xml", 11, "<component name=\"c/fliter\"> is not a defined component; did you mean 'c/filter'? "
@@ -384,3 +384,12 @@ def test_the_rgbd_example_gives_each_camera_its_own_mesh_pipeline():
     assert [(str(c.src), str(c.dest), c.data) for c in spec.connections[-2:]] == [
         ("front/mesher.mesh", "front_tree.cloud", BufferPolicy.POOL),
         ("side/mesher.mesh", "side_tree.cloud", BufferPolicy.POOL)]
+
+
+def test_an_exposed_endit_cannot_end_a_connection(tmp_path):
+    app = two_instances(tmp_path, outer="""<connection>
+      <src activity="recording" port="endit"/><dest task="cam1" port="done"/></connection>""")
+    assert errors_of(app) == [
+        ("app.xml", 17, "<dest> names activity 'cam1/filtering''s endit port (an exposed port), but a connection "
+                        "ends at an activity's beginit"),
+    ]

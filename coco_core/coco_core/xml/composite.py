@@ -255,10 +255,10 @@ def resolve_exposed(
         for name, target in ports.items():
             known = activities if target.activity else names
             if target.component not in known:
-                what = "activity" if target.activity else "component"
+                what = "an activity" if target.activity else "a component"
                 valid = [other for other in known if scope_of(other, composites) == scope_of(target.component, composites)]
                 errors.append(ConfigError(
-                    f"exposed port {name!r} names {target.component!r}, which is not a {what} of the composite; "
+                    f"exposed port {name!r} names {target.component!r}, which is not {what} of the composite; "
                     f"{did_you_mean(target.component, valid)}{context}", target.location))
                 broken.add((owner.name if owner is not None else "", name))
             elif follow(target, "port", context) is None:
