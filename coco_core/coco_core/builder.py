@@ -23,6 +23,7 @@ from .policy import ConnectionPolicy
 from .ports import InputPort, Port, type_name
 from .processes.placement import LAUNCHER, Placement
 from .scheduling import SchedulingRequest
+from .xml.composite import context_of, scope_of
 
 log = logging.getLogger("coco")
 
@@ -34,9 +35,21 @@ class _Builder:
         self.allow_unknown = allow_unknown
         self.missing: set[str] = set()
         """Components left out because their task is unknown (with ``allow_unknown``), peers included."""
+        self.composites = {composite.name: composite for composite in spec.composites}
 
-    def fail(self, error: Exception | str, spec: object) -> None:
-        self.errors.append(ConfigError(str(error), getattr(spec, "location", None)))
+    def fail(self, error: Exception | str, spec: object, within: str = "") -> None:
+        """Record an error at ``spec``'s location; ``within``: the scoped name it concerns, whose
+        composite instances the message then names with where each is made (two instances of one
+        file share its lines, and differ by their arguments)."""
+        context = context_of(within, self.composites) if within else ""
+        self.errors.append(ConfigError(f"{error}{context}", getattr(spec, "location", None)))
+
+    def inside(self, connection: ConnectionSpec) -> str:
+        """A name that stands for the composite instance ``connection`` is written in: its ends'
+        when both are in the same one (a connection from outside to an exposed port is written in
+        the application, whose line its error gives); "" otherwise."""
+        src, dest = connection.src.component, connection.dest.component
+        return src if scope_of(src, self.composites) == scope_of(dest, self.composites) else ""
 
     def check(self) -> None:
         if self.errors:
@@ -47,7 +60,7 @@ class _Builder:
             cls = registry.load(spec.task, spec.library)
         except registry.UnknownComponentError as error:
             if not self.allow_unknown:
-                self.fail(error, spec)
+                self.fail(error, spec, spec.name)
                 return None
             left_out = [spec]
             while left_out:
@@ -59,18 +72,18 @@ class _Builder:
                 "attributes, peers, ports and connections are not checked", spec.location)))
             return None
         except CocoError as error:
-            self.fail(error, spec)
+            self.fail(error, spec, spec.name)
             return None
         try:
             component = cls(spec.name)
         except Exception as error:
-            self.fail(f"component {spec.name} ({spec.task}) could not be constructed: {error!r}", spec)
+            self.fail(f"component {spec.name} ({spec.task}) could not be constructed: {error!r}", spec, spec.name)
             return None
         for attribute in spec.attributes:
             try:
                 component.set_attribute_now(attribute.name, attribute.value)
             except (KeyError, AttributeValueError) as error:
-                self.fail(error, attribute)
+                self.fail(error, attribute, spec.name)
         if spec.on_error:
             component.on_error = ErrorPolicy(spec.on_error)
         for peer_spec in spec.peers:
@@ -165,7 +178,8 @@ class _Builder:
             try:
                 app.add(component)
             except Exception as error:
-                self.fail(f"component {component.name}: init() failed: {error!r}", by_name.get(component.name))
+                self.fail(f"component {component.name}: init() failed: {error!r}", by_name.get(component.name),
+                          component.name)
         self.check()
         for activity_spec in spec.activities:
             owner = placement.of_activity[activity_spec.name]
@@ -200,7 +214,7 @@ class _Builder:
                 if connection_spec.shared and connection.source is not None:
                     connection.source.share(connection)
             except (CocoError, ValueError, KeyError) as error:
-                self.fail(error, connection_spec)
+                self.fail(error, connection_spec, self.inside(connection_spec))
         self.check()
         locations = dict(zip(map(id, app.connections), spec.connections))
         for subject, problem in app.problems():

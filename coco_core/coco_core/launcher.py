@@ -1,6 +1,6 @@
 """``coco-launch``: run a CoCo application file without ROS.
 
-    coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown]] [--list]
+    coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown] [--graph FILE]] [--list]
 
 Ctrl-C (or SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran in
 its own thread (:mod:`coco_core.signals` has the rules and the exit statuses). The ROS 2 launcher
@@ -21,6 +21,7 @@ from .applications import find_application
 from .application import Application
 from .builder import build_application, configure_logging
 from .connections import Connection
+from .dataflow_graph import check_graph_file, write_graph
 from .deployment import Deployment, LaunchOptions, deployed, plan_deployment
 from .errors import CocoError, ConfigError, ConfigErrors, Interrupted
 from .model import AppSpec
@@ -62,6 +63,10 @@ def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
     parser.add_argument("--allow-unknown", action="store_true",
                         help="with --check: report components that no installed package provides as "
                              "warnings, and check the rest of the structure")
+    parser.add_argument("--graph", metavar="FILE",
+                        help="with --check: write the data-flow graph (processes, activities, components, "
+                             "connections with their policies, filters) as Graphviz DOT (FILE.dot or .gv), or "
+                             "render it with Graphviz's dot (FILE.svg, .png or .pdf, with FILE.dot beside it)")
     parser.add_argument("--list", action="store_true", help="list the installed components and exit")
     parser.add_argument("--transforms-server", type=int, metavar="PORT",
                         help="serve the transformation graph (REST, WebSocket, web page) on 127.0.0.1:PORT "
@@ -112,12 +117,34 @@ def _connection_line(connection: Connection, indent: str) -> str:
     return f"{indent}{connection.source.qualified_name} -> {connection.sink.qualified_name}  {connection.describe()}"  # type: ignore[union-attr]
 
 
+def _composite_lines(spec: AppSpec) -> list[str]:
+    """The composite instances (FlowVR's hierarchy): each with its file, where it is made, its args,
+    exposed ports and own parts, indented under the instance it is in."""
+    if not spec.composites:
+        return []
+    lines = ["  composites:"]
+    for composite in spec.composites:
+        indent = "    " + "  " * composite.name.count("/")
+        args = ", ".join(f"{name}={value}" for name, value in composite.args.items())
+        lines.append(f"{indent}{composite.name}: {composite.file} (at {composite.location})")
+        if args:
+            lines.append(f"{indent}  args: {args}")
+        for name, target in composite.ports.items():
+            lines.append(f"{indent}  port {name} -> {target}" + (" (activity)" if target.activity else ""))
+        if composite.components:
+            lines.append(f"{indent}  components: {', '.join(composite.components)}")
+        if composite.activities:
+            lines.append(f"{indent}  activities: {', '.join(composite.activities)}")
+    return lines
+
+
 def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, allow_unknown: bool = False) -> str:
     """The scheduling tree for ``--check``: processes (when the file has any), activities with what
     drives each and why (the deployment plan every process of the run executes), components and
     connections. Every child's part is built here too (``init`` only, nothing runs), so a wrong
     component in any process is reported now."""
-    lines = [f"application {launcher_part.name}", f"  deployment: {deployment.options.describe()}"]
+    lines = [f"application {launcher_part.name}", f"  deployment: {deployment.options.describe()}",
+             *_composite_lines(spec)]
     if not spec.processes:
         lines += _activity_lines(launcher_part, deployment, "  ")
         lines += [_connection_line(connection, "  ") for connection in launcher_part.connections]
@@ -151,6 +178,14 @@ def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, 
             lines.append(f"    {connection.src} -> {connection.dest}  {policy}  "
                          f"({src or 'launcher'} -> {dest or 'launcher'})")
     return "\n".join(lines)
+
+
+def run_check(options: argparse.Namespace, spec: AppSpec, app: Application, deployment: Deployment) -> None:
+    """What ``--check`` does in both launchers once the application is built: print the tree, and
+    write the data-flow graph when ``--graph`` asks for it."""
+    print(describe(spec, app, deployment, options.allow_unknown))
+    if options.graph is not None:
+        print(f"data-flow graph written to {', '.join(write_graph(spec, options.graph))}")
 
 
 def start_profile_printer(report: Callable[[], str], every: float) -> threading.Event:
@@ -216,6 +251,10 @@ def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
     if options.allow_unknown and not options.check:
         raise CocoError("--allow-unknown goes with --check only: an application without some of its "
                         "components cannot run")
+    if options.graph is not None:
+        if not options.check:
+            raise CocoError("--graph goes with --check: it draws the application instead of running it")
+        check_graph_file(options.graph)  # a wrong name fails before the file is read
     args = parse_assignments(options.args)
     log.debug("reading %s", options.app)
     with signals.loading():
@@ -295,7 +334,7 @@ def check(options: argparse.Namespace, signals: LaunchSignals, host: LaunchHost,
         spec, app = load_and_build(options, signals, parameters)
         deployment = plan_deployment(spec, host.launch_options(options))
         signals.check()
-        print(describe(spec, app, deployment, options.allow_unknown))
+        run_check(options, spec, app, deployment)
     except CocoError as error:
         return failure(host.prog, error)
     return 0

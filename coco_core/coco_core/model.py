@@ -229,6 +229,29 @@ class TransformsSpec:
     """The first ``<transforms>`` element read."""
 
 
+@dataclass
+class CompositeSpec:
+    """``<composite name=... file=...>``: one instance of a composite component, a sub-application
+    in a file of its own (FlowVR's composite). Its components, activities and processes are in the
+    application's lists under scoped names (``cam1/mesher``); this records the instance itself, for
+    ``--check``'s tree and for the outer connections that name its exposed ports."""
+
+    name: str
+    """The scoped instance name (``cam1``, ``cam1/left`` for an instance inside another)."""
+    file: str
+    """The composite's file, absolute."""
+    args: dict[str, str] = field(default_factory=dict)
+    """The final values of the composite's ``<arg>`` declarations for this instance."""
+    ports: dict[str, PortRef] = field(default_factory=dict)
+    """Each exposed port (``<ports><port name=...>``) and the scoped inner port it stands for."""
+    components: list[str] = field(default_factory=list)
+    """The scoped names of the instance's own top-level components (not those of nested instances)."""
+    activities: list[str] = field(default_factory=list)
+    """The scoped names of the instance's own activities."""
+    location: Location | None = None
+    """The instantiating ``<composite>`` element."""
+
+
 @dataclass(frozen=True)
 class ArgDeclaration:
     """One ``<arg>`` as declared: what the ROS launcher declares as a node parameter of the same name."""
@@ -265,6 +288,8 @@ class AppSpec:
     log: LogSpec | None = None
     transforms: TransformsSpec | None = None
     """The declared transformation graph structure; None when no file has ``<transforms>``."""
+    composites: list[CompositeSpec] = field(default_factory=list)
+    """Every composite instance, outer ones before the instances inside them, in document order."""
     warnings: list[str] = field(default_factory=list)
     """``file:line: message`` for what was accepted but ignored (settings the original CoCo
     ignores, components left unchecked); the launchers print them."""

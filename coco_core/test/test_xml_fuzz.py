@@ -82,9 +82,11 @@ def mutate(data: bytes, rng: random.Random) -> bytes:
 
 @pytest.mark.parametrize("original", application_files(), ids=lambda path: path.name)
 def test_mutated_application_files_load_or_fail_with_file_and_line(tmp_path, original):
-    # The file's neighbours come along, so that its includes resolve as they do for the original.
-    for sibling in original.parent.glob("*.xml"):
-        shutil.copy(sibling, tmp_path / sibling.name)
+    # The file's neighbours come along (config/composites/ too), so that its includes and composites
+    # resolve as they do for the original.
+    for sibling in original.parent.rglob("*.xml"):
+        (tmp_path / sibling.relative_to(original.parent)).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(sibling, tmp_path / sibling.relative_to(original.parent))
     rng = random.Random(f"{SEED}:{original.name}")
     data = original.read_bytes()
     target = tmp_path / original.name

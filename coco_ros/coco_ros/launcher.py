@@ -1,6 +1,6 @@
 """``launcher`` of ``coco_ros``: run a CoCo application file inside one rclpy node.
 
-    ros2 run coco_ros launcher app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown]] [--list]
+    ros2 run coco_ros launcher app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown] [--graph FILE]] [--list]
                                [--threads NAME[,NAME]] [--all-threads] [--executor-threads N] [--managed]
                                [--ros-args -r __node:=NAME -p param:=value ...]
 

@@ -60,7 +60,8 @@ def test_an_unknown_name_lists_the_installed_applications(tmp_path: Path) -> Non
     checked = run(str(LAUNCHER), "demo_pipelin", "--check", cwd=tmp_path)
     assert checked.returncode == 1
     assert "application 'demo_pipelin' not found" in checked.stderr
-    assert "installed applications: baxter_teleop_replay.xml, camera_registration.xml, demo_pipeline.xml" in checked.stderr
+    assert ("installed applications: baxter_teleop_replay.xml, camera_registration.xml, composite_rgbd_meshes.xml, "
+            "composite_signals.xml, demo_pipeline.xml") in checked.stderr
     wrong_url = run(str(LAUNCHER), "package://coco_ros/config/nothere.xml", "--check", cwd=tmp_path)
     assert wrong_url.returncode == 1 and "config/nothere.xml does not exist" in wrong_url.stderr
 

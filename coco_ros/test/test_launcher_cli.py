@@ -81,6 +81,18 @@ def test_check_prints_the_tree_and_where_each_activity_runs(app_file: Path, caps
     assert "activity averaging: triggered -> executor (guard condition in its callback group)" in out
 
 
+def test_check_writes_the_data_flow_graph_and_refuses_a_bad_path(app_file: Path, tmp_path: Path, capsys) -> None:
+    graph = tmp_path / "graph.dot"
+    assert launcher.main([str(app_file), "--check", "--graph", str(graph)]) == 0
+    assert f"data-flow graph written to {graph}" in capsys.readouterr().out
+    text = graph.read_text()
+    assert '"activity sampling\\nperiodic 10 ms"' in text
+    assert '"component:gen" -> "component:avg" [label="sample -> sample\\nBUFFER/LOCKED[8]"];' in text
+    assert launcher.main([str(app_file), "--check", "--graph", str(tmp_path / "no" / "graph.dot")]) == 1
+    assert f"--graph {tmp_path / 'no' / 'graph.dot'}: its folder {tmp_path / 'no'} does not exist" in capsys.readouterr().err
+    assert not rclpy.ok()
+
+
 def test_fast_period_is_planned_on_a_thread(app_file: Path, capsys) -> None:
     assert launcher.main([str(app_file), "period:=1", "--check"]) == 0
     out = capsys.readouterr().out

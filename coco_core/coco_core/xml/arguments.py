@@ -31,8 +31,12 @@ _NAME = re.compile(r"[A-Za-z0-9_.-]+")
 class Arguments:
     """The args of one load: ``values`` is what ``$(arg ...)`` sees at any point of the reading."""
 
-    def __init__(self, given: Mapping[str, str], parameters: Mapping[str, str] | None = None) -> None:
+    def __init__(self, given: Mapping[str, str], parameters: Mapping[str, str] | None = None,
+                 giving: str = "{name}:=VALUE") -> None:
         self.given = dict(given)
+        self.giving = giving
+        """How a value is given, for the error about an arg that has none: on the command line, or
+        by a composite's instance (:mod:`.composite`)."""
         self.parameters = dict(parameters or {})
         """Values for declared args that rank below ``given`` (ROS parameters); never an error."""
         self.declarations: dict[str, ArgDeclaration] = {}
@@ -90,7 +94,8 @@ class Arguments:
             value = reader.attribute(element, "default")
         else:
             reader.error(
-                f"arg {name!r} has no value: give it ({name}:=VALUE) or declare a default=", element
+                f"arg {name!r} has no value: give it ({self.giving.format(name=name)}) or declare a default=",
+                element,
             )
             value = ""
         if choices and value is not None and value not in choices:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from .tree import Element
 
-EXTENSION_ELEMENTS = ("choice", "filter", "process", "transforms")
+EXTENSION_ELEMENTS = ("choice", "composite", "filter", "ports", "process", "transforms")
 """Elements the original CoCo does not have."""
 EXTENSION_ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "package": ("on_error",),

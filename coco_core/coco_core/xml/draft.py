@@ -12,7 +12,9 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from ..errors import Location
-from ..model import ActivitySpec, AttributeSpec, ComponentSpec, ConnectionSpec, LogSpec, PortRef, ProcessSpec
+from ..model import (
+    ActivitySpec, AttributeSpec, ComponentSpec, CompositeSpec, ConnectionSpec, LogSpec, PortRef, ProcessSpec,
+)
 
 if TYPE_CHECKING:
     from .farm import FarmDraft
@@ -54,6 +56,11 @@ class Draft:
     """The ``<transforms>`` sections read so far, merged; None while there is none."""
     farms: list[FarmDraft] = field(default_factory=list)
     """Farms read so far, expanded once every component is defined (see :mod:`.farm`)."""
+    ports: dict[str, PortRef] = field(default_factory=dict)
+    """The exposed ports a composite file declares (``<ports>``), by name, each the inner port it
+    stands for (see :mod:`.composite`)."""
+    composites: list[CompositeSpec] = field(default_factory=list)
+    """The composite instances read so far, with scoped names."""
     activity_count: int = 0
     pipeline_count: int = 0
     farm_count: int = 0

@@ -15,14 +15,15 @@ from pathlib import Path
 from ..errors import ConfigError, ConfigErrors
 from ..errors import FileWriteError
 from ..files import APPLICATION_FILE_LIMIT, FileReadError, check_writable_file, read_regular_file
-from ..model import AppSpec, LogSpec
+from ..model import AppSpec, CompositeSpec, LogSpec
 from .activities import read_activity
 from .arguments import Arguments
 from .components import ON_ERROR, read_component
+from .composite import Instance, join, read_instance, read_ports, scope, unknown_args, within
 from .connections import read_connection
 from .dialect import extension_of
 from .draft import Draft
-from .farm import read_farm
+from .farm import expand_farms, read_farm
 from .pipeline import read_pipeline
 from .process import read_process
 from .reader import CONDITIONS, FileReader
@@ -43,6 +44,7 @@ PACKAGE_CHILDREN = (
     "log",
     "logconfig",
     "paths",
+    "ports",
     "resourcespaths",
     "transforms",
 )
@@ -139,6 +141,7 @@ class _Loader:
             on_error=on_error,
             log=self.draft.log,
             transforms=self.draft.transforms.spec if self.draft.transforms is not None else None,
+            composites=self.draft.composites,
             warnings=self.warnings,
         )
 
@@ -186,6 +189,8 @@ class _Loader:
                     self.arguments.declare(reader, child)
             elif child.tag == "components":
                 self._components(reader, child, on_error)
+            elif child.tag == "ports":
+                read_ports(reader, child, self.draft)
             elif child.tag == "transforms":
                 if reader.kept(child):
                     self.draft.transforms = read_transforms(reader, child, self.draft.transforms)
@@ -200,8 +205,14 @@ class _Loader:
         return values
 
     def _components(self, reader: FileReader, element: Element, on_error: str) -> None:
-        for child in reader.container(element, ("component",)):
-            if reader.kept(child):
+        for child in reader.container(element, ("component", "composite")):
+            if not reader.kept(child):
+                continue
+            if child.tag == "composite":
+                instance = read_instance(reader, child)
+                if instance is not None:
+                    self._instantiate(reader, child, instance, on_error)
+            else:
                 spec = read_component(reader, child, self.draft, on_error)
                 if spec is not None:
                     self.draft.components.append(spec)
@@ -301,47 +312,97 @@ class _Loader:
             self._include(reader, include, found, on_error)
 
     def _include(self, reader: FileReader, include: Element, file: str, on_error: str) -> None:
+        root = self._open(reader, include, file, "include")
+        if root is None:
+            return
+        included = FileReader(os.path.dirname(file), self.substitutions, self.errors, self.warnings,
+                              original=extension_of(root) is None)
+        self._package(included, root, on_error)
+        self.include_chain.pop()
+
+    def _instantiate(self, reader: FileReader, element: Element, instance: Instance, on_error: str) -> None:
+        """Read a composite's file for one instance, with the instance's args as the only ones
+        given and a draft of its own, then scope its names and join it to the application.
+
+        Paths, the log and ``<transforms>`` stay shared with the application, as an included
+        file's do; the arg scope does not: a composite sees the values its ``<composite>`` gives,
+        so that two instances of one file differ only where their elements say so.
+        """
+        earlier = next((spec for spec in self.draft.composites if spec.name == instance.name), None)
+        if earlier is not None:
+            reader.error(f"composite instance name {instance.name!r} is already used at {earlier.location}; "
+                         "instance names must be unique", element)
+            return
+        file, tried = find_resource(instance.file, reader.directory, self.draft.paths)
+        if file is None:
+            reader.error(f"<composite> {not_found_message(instance.file, tried)}", element)
+            self.complete = False
+            return
+        root = self._open(reader, element, file, "composite")
+        if root is None:
+            return
+        outer = (self.draft, self.arguments, self.substitutions)
+        first_error = len(self.errors)
+        self.draft = Draft(paths=outer[0].paths, log=outer[0].log, transforms=outer[0].transforms)
+        self.arguments = Arguments(instance.args, giving="<arg name=\"{name}\" value=\"...\"/> in the <composite>")
+        self.substitutions = Substitutions(self.arguments.visible)
+        inner = FileReader(os.path.dirname(file), self.substitutions, self.errors, self.warnings,
+                           original=extension_of(root) is None)
+        try:
+            self._package(inner, root, on_error)
+            self.include_chain.pop()
+            self.errors.extend(unknown_args(instance, self.arguments.declarations, self.arguments.used_undeclared))
+            expand_farms(self.draft)
+            spec = CompositeSpec(instance.name, file, dict(self.arguments.values), location=instance.location)
+            sub = self.draft
+        finally:
+            self.draft, self.arguments, self.substitutions = outer
+        self.errors[first_error:] = within(self.errors[first_error:], spec)
+        scope(sub, instance.name + "/")
+        join(self.draft, sub, spec)
+
+    def _open(self, reader: FileReader, element: Element, file: str, kind: str) -> Element | None:
+        """The root of a file an ``<include>`` or ``<composite>`` names, pushed on the chain of
+        open files (the caller pops it after reading); None, the error recorded, when it would
+        close a cycle, pass a limit, or cannot be read or parsed."""
         identity = _identity(file)
         identities = [open_identity for open_identity, _ in self.include_chain]
         if identity in identities:
             cycle = [name for _, name in self.include_chain[identities.index(identity) :]]
-            reader.error(f"include cycle: {' -> '.join([*cycle, file])}", include)
-            return
+            reader.error(f"{kind} cycle: {' -> '.join([*cycle, file])}", element)
+            return None
         if len(self.include_chain) >= MAX_INCLUDE_DEPTH:
             reader.error(
                 f"includes nest more than {MAX_INCLUDE_DEPTH} files deep (from {self.include_chain[0][1]}); "
                 f"{file} is not read",
-                include,
+                element,
             )
             self.complete = False
-            return
+            return None
         if self.includes_read >= MAX_INCLUDES or self.included_bytes >= MAX_INCLUDED_BYTES:
             if not self.includes_refused:
                 reader.error(
                     f"the application includes more than {MAX_INCLUDES} files or "
                     f"{MAX_INCLUDED_BYTES // (1024 * 1024)} MiB in all (files that include the same files "
                     f"again and again?); {file} and the includes after it are not read",
-                    include,
+                    element,
                 )
             self.includes_refused = True
             self.complete = False
-            return
+            return None
         try:
-            data = read_regular_file(file, APPLICATION_FILE_LIMIT, "included file")
+            data = read_regular_file(file, APPLICATION_FILE_LIMIT, f"{'included' if kind == 'include' else kind} file")
         except FileReadError as error:
-            reader.error(str(error), include)
+            reader.error(str(error), element)
             self.complete = False
-            return
+            return None
         self.includes_read += 1
         self.included_bytes += len(data)
         root = self._parse(data, file)
         if root is None:
-            return
+            return None
         self.include_chain.append((identity, file))
-        included = FileReader(os.path.dirname(file), self.substitutions, self.errors, self.warnings,
-                              original=extension_of(root) is None)
-        self._package(included, root, on_error)
-        self.include_chain.pop()
+        return root
 
 
 def _identity(file: str) -> str:

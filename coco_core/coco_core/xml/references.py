@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from ..errors import ConfigError, Location, did_you_mean
 from ..model import ActivitySpec, ComponentSpec, ProcessSpec
+from .composite import context_of, resolve_exposed, scope_of
 from .draft import Draft
 from .farm import expand_farms
 from .resources import find_resource, not_found_message
@@ -22,6 +23,8 @@ def check_draft(draft: Draft) -> list[ConfigError]:
     errors: list[ConfigError] = []
     expand_farms(draft)
     instances, owners = _instances(draft.components, errors)
+    resolve_exposed(draft, instances, errors)
+    composites = {spec.name: spec for spec in draft.composites}
     unknown_reported: set[tuple[str, Location | None]] = set()
 
     def known(name: str, location: Location | None, what: str, valid: list[str]) -> bool:
@@ -29,8 +32,14 @@ def check_draft(draft: Draft) -> list[ConfigError]:
             return True
         if (name, location) not in unknown_reported:
             unknown_reported.add((name, location))
-            message = f"{what} is not a defined component; {did_you_mean(name, valid)}"
-            errors.append(ConfigError(message, location))
+            if name in composites:
+                message = (f"{what} is a composite instance ({composites[name].file}): its own activities run its "
+                           f"components; name one of its exposed ports, or schedule components of the application")
+            else:
+                scope = scope_of(name, composites)
+                valid = [other for other in valid if scope_of(other, composites) == scope]
+                message = f"{what} is not a defined component; {did_you_mean(name, valid)}"
+            errors.append(ConfigError(message + context_of(name, composites), location))
         return False
 
     top_level = list(dict.fromkeys(spec.name for spec in draft.components))
@@ -62,8 +71,11 @@ def check_draft(draft: Draft) -> list[ConfigError]:
             if not ref.activity:
                 known(ref.component, ref.location, f'<{tag} task="{ref.component}">', every_name)
             elif ref.component not in activities:
+                scope = scope_of(ref.component, composites)
+                valid = [activity for activity in activities if scope_of(activity, composites) == scope]
                 errors.append(ConfigError(f'<{tag} activity="{ref.component}"> is not a defined activity; '
-                                          f"{did_you_mean(ref.component, activities)}", ref.location))
+                                          f"{did_you_mean(ref.component, valid)}{context_of(ref.component, composites)}",
+                                          ref.location))
 
     _check_activities(draft.activities, errors)
     _check_processes(draft.processes, draft.activities, errors)
