@@ -116,6 +116,12 @@ class Connection(abc.ABC):
             newest = value
         return newest
 
+    def ready_at(self) -> float | None:
+        """When the next value may be taken (``time.perf_counter`` seconds; 0: now), or None when
+        there is none: what an activity's ``beginit`` waits for (:mod:`coco_core.iteration`). A
+        filter may hold a value back until later (:class:`~coco_core.filters.MaxFrequency`)."""
+        return 0.0 if self.pending else None
+
     def writer_done(self) -> None:
         """The writer's activity finished: nothing more will come. A reader in the same process
         knows it from the stop order (:meth:`Application.stop_order`); only a channel to another

@@ -219,15 +219,55 @@ def test_wrong_coupling_xml_is_reported_with_its_line_and_what_was_expected():
     assert 'leave out data="BUFFER"' in data
 
 
-def test_an_activity_port_connection_between_processes_is_refused():
+def test_an_activity_port_connection_between_processes_has_its_filter_on_the_readers_side():
+    """Before: refused ('works inside one process in this version'). Now the reader's process (the
+    launcher's here, which runs produce) holds the PreSignal, to be fed from the channel; the
+    writer's process (worker, which runs consume) has no filter of it."""
     text = APP.format(data_filter="", attributes="", src='activity="consume" port="endit"',
                       dest='activity="produce" port="beginit"', filter='<filter type="PreSignal"/>')
     text = text.replace('<activity name="consume">', '<process name="worker"><activity name="consume">').replace(
         '<component name="consumer"/></components></activity>',
         '<component name="consumer"/></components></activity></process>')
-    with pytest.raises(ConfigErrors) as raised:
-        build_application(parse_application_string(text, filename="app.xml"))
-    assert any("works inside one process in this version" in str(error) for error in raised.value.errors)
+    spec = parse_application_string(text, filename="app.xml")
+    reader, writer = build_application(spec), build_application(spec, "worker")
+    [(label, made)] = reader.incoming_filters.items()
+    assert label == "consume.endit->produce.beginit" and isinstance(made, PreSignal) and made.pending == 1
+    assert writer.incoming_filters == {}
+
+
+def test_a_merge_joins_inputs_from_another_process_and_from_its_own(tmp_path):
+    """One Merge input from another process (its ring fed into the Merge filter on the reader's
+    side, in its file place), one from the reader's own: one tuple once each has a message, stamped
+    as the first's message, which crossed with its stamp."""
+    from coco_core.processes.channels import attach, plan_channels
+    from coco_core.processes.filtered import FedFilter
+    from coco_core.processes.placement import Placement
+    from coco_core.shm import Arena, ShmWriter
+
+    text = MERGE.format(sink="relay", task="Relay", port="input").replace(
+        "</connections>", '</connections><activities><process name="far"><activity name="lefty">'
+                          '<schedule type="triggered"/><components><component name="left"/></components>'
+                          '</activity></process></activities>')
+    spec = parse_application_string(text, filename="app.xml")
+    app = build_application(spec)
+    arena = Arena(f"merge{time.monotonic_ns()}")
+    try:
+        plans = plan_channels(arena, spec, Placement.of(spec))
+        attach(app, plans, {})
+        relay = app.component("relay")
+        near, far = relay.input.connections  # type: ignore[attr-defined]  # the channel is attached after the build
+        assert isinstance(far, FedFilter) and isinstance(far.filter, Merge) and far.filter.index == 0
+        assert isinstance(near, Merge) and near.index == 1 and near.group is far.filter.group
+        ShmWriter(plans[0].channel).push(Message(1, 12.5, 1, "left.out", 4))
+        assert relay.input.read() == (NO_DATA, None)  # the right one has nothing yet
+        app.component("right").out.write(10)  # type: ignore[attr-defined]
+        assert relay.input.read() == (NEW_DATA, (1, 10))
+        stamp = relay.input.stamp  # type: ignore[attr-defined]
+        assert stamp is not None and (stamp.source, stamp.seq, stamp.it, stamp.time) == ("left.out", 1, 4, 12.5)
+        assert far.counters() == {"written": 1, "read": 1, "dropped": 0, "pending": 0}
+        assert far.describe() == "Merge(in0 of 2)" and far.label == "left.out -> relay.input"
+    finally:
+        arena.close()
 
 
 # --- Merge ----------------------------------------------------------------------------------------
