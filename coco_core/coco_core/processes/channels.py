@@ -9,10 +9,12 @@ Then each process attaches its own ends (:func:`attach`), after building its par
 starting it: the writer's process an :class:`~coco_core.shm.ShmWriter` on the output port (and, for
 a pooled output, the pool in shared memory, given to the port through
 :meth:`~coco_core.ports.PooledOutputPort.use_pool`, the port's one way to change its pool), the
-reader's process an :class:`~coco_core.shm.ShmReader` on the input port. Everything
-else about the ports stays as it is: read status, round-robin over several connections, counters in
-the profile (reported by the reader's process; by the launcher, from shared memory, when that
-process died).
+reader's process an :class:`~coco_core.shm.ShmReader` on the input port, behind the connection's
+filter when it has one (:class:`~coco_core.processes.filtered.FedFilter`: the filter stays on the
+reader's side). An activity's ``endit``/``beginit`` is an end like a component's port. Everything
+else about the ports stays as it is: read status, round-robin over several connections, message
+stamps, counters in the profile (reported by the reader's process; by the launcher, from shared
+memory, when that process died).
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ class ChannelPlan:
     """One connection between two processes, as every process needs to know it."""
 
     src: str
-    """``component.port`` of the writer."""
+    """``component.port`` of the writer (``activity.endit`` when :attr:`src_activity`)."""
     dest: str
     src_process: str
     dest_process: str

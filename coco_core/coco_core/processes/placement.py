@@ -4,7 +4,8 @@ Every activity belongs to one process (its ``<process>``, or the launcher's own,
 component belongs to the process of the activity that runs it, a peer to its owner's, and a
 component that no activity runs stays in the launcher's process (where it serves operations, like
 the TransformationInterface that keeps the transformation graph whole). A connection whose two ends
-are in different processes *crosses*: it becomes a shared-memory channel with the same policy.
+are in different processes *crosses*: it becomes a shared-memory channel with the same policy (a
+connection with a filter: a ring that feeds the filter on the reader's side, :func:`ring_policy`).
 """
 
 from __future__ import annotations
