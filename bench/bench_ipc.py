@@ -27,6 +27,7 @@ independent of the frame size (largest / smallest <= 1.5x).
 
 from __future__ import annotations
 
+import itertools
 import json
 import multiprocessing
 import os
@@ -50,6 +51,14 @@ TOPIC = "/coco_bench/ipc"
 
 def sample(t: float) -> tuple[float, list[str], np.ndarray]:
     return (t, NAMES, np.arange(19, dtype=np.float64))
+
+
+def stamped_sample(t: float, number: int) -> Any:
+    """The sample as an output port hands it to a channel: a Message with the write's stamp, which
+    crosses with it (its number, iteration and time in the slot's header)."""
+    from coco_core.stamps import Message
+
+    return Message(sample(t), t, number, "bench.out", number)
 
 
 def paced(count: int, rate: float, send: Callable[[float], None]) -> None:
@@ -85,7 +94,7 @@ def receive_shm_polling(spec_hex: str, count: int) -> dict[str, Any]:
         if value is EMPTY:
             continue
         now = time.perf_counter()
-        latencies.append(now - value[0])
+        latencies.append(now - value.value[0])
         first, last = first or now, now
     return {**summary(latencies), "received": len(latencies), "seconds": last - first}
 
@@ -107,7 +116,7 @@ def receive_shm(spec_hex: str, fd: int, count: int, frames: bool) -> dict[str, A
                 latencies.append(now - value.stamp)
                 value.release()
             else:
-                latencies.append(now - value[0])
+                latencies.append(now - value.value[0])
             first, last = first or now, now
     return {**summary(latencies), "received": len(latencies), "seconds": last - first}
 
@@ -241,13 +250,14 @@ def run_shm_polling(count: int, rate: float | None) -> dict[str, Any]:
     try:
         spec = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, size=1024), "bench.out->bench.in")
         writer = ShmWriter(spec)
+        numbers = itertools.count(1)
         receiver = spawn("shm-poll", pickle.dumps(spec).hex(), str(count))
         time.sleep(1.0)
 
         def send(now: float) -> None:
             while writer.pending >= 1000:
                 pass
-            writer.push(sample(now))
+            writer.push(stamped_sample(now, next(numbers)))
 
         drive(count, rate, send)
         return result_of(receiver)
@@ -266,13 +276,14 @@ def run_shm(count: int, rate: float | None, frames: tuple[int, int] | None = Non
             spec = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, size=1024), "bench.out->bench.in")
             writer = ShmWriter(spec)
             writer.trigger = lambda: os.eventfd_write(fd, 1)
+            numbers = itertools.count(1)
             receiver = spawn("shm", pickle.dumps(spec).hex(), f"fd={fd}", str(count), "values")
             time.sleep(1.0)
 
             def send(now: float) -> None:
                 while writer.pending >= 1000:  # throughput: wait for room rather than drop
                     pass
-                writer.push(sample(now))
+                writer.push(stamped_sample(now, next(numbers)))
         else:
             spec = arena.channel(ConnectionPolicy(BufferPolicy.POOL, size=4), "bench.frames->bench.in", frames=True)
             pool = ShmFramePool(spec)

@@ -15,6 +15,7 @@ from typing import Callable, Protocol, Union, get_args, get_origin
 from .activity import Activity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
+from .filters import Filter
 from .errors import CocoError, WiringError, did_you_mean
 from .lifecycle import STOP_TIMEOUT, Progress, StartGate
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -79,6 +80,10 @@ class Application:
         self.connections: list[Connection] = []
         self.outgoing: list[Connection] = []
         """The writers' ends of connections into other processes (their readers' processes profile them)."""
+        self.incoming_filters: dict[str, Filter] = {}
+        """The filters of connections from other processes into this one, by ``src->dest`` label:
+        made by the builder (a Merge in its group, in file order) and put on the reader's side of
+        the channel when the process level attaches it (:mod:`coco_core.processes.filtered`)."""
         self._stop_requested = threading.Event()
         self._stop_listeners: list[Callable[[str], None]] = []
         self._damage_listeners: list[Callable[[str], None]] = []

@@ -16,7 +16,7 @@ from .application import Application, types_compatible
 from .attributes import AttributeValueError
 from .component import Component, ErrorPolicy
 from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, WiringError, did_you_mean
-from .filters import FILTERS, Filter, Greedy, MaxFrequency, Merge, MergeGroup, PreSignal
+from .filters import FILTERS, Filter, MaxFrequency, Merge, MergeGroup, PreSignal
 from .iteration import IterationPorts, port_of
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
 from .policy import ConnectionPolicy
@@ -198,17 +198,28 @@ class _Builder:
         merges: dict[str, MergeGroup] = {}
         """The Merge of each input port that has one (its connections in file order)."""
         for connection_spec in spec.connections:
-            if placement.crosses(connection_spec) or placement.process_of_ref(connection_spec.src) != process:
+            crosses = placement.crosses(connection_spec)
+            incoming = crosses and placement.process_of_ref(connection_spec.dest) == process
+            if (crosses and not incoming) or (not crosses and placement.process_of_ref(connection_spec.src) != process):
                 continue  # another process's, or a shared-memory channel made by the process level
+            if incoming and connection_spec.filter is None:
+                continue  # a plain channel: the process level makes its reader's end
             if {ref.component for ref in (connection_spec.src, connection_spec.dest) if not ref.activity} & self.missing:
                 continue
             try:
                 policy = ConnectionPolicy(connection_spec.data, connection_spec.policy, max(1, connection_spec.buffersize))
                 merged = connection_spec.filter is not None and connection_spec.filter.type == Merge.name
                 group = merges.setdefault(str(connection_spec.dest), MergeGroup()) if merged else None
+                made = _filter(connection_spec.filter, policy, group)
+                if incoming:  # its filter on the reader's side, in its place in a merge (file order)
+                    assert made is not None
+                    app.incoming_filters[f"{connection_spec.src}->{connection_spec.dest}"] = made
+                    into = _resolved(app, connection_spec.dest)
+                    if isinstance(made, Merge) and isinstance(into, InputPort):
+                        _check_merged(into)
+                    continue
                 connection = app.connect(_port(app, connection_spec.src), _port(app, connection_spec.dest), policy,
-                                         event=_event(connection_spec),
-                                         connection=_filter(connection_spec.filter, policy, group))
+                                         event=connection_spec.wakes(), connection=made)
                 if isinstance(connection, Merge) and connection.sink is not None:
                     _check_merged(connection.sink)
                 if connection_spec.shared and connection.source is not None:
@@ -228,12 +239,9 @@ def _port(app: Application, ref: PortRef) -> str | Port:
     return port_of(app.activity(ref.component), ref.port) if ref.activity else str(ref)
 
 
-def _event(spec: ConnectionSpec) -> bool | None:
-    """Whether a write wakes the reader: a Greedy connection does not unless the file says so (its
-    reader runs at its own rate and takes the newest when it runs), others as the file or port says."""
-    if spec.event is None and spec.filter is not None and spec.filter.type == Greedy.name:
-        return False
-    return spec.event
+def _resolved(app: Application, ref: PortRef) -> Port:
+    """The port ``ref`` names, found (a crossing connection's end in this process, for its checks)."""
+    return port_of(app.activity(ref.component), ref.port) if ref.activity else app.component(ref.component).port(ref.port)
 
 
 def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup | None) -> Filter | None:

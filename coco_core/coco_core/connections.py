@@ -65,9 +65,10 @@ class Connection(abc.ABC):
 
     carries_stamps: ClassVar[bool] = False
     """Whether the writing port hands this connection :class:`~coco_core.stamps.Message` objects
-    (payload and stamp) instead of bare values: the connections inside one process do; the others
-    (pooled frames, shared-memory channels to another process) get the bare value, so their reader
-    sees no message stamp (only the one a :class:`~coco_core.stamps.Stamped` value carries)."""
+    (payload and stamp) instead of bare values: the value connections inside one process do, and
+    the writer's end of a shared-memory channel to another process (which writes the stamp beside
+    the value, :mod:`coco_core.shm.channel`); a pooled output hands over the slot, its stamp in
+    :attr:`Slot.message <coco_core.pool.Slot.message>`."""
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         self.policy = policy
@@ -114,6 +115,12 @@ class Connection(abc.ABC):
             self.skip()
             newest = value
         return newest
+
+    def ready_at(self) -> float | None:
+        """When the next value may be taken (``time.perf_counter`` seconds; 0: now), or None when
+        there is none: what an activity's ``beginit`` waits for (:mod:`coco_core.iteration`). A
+        filter may hold a value back until later (:class:`~coco_core.filters.MaxFrequency`)."""
+        return 0.0 if self.pending else None
 
     def writer_done(self) -> None:
         """The writer's activity finished: nothing more will come. A reader in the same process

@@ -29,7 +29,7 @@ import math
 import threading
 import time
 from collections import deque
-from typing import Any, ClassVar
+from typing import Any, Callable, ClassVar
 
 from .connections import EMPTY, CountedConnection
 from .errors import PolicyError
@@ -76,8 +76,6 @@ class Filter(CountedConnection):
         return len(self._queue)
 
     def ready_at(self) -> float | None:
-        """When the next message may be taken (``time.perf_counter`` seconds; 0: now), or None when
-        there is none. An activity's ``beginit`` waits for it (:mod:`coco_core.iteration`)."""
         return 0.0 if self._queue else None
 
     def _token(self, number: int) -> Message:
@@ -199,9 +197,15 @@ class MergeGroup:
 
     def __init__(self) -> None:
         self.inputs: list[Merge] = []
+        self.feeds: list[Callable[[], None]] = []
+        """What moves the messages of the inputs fed from another process into their filters
+        (:meth:`coco_core.processes.filtered.FedFilter.pull`): called before each look, in the
+        reader's thread, so that a merge sees every input's messages wherever its writer runs."""
 
     def ready(self) -> bool:
         """Whether every input holds a message (only the reader takes them: this stays true)."""
+        for feed in self.feeds:
+            feed()
         return all(connection.pending for connection in self.inputs)
 
     def take(self) -> Any:

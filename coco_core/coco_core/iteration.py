@@ -22,8 +22,7 @@ import time
 from typing import TYPE_CHECKING
 
 from .component import Component
-from .connections import EMPTY, Connection
-from .filters import Filter
+from .connections import EMPTY
 from .ports import InputPort, OutputPort
 from .stamps import Message, Stamp
 
@@ -65,7 +64,7 @@ class IterationPorts(Component):
             return True
         due = 0.0
         for connection in connections:
-            at = ready_at(connection)
+            at = connection.ready_at()
             if at is None:
                 return False
             due = max(due, at)
@@ -84,14 +83,6 @@ class IterationPorts(Component):
             activity = self.activity
             assert activity is not None
             self.endit.write(activity.stats.cycles)
-
-
-def ready_at(connection: Connection) -> float | None:
-    """When the next message of ``connection`` may be taken (``perf_counter`` seconds, 0: now), or
-    None when none is there."""
-    if isinstance(connection, Filter):
-        return connection.ready_at()
-    return 0.0 if connection.pending else None
 
 
 def _sleep_until(activity: Activity, due: float) -> bool:

@@ -86,6 +86,14 @@ class ConnectionSpec:
     filter: FilterSpec | None = None
     """The filter on the connection's path; None: the policy's plain storage."""
 
+    def wakes(self) -> bool | None:
+        """Whether a write wakes the reader, wherever the two ends run: a ``Greedy`` connection does
+        not unless :attr:`event` says so (its reader runs at its own rate and takes the newest when it
+        runs), the others as :attr:`event` says; None: the input port decides."""
+        if self.event is None and self.filter is not None and self.filter.type == "Greedy":
+            return False
+        return self.event
+
 
 @dataclass
 class ScheduleSpec:

@@ -25,6 +25,7 @@ import numpy as np
 from .connections import EMPTY, Connection
 from .errors import PoolError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from .stamps import Message
 
 
 DEFAULT_SLOTS = 4
@@ -43,7 +44,7 @@ class SlotState(enum.Enum):
 class Slot:
     """One preallocated frame buffer of a pool, with the metadata that travels with it."""
 
-    __slots__ = ("pool", "index", "array", "state", "readers", "seq", "stamp")
+    __slots__ = ("pool", "index", "array", "state", "readers", "seq", "stamp", "message")
 
     def __init__(self, pool: FramePool, index: int) -> None:
         self.pool = pool
@@ -54,6 +55,10 @@ class Slot:
         self.seq = 0
         self.stamp: Any = None
         """Free for the writer: e.g. a :class:`~coco_core.stamps.Stamp` of the frame."""
+        self.message: Message | None = None
+        """The stamp fields of the write that published the frame (its payload is None: the slot
+        is the payload), set by the pooled output port and read by the reader's
+        :attr:`~coco_core.ports.InputPort.stamp`, in this process or from shared memory."""
 
     def release(self) -> None:
         """Give the slot back after reading; the writer may reuse it."""

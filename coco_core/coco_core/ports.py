@@ -199,9 +199,11 @@ class PooledOutputPort(OutputPort):
         return self.pool.acquire(shape, dtype)
 
     def write(self, slot: Slot) -> None:
-        """Publish a filled slot to every reader (its connections carry no message stamp: the slot is
-        handed over as it is; :attr:`stamp` still says what was written)."""
-        self._message(slot)
+        """Publish a filled slot to every reader: the slot is handed over as it is, the stamp of
+        this write with it (:attr:`Slot.message <coco_core.pool.Slot.message>`, across processes in
+        the pool's shared records), which its readers' :attr:`InputPort.stamp` reads."""
+        message = self._message(slot)
+        slot.message = Message(None, message.time, message.seq, message.source, message.it)
         self.pool.publish(slot)
         for connection in self.connections:
             connection.push(slot)
@@ -316,11 +318,14 @@ class InputPort(Port):
     @property
     def stamp(self) -> Stamp | None:
         """The stamp of the value the last read returned (new or old): the message's stamp inside
-        one process, a :class:`~coco_core.stamps.Stamped` value's own otherwise; None for a plain
-        value that came without one (a pooled frame, a channel from another process)."""
+        one process and from another (the channels carry it), a pooled frame's write's, a
+        :class:`~coco_core.stamps.Stamped` value's own otherwise (a value pushed into a connection
+        without a port); None for a plain value that came without one."""
         item = self._taken
         if type(item) is Message:
             return item.stamp
+        if type(item) is Slot:
+            return None if item.message is None else item.message.stamp
         return item.stamp if isinstance(item, Stamped) else None
 
     def read_newest(self) -> tuple[ReadStatus, Any]:

@@ -3,6 +3,7 @@ Greedy), from Python and from the XML, with the errors a wrong file gets."""
 
 from __future__ import annotations
 
+import os
 import time
 
 import pytest
@@ -219,15 +220,96 @@ def test_wrong_coupling_xml_is_reported_with_its_line_and_what_was_expected():
     assert 'leave out data="BUFFER"' in data
 
 
-def test_an_activity_port_connection_between_processes_is_refused():
+def test_an_activity_port_connection_between_processes_has_its_filter_on_the_readers_side():
+    """Before: refused ('works inside one process in this version'). Now the reader's process (the
+    launcher's here, which runs produce) holds the PreSignal, to be fed from the channel; the
+    writer's process (worker, which runs consume) has no filter of it."""
     text = APP.format(data_filter="", attributes="", src='activity="consume" port="endit"',
                       dest='activity="produce" port="beginit"', filter='<filter type="PreSignal"/>')
     text = text.replace('<activity name="consume">', '<process name="worker"><activity name="consume">').replace(
         '<component name="consumer"/></components></activity>',
         '<component name="consumer"/></components></activity></process>')
-    with pytest.raises(ConfigErrors) as raised:
-        build_application(parse_application_string(text, filename="app.xml"))
-    assert any("works inside one process in this version" in str(error) for error in raised.value.errors)
+    spec = parse_application_string(text, filename="app.xml")
+    reader, writer = build_application(spec), build_application(spec, "worker")
+    [(label, made)] = reader.incoming_filters.items()
+    assert label == "consume.endit->produce.beginit" and isinstance(made, PreSignal) and made.pending == 1
+    assert writer.incoming_filters == {}
+
+
+def test_a_max_frequency_from_another_process_times_the_messages_on_the_readers_side():
+    """consume.endit in another process -> MaxFrequency -> produce.beginit here: the filter is on
+    this side, fed from the ring when asked; its first token at once, the next message from the ring
+    no earlier than 1/hz after the token was taken (the gated activity's clock), and the counters of
+    one connection (the token + what the writer offered)."""
+    from coco_core.processes.channels import attach, plan_channels
+    from coco_core.processes.filtered import FedFilter
+    from coco_core.processes.placement import Placement
+    from coco_core.shm import Arena, ShmWriter
+
+    text = APP.format(data_filter="", attributes='buffersize="4"', src='activity="consume" port="endit"',
+                      dest='activity="produce" port="beginit"', filter='<filter type="MaxFrequency" hz="20"/>')
+    text = text.replace('<activity name="consume">', '<process name="worker"><activity name="consume">').replace(
+        '<component name="consumer"/></components></activity>',
+        '<component name="consumer"/></components></activity></process>')
+    spec = parse_application_string(text, filename="app.xml")
+    app = build_application(spec)
+    arena = Arena(f"maxfreq{time.monotonic_ns()}")
+    try:
+        plans = plan_channels(arena, spec, Placement.of(spec))
+        [loop] = [plan for plan in plans if plan.dest_activity]
+        assert (loop.src_process, loop.dest_process, loop.wakes) == ("worker", "", "produce")
+        consume = os.eventfd(0)  # what the launcher makes for the reader of producer.out, in worker
+        attach(app, plans, {"consume": consume})
+        [limiter] = port_of(app.activity("produce"), "beginit").connections
+        assert isinstance(limiter, FedFilter) and limiter.describe() == "MaxFrequency(hz=20)"
+        assert limiter.ready_at() == 0.0 and limiter.pop() is not EMPTY  # the token
+        taken = time.perf_counter()
+        ShmWriter(loop.channel).push(Message(0, time.perf_counter(), 1, "consume.endit", 0))
+        assert limiter.pending == 1
+        due = limiter.ready_at()
+        assert due is not None and due >= taken + 0.05 - 1e-3
+        while (item := limiter.pop()) is EMPTY:
+            assert time.perf_counter() < due + 1.0
+        assert time.perf_counter() >= due and item.stamp.source == "consume.endit"
+        assert limiter.counters() == {"written": 2, "read": 2, "dropped": 0, "pending": 0}
+        os.close(consume)
+    finally:
+        arena.close()
+
+
+def test_a_merge_joins_inputs_from_another_process_and_from_its_own(tmp_path):
+    """One Merge input from another process (its ring fed into the Merge filter on the reader's
+    side, in its file place), one from the reader's own: one tuple once each has a message, stamped
+    as the first's message, which crossed with its stamp."""
+    from coco_core.processes.channels import attach, plan_channels
+    from coco_core.processes.filtered import FedFilter
+    from coco_core.processes.placement import Placement
+    from coco_core.shm import Arena, ShmWriter
+
+    text = MERGE.format(sink="relay", task="Relay", port="input").replace(
+        "</connections>", '</connections><activities><process name="far"><activity name="lefty">'
+                          '<schedule type="triggered"/><components><component name="left"/></components>'
+                          '</activity></process></activities>')
+    spec = parse_application_string(text, filename="app.xml")
+    app = build_application(spec)
+    arena = Arena(f"merge{time.monotonic_ns()}")
+    try:
+        plans = plan_channels(arena, spec, Placement.of(spec))
+        attach(app, plans, {})
+        relay = app.component("relay")
+        near, far = relay.input.connections  # type: ignore[attr-defined]  # the channel is attached after the build
+        assert isinstance(far, FedFilter) and isinstance(far.filter, Merge) and far.filter.index == 0
+        assert isinstance(near, Merge) and near.index == 1 and near.group is far.filter.group
+        ShmWriter(plans[0].channel).push(Message(1, 12.5, 1, "left.out", 4))
+        assert relay.input.read() == (NO_DATA, None)  # the right one has nothing yet
+        app.component("right").out.write(10)  # type: ignore[attr-defined]
+        assert relay.input.read() == (NEW_DATA, (1, 10))
+        stamp = relay.input.stamp  # type: ignore[attr-defined]
+        assert stamp is not None and (stamp.source, stamp.seq, stamp.it, stamp.time) == ("left.out", 1, 4, 12.5)
+        assert far.counters() == {"written": 1, "read": 1, "dropped": 0, "pending": 0}
+        assert far.describe() == "Merge(in0 of 2)" and far.label == "left.out -> relay.input"
+    finally:
+        arena.close()
 
 
 # --- Merge ----------------------------------------------------------------------------------------
@@ -310,3 +392,41 @@ def test_a_pooled_output_cannot_pass_through_a_filter(make_app):
     with pytest.raises(WiringError, match="camera.frames is a pooled output: .* cannot pass through a Greedy filter"):
         app.connect(camera.frames, taker.sample, connection=Greedy(ConnectionPolicy()))
     assert app.connections == []
+
+
+def test_a_pooled_output_between_processes_cannot_pass_through_a_filter_either(monkeypatch):
+    """Refused at planning with file:line, as in one process (before: refused as any filter between
+    processes)."""
+    from pathlib import Path
+
+    from coco_core.errors import ConfigError
+    from coco_core.processes.channels import plan_channels
+    from coco_core.processes.placement import Placement
+    from coco_core.shm import Arena
+
+    monkeypatch.syspath_prepend(str(Path(__file__).parent / "data"))
+    text = """<package name="frames">
+    <components>
+        <component><name>camera</name><task>channel_components:FrameSource</task></component>
+        <component><name>viewer</name><task>channel_components:Reader</task></component>
+    </components>
+    <connections>
+        <connection><src task="camera" port="frames"/><dest task="viewer" port="value"/>
+            <filter type="Greedy"/></connection>
+    </connections>
+    <activities>
+        <process name="far"><activity name="shoot"><schedule type="periodic" period="10"/>
+            <components><component name="camera"/></components></activity></process>
+        <activity name="view"><schedule type="periodic" period="10"/>
+            <components><component name="viewer"/></components></activity>
+    </activities>
+</package>"""
+    spec = parse_application_string(text, filename="app.xml")
+    arena = Arena(f"poolfilter{time.monotonic_ns()}")
+    try:
+        with pytest.raises(ConfigError, match="camera.frames is a pooled output: .* cannot pass through a Greedy") \
+                as raised:
+            plan_channels(arena, spec, Placement.of(spec))
+        assert str(raised.value).startswith("app.xml:7:"), str(raised.value)  # the <connection>
+    finally:
+        arena.close()

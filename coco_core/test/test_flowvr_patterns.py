@@ -78,49 +78,34 @@ def test_coco_launch_checks_and_runs_each_file(path):
     assert "consume" in run.stdout
 
 
-def test_a_data_driven_consumer_takes_every_value_at_the_producers_rate(run_file):
-    app = run_file("flowvr_a_data_driven.xml", lambda app: parts(app)[1].consumed >= 60,
-                   period_ms=5, producer_ms=0.2, consumer_ms=0.5, queue=64)
-    producer, consumer = parts(app)
-    connection = data_connection(app)
-    assert connection.dropped == 0
-    assert consumer.consumed + connection.pending == producer.produced
+# The checks of each coupling, on what the producer and the consumer recorded (live components, or
+# their records read back from another process: test_flowvr_processes.py) and the data connection's
+# counters (the profile's row).
+
+def check_a_every_value(producer, consumer, counters: dict[str, int]) -> None:
+    assert counters["dropped"] == 0
+    assert consumer.consumed + counters["pending"] == producer.produced
     # Every value, in order: the message numbers the consumer saw are 1, 2, 3, ...
     assert [taken.seq for taken in consumer.taken] == list(range(1, consumer.consumed + 1))
     assert all(taken.new for taken in consumer.taken)
 
 
-def test_a_data_driven_queue_grows_to_its_size_when_the_consumer_is_slower(run_file):
-    queue = 6
-    app = run_file("flowvr_a_data_driven.xml",
-                   lambda app: data_connection(app).pending == queue and data_connection(app).dropped >= 5,
-                   period_ms=2, producer_ms=0.1, consumer_ms=15, queue=queue)
-    producer, consumer = parts(app)
-    connection = data_connection(app)
+def check_a_bounded(producer, consumer, counters: dict[str, int], queue: int) -> None:
     # Bounded: a full buffer refuses new values, and the profile's counters say where each went.
-    assert connection.pending <= queue
-    assert connection.written == producer.produced == connection.read + connection.dropped + connection.pending
+    assert counters["pending"] <= queue
+    assert counters["written"] == producer.produced == counters["read"] + counters["dropped"] + counters["pending"]
     seqs = [taken.seq for taken in consumer.taken]
     assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
 
 
-@pytest.mark.parametrize("tokens", [1, 3])
-def test_b_demand_driven_producer_runs_once_per_consumption(run_file, tokens):
-    app = run_file("flowvr_b_demand_driven.xml", lambda app: parts(app)[1].consumed >= 40,
-                   producer_ms=0.5, consumer_ms=3, tokens=tokens)
-    producer, consumer = parts(app)
+def check_b(producer, consumer, counters: dict[str, int], tokens: int) -> None:
     # The producer is six times faster alone; coupled it runs at the consumer's rate, never more
     # than the tokens ahead, and nothing is lost.
     assert 0 <= producer.produced - consumer.consumed <= tokens
-    assert data_connection(app).dropped == 0
-    assert app.activity("produce").stats.cycles == producer.produced
+    assert counters["dropped"] == 0
 
 
-def test_c_max_frequency_bounds_the_producers_rate(run_file):
-    hz = 50.0
-    app = run_file("flowvr_c_max_frequency.xml", lambda app: parts(app)[0].produced >= 60,
-                   max_hz=hz, producer_ms=0.5, consumer_ms=1)
-    producer, _ = parts(app)
+def check_c(producer, hz: float) -> None:
     writes = list(producer.writes)
     rate = (len(writes) - 1) / (writes[-1].stamped - writes[0].stamped)
     # Alone the producer would run at ~2 kHz; the filter keeps it at most hz (5 % for the timing of
@@ -129,15 +114,7 @@ def test_c_max_frequency_bounds_the_producers_rate(run_file):
     assert [w.it for w in writes] == list(range(len(writes)))
 
 
-def latest(writes: list[Written], before: float, done: bool) -> int:
-    """The iteration of the newest write that had finished (``done``) or begun before ``before``."""
-    return max((w.it for w in writes if (w.done if done else w.stamped) < before), default=-1)
-
-
-def test_d_greedy_consumer_always_gets_the_newest_value_at_its_own_rate(run_file):
-    app = run_file("flowvr_d_greedy.xml", lambda app: parts(app)[1].consumed >= 30,
-                   producer_ms=1, consumer_ms=8)
-    producer, consumer = parts(app)
+def check_d(producer, consumer) -> None:
     writes, taken = list(producer.writes), list(consumer.taken)
     # Independent rates: the producer is not held back by the slower consumer.
     assert producer.produced >= 2 * len(taken)
@@ -146,6 +123,48 @@ def test_d_greedy_consumer_always_gets_the_newest_value_at_its_own_rate(run_file
         assert latest(writes, one.requested, done=True) <= one.it <= latest(writes, one.answered, done=False)
         if not one.new:  # told to reuse: nothing newer had come, and it is the value it had
             assert index > 0 and one.it == taken[index - 1].it
+
+
+def latest(writes: list[Written], before: float, done: bool) -> int:
+    """The iteration of the newest write that had finished (``done``) or begun before ``before``."""
+    return max((w.it for w in writes if (w.done if done else w.stamped) < before), default=-1)
+
+
+def test_a_data_driven_consumer_takes_every_value_at_the_producers_rate(run_file):
+    app = run_file("flowvr_a_data_driven.xml", lambda app: parts(app)[1].consumed >= 60,
+                   period_ms=5, producer_ms=0.2, consumer_ms=0.5, queue=64)
+    check_a_every_value(*parts(app), data_connection(app).counters())
+
+
+def test_a_data_driven_queue_grows_to_its_size_when_the_consumer_is_slower(run_file):
+    queue = 6
+    app = run_file("flowvr_a_data_driven.xml",
+                   lambda app: data_connection(app).pending == queue and data_connection(app).dropped >= 5,
+                   period_ms=2, producer_ms=0.1, consumer_ms=15, queue=queue)
+    check_a_bounded(*parts(app), data_connection(app).counters(), queue)
+
+
+@pytest.mark.parametrize("tokens", [1, 3])
+def test_b_demand_driven_producer_runs_once_per_consumption(run_file, tokens):
+    app = run_file("flowvr_b_demand_driven.xml", lambda app: parts(app)[1].consumed >= 40,
+                   producer_ms=0.5, consumer_ms=3, tokens=tokens)
+    producer, consumer = parts(app)
+    check_b(producer, consumer, data_connection(app).counters(), tokens)
+    assert app.activity("produce").stats.cycles == producer.produced
+
+
+def test_c_max_frequency_bounds_the_producers_rate(run_file):
+    hz = 50.0
+    app = run_file("flowvr_c_max_frequency.xml", lambda app: parts(app)[0].produced >= 60,
+                   max_hz=hz, producer_ms=0.5, consumer_ms=1)
+    check_c(parts(app)[0], hz)
+
+
+def test_d_greedy_consumer_always_gets_the_newest_value_at_its_own_rate(run_file):
+    app = run_file("flowvr_d_greedy.xml", lambda app: parts(app)[1].consumed >= 30,
+                   producer_ms=1, consumer_ms=8)
+    producer, consumer = parts(app)
+    check_d(producer, consumer)
     [greedy] = [c for c in app.connections if isinstance(c, Greedy)]
     assert greedy.reused == consumer.reused
     assert greedy.read == consumer.consumed

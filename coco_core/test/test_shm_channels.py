@@ -13,14 +13,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coco_core import Application, Component, InputPort, NEW_DATA, NO_DATA, OLD_DATA, PooledOutputPort, Stamp, Stamped
+from coco_core import Application, Component, InputPort, NEW_DATA, NO_DATA, OLD_DATA, OutputPort, PooledOutputPort, Stamp, Stamped
 from coco_core.connections import Connection
 from coco_core.errors import PoolError
 from coco_core.policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from coco_core.pool import FramePool, LocalFramePool, PoolReader, Slot, SlotState
 from coco_core.shm import (FORCE_LOCKED, Arena, ChannelError, ChannelStats, FrameStats, Segment, ShmFrameNotifier,
                            ShmFramePool, ShmPoolReader, ShmReader, ShmWriter, leftovers, sweep)
-from coco_core.shm.channel import CURSOR, FINISHED, HEADER, LARGE, LENGTH, OFFERED, READ, SLOT_HEADER, STAMP, STORED
+from coco_core.stamps import Message
+from coco_core.shm.channel import (CURSOR, FINISHED, HEADER, IT, LARGE, LENGTH, NUM, OFFERED, READ, SLOT_HEADER, STAMP,
+                                   STORED, TIME)
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "processes.md"
 
@@ -275,11 +277,12 @@ def test_the_ring_has_the_documented_layout(arena: Arena) -> None:
             documented[cells[2]] = (cells[0], int(cells[1]))
     assert documented == {"OFFERED": ("header", OFFERED), "STORED": ("header", STORED), "READ": ("header", READ),
                           "CURSOR": ("header", CURSOR), "FINISHED": ("header", FINISHED),
-                          "STAMP": ("slot", STAMP), "LENGTH": ("slot", LENGTH), "LARGE": ("slot", LARGE)}
+                          "STAMP": ("slot", STAMP), "LENGTH": ("slot", LENGTH), "LARGE": ("slot", LARGE),
+                          "NUM": ("slot", NUM), "IT": ("slot", IT), "TIME": ("slot", TIME)}
     spec = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 2), "a.out->b.in", capacity=1024)
     writer, reader = ShmWriter(spec), ShmReader(spec)
-    writer.push(b"small")
-    writer.push(np.zeros(4096, np.uint8))  # larger than a slot: in a segment of its own
+    writer.push(Message(b"small", 12.5, 1, "a.out", 7))  # as a port writes: the value and its stamp
+    writer.push(np.zeros(4096, np.uint8))  # larger than a slot: in a segment of its own; bare, no message
     writer.push(1)  # refused: the BUFFER of 2 is full
     reader.pop()
     writer.writer_done()
@@ -292,6 +295,10 @@ def test_the_ring_has_the_documented_layout(arena: Arena) -> None:
         first, second = HEADER // 8, HEADER // 8 + slot
         assert (words[first + STAMP], words[first + LARGE]) == (1, 0) and 0 < words[first + LENGTH] < spec.capacity
         assert (words[second + STAMP], words[second + LARGE]) == (2, 1) and words[second + LENGTH] > 4096
+        assert (words[first + NUM], words[first + IT], words[second + NUM]) == (1, 7, 0)
+        times = segment.view.cast("d")
+        assert times[first + TIME] == 12.5
+        times.release()
     finally:
         words.release()
         segment.close()
@@ -339,3 +346,56 @@ class Camera(Component):
 
 class Viewer(Component):
     frames = InputPort(Slot)
+
+
+class Sampler(Component):
+    out = OutputPort(object)
+    frames = PooledOutputPort(slots=3)
+
+
+class Taker(Component):
+    value = InputPort(object)
+    frame = InputPort(Slot)
+
+
+@pytest.mark.parametrize("payload", ["plain", "stamped", "large"])
+def test_the_message_stamp_crosses_the_channels_as_in_one_process(arena: Arena, payload: str) -> None:
+    """A reader in another process reads the stamp the writing port gave each value and frame
+    (number, source, iteration, time; a Stamped value's acquisition time and steps), as a reader in
+    the writer's process does (before: a plain value and a frame arrived with no stamp, a Stamped
+    one with its own stamp only, its number and source lost)."""
+    app = Application("stamps")
+    source, near = app.add(Sampler("source")), app.add(Taker("near"))
+    app.connect(source.out, near.value, ConnectionPolicy(BufferPolicy.BUFFER, size=4))
+    app.connect(source.frames, near.frame, ConnectionPolicy(BufferPolicy.POOL))
+    values = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 4), "source.out->far.value",
+                           capacity=256)
+    frames = arena.channel(ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 3), "source.frames->far.frame",
+                           frames=True, readers=1)
+    source.out.add_connection(ShmWriter(values))
+    source.frames.use_pool(ShmFramePool(frames))
+    far = Taker("far")
+    far.value.add_connection(ShmReader(values))
+    far.frame.add_connection(ShmPoolReader(frames))
+    value = {"plain": 41, "stamped": Stamped(41, Stamp(3.25).step("sent", 3.5)), "large": np.arange(512.0)}[payload]
+    for _ in range(2):
+        source.out.write(value)
+        slot = source.frames.acquire((2, 2))
+        assert slot is not None
+        source.frames.write(slot)
+    written = source.out.stamp
+    assert written is not None and written.seq == 2 and written.source == "source.out"
+    if payload == "stamped":
+        assert (written.time, written.steps) == (3.25, (("sent", 3.5),))
+    for reader in (near, far):
+        assert len(reader.value.read_all()) == 2
+        assert reader.value.stamp == written, reader.name
+        status, frame = reader.frame.read()
+        assert status is NEW_DATA
+        assert reader.frame.stamp == source.frames.stamp and frame.message.seq == 2, reader.name
+        frame.release()
+    stamp = far.frame.stamp
+    assert stamp is not None and stamp.source == "source.frames"
+    far.value.connections[0].close()  # type: ignore[attr-defined]
+    far.frame.connections[0].pool.close()  # type: ignore[attr-defined]
+    source.frames.pool.unlink_slots()  # type: ignore[attr-defined]

@@ -5,13 +5,20 @@ coupled: data-driven, demand-driven, frequency-bounded or greedy (FlowVR's Figur
 Each keeps a bounded record of what it did (``history`` entries), from the message stamps only, so
 that the rates and what the consumer got can be read back and checked: the producer the iteration
 and times of each write, the consumer, for each value it took, when it asked, whether it was new or
-reused, and the iteration that wrote it.
+reused, and the iteration that wrote it. With ``record`` set, each writes that record to a JSON file
+when it stops (:func:`load_record` reads it back): how the checks and ``bench/bench_flowvr.py`` read
+what happened in a process of their own. ``stop_after`` lets the consumer stop the application
+(a natural stop) once it has worked on that many new values.
 """
 
 from __future__ import annotations
 
+import json
+import math
 import time
 from collections import deque
+from pathlib import Path
+from types import SimpleNamespace
 from typing import NamedTuple
 
 from ..attributes import Attribute
@@ -45,6 +52,8 @@ class Taken(NamedTuple):
     it: int
     """The iteration of the producer that wrote the value (its stamp); -1 without a stamp."""
     seq: int
+    stamped: float
+    """The value's stamp time (when the producer wrote it): ``answered - stamped`` is its age."""
 
 
 class CostlyProducer(Component):
@@ -53,6 +62,7 @@ class CostlyProducer(Component):
 
     cost_ms = Attribute(float, 1.0, "time one update takes, in milliseconds", min=0.0)
     history = Attribute(int, 100_000, "how many writes the record keeps (the newest)", min=1)
+    record = Attribute(str, "", "a JSON file the record goes to when the producer stops; empty: none")
 
     out = OutputPort(int, "the number of updates before this one")
 
@@ -68,6 +78,10 @@ class CostlyProducer(Component):
         assert stamp is not None  # a write was just stamped
         self.writes.append(Written(stamp.it, stamp.seq, stamp.time, time.perf_counter()))
 
+    def on_stop(self) -> None:
+        if self.record:
+            _save(self.record, {"produced": self.produced, "writes": list(self.writes)})
+
 
 class CostlyConsumer(Component):
     """Each update takes the values waiting on ``item`` when it began (one, through a greedy
@@ -76,6 +90,8 @@ class CostlyConsumer(Component):
 
     cost_ms = Attribute(float, 5.0, "time the work on one value takes, in milliseconds", min=0.0)
     history = Attribute(int, 100_000, "how many taken values the record keeps (the newest)", min=1)
+    record = Attribute(str, "", "a JSON file the record goes to when the consumer stops; empty: none")
+    stop_after = Attribute(int, 0, "stop the application (naturally) after this many new values; 0: never", min=0)
 
     item = InputPort(int, event=True, doc="the values to work on")
 
@@ -105,11 +121,35 @@ class CostlyConsumer(Component):
     def _work(self, requested: float, new: bool) -> None:
         stamp = self.item.stamp
         self.taken.append(Taken(requested, time.perf_counter(), new, stamp.it if stamp else -1,
-                                stamp.seq if stamp else -1))
+                                stamp.seq if stamp else -1, stamp.time if stamp else math.nan))
         if new:
             self.consumed += 1
             if stamp is not None:
                 self.record_latency(stamp)
+            if self.consumed == self.stop_after and self.app is not None:
+                self.app.request_stop(f"{self.name}: {self.consumed} values consumed")
         else:
             self.reused += 1
         time.sleep(self.cost_ms / 1e3)
+
+    def on_stop(self) -> None:
+        if self.record:
+            _save(self.record, {"consumed": self.consumed, "reused": self.reused, "taken": list(self.taken)})
+
+
+def _save(path: str, record: dict[str, object]) -> None:
+    """Write ``record`` as JSON (written whole, then renamed: a reader never sees half of it)."""
+    partial = Path(path).with_suffix(".partial")
+    partial.write_text(json.dumps(record))
+    partial.replace(path)
+
+
+def load_record(path: str | Path) -> SimpleNamespace:
+    """A record written at stop, with ``writes`` as :class:`Written` and ``taken`` as :class:`Taken`
+    (the same attributes as the live component's, so that one check reads either)."""
+    record = json.loads(Path(path).read_text())
+    if "writes" in record:
+        record["writes"] = [Written(*entry) for entry in record["writes"]]
+    if "taken" in record:
+        record["taken"] = [Taken(*entry) for entry in record["taken"]]
+    return SimpleNamespace(**record)

@@ -9,10 +9,12 @@ Then each process attaches its own ends (:func:`attach`), after building its par
 starting it: the writer's process an :class:`~coco_core.shm.ShmWriter` on the output port (and, for
 a pooled output, the pool in shared memory, given to the port through
 :meth:`~coco_core.ports.PooledOutputPort.use_pool`, the port's one way to change its pool), the
-reader's process an :class:`~coco_core.shm.ShmReader` on the input port. Everything
-else about the ports stays as it is: read status, round-robin over several connections, counters in
-the profile (reported by the reader's process; by the launcher, from shared memory, when that
-process died).
+reader's process an :class:`~coco_core.shm.ShmReader` on the input port, behind the connection's
+filter when it has one (:class:`~coco_core.processes.filtered.FedFilter`: the filter stays on the
+reader's side). An activity's ``endit``/``beginit`` is an end like a component's port. Everything
+else about the ports stays as it is: read status, round-robin over several connections, message
+stamps, counters in the profile (reported by the reader's process; by the launcher, from shared
+memory, when that process died).
 """
 
 from __future__ import annotations
@@ -27,9 +29,12 @@ from ..errors import ConfigError
 from ..model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec
 from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from ..connections import Connection
-from ..ports import InputPort, OutputPort, PooledOutputPort
+from ..filters import Merge
+from ..iteration import port_of
+from ..ports import InputPort, OutputPort, PooledOutputPort, Port
 from ..pool import DEFAULT_SLOTS
-from .placement import Placement
+from .filtered import FedFilter
+from .placement import Placement, ring_policy
 
 if TYPE_CHECKING:
     from ..application import Application
@@ -41,7 +46,7 @@ class ChannelPlan:
     """One connection between two processes, as every process needs to know it."""
 
     src: str
-    """``component.port`` of the writer."""
+    """``component.port`` of the writer (``activity.endit`` when :attr:`src_activity`)."""
     dest: str
     src_process: str
     dest_process: str
@@ -58,6 +63,13 @@ class ChannelPlan:
     """Where the reader's process says whether a write wakes it (a word of the launch's flags
     segment), when only the built component knows: an input port made in ``init()`` is not on the
     class the launcher reads; -1: the plan knows (a write wakes ``wakes`` if set)."""
+    src_activity: bool = False
+    """``src`` is an activity's ``endit`` (``activity.endit``), not a component's port."""
+    dest_activity: bool = False
+    """``dest`` is an activity's ``beginit``."""
+    filtered: bool = False
+    """The connection has a filter: the reader's process puts it on its end of the channel (the
+    builder made it, :attr:`Application.incoming_filters <coco_core.application.Application.incoming_filters>`)."""
 
 
 def _declared(spec: ComponentSpec | None, port: str) -> Any:
@@ -73,13 +85,20 @@ def _declared(spec: ComponentSpec | None, port: str) -> Any:
 
 
 def _woken_by(connection: ConnectionSpec, components: dict[str, ComponentSpec],
-              activity_of: dict[str, ActivitySpec], placement: Placement) -> tuple[str, Any]:
+              activity_of: dict[str, ActivitySpec], placement: Placement,
+              activities: dict[str, ActivitySpec]) -> tuple[str, Any]:
     """(the activity a write on the crossing ``connection`` wakes, "" for none; whether its input is an
-    event port: True, False, or None when the reader's process must say, the port being made in init)."""
-    into = _declared(components.get(connection.dest.component), connection.dest.port)
-    event = connection.event if connection.event is not None else (into.event if isinstance(into, InputPort)
-                                                                    else None)
-    activity = activity_of.get(placement.top_of.get(connection.dest.component, connection.dest.component))
+    event port: True, False, or None when the reader's process must say, the port being made in init).
+    An activity's ``beginit`` is an event port of the activity itself."""
+    wakes = connection.wakes()
+    event: bool | None
+    if connection.dest.activity:
+        event = wakes if wakes is not None else True
+        activity = activities.get(connection.dest.component)
+    else:
+        into = _declared(components.get(connection.dest.component), connection.dest.port)
+        event = wakes if wakes is not None else (into.event if isinstance(into, InputPort) else None)
+        activity = activity_of.get(placement.top_of.get(connection.dest.component, connection.dest.component))
     triggered = activity is not None and activity.schedule.type == "triggered"
     return (activity.name if triggered and event is not False and activity is not None else ""), event
 
@@ -90,8 +109,9 @@ def woken_by_other_processes(spec: AppSpec, placement: Placement) -> set[str]:
     agree (the ROS launcher hosts no such activity in its executor)."""
     components = {component.name: component for component in spec.all_components()}
     activity_of = {name: activity for activity in spec.activities for name in activity.components}
+    activities = {activity.name: activity for activity in spec.activities}
     return {woken for connection in placement.crossing(spec)
-            if (woken := _woken_by(connection, components, activity_of, placement)[0])}
+            if (woken := _woken_by(connection, components, activity_of, placement, activities)[0])}
 
 
 def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[ChannelPlan]:
@@ -100,6 +120,7 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
     its readers (as in one process, where they all read the port's one pool)."""
     components = {component.name: component for component in spec.all_components()}
     activity_of = {name: activity for activity in spec.activities for name in activity.components}
+    activities = {activity.name: activity for activity in spec.activities}
     crossing = placement.crossing(spec)
     outputs = {str(c.src): _declared(components.get(c.src.component), c.src.port) for c in crossing}
     pooled = [c for c in crossing if isinstance(outputs[str(c.src)], PooledOutputPort) or c.data is BufferPolicy.POOL]
@@ -111,11 +132,14 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
     for connection in crossing:
         label = f"{connection.src}->{connection.dest}"
         frames = connection in pooled
-        wakes, event = _woken_by(connection, components, activity_of, placement)
+        wakes, event = _woken_by(connection, components, activity_of, placement, activities)
         ask = -1
         if wakes and event is None:  # an input made in init(): the reader's process says
             ask, asks = asks, asks + 1
         if frames:
+            if connection.filter is not None:
+                raise ConfigError(f"{connection.src} is a pooled output: its frames go to every reader as they are "
+                                  f"and cannot pass through a {connection.filter.type} filter", connection.location)
             if connection.data not in (BufferPolicy.DATA, BufferPolicy.POOL):
                 raise ConfigError(f"{connection.src} is a pooled output: connect it with data=POOL (latest frame, "
                                   f"no copy), not {connection.data.value}", connection.location)
@@ -129,12 +153,12 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
                                               frames=True, readers=readers[source])
             channel = replace(pools[source], label=label, reader=number)
         else:
-            channel = arena.channel(ConnectionPolicy(connection.data, connection.policy,
-                                                     max(1, connection.buffersize)), label)
+            channel = arena.channel(ring_policy(connection), label)
         plans.append(ChannelPlan(str(connection.src), str(connection.dest),
-                                 placement.process_of(connection.src.component),
-                                 placement.process_of(connection.dest.component), channel, frames,
-                                 connection.event, wakes, ask))
+                                 placement.process_of_ref(connection.src),
+                                 placement.process_of_ref(connection.dest), channel, frames,
+                                 connection.wakes(), wakes, ask, connection.src.activity, connection.dest.activity,
+                                 connection.filter is not None))
     if asks:
         arena.flags(asks)
     return plans
@@ -151,8 +175,7 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
     flags = _flags(app, plans)
     for plan in plans:
         if plan.src_process == process:
-            component, _, port_name = plan.src.rpartition(".")
-            out = app.component(component).port(port_name)
+            out = _port(app, plan.src, plan.src_activity)
             if not isinstance(out, OutputPort):
                 raise ConfigError(f"{plan.src} is an input port; a connection starts at an output")
             writer: Connection
@@ -169,15 +192,28 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
             if plan.wakes:
                 writer.trigger = _waker(wakes[plan.wakes], flags, plan.asks)
         if plan.dest_process == process:
-            component, _, port_name = plan.dest.rpartition(".")
-            into = app.component(component).port(port_name)
+            into = _port(app, plan.dest, plan.dest_activity)
             if not isinstance(into, InputPort):
                 raise ConfigError(f"{plan.dest} is an output port; a connection ends at an input")
             reader: Connection = ShmPoolReader(plan.channel) if plan.frames else ShmReader(plan.channel)
+            if plan.filtered:  # the filter on this side, fed from the channel
+                made = app.incoming_filters[f"{plan.src}->{plan.dest}"]
+                reader = FedFilter(made, reader)
+                if isinstance(made, Merge):
+                    made.group.feeds.append(reader.pull)
             into.add_connection(reader, plan.event)
             app.connections.append(reader)
+            if reader.pending and reader.trigger is not None:
+                reader.trigger()  # it holds messages from the start (a PreSignal's tokens): as if written now
             if plan.asks >= 0 and flags is not None:
                 flags[plan.asks] = int(into.event)
+
+
+def _port(app: Application, name: str, of_activity: bool) -> Port:
+    """The port ``name`` (``component.port``, or ``activity.beginit``/``activity.endit``) in this
+    process's application."""
+    owner, _, port = name.rpartition(".")
+    return port_of(app.activity(owner), port) if of_activity else app.component(owner).port(port)
 
 
 def _flags(app: Application, plans: list[ChannelPlan]) -> memoryview | None:

@@ -4,7 +4,8 @@ Every activity belongs to one process (its ``<process>``, or the launcher's own,
 component belongs to the process of the activity that runs it, a peer to its owner's, and a
 component that no activity runs stays in the launcher's process (where it serves operations, like
 the TransformationInterface that keeps the transformation graph whole). A connection whose two ends
-are in different processes *crosses*: it becomes a shared-memory channel with the same policy.
+are in different processes *crosses*: it becomes a shared-memory channel with the same policy (a
+connection with a filter: a ring that feeds the filter on the reader's side, :func:`ring_policy`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from dataclasses import dataclass, field
 
 from ..errors import ConfigError
 from ..files import MiB
+from ..filters import Greedy
 from ..model import AppSpec, ConnectionSpec, PortRef, ProcessSpec
 from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from ..shm import layout, ring_size
@@ -21,6 +23,19 @@ from ..shm.segment import SHM_DIR, free_bytes
 
 LAUNCHER = ""
 """The name of the launcher's own process in a placement."""
+
+
+def ring_policy(connection: ConnectionSpec) -> ConnectionPolicy:
+    """The policy of the ring of ``connection`` between two processes: its own; with a filter
+    (which stays on the reader's side, :mod:`coco_core.processes.filtered`) a BUFFER of its
+    ``buffersize`` that hands the filter every message in order, or for a ``Greedy`` a DATA ring
+    (it keeps the newest only)."""
+    size = max(1, connection.buffersize)
+    if connection.filter is None:
+        return ConnectionPolicy(connection.data, connection.policy, size)
+    if connection.filter.type == Greedy.name:
+        return ConnectionPolicy(BufferPolicy.DATA, SyncPolicy.LOCKED, 1)
+    return ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, size)
 
 
 @dataclass
@@ -77,16 +92,8 @@ class Placement:
         errors = []
         free, needed = free_bytes(), 0
         for connection in self.crossing(spec):
-            if connection.filter is not None or connection.src.activity or connection.dest.activity:
-                what = f"a {connection.filter.type} filter" if connection.filter else "an activity's beginit/endit"
-                errors.append(ConfigError(
-                    f"connection {connection.src} -> {connection.dest} joins process "
-                    f"{self.process_of_ref(connection.src) or 'launcher'!r} and process "
-                    f"{self.process_of_ref(connection.dest) or 'launcher'!r}: {what} works inside one process "
-                    "in this version (put both ends in one process)", connection.location))
-                continue
             if connection.data is not BufferPolicy.POOL:  # a pool's control segment is a few kB
-                policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
+                policy = ring_policy(connection)
                 size = ring_size(*layout(policy, None))
                 needed += size
                 if needed > free:

@@ -2,7 +2,8 @@
 
 The ring lives in one shared-memory segment: a header of counters, then ``slots`` slots of a fixed
 capacity. Each slot holds a *stamp* (the index of the item in it, plus one; zero while it is being
-written), the length and the pickled value. Its layout, in 64-bit words (native byte order):
+written), the length, the message's stamp fields (what the writing port stamped: its number, the
+iteration, the time) and the pickled value. Its layout, in 64-bit words (native byte order):
 
 ============  ==============  ==============================================================
 where         word            meaning
@@ -16,7 +17,10 @@ header        (3 words)       unused; the header is ``HEADER`` bytes
 slot          ``STAMP``       the item's index + 1; 0 while the slot is being written
 slot          ``LENGTH``      bytes of the value (its table of parts, pickle and arrays)
 slot          ``LARGE``       0: the value follows in the slot; 1: in a segment of its own
-slot          (1 word)        unused; the slot's header is ``SLOT_HEADER`` bytes
+slot          ``NUM``         the message's number on its port (its stamp's ``seq``); 0: a bare value
+slot          ``IT``          the iteration of the writing activity (the stamp's ``it``)
+slot          ``TIME``        when it was written (the stamp's time, a float64); the header is
+                              ``SLOT_HEADER`` bytes
 slot          (capacity)      the value, when it fits
 ============  ==============  ==============================================================
 
@@ -36,6 +40,12 @@ The policies keep their in-process meaning:
   dropped. A slot overwritten while it is being read is detected by its stamp changing during the
   copy (a sequence lock) and the read is retried;
 - DATA: two slots, the reader always takes the newest item once (NEW, then nothing until the next).
+
+The message's stamp (:class:`~coco_core.stamps.Message`: what the writing port made of the write)
+crosses in the slot's header, in the same seqlock as the value, so that the reader's port reads the
+same :attr:`~coco_core.ports.InputPort.stamp` as in one process; its source (the writing port) is the
+channel's, in its label, and a :class:`~coco_core.stamps.Stamped` value's own stamp travels inside the
+value. A bare value pushed without a message (``NUM`` 0) arrives bare.
 
 ``dropped`` is derived, as in-process: offered - read - pending. Values cross as pickles (protocol 5)
 whose arrays are written out of band, straight from their memory into the slot (numpy arrays are not
@@ -75,17 +85,20 @@ import numpy as np
 from ..connections import EMPTY, Connection
 from ..errors import ChannelError, CocoError, FileWriteError
 from ..policy import BufferPolicy, ConnectionPolicy
+from ..stamps import Message
 from .segment import SHM_DIR, Segment, SegmentLock, rename, shm_open, unlink
 
 HEADER = 64
 """Bytes of the ring's header (its counters, then unused words)."""
 OFFERED, STORED, READ, CURSOR, FINISHED = range(5)
 """The header's words (see the module's docstring)."""
-SLOT_HEADER = 32
+SLOT_HEADER = 48
 """Bytes of a slot's header, before its value."""
-STAMP, LENGTH, LARGE = range(3)
-"""The words of a slot's header: the item's index + 1 (0 while written), the value's bytes, and
-where the value is (0: in the slot, 1: in a segment of its own)."""
+STAMP, LENGTH, LARGE, NUM, IT, TIME = range(6)
+"""The words of a slot's header: the item's index + 1 (0 while written), the value's bytes, where
+the value is (0: in the slot, 1: in a segment of its own), and the message's stamp: its number on
+the writing port (0: a bare value, no message), the writing activity's iteration and the time of
+the write (a float64, through :attr:`_Ring.times`)."""
 RETRIES = 10_000
 """Reads of a slot that keeps changing before the reader gives up for this call (a writer that died
 half-way through a slot would otherwise keep it spinning)."""
@@ -155,6 +168,8 @@ class _Ring:
         self.words = self.segment.view[HEADER:].cast("q")
         """The ring as 64-bit words: slot ``i``'s header starts at word ``i * stride // 8``, so headers
         are read and written without making a view per access."""
+        self.times = self.segment.view[HEADER:].cast("d")
+        """The same words as float64: the slots' ``TIME``."""
         self.slot_words = self.stride // 8
         self.lock = SegmentLock(self.segment) if spec.locked else None
         """The locked path's critical section (None: the unlocked path, on a CPU that keeps stores
@@ -163,6 +178,7 @@ class _Ring:
     def close(self) -> None:
         self.counters.release()
         self.words.release()
+        self.times.release()
         self.segment.close()
 
 
@@ -230,6 +246,7 @@ class ShmWriter(ShmConnection):
     each way and a few system calls; frames without copies are what pooled outputs are for."""
 
     __slots__ = ()
+    carries_stamps = True
 
     def writer_done(self) -> None:
         """Tell the reader's process that nothing more will come (see :attr:`writer_finished`)."""
@@ -270,6 +287,9 @@ class ShmWriter(ShmConnection):
 
     def push(self, value: Any) -> None:
         ring = self.ring
+        message = value if type(value) is Message else None
+        if message is not None:
+            value = message.value
         buffers: list[pickle.PickleBuffer] = []
         try:
             out = io.BytesIO()
@@ -284,17 +304,17 @@ class ShmWriter(ShmConnection):
         table = struct.pack(f"<I{len(raws) + 1}Q", len(raws), len(data), *(raw.nbytes for raw in raws))
         lock = ring.lock
         if lock is None:
-            stored = self._store(table, data, raws)
+            stored = self._store(table, data, raws, message)
         else:
             with lock:
-                stored = self._store(table, data, raws)
+                stored = self._store(table, data, raws, message)
         trigger = self.trigger
         if stored and trigger is not None:
             trigger()
 
-    def _store(self, table: bytes, data: bytes, raws: list[memoryview]) -> bool:
-        """Place one encoded value in the ring (the seqlock's writer side); False when a full BUFFER
-        refused it."""
+    def _store(self, table: bytes, data: bytes, raws: list[memoryview], message: Message | None) -> bool:
+        """Place one encoded value and its message's stamp in the ring (the seqlock's writer side);
+        False when a full BUFFER refused it."""
         ring = self.ring
         counters = ring.counters
         size = len(table) + len(data) + sum(raw.nbytes for raw in raws)
@@ -312,6 +332,12 @@ class ShmWriter(ShmConnection):
         words[word + STAMP] = 0  # being written: a reader of this slot retries
         words[word + LENGTH] = size
         words[word + LARGE] = large
+        if message is None:
+            words[word + NUM] = 0
+        else:
+            words[word + NUM] = message.seq
+            words[word + IT] = message.it
+            ring.times[word + TIME] = message.time
         if not large:
             target, at = ring.map, HEADER + index * ring.stride + SLOT_HEADER
             target[at:at + len(table)] = table
@@ -349,9 +375,16 @@ def _write_all(fd: int, parts: list[Any]) -> None:
 
 
 class ShmReader(ShmConnection):
-    """The reader's end of a value channel (in the reader's process, on its input port)."""
+    """The reader's end of a value channel (in the reader's process, on its input port): a value
+    the writer's port stamped comes out as a :class:`~coco_core.stamps.Message` with that stamp, as
+    from a connection inside one process, its source the channel's writing port."""
 
-    __slots__ = ()
+    __slots__ = ("origin",)
+
+    def __init__(self, spec: ChannelSpec) -> None:
+        super().__init__(spec)
+        self.origin = spec.label.partition("->")[0]
+        """The writing port (``component.port``): the source of every message of the channel."""
 
     def _large(self, index: int, size: int) -> memoryview | None:
         """A copy of item ``index``'s value from its own segment, in memory that is not zeroed first
@@ -377,15 +410,21 @@ class ShmReader(ShmConnection):
     def pop(self) -> Any:
         lock = self.ring.lock
         if lock is None:
-            data = self._take()
+            taken = self._take()
         else:
             with lock:
-                data = self._take()
-        return EMPTY if data is None else _decode(data)
+                taken = self._take()
+        if taken is None:
+            return EMPTY
+        data, num, it, at = taken
+        if not num:
+            return _decode(data)
+        return Message(_decode(data), at, num, self.origin, it)
 
-    def _take(self) -> bytearray | memoryview | None:
-        """The next item's bytes, as the policy picks it (the seqlock's reader side); None when
-        there is none, or when the writer stopped in the middle of a slot (it died)."""
+    def _take(self) -> tuple[bytearray | memoryview, int, int, float] | None:
+        """The next item's bytes and its message's number, iteration and time, as the policy picks
+        it (the seqlock's reader side); None when there is none, or when the writer stopped in the
+        middle of a slot (it died)."""
         ring = self.ring
         counters = ring.counters
         slots = ring.slots
@@ -406,6 +445,7 @@ class ShmReader(ShmConnection):
             if before != index + 1:  # being written, or already overwritten: look again
                 continue
             size, large = words[word + LENGTH], words[word + LARGE]
+            num, it, at = words[word + NUM], words[word + IT], ring.times[word + TIME]
             data: bytearray | memoryview | None
             if large:
                 data = self._large(index, size)
@@ -424,7 +464,7 @@ class ShmReader(ShmConnection):
                 other = (index - 1) % slots * ring.slot_words
                 if words[other + STAMP] == index and words[other + LARGE]:
                     unlink(large_name(ring.spec, index - 1))
-            return data
+            return data, num, it, at
         return None  # the writer stopped in the middle of a slot (it died): nothing to read
 
 

@@ -26,6 +26,7 @@ import numpy as np
 from ..connections import CountedConnection
 from ..errors import CocoError, PoolError
 from ..pool import FramePool, PoolReader, Slot, SlotState
+from ..stamps import Message
 from .channel import ChannelSpec
 from .segment import Segment, SegmentLock, unlink
 
@@ -35,6 +36,9 @@ RECORD = 512
 """Bytes of one slot's record: 16 int64 fields, the dtype string, the pickled stamp."""
 STATE, READERS, SEQ, GENERATION, NBYTES, NDIM, SHAPE = 0, 1, 2, 3, 4, 5, 6
 MAX_NDIM = 6
+NUM, IT, TIME = SHAPE + MAX_NDIM, SHAPE + MAX_NDIM + 1, SHAPE + MAX_NDIM + 2
+"""The record's words of the frame's message stamp (:attr:`Slot.message <coco_core.pool.Slot.message>`):
+its number on the port (0: none), the writing activity's iteration, the time of the write (float64)."""
 DTYPE_AT, DTYPE_SIZE = 128, 32
 STAMP_AT = DTYPE_AT + DTYPE_SIZE
 STAMP_SIZE = RECORD - STAMP_AT
@@ -93,6 +97,11 @@ class ShmFramePool(FramePool):
     def _record(self, index: int) -> memoryview:
         offset = HEADER + index * RECORD
         return self.control.view[offset:offset + DTYPE_AT].cast("q")
+
+    def _times(self, index: int) -> memoryview[float]:
+        """Slot ``index``'s record as float64 words (its ``TIME``)."""
+        offset = HEADER + index * RECORD
+        return self.control.view[offset:offset + DTYPE_AT].cast("d")
 
     def _bytes(self, index: int, at: int, size: int) -> memoryview:
         offset = HEADER + index * RECORD + at
@@ -174,6 +183,11 @@ class ShmFramePool(FramePool):
             self.header[PUBLISHED] += 1
             slot.seq = record[SEQ] = int(self.header[PUBLISHED])
             record[STATE] = CODE[SlotState.READY]
+            message = slot.message
+            record[NUM] = 0 if message is None else message.seq
+            if message is not None:
+                record[IT] = message.it
+                self._times(slot.index)[TIME] = message.time
             target = self._bytes(slot.index, STAMP_AT, STAMP_SIZE)
             target[:8] = len(stamp).to_bytes(8, "little")
             target[8:8 + len(stamp)] = stamp
@@ -201,7 +215,10 @@ class ShmFramePool(FramePool):
             stamp_bytes = self._bytes(index, STAMP_AT, STAMP_SIZE)
             size = int.from_bytes(stamp_bytes[:8], "little")
             stamp = bytes(stamp_bytes[8:8 + size])
+            num, it, at = int(record[NUM]), int(record[IT]), self._times(index)[TIME]
         slot = Slot(self, index)
+        if num:
+            slot.message = Message(None, at, num, self.spec.label.partition("->")[0], it)
         slot.state, slot.seq, slot.readers = SlotState.READING, seq, 1
         slot.stamp = pickle.loads(stamp) if size else None
         slot.array = self._array(index, generation, shape, dtype)

@@ -1,0 +1,93 @@
+"""A filter between two processes: on the reader's side, fed from the shared-memory channel.
+
+A filter (:mod:`coco_core.filters`) is the storage of its connection: the writer's thread pushes,
+the reader's pops, and what it does between (tokens, a time grid, the newest only, a merge) is
+decided at the reader's request. Between processes it stays on the **reader's side**: the writer's
+process writes every message, with its stamp, into an ordinary channel (a BUFFER ring of the
+connection's ``buffersize``; a DATA ring for a ``Greedy``, which keeps the newest only anyway), and
+the reader's process holds the filter, which takes the channel's messages in the reader's thread
+each time it is asked (:meth:`FedFilter.pull`). So a ``PreSignal``'s tokens are put into the cycle
+where they are taken, a ``MaxFrequency`` times its messages by the clock of the activity it gates,
+a ``Greedy`` gives the newest message that reached the reader's process, and a ``Merge`` joins its
+inputs whatever process each comes from: the semantics of one process, with no thread of its own.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..connections import EMPTY, Connection
+from ..errors import CocoError
+from ..filters import Filter
+
+
+class FedFilter(Connection):
+    """The reader's end of a connection with a filter between processes: ``filter`` fed from
+    ``channel`` (the reader's end of its ring).
+
+    Counters keep the connections' contract as one connection: ``written`` is what the filter added
+    (tokens) plus what the writer offered to the channel, ``read`` what the reader took from the
+    filter, ``pending`` what waits in either; a message the ring refused or overwrote, or that the
+    filter discarded, is ``dropped``."""
+
+    __slots__ = ("filter", "channel")
+
+    def __init__(self, filter: Filter, channel: Connection) -> None:
+        super().__init__(filter.policy)
+        self.filter = filter
+        self.channel = channel
+
+    def pull(self) -> None:
+        """Move every message waiting in the channel into the filter (the reader's thread only: the
+        channel has one reader)."""
+        channel, push = self.channel, self.filter.push
+        while (item := channel.pop()) is not EMPTY:
+            push(item)
+
+    def push(self, value: Any) -> None:
+        raise CocoError(f"connection {self.label}: the reader's end cannot be written")
+
+    def pop(self) -> Any:
+        self.pull()
+        return self.filter.pop()
+
+    def pop_newest(self) -> Any:
+        self.pull()
+        return self.filter.pop_newest()
+
+    def skip(self, count: int = 1) -> None:
+        self.filter.skip(count)
+
+    def ready_at(self) -> float | None:
+        self.pull()
+        return self.filter.ready_at()
+
+    @property
+    def written(self) -> int:
+        channel = self.channel
+        return self.filter.written + channel.written - channel.read  # the channel's read went into the filter
+
+    @property
+    def read(self) -> int:
+        return self.filter.read
+
+    @property
+    def pending(self) -> int:
+        return self.filter.pending + self.channel.pending
+
+    @property
+    def writer_finished(self) -> bool:
+        """Always: a filter's reader does not wait for its writer at a natural stop. Filters close
+        cycles between activities (a PreSignal from the consumer's ``endit`` to the producer's
+        ``beginit``), where each would wait for the other."""
+        return True
+
+    @property
+    def label(self) -> str:
+        return self.channel.label
+
+    def describe(self) -> str:
+        return self.filter.describe()
+
+    def __repr__(self) -> str:
+        return f"<{self.describe()} {self.label} (from another process)>"
