@@ -59,9 +59,12 @@ def test_the_next_launcher_removes_what_a_killed_launcher_left_and_no_living_pai
         age(kept)
         result = run_launcher(LAUNCHER, DEMO_APP, f"output:={tmp_path / 'next.csv'}", "--duration", "0.5")
         assert result.returncode == 0, result.stdout + result.stderr
-        assert f"Fast DDS shared-memory segment(s) that killed ROS processes (a launcher, a child) left: " \
-               in result.stderr and segment.name in result.stderr, result.stderr
         assert not left.exists() and not segment.exists()
+        # Aged, the pair is every ROS launcher's to remove: in the test command, a launcher of a suite
+        # running beside this one (the coco_ros tests start dozens) may take it first, in which case
+        # this launcher has nothing to report; when it did remove it, it says so by name.
+        reported = "Fast DDS shared-memory segment(s) that killed ROS processes (a launcher, a child) left: "
+        assert reported not in result.stderr or segment.name in result.stderr, result.stderr
         assert kept.exists() and kept.with_name(kept.name.removesuffix("_el")).exists(), "a living pair was removed"
     finally:
         for process in (killed, living):
