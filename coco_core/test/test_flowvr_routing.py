@@ -318,3 +318,40 @@ def test_cull_split_and_stamps_only_route_the_same_between_processes(tmp_path: P
     assert written == read + dropped + pending and read == len(got["left"])
     assert rows["emitter.out -> worker1.item"][2].startswith("Split(out1 of 2, in turn), routed away ")
 
+
+
+# --- Gather: a tree of Merges ---------------------------------------------------------------------
+
+def test_a_gather_tree_of_merges_gives_the_nested_tuple_of_one_message_of_each_leaf(make_app):
+    """FlowVR's binary Gather tree composes from Merge: two merges of two leaves, each into a Relay
+    (a node of the tree, which a process or host of its own could run), merged again at the root.
+    The root gets ((a, b), (c, d)) once every leaf wrote; a flat Merge of four gives (a, b, c, d)."""
+    from coco_core.filters import Merge, MergeGroup
+    from coco_core.relay import Relay
+
+    app = make_app()
+    leaves = [app.add(Writer(name)) for name in "abcd"]
+    nodes = [app.add(Relay(f"node{index}")) for index in range(2)]
+    root, flat = app.add(Reader("root")), app.add(Reader("flat"))
+    for index, node in enumerate(nodes):
+        group = MergeGroup()
+        for leaf in leaves[2 * index:2 * index + 2]:
+            app.connect(leaf.out, node.input, connection=Merge(BUFFERED, group))
+    top, flat_group = MergeGroup(), MergeGroup()
+    for node in nodes:
+        app.connect(node.output, root.item, connection=Merge(BUFFERED, top))
+    for leaf in leaves:
+        app.connect(leaf.out, flat.item, connection=Merge(BUFFERED, flat_group))
+    for round_ in range(2):
+        for leaf in leaves[:3]:
+            leaf.out.write(f"{leaf.name}{round_}")
+        for node in nodes:
+            node.on_update()
+        assert read_all(root.item) == [] and read_all(flat.item) == []  # d has not written: nothing yet
+        leaves[3].out.write(f"d{round_}")
+        for node in nodes:
+            node.on_update()
+        [(value, stamp)] = read_all(root.item)
+        assert value == ((f"a{round_}", f"b{round_}"), (f"c{round_}", f"d{round_}"))
+        assert stamp.source == "node0.output"  # a merge is stamped as its first input's message
+        assert [v for v, _ in read_all(flat.item)] == [(f"a{round_}", f"b{round_}", f"c{round_}", f"d{round_}")]
