@@ -34,6 +34,8 @@ setup(
             'Relay = coco_core.relay:Relay',
             'CostlyProducer = coco_core.demo.coupling:CostlyProducer',
             'CostlyConsumer = coco_core.demo.coupling:CostlyConsumer',
+            'BoxEmitter = coco_core.demo.routing:BoxEmitter',
+            'StampRecorder = coco_core.demo.routing:StampRecorder',
         ],
     },
 )

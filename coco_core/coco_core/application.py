@@ -23,12 +23,25 @@ from .operations import Operation
 from .ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
 from .processes.remote import RemoteOperation, Router
 from .scheduling import available_cores
+from .stamps import Stamp
 from .transforms.graph import TransformGraph
 
 log = logging.getLogger("coco")
 
 WRITER_POLL = 0.002
 """Seconds between two looks at whether writers in other processes have finished (a natural stop)."""
+
+
+def check_stamps_only(out: OutputPort, into: InputPort) -> None:
+    """A stamps-only connection gives its reader :class:`~coco_core.stamps.Stamp` values: the input
+    must take them; a pooled output publishes its frames to every reader as they are."""
+    if isinstance(out, PooledOutputPort):
+        raise WiringError(f"{out.qualified_name} is a pooled output: its frames go to every reader as they are; "
+                          "a stamps-only connection starts at a plain output")
+    if not types_compatible(Stamp, into.type):
+        raise WiringError(f"a stamps-only connection gives {into.qualified_name} the messages' stamps "
+                          f"(coco_core.stamps.Stamp), and that port takes {type_name(into.type)}; "
+                          "connect it to a port of type Stamp or object")
 
 
 def types_compatible(source: object, sink: object) -> bool:
@@ -206,11 +219,13 @@ class Application:
 
     def connect(self, source: str | Port, sink: str | Port,
                 policy: ConnectionPolicy | None = None, event: bool | None = None,
-                connection: Connection | None = None) -> Connection:
+                connection: Connection | None = None, stamps_only: bool = False) -> Connection:
         """Connect an output to an input (``"camera.image"`` or port objects) with ``policy``.
 
         ``event`` overrides whether writes on this connection wake the sink's triggered activity.
         ``connection``: the storage to use instead of the policy's (a :mod:`filter <.filters>`).
+        ``stamps_only``: the connection carries each message's stamp, not its payload (FlowVR's
+        dashed connections): the input reads :class:`~coco_core.stamps.Stamp` values.
         """
         policy = policy or ConnectionPolicy()
         out, into = self._port(source), self._port(sink)
@@ -222,7 +237,9 @@ class Application:
             raise WiringError(f"{into.qualified_name} is an output port; a connection ends at an input "
                                    f"(inputs of {into.owner.name if into.owner else '?'}: "
                                    f"{', '.join(into.owner.inputs) if into.owner else ''})")
-        if not types_compatible(out.type, into.type):
+        if stamps_only:
+            check_stamps_only(out, into)
+        elif not types_compatible(out.type, into.type):
             raise WiringError(f"cannot connect {out.qualified_name} ({type_name(out.type)}) to "
                                    f"{into.qualified_name} ({type_name(into.type)}): types differ")
         if connection is None:
@@ -230,7 +247,7 @@ class Application:
         elif isinstance(out, PooledOutputPort):
             raise WiringError(f"{out.qualified_name} is a pooled output: its frames go to every reader as they "
                               f"are and cannot pass through a {connection.describe()} filter")
-        out.add_connection(connection)
+        out.add_connection(connection, stamps_only)
         into.add_connection(connection, event)
         if connection.pending and connection.trigger is not None:
             connection.trigger()  # it holds values from the start (a PreSignal's tokens): as if written now

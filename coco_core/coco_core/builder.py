@@ -16,7 +16,7 @@ from .application import Application, types_compatible
 from .attributes import AttributeValueError
 from .component import Component, ErrorPolicy
 from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, WiringError, did_you_mean
-from .filters import FILTERS, Filter, MaxFrequency, Merge, MergeGroup, PreSignal
+from .filters import FILTERS, Cull, Filter, MaxFrequency, Merge, MergeGroup, PreSignal, Split
 from .iteration import IterationPorts, port_of
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
 from .policy import ConnectionPolicy
@@ -197,6 +197,7 @@ class _Builder:
                 self.fail(error, activity_spec)
         merges: dict[str, MergeGroup] = {}
         """The Merge of each input port that has one (its connections in file order)."""
+        splits = split_places(spec.connections)
         for connection_spec in spec.connections:
             crosses = placement.crosses(connection_spec)
             incoming = crosses and placement.process_of_ref(connection_spec.dest) == process
@@ -210,7 +211,7 @@ class _Builder:
                 policy = ConnectionPolicy(connection_spec.data, connection_spec.policy, max(1, connection_spec.buffersize))
                 merged = connection_spec.filter is not None and connection_spec.filter.type == Merge.name
                 group = merges.setdefault(str(connection_spec.dest), MergeGroup()) if merged else None
-                made = _filter(connection_spec.filter, policy, group)
+                made = _filter(connection_spec.filter, policy, group, splits.get(id(connection_spec), (0, 1)))
                 if incoming:  # its filter on the reader's side, in its place in a merge (file order)
                     assert made is not None
                     app.incoming_filters[f"{connection_spec.src}->{connection_spec.dest}"] = made
@@ -219,7 +220,8 @@ class _Builder:
                         _check_merged(into)
                     continue
                 connection = app.connect(_port(app, connection_spec.src), _port(app, connection_spec.dest), policy,
-                                         event=connection_spec.wakes(), connection=made)
+                                         event=connection_spec.wakes(), connection=made,
+                                         stamps_only=connection_spec.stamps_only)
                 if isinstance(connection, Merge) and connection.sink is not None:
                     _check_merged(connection.sink)
                 if connection_spec.shared and connection.source is not None:
@@ -244,9 +246,22 @@ def _resolved(app: Application, ref: PortRef) -> Port:
     return port_of(app.activity(ref.component), ref.port) if ref.activity else app.component(ref.component).port(ref.port)
 
 
-def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup | None) -> Filter | None:
+def split_places(connections: list[ConnectionSpec]) -> dict[int, tuple[int, int]]:
+    """(index, count) of each connection with a Split among the Split connections of its output
+    port, in file order, by the connection's ``id``: every process computes the same from the
+    whole application, so a split's outputs agree wherever their readers run."""
+    groups: dict[str, list[ConnectionSpec]] = {}
+    for connection in connections:
+        if connection.filter is not None and connection.filter.type == Split.name:
+            groups.setdefault(str(connection.src), []).append(connection)
+    return {id(connection): (index, len(group))
+            for group in groups.values() for index, connection in enumerate(group)}
+
+
+def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup | None,
+            split: tuple[int, int] = (0, 1)) -> Filter | None:
     """The filter ``spec`` describes, with ``policy``'s buffer size (a Merge joins ``merge``, its
-    input port's); None without one."""
+    input port's; a Split is output ``split[0]`` of ``split[1]``); None without one."""
     if spec is None:
         return None
     if spec.type == PreSignal.name:
@@ -256,6 +271,10 @@ def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup
     if spec.type == Merge.name:
         assert merge is not None  # the caller gives the port's group
         return Merge(policy, merge)
+    if spec.type == Split.name:
+        return Split(policy, *split, by=spec.by)
+    if spec.type == Cull.name:
+        return Cull(policy, spec.region, spec.stamp)
     return FILTERS[spec.type](policy)
 
 

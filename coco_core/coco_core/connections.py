@@ -147,8 +147,10 @@ class Connection(abc.ABC):
         return f"{source} -> {sink}"
 
     def describe(self) -> str:
-        """What stores the values, for ``--check`` and the profile: the policy, or a filter's name."""
-        return str(self.policy)
+        """What stores the values, for ``--check`` and the profile: the policy, or a filter's name;
+        a stamps-only connection (its writer in this process) says so."""
+        source = self.source
+        return f"{self.policy}, stamps only" if source is not None and source.carries_stamps_only(self) else str(self.policy)
 
     def counters(self) -> dict[str, int]:
         """Snapshot of the flow counters, for the profiler and diagnostics."""

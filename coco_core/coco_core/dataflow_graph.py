@@ -188,8 +188,10 @@ class _Drawing:
         src, dest = self._node(connection.src), self._node(connection.dest)
         crossing = self.placement.several and self.placement.crosses(connection)
         notes = [word for word, present in (("event", connection.event), ("shared", connection.shared),
+                                            ("stamps only", connection.stamps_only),
                                             ("between processes", crossing)) if present]
-        style = ", style=bold" if crossing else ""
+        styles = [word for word, present in (("bold", crossing), ("dashed", connection.stamps_only)) if present]
+        style = f", style={quote(','.join(styles))}" if styles else ""
         if connection.filter is None:
             policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
             label = "\n".join([f"{connection.src.port} -> {connection.dest.port}", str(policy), *notes])
@@ -209,4 +211,8 @@ def _filter_label(spec: FilterSpec, buffersize: int) -> str:
         return f"PreSignal\ntokens={spec.tokens}, buffer {buffersize}"
     if spec.type == "MaxFrequency":
         return f"MaxFrequency\n{spec.hz:g} Hz"
+    if spec.type == "Split":
+        return f"Split\nby {spec.by}" if spec.by else "Split\nin turn"
+    if spec.type == "Cull":
+        return f"Cull\n{spec.stamp} meets {' '.join(f'{value:g}' for value in spec.region)}"
     return spec.type

@@ -18,6 +18,15 @@ their payload.
   (FlowVR's GreedySynchronizor + FilterIt pair, Figure 1 d).
 - :class:`Merge` joins the connections into one input port: once each holds a message, the reader
   gets one tuple of their values, stamped as the first connection's message (FlowVR's FilterMerge).
+- :class:`Split` shares the messages of one output among its connections that carry it, one
+  connection each message, in turn or by a user stamp (FlowVR's split, a scatter).
+- :class:`Cull` forwards a message only when its bounding box (a user stamp) meets the receiver's
+  region, given to the filter: one Cull on each connection of an output routes each message to the
+  receivers that see it (FlowVR Render's culling against each viewer's frustum).
+
+A ``Gather`` is a :class:`Merge` of many connections (the binary tree of FlowVR's merges matters
+between hosts, not here: see ``docs/flowvr.md``); a ``Broadcast`` is what an output with several
+connections already does (each gets every message, with its own policy or filter).
 
 Every filter keeps the counting contract of :class:`~coco_core.connections.Connection` (a token a
 filter adds counts as written; a message it discards, as dropped), so the profile shows them.
@@ -263,5 +272,120 @@ class Merge(Filter):
         return f"Merge(in{self.index} of {len(self.group.inputs)})"
 
 
-FILTERS: dict[str, type[Filter]] = {cls.name: cls for cls in (PreSignal, MaxFrequency, Greedy, Merge)}
+class Router(Filter):
+    """A filter that routes: of the messages written on its connection, it keeps those for its
+    reader and lets the others go to the other connections of the same output (FlowVR's routing
+    filters). A message routed away was never this connection's: it is not counted as written here
+    but as :attr:`routed_away`, which the profile shows in the policy column; a message that cannot
+    be routed (its stamp missing or malformed) is counted as written and dropped."""
+
+    __slots__ = ("routed_away",)
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self.routed_away = 0
+        """Messages this connection's reader was not to get (another connection's)."""
+
+    def push(self, value: Any) -> None:
+        keep = self.keeps(value)
+        if keep is False:
+            self.routed_away += 1
+            return
+        if keep is None:  # unroutable: offered here, and discarded (written - read - pending)
+            self.written += 1
+            return
+        super().push(value)
+
+    def keeps(self, item: Any) -> bool | None:
+        """Whether ``item`` is for this connection's reader; None: it cannot be routed."""
+        raise NotImplementedError
+
+    def routes(self) -> str:
+        """How it routes, for :meth:`describe`."""
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        return f"{self.routes()}, routed away {self.routed_away}"
+
+
+def user_stamp(item: Any, name: str) -> Any:
+    """The user stamp ``name`` of ``item`` (a :class:`Message`); None without one."""
+    return item.user.get(name) if type(item) is Message else None
+
+
+class Split(Router):
+    """One output of a split: the connections from one output port that each carry this filter
+    share its messages, each message going to one of them (FlowVR's split/scatter): in turn by the
+    message's number (the ``index``-th of ``count`` takes messages ``index+1``, ``index+1+count``,
+    ...), or, with ``by``, by the user stamp of that name (a whole number: it goes to connection
+    ``stamp % count``). Each connection decides alone from the message's stamp, so a split needs
+    no shared state and works with its connections' readers in any processes."""
+
+    __slots__ = ("index", "count", "by")
+    name = "Split"
+
+    def __init__(self, policy: ConnectionPolicy, index: int, count: int, by: str = "") -> None:
+        if not 0 <= index < count:
+            raise PolicyError(f"Split output {index} of {count}: expected 0 <= index < count")
+        super().__init__(policy)
+        self.index = index
+        self.count = count
+        self.by = by
+
+    def keeps(self, item: Any) -> bool | None:
+        if self.by:
+            key = user_stamp(item, self.by)
+            if type(key) is not int:  # bool is no part number either
+                return None
+            return key % self.count == self.index
+        if type(item) is not Message:
+            return None
+        return (item.seq - 1) % self.count == self.index
+
+    def routes(self) -> str:
+        how = f"by stamp {self.by}" if self.by else "in turn"
+        return f"Split(out{self.index} of {self.count}, {how})"
+
+
+class Cull(Router):
+    """Forwards the messages whose bounding box (the user stamp ``stamp``, ``2k`` numbers: the
+    minimum, then the maximum corner) meets ``region`` (``2k`` numbers the same way), as FlowVR
+    Render culls primitives against each viewer's frustum: one Cull per receiver, on each of the
+    output's connections, each with its own region (the frustum's bounding box, or a tile of a
+    display wall). A message without the stamp is forwarded (it cannot be culled: every receiver
+    gets it); one whose box has another dimension than the region's cannot be routed (dropped)."""
+
+    __slots__ = ("stamp", "low", "high")
+    name = "Cull"
+
+    def __init__(self, policy: ConnectionPolicy, region: tuple[float, ...], stamp: str = "bbox") -> None:
+        if not region or len(region) % 2 or not all(math.isfinite(value) for value in region):
+            raise PolicyError(f"Cull needs a region of 2k finite numbers (minimum corner, then maximum), got {region}")
+        half = len(region) // 2
+        low, high = tuple(region[:half]), tuple(region[half:])
+        if any(a > b for a, b in zip(low, high)):
+            raise PolicyError(f"Cull region {region}: each minimum must be at most its maximum")
+        super().__init__(policy)
+        self.stamp = stamp
+        self.low = low
+        self.high = high
+
+    def keeps(self, item: Any) -> bool | None:
+        box = user_stamp(item, self.stamp)
+        if box is None:
+            return True
+        try:
+            values = [float(value) for value in box]
+        except (TypeError, ValueError):
+            return None
+        half = len(self.low)
+        if len(values) != 2 * half:
+            return None
+        return all(values[axis] <= self.high[axis] and self.low[axis] <= values[half + axis] for axis in range(half))
+
+    def routes(self) -> str:
+        return f"Cull({self.stamp} meets {' '.join(f'{v:g}' for v in self.low + self.high)})"
+
+
+FILTERS: dict[str, type[Filter]] = {cls.name: cls for cls in (PreSignal, MaxFrequency, Greedy, Merge, Split, Cull)}
 """Every filter by its XML name."""

@@ -64,6 +64,12 @@ class FilterSpec:
     """PreSignal: the messages it starts with."""
     hz: float = 0.0
     """MaxFrequency: the most messages it forwards per second."""
+    by: str = ""
+    """Split: the user stamp that chooses the output (a whole number); empty: in turn."""
+    region: tuple[float, ...] = ()
+    """Cull: the receiver's region, its minimum corner then its maximum (2k numbers)."""
+    stamp: str = "bbox"
+    """Cull: the user stamp holding each message's bounding box."""
     location: Location | None = None
 
 
@@ -85,6 +91,9 @@ class ConnectionSpec:
     ``<farm>``'s source feeding its workers)."""
     filter: FilterSpec | None = None
     """The filter on the connection's path; None: the policy's plain storage."""
+    stamps_only: bool = False
+    """``stamps_only="true"``: the connection carries each message's stamp, not its payload
+    (FlowVR's dashed connections); its reader reads :class:`~coco_core.stamps.Stamp` values."""
 
     def wakes(self) -> bool | None:
         """Whether a write wakes the reader, wherever the two ends run: a ``Greedy`` connection does

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import copy
 from time import perf_counter
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Callable
 
 from .connections import EMPTY, Connection
 from .errors import PolicyError, PoolError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
 from .pool import DEFAULT_SLOTS, FramePool, LocalFramePool, PoolConnection, PoolReader, Slot
-from .stamps import Message, Stamp, Stamped
+from .stamps import NO_USER_STAMPS, Message, Stamp, Stamped, user_stamps
 
 if TYPE_CHECKING:
     from .activity import Activity
@@ -69,7 +70,12 @@ class OutputPort(Port):
     Every write is stamped (FlowVR's stamp list, :attr:`stamp`): the message's number on this port,
     this port as its source, the iteration of the writing activity, and the acquisition time (a
     :class:`~coco_core.stamps.Stamped` value's own, else the time of the write). The connections
-    inside the process carry the stamp beside the value.
+    inside the process carry the stamp beside the value. A write may attach user stamps
+    (``write(value, stamps={"bbox": box})``, FlowVR's user stamps), which travel in the stamp.
+
+    A *stamps-only* connection (FlowVR's dashed ones, :meth:`add_connection`) gets each message
+    without its payload: its reader reads the :class:`~coco_core.stamps.Stamp` as the value, and
+    between processes the payload does not travel.
     """
 
     def __init__(self, type_: Any = object, doc: str = "") -> None:
@@ -77,6 +83,8 @@ class OutputPort(Port):
         self._every: list[Connection] = []
         """The connections that receive every value."""
         self._shared: list[Connection] = []
+        self._stamps_only: list[Connection] = []
+        """The connections that receive each message's stamp only."""
         self._turn = 0
         self._written = 0
         self._source = ""
@@ -89,24 +97,32 @@ class OutputPort(Port):
         port = super().bind(owner, name)
         assert isinstance(port, OutputPort)
         port._every, port._shared, port._turn, port._written, port.last = [], [], 0, 0, None
+        port._stamps_only = []
         port._activity = None
         port._source = port.qualified_name
         return port
 
-    def write(self, value: Any) -> None:
-        """Offer ``value`` to every connection, and to one of the shared ones; never blocks."""
-        message = self._message(value)
+    def write(self, value: Any, stamps: Mapping[str, Any] | None = None) -> None:
+        """Offer ``value`` to every connection, and to one of the shared ones; never blocks.
+        ``stamps``: user stamps (small named values, e.g. ``{"bbox": (x0, y0, x1, y1)}``) the
+        message carries in its stamp, which readers and filters read without the payload."""
+        message = self._message(value, stamps)
         for connection in self._every:
             connection.push(message if connection.carries_stamps else value)
+        if self._stamps_only:
+            stamp_message = message.stamps_only()
+            for connection in self._stamps_only:
+                connection.push(stamp_message if connection.carries_stamps else stamp_message.value)
         if self._shared:
             self._hand_over(message)
 
-    def _message(self, value: Any) -> Message:
+    def _message(self, value: Any, stamps: Mapping[str, Any] | None = None) -> Message:
         """``value`` with the stamp of this write (kept as :attr:`last`)."""
+        user = NO_USER_STAMPS if stamps is None else user_stamps(stamps)
         self._written += 1
         activity = self._activity or self._find_activity()
         message = Message(value, perf_counter(), self._written, self._source,
-                          activity.stats.cycles if activity is not None else -1)
+                          activity.stats.cycles if activity is not None else -1, user)
         self.last = message
         return message
 
@@ -121,10 +137,15 @@ class OutputPort(Port):
         """The stamp of the last message written; None before the first."""
         return None if self.last is None else self.last.stamp
 
-    def add_connection(self, connection: Connection) -> None:
+    def add_connection(self, connection: Connection, stamps_only: bool = False) -> None:
+        """Attach a connection; ``stamps_only``: it gets each message's stamp, not its payload."""
         connection.source = self
         self.connections.append(connection)
-        self._every.append(connection)
+        (self._stamps_only if stamps_only else self._every).append(connection)
+
+    def carries_stamps_only(self, connection: Connection) -> bool:
+        """Whether ``connection`` (one of this port's) gets the messages' stamps only."""
+        return connection in self._stamps_only
 
     def share(self, connection: Connection) -> None:
         """Let ``connection`` (one of this port's) take turns with the other shared connections."""
@@ -198,10 +219,15 @@ class PooledOutputPort(OutputPort):
         """A slot to fill in place, or None when every slot is busy (skip this frame)."""
         return self.pool.acquire(shape, dtype)
 
-    def write(self, slot: Slot) -> None:
+    def write(self, slot: Slot, stamps: Mapping[str, Any] | None = None) -> None:
         """Publish a filled slot to every reader: the slot is handed over as it is, the stamp of
         this write with it (:attr:`Slot.message <coco_core.pool.Slot.message>`, across processes in
-        the pool's shared records), which its readers' :attr:`InputPort.stamp` reads."""
+        the pool's shared records), which its readers' :attr:`InputPort.stamp` reads. User stamps
+        are refused: the pool's records between processes hold the fixed stamp fields only (a
+        frame's own stamp, :attr:`Slot.stamp`, may carry more)."""
+        if stamps:
+            raise PolicyError(f"{self.qualified_name} is a pooled output: its frames carry the fixed stamp fields "
+                              "(number, iteration, time), not user stamps; give the frame's Slot.stamp instead")
         message = self._message(slot)
         slot.message = Message(None, message.time, message.seq, message.source, message.it)
         self.pool.publish(slot)

@@ -7,10 +7,56 @@ acquisition of a sample to whatever output it produced, whatever components and 
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 T = TypeVar("T")
+
+
+class UserStamps(Mapping[str, Any]):
+    """FlowVR's user stamps of one message: small named values, read-only (a message is shared by
+    its readers), picklable (they cross to other processes with the message)."""
+
+    __slots__ = ("_stamps",)
+
+    def __init__(self, stamps: Mapping[str, Any] | None = None) -> None:
+        self._stamps = dict(stamps or {})
+
+    def __getitem__(self, name: str) -> Any:
+        return self._stamps[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._stamps)
+
+    def __len__(self) -> int:
+        return len(self._stamps)
+
+    def __hash__(self) -> int:  # a Stamp (frozen) hashes its fields; values that cannot be hashed say so then
+        return hash(tuple(self._stamps.items()))
+
+    def __reduce__(self) -> tuple[type[UserStamps], tuple[dict[str, Any]]]:
+        return UserStamps, (self._stamps,)
+
+    def __repr__(self) -> str:
+        return f"UserStamps({self._stamps!r})"
+
+
+NO_USER_STAMPS = UserStamps()
+"""The user stamps of a message that has none (shared: read-only)."""
+
+
+def user_stamps(stamps: Mapping[str, Any] | None) -> UserStamps:
+    """A copy of the user stamps a writer gave (so that changing its dict later changes no message
+    already written); their names must be non-empty strings, as FlowVR's stamp names are."""
+    if not stamps:
+        return NO_USER_STAMPS
+    if not isinstance(stamps, Mapping):
+        raise TypeError(f"user stamps are a mapping of names to small values, got {type(stamps).__name__}")
+    for name in stamps:
+        if not isinstance(name, str) or not name:
+            raise TypeError(f"a user stamp's name is a non-empty string, got {name!r}")
+    return UserStamps(stamps)
 
 
 @dataclass(frozen=True, slots=True)
@@ -33,6 +79,10 @@ class Stamp:
     it: int = -1
     """The iteration (cycle number, from 0) of the activity whose component wrote the message; -1:
     not written through a port, or by a component no activity runs."""
+    user: UserStamps = field(default_factory=lambda: NO_USER_STAMPS)
+    """FlowVR's user stamps: small named values the writing component attached to the message
+    (``out.write(value, stamps={"bbox": (...)})``), e.g. a bounding box that a ``Cull`` filter routes
+    by, read without the payload. Read-only; empty when the writer gave none."""
 
     @classmethod
     def now(cls, seq: int = 0, source: str = "") -> Stamp:
@@ -45,7 +95,7 @@ class Stamp:
     def step(self, name: str, at: float | None = None) -> Stamp:
         """This stamp with the step ``name`` passed at ``at`` (default: now) appended to ``steps``."""
         return Stamp(self.time, self.seq, self.source, (*self.steps, (name, time.perf_counter() if at is None else at)),
-                     self.it)
+                     self.it, self.user)
 
     def intervals(self) -> list[tuple[str, float]]:
         """Seconds from each step's predecessor (the acquisition for the first) to it, by step name."""
@@ -71,6 +121,15 @@ def unstamped(value: T | Stamped[T]) -> tuple[T, Stamp | None]:
     return value, None
 
 
+@dataclass(frozen=True, slots=True)
+class UserStamped:
+    """A payload and its message's user stamps, as they cross to another process inside one pickle
+    (:meth:`Message.crossing`); never seen by a component."""
+
+    value: object
+    user: UserStamps
+
+
 class Message:
     """A value as it travels on a connection inside one process: the payload and the fields of the
     stamp the writing port gave it. The port wraps and the reading port unwraps, so components see
@@ -80,24 +139,49 @@ class Message:
     The :class:`Stamp` object is made only when asked for (:attr:`stamp`): a write costs a few
     slot stores, not a frozen dataclass, since most messages are read without their stamp."""
 
-    __slots__ = ("value", "time", "seq", "source", "it")
+    __slots__ = ("value", "time", "seq", "source", "it", "user")
 
-    def __init__(self, value: object, time: float, seq: int, source: str, it: int) -> None:
+    def __init__(self, value: object, time: float, seq: int, source: str, it: int,
+                 user: UserStamps = NO_USER_STAMPS) -> None:
         self.value = value
         self.time = time
         """When it was written (``perf_counter`` seconds)."""
         self.seq = seq
         self.source = source
         self.it = it
+        self.user = user
+        """The user stamps the writer attached (read-only, :func:`user_stamps`)."""
 
     @property
     def stamp(self) -> Stamp:
-        """The message's stamp: a :class:`Stamped` value's acquisition time and steps, else the
-        time of the write."""
+        """The message's stamp: the acquisition time and steps of a :class:`Stamped` value, or of a
+        :class:`Stamp` value (a stamps-only connection's message, :meth:`stamps_only`), else the time
+        of the write."""
         value = self.value
         if isinstance(value, Stamped):
-            return Stamp(value.stamp.time, self.seq, self.source, value.stamp.steps, self.it)
-        return Stamp(self.time, self.seq, self.source, (), self.it)
+            return Stamp(value.stamp.time, self.seq, self.source, value.stamp.steps, self.it, self.user)
+        if type(value) is Stamp:
+            return Stamp(value.time, self.seq, self.source, value.steps, self.it, self.user)
+        return Stamp(self.time, self.seq, self.source, (), self.it, self.user)
+
+    def stamps_only(self) -> Message:
+        """This message without its payload, for a stamps-only connection (FlowVR's dashed ones):
+        its value is its :class:`Stamp`, which its reader reads (and the same stamp beside it)."""
+        return Message(self.stamp, self.time, self.seq, self.source, self.it, self.user)
+
+    def crossing(self) -> object:
+        """What a channel to another process pickles as the payload: the value, or, when the
+        message has user stamps, the value and its user stamps together (:class:`UserStamped`),
+        so that they travel in the slot's payload and the ring's fixed stamp words stay as they are."""
+        return self.value if not self.user else UserStamped(self.value, self.user)
+
+    @staticmethod
+    def crossed(payload: object, time: float, seq: int, source: str, it: int) -> Message:
+        """The message a channel's reader makes of a payload that :meth:`crossing` gave."""
+        if type(payload) is UserStamped:
+            return Message(payload.value, time, seq, source, it, payload.user)
+        return Message(payload, time, seq, source, it)
 
     def __repr__(self) -> str:
-        return f"<Message it={self.it} seq={self.seq} from {self.source}>"
+        user = f" {dict(self.user)}" if self.user else ""
+        return f"<Message it={self.it} seq={self.seq} from {self.source}{user}>"

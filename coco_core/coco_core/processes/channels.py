@@ -31,8 +31,9 @@ from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from ..connections import Connection
 from ..filters import Merge
 from ..iteration import port_of
-from ..ports import InputPort, OutputPort, PooledOutputPort, Port
+from ..ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
 from ..pool import DEFAULT_SLOTS
+from ..stamps import Stamp
 from .filtered import FedFilter
 from .placement import Placement, ring_policy
 
@@ -70,6 +71,9 @@ class ChannelPlan:
     filtered: bool = False
     """The connection has a filter: the reader's process puts it on its end of the channel (the
     builder made it, :attr:`Application.incoming_filters <coco_core.application.Application.incoming_filters>`)."""
+    stamps_only: bool = False
+    """The connection carries the messages' stamps only: the writer's process puts each message's
+    :class:`~coco_core.stamps.Stamp` into the ring, never its payload."""
 
 
 def _declared(spec: ComponentSpec | None, port: str) -> Any:
@@ -140,6 +144,9 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
             if connection.filter is not None:
                 raise ConfigError(f"{connection.src} is a pooled output: its frames go to every reader as they are "
                                   f"and cannot pass through a {connection.filter.type} filter", connection.location)
+            if connection.stamps_only:
+                raise ConfigError(f"{connection.src} is a pooled output: its frames go to every reader as they are; "
+                                  "a stamps-only connection starts at a plain output", connection.location)
             if connection.data not in (BufferPolicy.DATA, BufferPolicy.POOL):
                 raise ConfigError(f"{connection.src} is a pooled output: connect it with data=POOL (latest frame, "
                                   f"no copy), not {connection.data.value}", connection.location)
@@ -158,7 +165,7 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
                                  placement.process_of_ref(connection.src),
                                  placement.process_of_ref(connection.dest), channel, frames,
                                  connection.wakes(), wakes, ask, connection.src.activity, connection.dest.activity,
-                                 connection.filter is not None))
+                                 connection.filter is not None, connection.stamps_only))
     if asks:
         arena.flags(asks)
     return plans
@@ -169,6 +176,7 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
     activity to its eventfd (inherited from the launcher)."""
     if not plans:
         return
+    from ..application import types_compatible
     from ..shm import ShmFrameNotifier, ShmFramePool, ShmPoolReader, ShmReader, ShmWriter
 
     process = app.process
@@ -187,7 +195,7 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
                 writer = ShmFrameNotifier(plan.channel)
             else:
                 writer = ShmWriter(plan.channel)
-            out.add_connection(writer)
+            out.add_connection(writer, plan.stamps_only)
             app.outgoing.append(writer)
             if plan.wakes:
                 writer.trigger = _waker(wakes[plan.wakes], flags, plan.asks)
@@ -195,6 +203,10 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
             into = _port(app, plan.dest, plan.dest_activity)
             if not isinstance(into, InputPort):
                 raise ConfigError(f"{plan.dest} is an output port; a connection ends at an input")
+            if plan.stamps_only and not types_compatible(Stamp, into.type):
+                raise ConfigError(f"a stamps-only connection gives {plan.dest} the messages' stamps "
+                                  f"(coco_core.stamps.Stamp), and that port takes {type_name(into.type)}; "
+                                  "connect it to a port of type Stamp or object")
             reader: Connection = ShmPoolReader(plan.channel) if plan.frames else ShmReader(plan.channel)
             if plan.filtered:  # the filter on this side, fed from the channel
                 made = app.incoming_filters[f"{plan.src}->{plan.dest}"]

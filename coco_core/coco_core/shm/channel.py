@@ -289,7 +289,7 @@ class ShmWriter(ShmConnection):
         ring = self.ring
         message = value if type(value) is Message else None
         if message is not None:
-            value = message.value
+            value = message.crossing()  # user stamps travel in the payload, the fixed fields in the slot
         buffers: list[pickle.PickleBuffer] = []
         try:
             out = io.BytesIO()
@@ -419,7 +419,7 @@ class ShmReader(ShmConnection):
         data, num, it, at = taken
         if not num:
             return _decode(data)
-        return Message(_decode(data), at, num, self.origin, it)
+        return Message.crossed(_decode(data), at, num, self.origin, it)
 
     def _take(self) -> tuple[bytearray | memoryview, int, int, float] | None:
         """The next item's bytes and its message's number, iteration and time, as the policy picks

@@ -9,6 +9,8 @@ end may name an activity's ``beginit``/``endit`` port (``<src activity="..." por
 
 from __future__ import annotations
 
+import math
+
 from ..filters import FILTERS
 from ..iteration import BEGIN, END, PORTS
 from ..model import ConnectionSpec, FilterSpec, PortRef
@@ -17,7 +19,7 @@ from .reader import CONDITIONS, FileReader
 from .tree import Element
 from .values import parse_bool, parse_int, parse_number
 
-CONNECTION_ATTRIBUTES = ("buffersize", "data", "event", "policy", "transport", *CONDITIONS)
+CONNECTION_ATTRIBUTES = ("buffersize", "data", "event", "policy", "stamps_only", "transport", *CONDITIONS)
 BUFFER_POLICIES = tuple(policy.value for policy in BufferPolicy)
 SYNC_POLICIES = tuple(policy.value for policy in SyncPolicy)
 SIZED = (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR)
@@ -38,6 +40,7 @@ def read_connection(reader: FileReader, element: Element) -> ConnectionSpec | No
         )
     size = _buffer_size(reader, element, values, data)
     event = reader.parsed(element, values, "event", parse_bool)
+    stamps_only = reader.parsed(element, values, "stamps_only", parse_bool)
     children = reader.children(element, ("dest", "filter", "src"))
     src = _port(reader, element, children, "src")
     dest = _port(reader, element, children, "dest")
@@ -55,6 +58,7 @@ def read_connection(reader: FileReader, element: Element) -> ConnectionSpec | No
         event=event,
         location=element.location,
         filter=filter_spec,
+        stamps_only=bool(stamps_only),
     )
 
 
@@ -117,21 +121,24 @@ def _port(
     )
 
 
-FILTER_ATTRIBUTES = {"PreSignal": ("tokens",), "MaxFrequency": ("hz",), "Greedy": (), "Merge": ()}
+FILTER_ATTRIBUTES = {"PreSignal": ("tokens",), "MaxFrequency": ("hz",), "Greedy": (), "Merge": (),
+                     "Split": ("by",), "Cull": ("region", "stamp")}
 """Each filter's own attributes (beside ``type``)."""
 
 
 def _filter(reader: FileReader, element: Element, data: BufferPolicy, size: int) -> FilterSpec | None:
     """``<filter type="PreSignal" tokens="N"/>``, ``<filter type="MaxFrequency" hz="F"/>``,
-    ``<filter type="Greedy"/>`` or ``<filter type="Merge"/>``: the filter decides the buffering, so
-    ``data`` stays DATA."""
+    ``<filter type="Greedy"/>``, ``<filter type="Merge"/>``, ``<filter type="Split" by="stamp"/>``
+    or ``<filter type="Cull" region="x0 y0 x1 y1" stamp="bbox"/>``: the filter decides the
+    buffering, so ``data`` stays DATA."""
     kind = (reader.attribute(element, "type") or "").strip()
     if kind not in FILTERS:
-        reader.check_attributes(element, ("hz", "tokens", "type"), required=("type",))
+        reader.check_attributes(element, ("type", *sorted({name for names in FILTER_ATTRIBUTES.values() for name in names})),
+                                required=("type",))
         if kind:
             reader.error(f'<filter> type="{kind}" is not a filter; expected one of: {", ".join(FILTERS)}', element)
         return None
-    required = ("type", "hz") if kind == "MaxFrequency" else ("type",)
+    required = {"MaxFrequency": ("type", "hz"), "Cull": ("type", "region")}.get(kind, ("type",))
     values = reader.attributes(element, ("type", *FILTER_ATTRIBUTES[kind]), required=required)
     reader.empty(element)
     if data is not BufferPolicy.DATA:
@@ -154,4 +161,38 @@ def _filter(reader: FileReader, element: Element, data: BufferPolicy, size: int)
         spec.hz = hz or 0.0
         if hz is None:
             return None
+    elif kind == "Split":
+        spec.by = values.get("by", "").strip()
+        if "by" in values and not spec.by:
+            reader.error('<filter type="Split"> attribute by="": expected the name of a user stamp (a whole '
+                         "number that chooses the output), or no by= to take turns", element)
+    elif kind == "Cull":
+        spec.stamp = values.get("stamp", "bbox").strip()
+        if not spec.stamp:
+            reader.error('<filter type="Cull"> attribute stamp="": expected the name of the user stamp that '
+                         "holds each message's bounding box (default bbox)", element)
+        if "region" not in values:
+            return None  # said: the attribute is required
+        region = _region(values["region"])
+        if region is None:
+            reader.error(f'<filter type="Cull"> attribute region="{values.get("region", "")}": expected 2k numbers, '
+                         "the region's minimum corner then its maximum (x0 y0 x1 y1, or x0 y0 z0 x1 y1 z1), "
+                         "each minimum at most its maximum", element)
+            return None
+        spec.region = region
     return spec
+
+
+def _region(text: str) -> tuple[float, ...] | None:
+    """A Cull's region: 2k finite numbers (spaces or commas between), minimum corner then maximum;
+    None when it is not one."""
+    try:
+        values = tuple(float(word) for word in text.replace(",", " ").split())
+    except ValueError:
+        return None
+    half = len(values) // 2
+    if not values or len(values) % 2 or not all(math.isfinite(value) for value in values):
+        return None
+    if any(low > high for low, high in zip(values[:half], values[half:])):
+        return None
+    return values

@@ -1,0 +1,357 @@
+"""FlowVR's user stamps, stamps-only connections and routing filters (Split, Cull), in one process,
+from the XML and between processes: each receiver gets exactly the messages its filter routes to
+it, with their user stamps, what a filter routes away is counted, and wrong parameters get
+file:line errors. Waiting is on conditions (or on the launcher's exit), never on a fixed time."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from coco_core import (
+    BufferPolicy,
+    Component,
+    ConnectionPolicy,
+    InputPort,
+    OutputPort,
+    PooledOutputPort,
+    SyncPolicy,
+    WiringError,
+)
+from coco_core.builder import build_application
+from coco_core.dataflow_graph import dataflow_dot
+from coco_core.demo.routing import box_of
+from coco_core.errors import ConfigErrors
+from coco_core.filters import Cull, Split
+from coco_core.policy import NEW_DATA
+from coco_core.shm import Arena, ShmReader, ShmWriter
+from coco_core.stamps import Stamp
+from coco_core.xml import load_application, parse_application_string
+
+CONFIG = Path(__file__).resolve().parents[2] / "config"
+BUFFERED = ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 100)
+TIMEOUT = 90.0
+"""Seconds a launch may take on a loaded machine (two processes start, a hundred values)."""
+
+
+class Writer(Component):
+    out = OutputPort(object)
+
+
+class Reader(Component):
+    item = InputPort(object)
+
+
+class IntReader(Component):
+    item = InputPort(int)
+
+
+def read_all(port: InputPort) -> list[tuple[object, Stamp]]:
+    got = []
+    while (read := port.read())[0] is NEW_DATA:
+        stamp = port.stamp
+        assert stamp is not None
+        got.append((read[1], stamp))
+    return got
+
+
+# --- user stamps ----------------------------------------------------------------------------------
+
+def test_user_stamps_reach_the_reader_with_the_message_and_stay_as_written(make_app):
+    app = make_app()
+    writer, reader = app.add(Writer("writer")), app.add(Reader("reader"))
+    app.connect("writer.out", "reader.item", BUFFERED)
+    box = {"bbox": (0.0, 1.0, 2.0, 3.0), "camera": 2}
+    writer.out.write("mesh", stamps=box)
+    box["camera"] = 7  # the writer's dict changing later changes no message written
+    writer.out.write("plain")
+    [(value, stamp), (plain, plain_stamp)] = read_all(reader.item)
+    assert (value, dict(stamp.user), stamp.seq, stamp.source) == ("mesh", {"bbox": (0.0, 1.0, 2.0, 3.0), "camera": 2},
+                                                                   1, "writer.out")
+    assert plain == "plain" and dict(plain_stamp.user) == {}
+    assert writer.out.stamp is not None and writer.out.stamp.seq == 2
+    with pytest.raises(TypeError):
+        stamp.user["camera"] = 3  # type: ignore[index]  # read-only: the message is shared by its readers
+
+
+def test_a_user_stamp_needs_a_name():
+    writer = Writer("writer")
+    port = Writer.out.bind(writer, "out")
+    with pytest.raises(TypeError, match="a user stamp's name is a non-empty string, got 3"):
+        port.write(1, stamps={3: "x"})  # type: ignore[dict-item]
+
+
+def test_user_stamps_cross_to_another_process_in_the_payload(make_app):
+    """The ring's fixed stamp words are unchanged: the user stamps travel pickled with the value."""
+    arena = Arena(f"userstamps{os.getpid()}x{os.urandom(3).hex()}")
+    try:
+        spec = arena.channel(BUFFERED, "writer.out->reader.item")
+        writer = Writer("writer")
+        port = Writer.out.bind(writer, "out")
+        port.add_connection(ShmWriter(spec))
+        reader = Reader("reader")
+        into = Reader.item.bind(reader, "item")
+        into.add_connection(ShmReader(spec))
+        port.write([1, 2], stamps={"bbox": (0, 0, 1, 1)})
+        port.write(3)
+        [(value, stamp), (plain, plain_stamp)] = read_all(into)
+        assert value == [1, 2] and dict(stamp.user) == {"bbox": (0, 0, 1, 1)}
+        assert (stamp.seq, stamp.source) == (1, "writer.out")
+        assert plain == 3 and dict(plain_stamp.user) == {} and plain_stamp.seq == 2
+    finally:
+        arena.close()
+
+
+# --- stamps-only connections ----------------------------------------------------------------------
+
+def test_a_stamps_only_connection_gives_the_stamp_without_the_payload(make_app):
+    app = make_app()
+    writer, full, stamps = app.add(Writer("writer")), app.add(Reader("full")), app.add(Reader("stamps"))
+    app.connect("writer.out", "full.item", BUFFERED)
+    only = app.connect("writer.out", "stamps.item", BUFFERED, stamps_only=True)
+    writer.out.write({"big": "payload"}, stamps={"bbox": (1, 2, 3, 4)})
+    assert read_all(full.item)[0][0] == {"big": "payload"}
+    [(value, stamp)] = read_all(stamps.item)
+    assert isinstance(value, Stamp) and value == stamp  # the stamp is the value, and read beside it
+    assert (stamp.seq, stamp.source, dict(stamp.user)) == (1, "writer.out", {"bbox": (1, 2, 3, 4)})
+    assert only.describe() == "BUFFER/LOCKED[100], stamps only"
+    assert only.counters() == {"written": 1, "read": 1, "dropped": 0, "pending": 0}
+
+
+def test_a_stamps_only_connection_needs_a_port_that_takes_stamps_and_a_plain_output(make_app):
+    class Camera(Component):
+        frames = PooledOutputPort(4)
+
+    app = make_app()
+    writer, ints, camera = app.add(Writer("writer")), app.add(IntReader("ints")), app.add(Camera("camera"))
+    with pytest.raises(WiringError, match=r"gives ints.item the messages' stamps .* that port takes int"):
+        app.connect("writer.out", "ints.item", stamps_only=True)
+    reader = app.add(Reader("reader"))
+    with pytest.raises(WiringError, match="camera.frames is a pooled output: .* starts at a plain output"):
+        app.connect(camera.frames, reader.item, stamps_only=True)
+    assert app.connections == []
+
+
+def test_a_stamps_only_connection_to_another_process_does_not_carry_the_payload():
+    """A payload that cannot be pickled would fail the channel: only its stamp crosses."""
+    arena = Arena(f"stampsonly{os.getpid()}x{os.urandom(3).hex()}")
+    try:
+        spec = arena.channel(BUFFERED, "writer.out->reader.item")
+        port = Writer.out.bind(Writer("writer"), "out")
+        port.add_connection(ShmWriter(spec), stamps_only=True)
+        into = Reader.item.bind(Reader("reader"), "item")
+        into.add_connection(ShmReader(spec))
+        port.write(threading.Lock(), stamps={"bbox": (0, 0, 1, 1)})  # no pickle of a lock
+        [(value, stamp)] = read_all(into)
+        assert isinstance(value, Stamp) and value == stamp
+        assert (stamp.seq, stamp.source, dict(stamp.user)) == (1, "writer.out", {"bbox": (0, 0, 1, 1)})
+    finally:
+        arena.close()
+
+
+# --- Split ----------------------------------------------------------------------------------------
+
+def split_app(make_app, count: int, by: str = ""):
+    app = make_app()
+    writer = app.add(Writer("writer"))
+    readers = [app.add(Reader(f"r{index}")) for index in range(count)]
+    connections = [app.connect(writer.out, reader.item, connection=Split(BUFFERED, index, count, by))
+                   for index, reader in enumerate(readers)]
+    return writer, readers, connections
+
+
+def test_split_in_turn_gives_each_message_to_one_output(make_app):
+    writer, readers, connections = split_app(make_app, 3)
+    for value in range(10):
+        writer.out.write(value)
+    got = [[value for value, _ in read_all(reader.item)] for reader in readers]
+    assert got == [[0, 3, 6, 9], [1, 4, 7], [2, 5, 8]]
+    assert [c.counters() for c in connections] == [{"written": n, "read": n, "dropped": 0, "pending": 0}
+                                                    for n in (4, 3, 3)]
+    assert [c.routed_away for c in connections] == [6, 7, 7]
+    assert connections[0].describe() == "Split(out0 of 3, in turn), routed away 6"
+
+
+def test_split_by_a_stamp_routes_by_its_value_and_counts_what_it_cannot_route(make_app):
+    writer, readers, connections = split_app(make_app, 2, by="part")
+    for value, part in ((0, 1), (1, 4), (2, 7), (3, 2)):
+        writer.out.write(value, stamps={"part": part})
+    writer.out.write(4)  # no part stamp: nobody's, dropped on each output
+    writer.out.write(5, stamps={"part": "left"})  # not a whole number either
+    assert [[v for v, _ in read_all(reader.item)] for reader in readers] == [[1, 3], [0, 2]]
+    assert [c.counters()["dropped"] for c in connections] == [2, 2]
+    assert [c.routed_away for c in connections] == [2, 2]
+
+
+# --- Cull -----------------------------------------------------------------------------------------
+
+def test_cull_forwards_the_messages_whose_box_meets_the_region(make_app):
+    app = make_app()
+    writer, left, right = app.add(Writer("writer")), app.add(Reader("left")), app.add(Reader("right"))
+    culls = [app.connect(writer.out, reader.item, connection=Cull(BUFFERED, region))
+             for reader, region in ((left, (0.0, 0.0, 5.0, 1.0)), (right, (5.0, 0.0, 10.0, 1.0)))]
+    for count in range(10):
+        writer.out.write(count, stamps={"bbox": box_of(count, 10, 1.0)})
+    writer.out.write("unboxed")  # cannot be culled: every receiver gets it
+    writer.out.write("flat", stamps={"bbox": (1, 2)})  # 1-d box against a 2-d region: dropped
+    writer.out.write("far", stamps={"bbox": (20, 20, 21, 21)})  # meets nobody
+    assert [v for v, _ in read_all(left.item)] == [0, 1, 2, 3, 4, 5, "unboxed"]
+    assert [v for v, _ in read_all(right.item)] == [4, 5, 6, 7, 8, 9, "unboxed"]
+    assert [(c.routed_away, c.counters()["dropped"]) for c in culls] == [(5, 1), (5, 1)]
+    assert culls[0].describe() == "Cull(bbox meets 0 0 5 1), routed away 5"
+
+
+def test_cull_refuses_a_region_that_is_not_one():
+    with pytest.raises(Exception, match="2k finite numbers"):
+        Cull(BUFFERED, (0.0, 1.0, 2.0))
+    with pytest.raises(Exception, match="each minimum must be at most its maximum"):
+        Cull(BUFFERED, (3.0, 0.0, 1.0, 1.0))
+
+
+# --- the XML --------------------------------------------------------------------------------------
+
+def test_the_routing_file_builds_its_filters_in_file_order_and_draws_them():
+    spec = load_application(CONFIG / "stamp_routing.xml")
+    app = build_application(spec)
+    by_label = {c.label: c for c in app.connections}
+    left, worker1 = by_label["emitter.out -> left.item"], by_label["emitter.out -> worker1.item"]
+    assert isinstance(left, Cull) and (left.low, left.high) == ((0.0, 0.0), (5.0, 1.0))
+    assert isinstance(worker1, Split) and (worker1.index, worker1.count, worker1.by) == (1, 2, "")
+    assert by_label["emitter.out -> monitor.item"].describe().endswith("stamps only")
+    dot = dataflow_dot(spec)
+    assert dot.count("shape=diamond") == 4
+    assert '"Cull\\nbbox meets 0 0 5 1"' in dot and '"Split\\nin turn"' in dot
+    assert re.search(r'"component:emitter" -> "component:monitor" \[label="[^"]*stamps only", style="dashed"\]', dot)
+
+
+ROUTED = """<package name="routed">
+    <components>
+        <component><name>emitter</name><task>BoxEmitter</task><library>coco_core</library></component>
+        <component><name>viewer</name><task>StampRecorder</task><library>coco_core</library></component>
+    </components>
+    <connections>
+        <connection{attributes}>
+            <src task="emitter" port="out"/>
+            <dest task="viewer" port="item"/>
+            {filter}
+        </connection>
+    </connections>
+</package>"""
+
+
+@pytest.mark.parametrize("attributes, filter, expected", [
+    ("", '<filter type="Cull"/>', 'app.xml:10: <filter> needs a region= attribute'),
+    ("", '<filter type="Cull" region="0 1 2"/>', 'app.xml:10: <filter type="Cull"> attribute region="0 1 2": '
+                                                 "expected 2k numbers"),
+    ("", '<filter type="Cull" region="5 0 1 1"/>', "each minimum at most its maximum"),
+    ("", '<filter type="Cull" region="0 0 1 1" stamp=""/>', 'app.xml:10: <filter type="Cull"> attribute stamp=""'),
+    ("", '<filter type="Split" by=""/>', 'app.xml:10: <filter type="Split"> attribute by="": expected the name'),
+    ("", '<filter type="Split" hz="3"/>', "app.xml:10: "),
+    ("", '<filter type="Scatter"/>', "expected one of: PreSignal, MaxFrequency, Greedy, Merge, Split, Cull"),
+    (' stamps_only="maybe"', "", "app.xml:7: "),
+])
+def test_wrong_routing_parameters_are_errors_with_file_and_line(attributes: str, filter: str, expected: str):
+    with pytest.raises(ConfigErrors) as raised:
+        build_application(parse_application_string(ROUTED.format(attributes=attributes, filter=filter),
+                                                   filename="app.xml"))
+    assert expected in str(raised.value), str(raised.value)
+
+
+def test_a_stamps_only_connection_into_a_port_of_another_type_is_an_error_with_file_and_line():
+    text = ROUTED.format(attributes=' stamps_only="true"', filter="").replace(
+        '<task>StampRecorder</task>', '<task>CostlyConsumer</task>')
+    with pytest.raises(ConfigErrors) as raised:
+        build_application(parse_application_string(text, filename="app.xml"))
+    assert "app.xml:7:" in str(raised.value) and "that port takes int" in str(raised.value), str(raised.value)
+
+
+# --- between processes ----------------------------------------------------------------------------
+
+def test_cull_split_and_stamps_only_route_the_same_between_processes(tmp_path: Path):
+    """config/stamp_routing.xml with the receivers in a process of their own: each gets what it gets in
+    one process (the filters on the reader's side, fed from the rings), the monitor the stamps only,
+    the counters in the profile. The emitter stops the application after 100 values; a filter's
+    reader does not wait for its writer at the stop, so a receiver may miss the last few: the checks
+    hold for what it got up to its last message."""
+    text = (CONFIG / "stamp_routing.xml").read_text()
+    text, wrapped = re.subn(r'(<activity name="view">.*?</activity>)', r'<process name="apart">\1</process>',
+                            text, flags=re.S)
+    assert wrapped == 1
+    path = tmp_path / "apart.xml"
+    path.write_text(text)
+    out = tmp_path / "out"
+    out.mkdir()
+    launched = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--profile", "600",
+                               "period_ms:=2", "stop_after:=100", f"out_dir:={out}"],
+                              capture_output=True, text=True, timeout=TIMEOUT)
+    assert launched.returncode == 0, launched.stdout + launched.stderr
+    got = {name: json.loads((out / f"{name}.json").read_text())
+           for name in ("left", "right", "worker0", "worker1", "monitor")}
+    regions = {"left": (0.0, 5.0), "right": (5.0, 10.0)}
+    for name, (low, high) in regions.items():
+        seqs = [entry["seq"] for entry in got[name]]
+        assert seqs, name
+        expected = [seq for seq in range(1, seqs[-1] + 1) if low <= box_of(seq - 1, 10, 1.0)[0] <= high
+                    or low <= box_of(seq - 1, 10, 1.0)[2] <= high]
+        assert seqs == expected, name
+        for entry in got[name]:
+            assert entry["value"] == entry["seq"] - 1 and entry["user"]["bbox"] == list(box_of(entry["value"], 10, 1.0))
+    for index in (0, 1):
+        seqs = [entry["seq"] for entry in got[f"worker{index}"]]
+        assert seqs and seqs == list(range(index + 1, seqs[-1] + 1, 2))
+    monitor = got["monitor"]
+    assert monitor and all(entry["stamps_only"] and entry["value"] is None for entry in monitor)
+    assert [entry["seq"] for entry in monitor] == list(range(1, len(monitor) + 1))
+    assert monitor[0]["user"] == {"bbox": [0.0, 0.0, 1.0, 1.0], "part": 0}
+    rows = {cells[1]: cells for line in launched.stdout.splitlines()
+            if len(cells := re.split(r"\s{2,}", line.strip())) == 7 and " -> " in cells[1]}
+    left = rows["emitter.out -> left.item"]
+    assert left[2].startswith("Cull(bbox meets 0 0 5 1), routed away ") and left[0] == "apart"
+    written, read, dropped, pending = map(int, left[3:])
+    assert written == read + dropped + pending and read == len(got["left"])
+    assert rows["emitter.out -> worker1.item"][2].startswith("Split(out1 of 2, in turn), routed away ")
+
+
+
+# --- Gather: a tree of Merges ---------------------------------------------------------------------
+
+def test_a_gather_tree_of_merges_gives_the_nested_tuple_of_one_message_of_each_leaf(make_app):
+    """FlowVR's binary Gather tree composes from Merge: two merges of two leaves, each into a Relay
+    (a node of the tree, which a process or host of its own could run), merged again at the root.
+    The root gets ((a, b), (c, d)) once every leaf wrote; a flat Merge of four gives (a, b, c, d)."""
+    from coco_core.filters import Merge, MergeGroup
+    from coco_core.relay import Relay
+
+    app = make_app()
+    leaves = [app.add(Writer(name)) for name in "abcd"]
+    nodes = [app.add(Relay(f"node{index}")) for index in range(2)]
+    root, flat = app.add(Reader("root")), app.add(Reader("flat"))
+    for index, node in enumerate(nodes):
+        group = MergeGroup()
+        for leaf in leaves[2 * index:2 * index + 2]:
+            app.connect(leaf.out, node.input, connection=Merge(BUFFERED, group))
+    top, flat_group = MergeGroup(), MergeGroup()
+    for node in nodes:
+        app.connect(node.output, root.item, connection=Merge(BUFFERED, top))
+    for leaf in leaves:
+        app.connect(leaf.out, flat.item, connection=Merge(BUFFERED, flat_group))
+    for round_ in range(2):
+        for leaf in leaves[:3]:
+            leaf.out.write(f"{leaf.name}{round_}")
+        for node in nodes:
+            node.on_update()
+        assert read_all(root.item) == [] and read_all(flat.item) == []  # d has not written: nothing yet
+        leaves[3].out.write(f"d{round_}")
+        for node in nodes:
+            node.on_update()
+        [(value, stamp)] = read_all(root.item)
+        assert value == ((f"a{round_}", f"b{round_}"), (f"c{round_}", f"d{round_}"))
+        assert stamp.source == "node0.output"  # a merge is stamped as its first input's message
+        assert [v for v, _ in read_all(flat.item)] == [(f"a{round_}", f"b{round_}", f"c{round_}", f"d{round_}")]
