@@ -14,7 +14,8 @@ export PYTEST_ADDOPTS="--timeout=300 ${PYTEST_ADDOPTS:-}"
 # makes every later participant on it hang while it is created (coco_ros/fastdds_segments.py).
 python -m coco_ros.fastdds_segments
 LOGS="build/test_logs"
-rm -rf build/*/pytest.xml build/workspace_tests build/workspace_apps build/workspace_alone "$LOGS"
+# build/test_inputs: sessions the test processes generate once per run and share (test/conftest.py).
+rm -rf build/*/pytest.xml build/workspace_tests build/workspace_apps build/workspace_alone build/test_inputs "$LOGS"
 mkdir -p build/workspace_tests build/workspace_apps build/workspace_alone "$LOGS"
 
 # The suites are independent (each reads the built workspace, none writes it) and mostly wait: on

@@ -44,6 +44,50 @@ def session(tmp_path_factory):
     return folder, info
 
 
+TEST_INPUTS = ROOT / "build" / "test_inputs"
+"""Inputs generated once per run of the test command and shared by its pytest processes (the suites
+run side by side): ``scripts/run_tests.sh`` empties it at its start; each input's folder is named
+after the workspace's build inputs too, so a run of pytest by hand never reads one that older code made."""
+PALPATION_SECONDS = 4.5
+"""The length of the shared palpation session (``palpation-session --duration``)."""
+
+
+def generated(name: str, make: Callable[[Path], None]) -> Path:
+    """The input ``name``, made by ``make(folder)`` the first time any pytest process of the run asks
+    for it (an exclusive lock file keeps the others waiting, then they read what it made)."""
+    import fcntl
+    import hashlib
+    import shutil
+
+    stamp = ROOT / "build" / ".coco-build-inputs"
+    version = hashlib.sha256(stamp.read_bytes() if stamp.exists() else b"").hexdigest()[:12]
+    TEST_INPUTS.mkdir(parents=True, exist_ok=True)
+    folder = TEST_INPUTS / f"{name}-{version}"
+    with open(TEST_INPUTS / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not folder.exists():
+            partial = folder.with_name(folder.name + ".partial")
+            shutil.rmtree(partial, ignore_errors=True)
+            make(partial)
+            partial.rename(folder)  # complete or absent: a failed generation leaves no half input
+    return folder
+
+
+@pytest.fixture(scope="session")
+def palpation_session() -> Path:
+    """A 4.5 s remote palpation session written by the installed ``palpation-session`` script, once
+    per run of the test command (:func:`generated`)."""
+    script = ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "palpation-session"
+    if not script.exists():
+        pytest.fail(f"{script} is missing: build the workspace first (scripts/setup.sh does)")
+
+    def make(folder: Path) -> None:
+        result = run_launcher(script, str(folder), "--duration", str(PALPATION_SECONDS), "--quiet", timeout=180)
+        assert result.returncode == 0, result.stderr
+
+    return generated("palpation_session", make)
+
+
 def run_launcher(script: Path, *args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
     """Run a launcher to completion from the workspace root, capturing its output."""
     return subprocess.run([str(script), *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout,

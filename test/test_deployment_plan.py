@@ -89,6 +89,8 @@ def node():
 
 
 def load(path: Path, request: pytest.FixtureRequest) -> AppSpec:
+    if path.name == "composite_rgbd_meshes.xml":  # its two cameras replay a palpation session
+        return load_application(path, {"bag": str(request.getfixturevalue("palpation_session"))})
     if path.name in BAXTER_BAG:
         return load_application(path, {"bag": str(request.getfixturevalue("session")[0])})
     if path.name == "palpation_replay.xml":

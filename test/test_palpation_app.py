@@ -18,11 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import ROOT, activity_cycles, run_launcher
+from conftest import PALPATION_SECONDS, ROOT, activity_cycles, run_launcher
 
 APP = ROOT / "config" / "palpation_replay.xml"
-DURATION = 4.5
-"""The shortest session palpation-session makes: every phase, in a short test."""
+DURATION = PALPATION_SECONDS
+"""The session's length (conftest's ``palpation_session``, shared by the run): the shortest
+palpation-session makes, every phase in a short test."""
 
 BEHIND_BOUND = 5e-3
 """m: how far the proxy may be behind the true surface of the body. The proxy lies on the surface
@@ -49,18 +50,6 @@ def free_port() -> int:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         return probe.getsockname()[1]
-
-
-@pytest.fixture(scope="module")
-def palpation_session(tmp_path_factory) -> Path:
-    """A 4.5 s session written by the installed ``palpation-session`` script."""
-    folder = tmp_path_factory.mktemp("palpation") / "session"
-    script = ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "palpation-session"
-    if not script.exists():
-        pytest.fail(f"{script} is missing: build the workspace first (scripts/setup.sh does)")
-    result = run_launcher(script, str(folder), "--duration", str(DURATION), "--quiet", timeout=180)
-    assert result.returncode == 0, result.stderr
-    return folder
 
 
 HAND_RATE = 0.5

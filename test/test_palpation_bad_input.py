@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 from conftest import ROOT, damaged_copy, run_launcher
-from test_palpation_app import HAND_RATE, free_port, palpation_session  # noqa: F401 - the fixture, shared
+from test_palpation_app import HAND_RATE, free_port
 
 APP = ROOT / "config" / "palpation_replay.xml"
 
@@ -53,7 +53,7 @@ def forces(output: Path) -> list[float]:
     return [math.sqrt(sum(float(row[f"force_{a}"]) ** 2 for a in "xyz")) for row in rows]
 
 
-def test_a_stream_that_stops_and_a_surface_stiffer_than_the_device(palpation_session: Path,  # noqa: F811
+def test_a_stream_that_stops_and_a_surface_stiffer_than_the_device(palpation_session: Path,
                                                                     tmp_path: Path) -> None:
     """The camera's recording ends at 2 s (after the calibration touch) and is not started again
     (camera_loop:=false): the remote camera stops streaming while the hand goes on to palpate. The
@@ -121,7 +121,7 @@ def damage_frames_and_poses(topic: str, index: int, _: float, message: Any) -> A
     return message
 
 
-def test_frames_of_the_wrong_size_or_encoding_and_hand_poses_with_nan(palpation_session: Path,  # noqa: F811
+def test_frames_of_the_wrong_size_or_encoding_and_hand_poses_with_nan(palpation_session: Path,
                                                                       tmp_path: Path) -> None:
     """Four camera messages damaged (a colour frame half as tall as its depth, a depth frame as rgb8,
     one in an unknown encoding, a camera_info of another size) and seven hand poses with a NaN
