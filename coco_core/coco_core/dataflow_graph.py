@@ -20,7 +20,7 @@ import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
-from .errors import CocoError
+from .errors import CocoError, GraphError
 from .files import check_writable_file
 from .iteration import BEGIN, END
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, PortRef
@@ -32,10 +32,6 @@ RENDERED_SUFFIXES = (".svg", ".png", ".pdf")
 """What ``dot`` renders here: ``-T`` takes the suffix without its dot."""
 RENDER_TIMEOUT = 60.0
 """Seconds ``dot`` may take: far beyond any application's graph (the Baxter app's takes 0.1 s)."""
-
-
-class GraphError(CocoError):
-    """The data-flow graph cannot be written: a wrong file name, no Graphviz to render it."""
 
 
 def check_graph_file(path: str) -> None:

@@ -62,6 +62,11 @@ class ProcessError(CocoError):
     """A child process of the launcher could not be started or built, or died."""
 
 
+class GraphError(CocoError):
+    """The data-flow graph cannot be written (``--check --graph``): a wrong file name, no Graphviz
+    to render it."""
+
+
 class DeploymentError(CocoError):
     """A run that would differ from its deployment plan (``coco_core.deployment``): a bug guard."""
 

@@ -11,6 +11,8 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
+from .errors import WrongTypeError
+
 T = TypeVar("T")
 
 
@@ -52,10 +54,10 @@ def user_stamps(stamps: Mapping[str, Any] | None) -> UserStamps:
     if not stamps:
         return NO_USER_STAMPS
     if not isinstance(stamps, Mapping):
-        raise TypeError(f"user stamps are a mapping of names to small values, got {type(stamps).__name__}")
+        raise WrongTypeError(f"user stamps are a mapping of names to small values, got {type(stamps).__name__}")
     for name in stamps:
         if not isinstance(name, str) or not name:
-            raise TypeError(f"a user stamp's name is a non-empty string, got {name!r}")
+            raise WrongTypeError(f"a user stamp's name is a non-empty string, got {name!r}")
     return UserStamps(stamps)
 
 
