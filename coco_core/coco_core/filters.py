@@ -2,7 +2,7 @@
 
 A FlowVR filter sits in a connection's path and sees its whole input buffer: it may hold messages
 back, add some, drop some or pick one, which a module (that only sees the newest) cannot. Here a
-filter *is* the connection's storage: a :class:`~coco_core.connections.CountedConnection` whose ``push``
+filter *is* the connection's storage: a :class:`~coco_core.connections.Connection` whose ``push``
 runs in the writer's thread and whose ``pop`` runs in the reader's, so a filter costs no thread of
 its own. It reads the stamps of the messages it holds (:class:`~coco_core.stamps.Message`), never
 their payload.
@@ -35,54 +35,27 @@ filter adds counts as written; a message it discards, as dropped), so the profil
 from __future__ import annotations
 
 import math
-import threading
 import time
-from collections import deque
 from typing import Any, Callable, ClassVar
 
-from .connections import EMPTY, CountedConnection
+from .connections import EMPTY, LockedBufferConnection
 from .errors import PolicyError
 from .policy import ConnectionPolicy
 from .stamps import Message
 
 
-class Filter(CountedConnection):
-    """A connection whose storage is a filter: a bounded FIFO under a lock, by default.
+class Filter(LockedBufferConnection):
+    """A connection whose storage is a filter: by default a LOCKED BUFFER's bounded FIFO, which the
+    filters below change where they hold back, add, drop or pick messages.
 
     ``policy.size`` bounds the buffer (a message written to a full one is refused and counted as
     dropped, as a BUFFER connection's); writer and reader may be in any two threads."""
 
-    __slots__ = ("_lock", "_queue", "_size")
+    __slots__ = ()
 
     carries_stamps = True
     name: ClassVar[str] = ""
     """The filter's name in the XML's ``<filter type="...">``."""
-
-    def __init__(self, policy: ConnectionPolicy) -> None:
-        super().__init__(policy)
-        self._lock = threading.Lock()
-        self._queue: deque[Any] = deque()
-        self._size = policy.size
-
-    def push(self, value: Any) -> None:
-        with self._lock:
-            self.written += 1
-            if len(self._queue) >= self._size:
-                return
-            self._queue.append(value)
-        if self.trigger is not None:
-            self.trigger()
-
-    def pop(self) -> Any:
-        with self._lock:
-            if self._queue:
-                self.read += 1
-                return self._queue.popleft()
-            return EMPTY
-
-    @property
-    def pending(self) -> int:
-        return len(self._queue)
 
     def ready_at(self) -> float | None:
         return 0.0 if self._queue else None
