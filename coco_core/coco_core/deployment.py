@@ -36,6 +36,7 @@ from .errors import CocoError, DeploymentError, did_you_mean
 from .model import ActivitySpec, AppSpec, ComponentSpec, ProcessSpec
 from .processes.channels import woken_by_other_processes
 from .processes.placement import LAUNCHER, Placement
+from .schedule import Schedule
 from .scheduling import SchedulingRequest
 
 if TYPE_CHECKING:
@@ -98,7 +99,7 @@ class ActivityFacts:
     """Its components (peers included) that must run in the thread that configured them."""
 
     def describe(self) -> str:
-        return "triggered" if self.period is None else f"periodic {self.period * 1e3:g} ms"
+        return Schedule(self.period).describe()
 
     @classmethod
     def of_spec(cls, spec: ActivitySpec, components: Mapping[str, ComponentSpec]) -> ActivityFacts:
