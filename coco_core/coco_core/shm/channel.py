@@ -313,18 +313,16 @@ class ShmWriter(ShmConnection):
             except Exception as error:
                 raise ChannelError(f"connection {ring.spec.label}: {type(value).__name__} value cannot be sent to "
                                    f"another process: {error}") from None
-            data = out.getbuffer()
-            try:
-                raws = [part.raw() for part in parts]
-                table = _table(len(raws)).pack(len(raws), data.nbytes, *(raw.nbytes for raw in raws))
-                lock = ring.lock
-                if lock is None:
+            data = out.getvalue()  # a copy of the pickle (its arrays are out of band): no export of the
+            # BytesIO outlives the call, which a view kept by a failure's traceback would be
+            raws = [part.raw() for part in parts]
+            table = _table(len(raws)).pack(len(raws), len(data), *(raw.nbytes for raw in raws))
+            lock = ring.lock
+            if lock is None:
+                stored = self._store(table, data, raws, message)
+            else:
+                with lock:
                     stored = self._store(table, data, raws, message)
-                else:
-                    with lock:
-                        stored = self._store(table, data, raws, message)
-            finally:
-                data.release()  # the BytesIO may grow again for the next value
         finally:  # nothing of the value is kept alive by this end, nor referred to by the next one
             parts.clear()
             pickler.clear_memo()
@@ -332,12 +330,12 @@ class ShmWriter(ShmConnection):
         if stored and trigger is not None:
             trigger()
 
-    def _store(self, table: bytes, data: memoryview, raws: list[memoryview], message: Message | None) -> bool:
+    def _store(self, table: bytes, data: bytes, raws: list[memoryview], message: Message | None) -> bool:
         """Place one encoded value and its message's stamp in the ring (the seqlock's writer side);
         False when a full BUFFER refused it."""
         ring = self.ring
         counters = ring.counters
-        size = len(table) + data.nbytes + sum(raw.nbytes for raw in raws)
+        size = len(table) + len(data) + sum(raw.nbytes for raw in raws)
         counters[OFFERED] += 1
         stored = counters[STORED]
         if self.mode is BufferPolicy.BUFFER and stored - counters[CURSOR] >= ring.slots:
@@ -362,8 +360,8 @@ class ShmWriter(ShmConnection):
             target, at = ring.map, HEADER + index * ring.stride + SLOT_HEADER
             target[at:at + len(table)] = table
             at += len(table)
-            target[at:at + data.nbytes] = data
-            at += data.nbytes
+            target[at:at + len(data)] = data
+            at += len(data)
             for raw in raws:  # arrays go from their own memory into the slot: one copy
                 target[at:at + raw.nbytes] = raw
                 at += raw.nbytes
