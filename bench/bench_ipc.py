@@ -102,6 +102,7 @@ def receive_shm_polling(spec_hex: str, count: int) -> dict[str, Any]:
 def receive_shm(spec_hex: str, fd: int, count: int, frames: bool) -> dict[str, Any]:
     from coco_core.connections import EMPTY
     from coco_core.shm import ShmPoolReader, ShmReader
+    from coco_core.stamps import Message
 
     spec = pickle.loads(bytes.fromhex(spec_hex))
     reader = ShmPoolReader(spec) if frames else ShmReader(spec)
@@ -115,8 +116,8 @@ def receive_shm(spec_hex: str, fd: int, count: int, frames: bool) -> dict[str, A
                 _ = value.array[0, 0, 0] + value.array[-1, -1, -1]  # the pixels are there, in place
                 latencies.append(now - value.stamp)
                 value.release()
-            else:
-                latencies.append(now - value.value[0])
+            else:  # a stamped sample arrives as its Message; a value pushed bare (a plain port's frame), bare
+                latencies.append(now - (value.value if type(value) is Message else value)[0])
             first, last = first or now, now
     return {**summary(latencies), "received": len(latencies), "seconds": last - first}
 

@@ -26,7 +26,7 @@ from _report import BENCH_DIR, IMG_DIR, REPO
 from _table import Table
 
 BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms", "bench_bag", "bench_replay",
-              "bench_latency", "bench_hosting", "bench_display", "bench_check", "bench_processes", "bench_ipc", "bench_flowvr", "bench_haptics",
+              "bench_latency", "bench_hosting", "bench_display", "bench_check", "bench_processes", "bench_ipc", "bench_ipc_path", "bench_flowvr", "bench_haptics",
               "bench_vision", "bench_palpation"]
 
 

@@ -221,6 +221,7 @@ try:
     writer.push(np.zeros(2**18))                 # 2 MiB: cannot be stored
 except ChannelError as error:
     print("error:", error)
+    kept = error                                 # held (a traceback kept for a report): the writer goes on
 writer.push(np.ones(1000))
 reader = ShmReader(spec)
 print("read:", float(reader.pop().sum()), float(reader.pop().sum()), reader.counters())

@@ -106,6 +106,33 @@ def test_values_keep_their_type_and_arrays_their_contents(arena: Arena) -> None:
     np.testing.assert_array_equal(got[0].value, sample.value)
 
 
+def test_one_writer_encodes_each_value_afresh(arena: Arena) -> None:
+    """A writer keeps one pickler for all its values (issue 24): each value still crosses whole and
+    on its own (no memo reference back to an earlier value, an object shared inside one value stays
+    shared), a value that cannot be encoded is refused without harming the next, and the writer
+    keeps no reference to the arrays it sent."""
+    import weakref
+
+    writer, reader = ends(arena, BufferPolicy.BUFFER, 8)
+    names = ["a", "b"]
+    writer.push((names, names))
+    names.append("c")  # the same list again, changed: its new contents cross, not a memo reference
+    writer.push((names, 1))
+    with pytest.raises(ChannelError, match="cannot be sent"):
+        writer.push((names, lambda: None))
+    array = np.arange(5.0)
+    gone = weakref.ref(array)
+    writer.push({"positions": array, "names": names})
+    del array
+    assert gone() is None, "the writer still holds the array it sent"
+    first, second, third = drain(reader)
+    assert first == (["a", "b"], ["a", "b"]) and first[0] is first[1]
+    assert second == (["a", "b", "c"], 1)
+    assert third["names"] == ["a", "b", "c"]
+    np.testing.assert_array_equal(third["positions"], np.arange(5.0))
+    assert (writer.written, reader.read, reader.dropped, reader.pending) == (3, 3, 0, 0)
+
+
 def test_arrays_arrive_whole_and_writable_whatever_their_layout(arena: Arena) -> None:
     writer, reader = ends(arena, BufferPolicy.BUFFER, 4)
     grid = np.arange(24, dtype=np.float32).reshape(4, 6)

@@ -73,6 +73,7 @@ from __future__ import annotations
 
 import copyreg
 import errno
+import functools
 import io
 import os
 import pickle
@@ -165,6 +166,8 @@ class _Ring:
         self.capacity = spec.capacity
         self.stride = SLOT_HEADER + spec.capacity
         self.map = self.segment.map
+        self.bytes = self.segment.view
+        """The segment's bytes as a view: a slice of it is copied once into the reader's value."""
         self.words = self.segment.view[HEADER:].cast("q")
         """The ring as 64-bit words: slot ``i``'s header starts at word ``i * stride // 8``, so headers
         are read and written without making a view per access."""
@@ -245,8 +248,19 @@ class ShmWriter(ShmConnection):
     module's docstring): a camera image on a plain output port crosses too, at the price of one copy
     each way and a few system calls; frames without copies are what pooled outputs are for."""
 
-    __slots__ = ()
+    __slots__ = ("_out", "_parts", "_pickler")
     carries_stamps = True
+
+    def __init__(self, spec: ChannelSpec) -> None:
+        super().__init__(spec)
+        self._out = io.BytesIO()
+        self._parts: list[pickle.PickleBuffer] = []
+        """The arrays of the value being encoded, out of band (emptied once it is stored)."""
+        self._pickler = pickle.Pickler(self._out, 5, buffer_callback=self._parts.append)
+        """One pickler for every value of this end, its memo cleared before each: making a pickler
+        and its buffer per value was a third of the encoding of a small sample. An output port is
+        written by its own activity's thread only, so one end never encodes two values at once."""
+        self._pickler.dispatch_table = _DISPATCH
 
     def writer_done(self) -> None:
         """Tell the reader's process that nothing more will come (see :attr:`writer_finished`)."""
@@ -290,24 +304,28 @@ class ShmWriter(ShmConnection):
         message = value if type(value) is Message else None
         if message is not None:
             value = message.crossing()  # user stamps travel in the payload, the fixed fields in the slot
-        buffers: list[pickle.PickleBuffer] = []
+        out, parts, pickler = self._out, self._parts, self._pickler
         try:
-            out = io.BytesIO()
-            pickler = pickle.Pickler(out, 5, buffer_callback=buffers.append)
-            pickler.dispatch_table = _DISPATCH
-            pickler.dump(value)
-            data = out.getvalue()
-            raws = [buffer.raw() for buffer in buffers]
-        except Exception as error:
-            raise ChannelError(f"connection {ring.spec.label}: {type(value).__name__} value cannot be sent to "
-                               f"another process: {error}") from None
-        table = struct.pack(f"<I{len(raws) + 1}Q", len(raws), len(data), *(raw.nbytes for raw in raws))
-        lock = ring.lock
-        if lock is None:
-            stored = self._store(table, data, raws, message)
-        else:
-            with lock:
+            out.seek(0)
+            out.truncate()
+            try:
+                pickler.dump(value)
+            except Exception as error:
+                raise ChannelError(f"connection {ring.spec.label}: {type(value).__name__} value cannot be sent to "
+                                   f"another process: {error}") from None
+            data = out.getvalue()  # a copy of the pickle (its arrays are out of band): no export of the
+            # BytesIO outlives the call, which a view kept by a failure's traceback would be
+            raws = [part.raw() for part in parts]
+            table = _table(len(raws)).pack(len(raws), len(data), *(raw.nbytes for raw in raws))
+            lock = ring.lock
+            if lock is None:
                 stored = self._store(table, data, raws, message)
+            else:
+                with lock:
+                    stored = self._store(table, data, raws, message)
+        finally:  # nothing of the value is kept alive by this end, nor referred to by the next one
+            parts.clear()
+            pickler.clear_memo()
         trigger = self.trigger
         if stored and trigger is not None:
             trigger()
@@ -356,6 +374,17 @@ class ShmWriter(ShmConnection):
 
     def skip(self, count: int = 1) -> None:
         raise CocoError(f"connection {self.ring.spec.label}: the writer's end cannot be read")
+
+
+_COUNT = struct.Struct("<I")
+"""The first word of a value's table: how many arrays follow its pickle."""
+
+
+@functools.lru_cache(maxsize=64)
+def _table(arrays: int) -> struct.Struct:
+    """The table of parts that leads a value of ``arrays`` out-of-band arrays: their count, then
+    the pickle's length and each array's (one compiled format per count, not one per value)."""
+    return struct.Struct(f"<I{arrays + 1}Q")
 
 
 def _write_all(fd: int, parts: list[Any]) -> None:
@@ -453,7 +482,7 @@ class ShmReader(ShmConnection):
                     continue
             else:
                 start = HEADER + slot * ring.stride + SLOT_HEADER
-                data = bytearray(ring.map[start:start + size])
+                data = bytearray(ring.bytes[start:start + size])  # one copy (slicing the mmap made two)
             if words[word + STAMP] != before:  # overwritten during the copy
                 continue
             counters[CURSOR] = index + 1
@@ -500,15 +529,15 @@ _DISPATCH = {**copyreg.dispatch_table, np.ndarray: _reduce_array}
 def _decode(data: bytearray | memoryview) -> Any:
     """A value from its slot's bytes: the pickle, then the arrays' memory, which the value's arrays
     keep using (they are writable, as the writer's were)."""
-    count = struct.unpack_from("<I", data)[0]
-    lengths = struct.unpack_from(f"<{count + 1}Q", data, 4)
+    table = _table(_COUNT.unpack_from(data)[0])  # one compiled format for the count and the lengths
+    _, pickled, *lengths = table.unpack_from(data)
     view = memoryview(data)
-    at = 4 + 8 * (count + 1)
+    at = table.size + pickled
     parts = []
     for length in lengths:
         parts.append(view[at:at + length])
         at += length
-    return pickle.loads(parts[0], buffers=parts[1:])
+    return pickle.loads(view[table.size:table.size + pickled], buffers=parts)
 
 
 class ChannelStats(ShmConnection):
