@@ -35,25 +35,21 @@ def test_serve_runs_each_types_handler_until_the_word(pair) -> None:
 def test_a_request_is_answered_through_the_other_ends_dispatcher(pair) -> None:
     launcher, child = pair
     outcomes: list[Outcome] = []
-    answered = threading.Event()
 
-    def done(outcome: Outcome) -> None:
-        outcomes.append(outcome)
-        answered.set()
+    def answer(request: ProfileRequest) -> None:
+        child.answer(request, Outcome(True, {"process": "p", "request": request.id}))
+        if request.id == 2:
+            child.send(Stop("answered"))
 
-    server = threading.Thread(target=child.serve, args=({ProfileRequest: lambda request: child.answer(
-        request, Outcome(True, {"process": "p"}))},))
+    server = threading.Thread(target=child.serve, args=({ProfileRequest: answer},), daemon=True)
     server.start()
-    launcher.request(ProfileRequest(), done)
-    launcher.request(ProfileRequest(), done)
-    reader = threading.Thread(target=launcher.serve, args=({},))  # Results go to the waiting requests
-    reader.start()
-    assert answered.wait(5)
+    launcher.request(ProfileRequest(), outcomes.append)
+    launcher.request(ProfileRequest(), outcomes.append)
+    assert launcher.serve({}, until=(Stop,)) == Stop("answered"), "the Results went to the requests"
+    assert outcomes == [Outcome(True, {"process": "p", "request": 1}), Outcome(True, {"process": "p", "request": 2})]
     launcher.close()  # the child's dispatcher ends when the link closes
     server.join(5)
-    reader.join(5)
-    assert not server.is_alive() and not reader.is_alive()
-    assert outcomes[0] == Outcome(True, {"process": "p"})
+    assert not server.is_alive()
 
 
 def test_a_message_without_a_handler_is_logged_and_a_closed_peer_fails_requests(pair, caplog) -> None:
