@@ -373,12 +373,14 @@ class Application:
         first = not self._stop_requested.is_set()
         if hard and self._hard_at is None:
             self._hard_at = time.monotonic()
+        running = self.gate.is_open  # before it: no cycle ran, nothing to drain, nothing configures
         if first:
             self.stop_reason = reason
             self._stop_requested_at = time.monotonic()
-            log.info("stopping application %s: %s", self.name, reason)
+            # Said when no cycle ran: an output that a component makes when it configures may be absent.
+            early = "" if running or not self._started else " (before it ran: its activities were configuring)"
+            log.info("stopping application %s: %s%s", self.name, reason, early)
         self._stop_requested.set()
-        running = self.gate.is_open  # before it: no cycle ran, nothing to drain, nothing configures
         self.gate.open()  # nothing waits for a start that will not come
         if self.stop_is_hard or not running:
             for activity in self.activities.values():
