@@ -377,8 +377,9 @@ class Application:
         if first:
             self.stop_reason = reason
             self._stop_requested_at = time.monotonic()
-            # Said when no cycle ran: an output that a component makes when it configures may be absent.
-            early = "" if running or not self._started else " (before it ran: its activities were configuring)"
+            # Said when no cycle ran (not started yet, or still configuring): an output that a component
+            # makes when it configures may then be absent.
+            early = "" if running else " (before it ran: no activity had cycled)"
             log.info("stopping application %s: %s%s", self.name, reason, early)
         self._stop_requested.set()
         self.gate.open()  # nothing waits for a start that will not come
