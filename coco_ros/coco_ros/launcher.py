@@ -143,7 +143,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         # No -p / --params-file: the file is loaded and built before rclpy starts, so a wrong one is
         # reported before any node appears.
         if options.check:
-            return check(options, signals, RosHost(options))
+            return check(options, signals, RosHost())
         try:
             built = load_and_build(options, signals)
         except CocoError as error:
@@ -165,12 +165,12 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         node = node_type(node_name(name), automatically_declare_parameters_from_overrides=True)
         given = given_parameters(node)
         if options.check:
-            return check(options, signals, RosHost(options), given)
+            return check(options, signals, RosHost(), given)
         with RosoutLogging(node):  # CoCo's log lines on /rosout too, from here on
             spec, app = built or load_and_build(options, signals, given)
             ArgParameters(node, spec).declare(given)
             signals.check()
-            return launch(spec, app, options, signals, RosHost(options, node, ros_args))
+            return launch(spec, app, options, signals, RosHost(node, ros_args))
     except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(_NAME, error)
     finally:
@@ -203,14 +203,14 @@ class RosHost:
     prog = _NAME
     child_module = "coco_ros.child"
 
-    def __init__(self, options: argparse.Namespace, node: Node | None = None, ros_args: Sequence[str] = ()) -> None:
-        self.options = options
+    def __init__(self, node: Node | None = None, ros_args: Sequence[str] = ()) -> None:
         self.node = node
         """The launcher's node (None for ``--check``, which runs nothing)."""
         self.ros_args = list(ros_args)
 
     def launch_options(self, options: argparse.Namespace) -> LaunchOptions:
-        return launch_options(options)
+        return LaunchOptions(Host.ROS, tuple(_threads(options.threads)), options.all_threads,
+                             wait_sets=options.executor_threads is None, executor_threads=options.executor_threads)
 
     def child_config(self) -> dict[str, Any]:
         assert self.node is not None
@@ -249,12 +249,6 @@ def host_in_node(node: Node, app: Application, deployment: Deployment) -> tuple[
     log.info("node %s hosts application %s", node.get_fully_qualified_name(), app.name)
     deployed(app, deployment)
     return host, executor
-
-
-def launch_options(options: argparse.Namespace) -> LaunchOptions:
-    """What of the command line decides where activities run (the deployment plan's options)."""
-    return LaunchOptions(Host.ROS, tuple(_threads(options.threads)), options.all_threads,
-                         wait_sets=options.executor_threads is None, executor_threads=options.executor_threads)
 
 
 def application_name(options: argparse.Namespace, signals: LaunchSignals) -> str:
