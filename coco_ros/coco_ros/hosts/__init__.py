@@ -1,0 +1,1 @@
+"""The host level over DDS (docs/hosts.md)."""
