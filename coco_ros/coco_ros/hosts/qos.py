@@ -12,10 +12,12 @@ has to bring the samples there without ever blocking the writer, which decides t
   of samples a slow or absent reader has not acknowledged, and a write must never block. With keep
   last the writer's history drops its oldest unacknowledged sample instead, and the reader sees the
   gap in the numbers;
-- a **depth** of the policy's size: DATA keeps 1 (only the newest matters), BUFFER and CIRCULAR
-  their ``buffersize`` (what the reader's side can hold is what is worth resending), a pooled
-  output's frames (POOL) 1: a frame is the newest frame, a reader takes only the newest, and
-  resending older frames of several megabytes would only delay the one that counts;
+- a **depth** of what the reader's side keeps, plus one: DATA 1 (only the newest matters), BUFFER and
+  CIRCULAR their ``buffersize`` (what the reader's side can hold is what is worth resending), a
+  pooled output's frames (POOL) 1 (a reader takes the newest frame only, and resending older frames
+  of megabytes would only delay the one that counts); the one more is for the ``writer_done`` sample
+  that follows the last value: with a depth of exactly 1 it could push the last value of a DATA
+  connection out of the reader's history before the reader's callback took it;
 - **volatile**: a reader that joins late gets what is written from then on, as a connection that
   is made while its writer runs. What it missed is counted (its first number tells), and the hosts'
   start barrier (``docs/hosts.md``) makes every reader join before any writer starts.
@@ -29,10 +31,10 @@ from coco_core.policy import BufferPolicy, ConnectionPolicy
 
 
 def depth_of(policy: ConnectionPolicy) -> int:
-    """The samples the writer's DDS history keeps for a reader (see the module's docstring)."""
+    """The samples the DDS histories keep (see the module's docstring)."""
     if policy.data in (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR):
-        return max(1, policy.size)
-    return 1
+        return max(1, policy.size) + 1
+    return 2
 
 
 def qos_of(policy: ConnectionPolicy) -> QoSProfile:

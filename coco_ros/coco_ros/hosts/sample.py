@@ -269,9 +269,9 @@ def _reduce_image(image: Any) -> tuple[Any, ...]:
     from coco_mr_vision.stream_codec import encode
 
     if image.format.is_depth:
-        packet = encode(0, 0.0, 0.0, None, image)
+        packet = encode(1, 0.0, 0.0, None, image)
     else:
-        packet = encode(0, 0.0, 0.0, image, None, color_encoding=_color_encoding(image), quality=JPEG_QUALITY)
+        packet = encode(1, 0.0, 0.0, image, None, color_encoding=_color_encoding(image), quality=JPEG_QUALITY)
     return _image, (pickle.PickleBuffer(packet), image.format.value)
 
 
@@ -281,7 +281,7 @@ def _reduce_rgbd_frame(frame: Any) -> tuple[Any, ...]:
     from coco_mr_vision.stream_codec import encode
 
     color, depth = frame.color, frame.depth
-    packet = encode(0, 0.0, 0.0, color, depth, depth_scale=frame.depth_scale, color_encoding=_color_encoding(color),
+    packet = encode(1, 0.0, 0.0, color, depth, depth_scale=frame.depth_scale, color_encoding=_color_encoding(color),
                     quality=JPEG_QUALITY)
     return _rgbd_frame, (pickle.PickleBuffer(packet), color.format.value, depth.format.value, frame.intrinsics,
                          frame.depth_scale)
