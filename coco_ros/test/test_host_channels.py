@@ -21,7 +21,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
 from coco_core import Application, Component, InputPort, OutputPort, PeriodicActivity, TriggeredActivity
 from coco_core.errors import ConfigError
-from coco_core.filters import Greedy, MaxFrequency
+from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup
 from coco_core.hosts.channel import HostChannel, topic_of
 from coco_core.policy import NEW_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, SyncPolicy
 from coco_core.pool import Slot
@@ -320,18 +320,22 @@ def test_the_rgbd_codec_carries_a_redwood_frame(link):
 
 
 def test_a_damaged_sample_is_counted_reported_and_skipped(link, hosts):
-    crossing = link("damaged", buffer(10))
+    """Samples that do not decode (garbage, an unknown codec, user stamps that are not) are counted
+    and reported as damaged input, the first ten of the connection (a flood is only counted); the
+    next good sample is read as usual."""
+    crossing = link("damaged", buffer(20))
     garbage = hosts[0].node.create_publisher(Sample, crossing.channel.topic, qos_of(crossing.channel.policy))
     assert wait_for(lambda: garbage.get_subscription_count() == 1)
     bad = [Sample(number=1, seq=1, codec="pickle", payload=b"garbage, not a pickle"),
            Sample(number=2, seq=2, codec="morse", payload=b"..."),
            Sample(number=3, seq=3, codec="pickle", user=b"\x00\x01")]
+    bad += [Sample(number=number, seq=number, codec="pickle", payload=bytes(number)) for number in range(4, 13)]
     for sample in bad:
         garbage.publish(sample)
-    assert wait_for(lambda: crossing.reader.damaged == 3)
-    assert len(crossing.reader_app.damage) == 3 and all("source.out->sink.sample from host alpha" in what
-                                                        for what in crossing.reader_app.damage)
-    assert "unknown codec 'morse'" in crossing.reader_app.damage[1]
+    assert wait_for(lambda: crossing.reader.damaged == 12)
+    damage = crossing.reader_app.damage
+    assert len(damage) == 10 and all("source.out->sink.sample from host alpha" in what for what in damage)
+    assert "unknown codec 'morse'" in damage[1] and "further damaged samples are only counted" in damage[-1]
     crossing.source.out.write("intact")
     assert wait_for(lambda: crossing.reader.pending == 1)
     assert crossing.sink.sample.read() == (NEW_DATA, "intact")
@@ -365,6 +369,23 @@ def test_a_max_frequency_filter_between_hosts_times_on_the_readers_side(link):
     assert wait_for(lambda: crossing.sink.sample.read() == (NEW_DATA, "later"))
     assert time.perf_counter() >= due
     assert front.counters() == {"written": 2, "read": 2, "dropped": 0, "pending": 0}
+
+
+def test_a_merge_joins_an_input_from_another_host_and_one_of_its_own(link):
+    """One Merge input fed from the network (its filter on the reader's side, in its group), one
+    from a writer on the reader's host: one tuple once each has a message, stamped as the first's."""
+    group = MergeGroup()
+    far, near = Merge(buffer(4), group), Merge(buffer(4), group)
+    crossing = link("merge", buffer(4), filter=far)
+    right = crossing.reader_app.add(Source("right"))
+    crossing.reader_app.connect(right.out, crossing.sink.sample, connection=near)
+    crossing.source.out.write("left")
+    assert wait_for(lambda: crossing.reader.pending == 1)
+    assert crossing.sink.sample.read()[0] is not NEW_DATA  # the right one has nothing yet
+    right.out.write("right")
+    assert crossing.sink.sample.read() == (NEW_DATA, ("left", "right"))
+    stamp = crossing.sink.sample.stamp
+    assert (stamp.source, stamp.seq) == ("source.out", 1)
 
 
 def test_a_stamps_only_connection_sends_no_payload(link):
@@ -406,6 +427,16 @@ def test_a_pooled_output_needs_a_pool_connection(hosts):
     with pytest.raises(ConfigError, match="a pooled output's frames cross with data=POOL only"):
         attach_between_hosts(app, hosts[0], [channel], "alpha")
     assert app.connections == []
+
+
+def test_unsync_cannot_join_two_hosts(hosts):
+    unsync = ConnectionPolicy(BufferPolicy.DATA, SyncPolicy.UNSYNC, 1)
+    channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", unsync, None, "pickle",
+                          topic_of("unsync", "source.out", "sink.sample"))
+    app = Application("unsync")
+    app.add(Source("source"))
+    with pytest.raises(ConfigError, match="UNSYNC is only valid inside one activity"):
+        attach_between_hosts(app, hosts[0], [channel], "alpha")
 
 
 def test_a_bridge_stops_its_thread_within_a_second():

@@ -31,7 +31,9 @@ Counters keep the contract of :class:`~coco_core.connections.Connection` on each
   not be published (a value that cannot be encoded, a write after the bridge closed).
 
 Damaged input (a sample that does not decode) is counted (``damaged``), reported to the application
-as other damaged input is (:meth:`~coco_core.application.Application.report_damage`), and skipped.
+as other damaged input is (:meth:`~coco_core.application.Application.report_damage`: the first
+:data:`~coco_core.component.DAMAGE_LISTED` of each connection, as a component reports its refused
+samples, so that a flood does not flood the summary), and skipped.
 """
 
 from __future__ import annotations
@@ -42,12 +44,13 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from coco_core.component import DAMAGE_LISTED
 from coco_core.connections import Connection, CountedConnection, make_connection
 from coco_core.errors import ChannelError, CocoError, ConfigError, PacketError
 from coco_core.filters import Merge
 from coco_core.hosts.channel import HostChannel
 from coco_core.iteration import port_of
-from coco_core.policy import BufferPolicy
+from coco_core.policy import BufferPolicy, SyncPolicy
 from coco_core.pool import LocalFramePool, PoolReader
 from coco_core.ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
 from coco_core.processes.filtered import FedFilter
@@ -159,11 +162,13 @@ class Arrivals:
             self._store(item)
         except PacketError as error:
             self.damaged += 1
+            damaged = self.damaged
             what = f"connection {self.channel.label} from host {self.channel.src_host}: {error}"
-            if self.damaged == 1:
-                log.warning("%s (further damaged samples are counted)", what)
-            if self._report is not None:
-                self._report(what)
+            if damaged == 1:
+                log.warning("%s", what)
+            if self._report is not None and damaged <= DAMAGE_LISTED:  # as a component's refused samples
+                more = "; further damaged samples are only counted (dropped)" if damaged == DAMAGE_LISTED else ""
+                self._report(what + more)
 
 
 class DdsReader(Connection):
@@ -318,6 +323,9 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
     process = app.process
     for channel in channels:
         frames = channel.policy.data is BufferPolicy.POOL
+        if channel.policy.sync is SyncPolicy.UNSYNC and host in (channel.src_host, channel.dest_host):
+            raise ConfigError(f"connection {channel.label} joins hosts {channel.src_host} and {channel.dest_host}: "
+                              "UNSYNC is only valid inside one activity (use LOCKED or LOCK_FREE)")
         if channel.src_host == host and channel.src_process == process:
             out = _port(app, channel.src, channel.src_activity)
             if not isinstance(out, OutputPort):
