@@ -50,7 +50,9 @@ class DdsBus:
         self.damaged = 0
         """Messages whose body did not unpickle (reported, dropped)."""
         topic = bus_topic(application)
-        self.publisher = bridge.publisher(HostMessage, topic, QOS)
+        # Not one of the bridge's flushed publishers: at the end the other hosts may be gone already,
+        # and a stop was said as soon as it began, then by every heartbeat.
+        self.publisher = bridge.node.create_publisher(HostMessage, topic, QOS)
         self.subscription = bridge.subscribe(HostMessage, topic, self._heard, QOS)
 
     def send(self, recipient: str, message: Message) -> None:
