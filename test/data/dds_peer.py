@@ -41,7 +41,11 @@ def main() -> int:
             return 2
         return 0
     received: list[int] = []
-    node.create_subscription(UInt32, topic, lambda message: received.append(int(message.data)), qos)
+
+    def arrived(message: UInt32) -> None:
+        received.append(message.data)
+
+    node.create_subscription(UInt32, topic, arrived, qos)
     while len(received) < count and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.05)
     print(json.dumps(received), flush=True)
