@@ -7,6 +7,7 @@ of an application spread over several hosts (issue 21), with real DDS over real 
         sub = net["graphics"].popen([sys.executable, "sub.py"], stdout=subprocess.PIPE)
         net["robot"].run([sys.executable, "pub.py"], timeout=30)
         net["robot"].kill()                                          # the robot host dies
+        net["graphics"].disconnect(); net["graphics"].reconnect()    # a cable pulled, and back
         net["graphics"].interface_counters()                         # packets through its eth0
 
     with Network(["robot", "graphics"], domain=171, impairment=Impairment(delay_s=0.02, loss=0.05)) as net:
@@ -50,6 +51,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 from dataclasses import asdict
 from pathlib import Path
 from typing import IO, Any, Mapping, Sequence
@@ -79,18 +81,19 @@ def unavailable() -> str | None:
     return None
 
 
+def netns_of(pid: int) -> int | None:
+    """The inode of ``pid``'s network namespace; None when it is gone (or a zombie)."""
+    try:
+        return os.stat(f"/proc/{pid}/ns/net").st_ino
+    except OSError:
+        return None
+
+
 def processes_in(namespaces: set[int]) -> list[int]:
     """The processes whose network namespace (inode) is one of ``namespaces``: none once a network
     is closed, which is how a test checks that nothing is left."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                if os.stat(entry / "ns" / "net").st_ino in namespaces:
-                    found.append(int(entry.name))
-            except OSError:
-                pass
-    return found
+    return [int(entry.name) for entry in Path("/proc").iterdir()
+            if entry.name.isdigit() and netns_of(int(entry.name)) in namespaces]
 
 
 class Host:
@@ -127,7 +130,15 @@ class Host:
         """Start ``argv`` in this host (``subprocess.Popen`` arguments pass through; the process is
         the command itself, so its signals and exit status are the command's)."""
         process: subprocess.Popen[Any] = subprocess.Popen(self.command(argv), env=self.environment(env), **kwargs)
-        self.network.started.append(process)
+        self.network.started.append((self, process))
+        # Returned once it is in the host (nsenter has entered the namespace), so that a kill or a close
+        # that follows at once finds it there.
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while netns_of(process.pid) != self.netns and process.poll() is None:
+            if time.monotonic() > deadline:
+                raise NetworkError(f"host {self.name}: {argv[0]} did not enter the host's namespace in "
+                                   f"{START_TIMEOUT_S:.0f} s")
+            time.sleep(0.001)
         return process
 
     def run(self, argv: Sequence[str], env: Mapping[str, str] | None = None, timeout: float | None = None,
@@ -135,10 +146,28 @@ class Host:
         """Run ``argv`` in this host to its end (``subprocess.run`` arguments pass through)."""
         return subprocess.run(self.command(argv), env=self.environment(env), timeout=timeout, **kwargs)
 
-    def kill(self) -> int:
-        """SIGKILL every process in this host, as if the machine lost power; the number killed. The
-        host stays on the link: new commands may run in it."""
-        return int(self.network.ask({"op": "kill", "host": self.name})["killed"])
+    def kill(self) -> None:
+        """SIGKILL every process in this host, as if the machine lost power; the host stays on the
+        link: new commands may run in it. What :meth:`popen` started here is killed by its id (it may
+        not have entered the namespace yet), everything else found in the namespace by the keeper."""
+        for host, process in self.network.started:
+            if host is self and process.poll() is None:
+                process.kill()
+        self.network.ask({"op": "kill", "host": self.name})
+
+    def disconnect(self) -> None:
+        """Take this host off the link (its ``eth0`` down: a cable pulled), its processes running on."""
+        self._ip(["link set dev {eth} down"])
+
+    def reconnect(self) -> None:
+        """Put it back on the link (the multicast route, gone with the interface, made again)."""
+        self._ip(["link set dev {eth} up", "route replace 224.0.0.0/4 dev {eth}"])
+
+    def _ip(self, commands: list[str]) -> None:
+        script = "\n".join(command.format(eth=self.interface) for command in commands) + "\n"
+        result = self.run(["ip", "-batch", "-"], input=script, capture_output=True, text=True, timeout=10)
+        if result.returncode != 0:
+            raise NetworkError(f"host {self.name}: ip failed: {result.stderr.strip()}")
 
     def interface_counters(self) -> dict[str, int]:
         """Bytes and packets received and sent by this host's ``eth0`` (from its ``/proc/net/dev``):
@@ -167,7 +196,7 @@ class Network:
         self.subnet = subnet
         self.mtu = mtu
         self.hosts: dict[str, Host] = {}
-        self.started: list[subprocess.Popen[Any]] = []
+        self.started: list[tuple[Host, subprocess.Popen[Any]]] = []
         """Every process started with :meth:`Host.popen`, reaped at the close."""
         self.namespaces: set[int] = set()
         self.link = ""
@@ -265,7 +294,7 @@ class Network:
             finally:
                 if keeper.stdout is not None:
                     keeper.stdout.close()
-        for process in self.started:
+        for _, process in self.started:
             if process.poll() is None:
                 process.kill()  # not in a host (it left its namespace): still ours to stop
             process.wait()

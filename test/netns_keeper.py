@@ -31,18 +31,11 @@ import time
 from pathlib import Path
 from typing import Any
 
+from netns import netns_of
 from netns_relay import Hub, Impairment, open_tap
 
 PR_SET_PDEATHSIG = 1
 INTERFACE = "eth0"
-
-
-def netns_of(pid: int) -> int | None:
-    """The inode of ``pid``'s network namespace; None when it is gone or not ours to read."""
-    try:
-        return os.stat(f"/proc/{pid}/ns/net").st_ino
-    except OSError:
-        return None
 
 
 def die_with_parent() -> None:

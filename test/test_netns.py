@@ -5,7 +5,8 @@ real DDS over real UDP between them, an impaired link, and nothing left behind.
   every message, and the traffic went through the hosts' ``eth0`` (the link), not loopback;
 - the impaired link delays (a UDP echo takes at least twice the one-way delay) and drops (the hub
   counts drops) yet a reliable topic delivers every message;
-- a host killed loses its processes, the other host keeps running;
+- a host killed loses its processes, the other host keeps running; a host disconnected (its cable
+  pulled) is unreachable until it is reconnected;
 - closing the network, also when the body raises (an error, Ctrl-C) or when the process that opened
   it is killed, leaves no process and no namespace.
 
@@ -52,6 +53,9 @@ for i in range(3):
     trips.append(time.monotonic() - start)
 print(min(trips))
 """
+
+DAEMON = "import os, time\nif os.fork() == 0:\n    os.setsid()\n    time.sleep(60)\n"
+"""A process that leaves its parent (double fork, own session): found through its namespace only."""
 
 
 def alive(pid: int) -> bool:
@@ -112,23 +116,38 @@ def test_a_killed_host_loses_its_processes_and_the_other_keeps_running() -> None
     with Network(["robot", "graphics"], domain=172) as net:
         robot = net["robot"].popen(["sleep", "60"])
         graphics = net["graphics"].popen(["sleep", "60"])
-        assert net["robot"].kill() == 1
+        net["robot"].run([sys.executable, "-c", DAEMON], timeout=10)
+        net["robot"].kill()
         assert robot.wait(timeout=10) == -signal.SIGKILL
+        assert processes_in({net["robot"].netns}) == [net["robot"].pid]  # the daemon too; the holder stays
         assert graphics.poll() is None
         again = net["robot"].run(["true"], timeout=10)  # the host is still there for a new start
         assert again.returncode == 0
 
 
+def test_a_disconnected_host_is_unreachable_until_it_is_reconnected() -> None:
+    with Network(["robot", "graphics"], domain=175) as net:
+        echo = net["graphics"].popen([sys.executable, "-c", ECHO], stdout=subprocess.PIPE, text=True)
+        assert echo.stdout is not None and echo.stdout.readline() == "bound\n"
+        ping = [sys.executable, "-c", PING.replace("settimeout(5)", "settimeout(0.5)"), net["graphics"].address]
+        assert net["robot"].run(ping, capture_output=True, timeout=30).returncode == 0
+        net["graphics"].disconnect()
+        assert net["robot"].run(ping, capture_output=True, timeout=30).returncode != 0  # socket.timeout
+        assert echo.poll() is None  # its processes run on
+        net["graphics"].reconnect()
+        assert net["robot"].run(ping, capture_output=True, timeout=30).returncode == 0
+        routes = net["graphics"].run(["ip", "route"], capture_output=True, text=True, timeout=10).stdout
+        assert "224.0.0.0/4 dev eth0" in routes
+
+
 @pytest.mark.parametrize("error", [RuntimeError, KeyboardInterrupt])
 def test_closing_leaves_no_process_and_no_namespace_also_when_the_body_raises(error: type[BaseException]) -> None:
-    # A process that left its parent (double fork, own session) is found through its namespace.
-    daemon = "import os, time\nif os.fork() == 0:\n    os.setsid()\n    time.sleep(60)\n"
     with pytest.raises(error):
         with Network(["robot", "graphics", "tracker"], domain=173) as net:
             namespaces = set(net.namespaces)
             keeper = net.keeper_pid
             started = [net[name].popen(["sleep", "60"]) for name in net.hosts]
-            net["graphics"].run([sys.executable, "-c", daemon], timeout=10)
+            net["graphics"].run([sys.executable, "-c", DAEMON], timeout=10)
             assert len(processes_in(namespaces)) >= 3 + 1 + 3  # sleepers, the daemon, the hosts' holders
             raise error("the body failed")
     assert len(namespaces) == 3
