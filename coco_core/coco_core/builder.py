@@ -159,6 +159,14 @@ class _Builder:
                 self.fail(f"<urdf> {error}", urdf)
         graph.strict = spec.strict
 
+    def from_other_hosts(self, placement: Placement, process: str) -> list[ConnectionSpec]:
+        """The connections from another host into ``process`` that have a filter: it runs here, on
+        the reader's side (``coco_ros.hosts`` feeds it from the network), so it is made here."""
+        own = set(map(id, self.spec.connections))
+        return [connection for connection in self.spec.file_connections
+                if id(connection) not in own and connection.filter is not None
+                and _here(placement, connection.dest) and placement.process_of_ref(connection.dest) == process]
+
     def build(self, process: str = LAUNCHER) -> Application:
         spec = self.spec
         placement = Placement.of(spec)
@@ -169,6 +177,7 @@ class _Builder:
         app = Application(spec.name or Path(spec.file).stem, on_error=ErrorPolicy(spec.on_error or "continue"))
         app.process = process
         app.elsewhere = {name: owner for name, owner in placement.of_component.items() if owner != process}
+        app.elsewhere.update(spec.other_hosts)
         self.errors.extend(placement.problems(spec))
         self.install_transforms(app)  # every process's graph starts from the declared structure
         components = [c for c in map(self.instantiate, mine) if c is not None]
@@ -197,9 +206,10 @@ class _Builder:
                 self.fail(error, activity_spec)
         merges: dict[str, MergeGroup] = {}
         """The Merge of each input port that has one (its connections in file order)."""
-        splits = split_places(spec.connections)
-        for connection_spec in spec.connections:
-            crosses = placement.crosses(connection_spec)
+        splits = split_places(spec.file_connections or spec.connections)
+        remote = self.from_other_hosts(placement, process)
+        for connection_spec in [*spec.connections, *remote]:
+            crosses = placement.crosses(connection_spec) or connection_spec in remote
             incoming = crosses and placement.process_of_ref(connection_spec.dest) == process
             if (crosses and not incoming) or (not crosses and placement.process_of_ref(connection_spec.src) != process):
                 continue  # another process's, or a shared-memory channel made by the process level
@@ -244,6 +254,11 @@ def _port(app: Application, ref: PortRef) -> str | Port:
 def _resolved(app: Application, ref: PortRef) -> Port:
     """The port ``ref`` names, found (a crossing connection's end in this process, for its checks)."""
     return port_of(app.activity(ref.component), ref.port) if ref.activity else app.component(ref.component).port(ref.port)
+
+
+def _here(placement: Placement, ref: PortRef) -> bool:
+    """Whether the component or activity ``ref`` names is in this host's part."""
+    return ref.component in (placement.of_activity if ref.activity else placement.of_component)
 
 
 def split_places(connections: list[ConnectionSpec]) -> dict[int, tuple[int, int]]:

@@ -62,6 +62,10 @@ class ProcessError(CocoError):
     """A child process of the launcher could not be started or built, or died."""
 
 
+class HostError(CocoError):
+    """Another host of the application did not come in time, or cannot be reached (``coco_core.hosts``)."""
+
+
 class GraphError(CocoError):
     """The data-flow graph cannot be written (``--check --graph``): a wrong file name, no Graphviz
     to render it."""

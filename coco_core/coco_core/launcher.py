@@ -1,6 +1,7 @@
 """``coco-launch``: run a CoCo application file without ROS.
 
-    coco-launch app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown] [--graph FILE]] [--list]
+    coco-launch app.xml [name:=value ...] [--host NAME [--host-timeout S]] [--duration S] [--profile S]
+                [--check [--allow-unknown] [--graph FILE]] [--list]
 
 Ctrl-C (or SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran in
 its own thread (:mod:`coco_core.signals` has the rules and the exit statuses). The ROS 2 launcher
@@ -24,6 +25,9 @@ from .connections import Connection
 from .dataflow_graph import check_graph_file, write_graph
 from .deployment import Deployment, LaunchOptions, deployed, plan_deployment
 from .errors import CocoError, ConfigError, ConfigErrors, Interrupted
+from .hosts.level import host_level
+from .hosts.part import host_part
+from .hosts.session import START_TIMEOUT
 from .model import AppSpec
 from .policy import ConnectionPolicy
 from .ports import InputPort
@@ -67,6 +71,12 @@ def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
                         help="with --check: write the data-flow graph (processes, activities, components, "
                              "connections with their policies, filters) as Graphviz DOT (FILE.dot or .gv), or "
                              "render it with Graphviz's dot (FILE.svg, .png or .pdf, with FILE.dot beside it)")
+    parser.add_argument("--host", metavar="NAME",
+                        help="the <host> of the application this machine is: run that host's part, joined to the "
+                             "other hosts over DDS (each runs the same file with its own name)")
+    parser.add_argument("--host-timeout", type=float, default=START_TIMEOUT, metavar="S",
+                        help=f"with --host: seconds to wait for the other hosts at each stage of the start "
+                             f"(default {START_TIMEOUT:g})")
     parser.add_argument("--list", action="store_true", help="list the installed components and exit")
     parser.add_argument("--transforms-server", type=int, metavar="PORT",
                         help="serve the transformation graph (REST, WebSocket, web page) on 127.0.0.1:PORT "
@@ -143,12 +153,12 @@ def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, 
     drives each and why (the deployment plan every process of the run executes), components and
     connections. Every child's part is built here too (``init`` only, nothing runs), so a wrong
     component in any process is reported now."""
-    lines = [f"application {launcher_part.name}", f"  deployment: {deployment.options.describe()}",
+    lines = [f"application {launcher_part.name}" + _host_words(spec), f"  deployment: {deployment.options.describe()}",
              *_composite_lines(spec)]
     if not spec.processes:
         lines += _activity_lines(launcher_part, deployment, "  ")
         lines += [_connection_line(connection, "  ") for connection in launcher_part.connections]
-        return "\n".join(lines)
+        return "\n".join(lines + _between_hosts_lines(spec))
     placement = Placement.of(spec)
     parts = {LAUNCHER: launcher_part}
     errors: list[ConfigError] = []
@@ -177,15 +187,29 @@ def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, 
             policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
             lines.append(f"    {connection.src} -> {connection.dest}  {policy}  "
                          f"({src or 'launcher'} -> {dest or 'launcher'})")
-    return "\n".join(lines)
+    return "\n".join(lines + _between_hosts_lines(spec))
 
 
-def run_check(options: argparse.Namespace, spec: AppSpec, app: Application, deployment: Deployment) -> None:
-    """What ``--check`` does in both launchers once the application is built: print the tree, and
-    write the data-flow graph when ``--graph`` asks for it."""
-    print(describe(spec, app, deployment, options.allow_unknown))
-    if options.graph is not None:
-        print(f"data-flow graph written to {', '.join(write_graph(spec, options.graph))}")
+def _host_words(spec: AppSpec) -> str:
+    """``, host H of A, B`` for one host's part (the first host's clock is the application's)."""
+    if not spec.part_of:
+        return ""
+    first = spec.hosts[0].name
+    clock = " (the application's clock)" if spec.part_of == first else f" (on {first}'s clock)"
+    return f", host {spec.part_of} of {', '.join(h.name for h in spec.hosts)}{clock}"
+
+
+def _between_hosts_lines(spec: AppSpec) -> list[str]:
+    """The connections between this host and the others, with their DDS topics."""
+    if not spec.between_hosts:
+        return []
+    lines = ["  between hosts (DDS):"]
+    for channel in spec.between_hosts:
+        ends = (f"{channel.src_host}/{channel.src_process or 'launcher'} -> "
+                f"{channel.dest_host}/{channel.dest_process or 'launcher'}")
+        extra = ", stamps only" if channel.stamps_only else f", {channel.codec}"
+        lines.append(f"    {channel.src} -> {channel.dest}  {channel.policy}{extra}  ({ends}, topic {channel.topic})")
+    return lines
 
 
 def start_profile_printer(report: Callable[[], str], every: float) -> threading.Event:
@@ -241,13 +265,12 @@ def stopped_by_a_failure(app: Application) -> bool:
     return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
 
 
-def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
-                   parameters: Mapping[str, str] | None = None) -> tuple[AppSpec, Application]:
-    """The application of ``options`` loaded and built; its warnings (what the file sets but this
-    version ignores, components ``--allow-unknown`` left out) are logged. A signal ends the reading
-    of the file at once (:meth:`LaunchSignals.loading`), the building at its end. ``parameters``:
-    values for the file's args ranked below the command line's ``name:=value`` (the ROS launcher's
-    node parameters)."""
+def load_spec(options: argparse.Namespace, signals: LaunchSignals,
+              parameters: Mapping[str, str] | None = None) -> AppSpec:
+    """The application file of ``options``, loaded (every host's part when it declares hosts); its
+    warnings (what the file sets but this version ignores) are logged. A signal ends the reading of
+    the file at once (:meth:`LaunchSignals.loading`). ``parameters``: values for the file's args
+    ranked below the command line's ``name:=value`` (the ROS launcher's node parameters)."""
     if options.allow_unknown and not options.check:
         raise CocoError("--allow-unknown goes with --check only: an application without some of its "
                         "components cannot run")
@@ -259,10 +282,36 @@ def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
     log.debug("reading %s", options.app)
     with signals.loading():
         spec = load_application(find_application(options.app), args, parameters)
-    app = build_application(spec, allow_unknown=options.allow_unknown)
     for warning in spec.warnings:
         log.warning("%s", warning)
+    return spec
+
+
+def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
+                   parameters: Mapping[str, str] | None = None) -> tuple[AppSpec, Application]:
+    """The application of ``options`` (this host's part, with ``--host``) loaded (:func:`load_spec`)
+    and built; the building stops at its end on a signal. Components ``--allow-unknown`` left out
+    are logged."""
+    spec = select_host(load_spec(options, signals, parameters), options)
+    app = build_application(spec, allow_unknown=options.allow_unknown)
     return spec, app
+
+
+def select_host(spec: AppSpec, options: argparse.Namespace) -> AppSpec:
+    """The part of ``spec`` that ``--host`` names (:func:`coco_core.hosts.part.host_part`), or the
+    whole application: one that declares no host, or ``--check`` without ``--host`` (which prints
+    every host's part)."""
+    if not spec.hosts:
+        if options.host is not None:
+            raise CocoError(f"--host {options.host}: application {spec.name} declares no <host>; it runs on one "
+                            "machine (docs/hosts.md)")
+        return spec
+    if options.host is None:
+        if options.check:
+            return spec
+        raise CocoError(f"application {spec.name} runs on several hosts ({', '.join(h.name for h in spec.hosts)}): "
+                        "say which one this machine is with --host NAME")
+    return host_part(spec, options.host)
 
 
 HUNG = 3
@@ -329,12 +378,21 @@ def begin(options: argparse.Namespace, prog: str) -> int | None:
 def check(options: argparse.Namespace, signals: LaunchSignals, host: LaunchHost,
           parameters: Mapping[str, str] | None = None) -> int:
     """``--check``: load and build (``parameters``: values for the file's args below the command
-    line's, the ROS launcher's node parameters), print the tree with the deployment plan, run nothing."""
+    line's, the ROS launcher's node parameters), print the tree with the deployment plan, run nothing.
+    An application over several hosts is printed host by host (the one ``--host`` names, or all)."""
     try:
-        spec, app = load_and_build(options, signals, parameters)
-        deployment = plan_deployment(spec, host.launch_options(options))
+        spec = load_spec(options, signals, parameters)
+        parts = ([host_part(spec, h.name) for h in spec.hosts] if spec.hosts and options.host is None
+                 else [select_host(spec, options)])
+        trees = []
+        for part in parts:
+            app = build_application(part, allow_unknown=options.allow_unknown)
+            trees.append(describe(part, app, plan_deployment(part, host.launch_options(options)),
+                                  options.allow_unknown))
         signals.check()
-        run_check(options, spec, app, deployment)
+        print("\n".join(trees))
+        if options.graph is not None:
+            print(f"data-flow graph written to {', '.join(write_graph(spec, options.graph))}")
     except CocoError as error:
         return failure(host.prog, error)
     return 0
@@ -349,14 +407,18 @@ def launch(spec: AppSpec, app: Application, options: argparse.Namespace, signals
     deployment = plan_deployment(spec, host.launch_options(options))
     level = logging.getLevelName(options.log_level)
     configure_logging(spec.log, level)  # may open the file's log
-    with process_level(spec, app, deployment, level, child_module=host.child_module,
-                       child_config=host.child_config()) as processes:
-        clean = host.run(spec, app, deployment, options, processes, signals)
+    with host_level(spec, app, options.host_timeout, signals.check) as hosts:
+        with process_level(spec, app, deployment, level, child_module=host.child_module,
+                           child_config=host.child_config(), clock=hosts.clock if hosts else None) as processes:
+            if hosts is not None:
+                hosts.built(processes)
+            clean = host.run(spec, app, deployment, options, processes, signals)
     if signals.forced:
         return INTERRUPTED
     if not clean:
         return HUNG
-    return 1 if stopped_by_a_failure(app) or (processes is not None and processes.failed) else 0
+    failed = (processes is not None and processes.failed) or (hosts is not None and bool(hosts.failure))
+    return 1 if stopped_by_a_failure(app) or failed else 0
 
 
 def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> int:

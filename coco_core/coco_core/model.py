@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .errors import Location
+from .hosts.channel import HostChannel
 from .policy import BufferPolicy, SyncPolicy
 
 
@@ -94,6 +95,9 @@ class ConnectionSpec:
     stamps_only: bool = False
     """``stamps_only="true"``: the connection carries each message's stamp, not its payload
     (FlowVR's dashed connections); its reader reads :class:`~coco_core.stamps.Stamp` values."""
+    codec: str = "pickle"
+    """How the payload crosses the network when the two ends are on two hosts
+    (:data:`coco_core.hosts.channel.CODECS`)."""
 
     def wakes(self) -> bool | None:
         """Whether a write wakes the reader, wherever the two ends run: a ``Greedy`` connection does
@@ -135,6 +139,9 @@ class ActivitySpec:
     location: Location | None = None
     process: str = ""
     """The ``<process>`` that runs it; empty: the launcher's own process."""
+    host: str = ""
+    """The ``<host>`` that runs it (the first host when the file declares hosts and the activity is in
+    none); empty: the file declares no host."""
 
 
 @dataclass
@@ -150,6 +157,17 @@ class ProcessSpec:
     """Whether the process locks its memory in RAM (mlockall): no page fault in a real-time loop."""
     gc: str = "auto"
     """``auto`` (CPython's collector as usual) or ``between_cycles`` (see :mod:`coco_core.garbage`)."""
+    location: Location | None = None
+    host: str = ""
+    """The ``<host>`` the process runs on; empty: the file declares no host."""
+
+
+@dataclass
+class HostSpec:
+    """``<host>``: one machine of the application; every host runs the same file with ``--host NAME``
+    (:mod:`coco_core.hosts`)."""
+
+    name: str
     location: Location | None = None
 
 
@@ -295,6 +313,22 @@ class AppSpec:
     activities: list[ActivitySpec] = field(default_factory=list)
     processes: list[ProcessSpec] = field(default_factory=list)
     """Child processes declared by ``<process>``; activities name theirs in ``ActivitySpec.process``."""
+    hosts: list[HostSpec] = field(default_factory=list)
+    """The machines declared by ``<host>``, in file order (the first is the application's clock and
+    runs what no host names); empty: one machine."""
+    part_of: str = ""
+    """The host this is the part of (:func:`coco_core.hosts.part.host_part`: its own activities,
+    processes, components and connections, :attr:`hosts` still all of them); empty: the whole
+    application."""
+    between_hosts: list[HostChannel] = field(default_factory=list)
+    """In one host's part: the connections between it and another host, in file order."""
+    file_connections: list[ConnectionSpec] = field(default_factory=list)
+    """In one host's part, whose :attr:`connections` are its own: every connection of the file, in file order, those between hosts included (a Split's
+    outputs are numbered among all of them; a filter on a connection from another host runs on
+    this one); empty otherwise."""
+    other_hosts: dict[str, str] = field(default_factory=dict)
+    """In one host's part: every component of another host -> its address (``process@host``), so
+    that its operations are called by name as across processes."""
     paths: list[str] = field(default_factory=list)
     """Resource search paths (``<paths>``, ``<resourcespaths>``), absolute, in file order."""
     args: dict[str, str] = field(default_factory=dict)

@@ -1,6 +1,7 @@
 """``launcher`` of ``coco_ros``: run a CoCo application file inside one rclpy node.
 
-    ros2 run coco_ros launcher app.xml [name:=value ...] [--duration S] [--profile S] [--check [--allow-unknown] [--graph FILE]] [--list]
+    ros2 run coco_ros launcher app.xml [name:=value ...] [--host NAME [--host-timeout S]] [--duration S] [--profile S]
+                               [--check [--allow-unknown] [--graph FILE]] [--list]
                                [--threads NAME[,NAME]] [--all-threads] [--executor-threads N] [--managed]
                                [--ros-args -r __node:=NAME -p param:=value ...]
 
@@ -12,7 +13,8 @@ on a thread of its own (its timer or guard condition and its components' ROS ent
 :mod:`coco_ros.wait_set`), as callback groups of one rclpy executor (``--executor-threads N``), or
 on the activity's own loop (:mod:`coco_ros.hosting` decides, ``--threads`` overrides). Ctrl-C (or
 SIGTERM) stops every activity within a second, after each component's ``on_stop`` ran
-(:mod:`coco_core.signals`: the rules and the exit statuses).
+(:mod:`coco_core.signals`: the rules and the exit statuses). With ``--host NAME`` it runs that host's
+part of an application over several hosts (``docs/hosts.md``), its node named ``<application>_<host>``.
 
 Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.host.node``).
 """
@@ -161,6 +163,8 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
     try:
         # With -p / --params-file, the node comes first: its values are the file's args too.
         name = built[0].name if built else application_name(options, signals)
+        if options.host is not None:  # every host of one application has a launcher node: each its own name
+            name = f"{name}_{options.host}"
         node_type = ManagedLauncherNode if options.managed else Node
         node = node_type(node_name(name), automatically_declare_parameters_from_overrides=True)
         given = given_parameters(node)

@@ -51,12 +51,14 @@ class HostChannel:
         return f"{self.src}->{self.dest}"
 
 
-def topic_of(application: str, src: str, dest: str) -> str:
-    """The topic of the connection ``src -> dest`` of ``application``: ``/coco/APP/SRC/to/DEST`` with
-    every character a ROS name does not allow replaced by ``_`` (``cam1/mesher.mesh`` keeps its
-    namespace: ``cam1/mesher/mesh``), so that two hosts derive the same name from the file."""
-    def clean(name: str) -> str:
-        parts = [re.sub(r"[^A-Za-z0-9_]", "_", part) or "_" for part in name.replace(".", "/").split("/")]
-        return "/".join(f"_{part}" if part[0].isdigit() else part for part in parts)
+def ros_name(name: str) -> str:
+    """``name`` as a ROS name: every character a ROS name does not allow replaced by ``_``, ``.`` by
+    ``/`` (``cam1/mesher.mesh`` keeps its namespace: ``cam1/mesher/mesh``), and a token that starts
+    with a digit prefixed by ``_``; every host derives the same name from the same file."""
+    parts = [re.sub(r"[^A-Za-z0-9_]", "_", part) or "_" for part in name.replace(".", "/").split("/")]
+    return "/".join(f"_{part}" if part[0].isdigit() else part for part in parts)
 
-    return f"/coco/{clean(application)}/{clean(src)}/to/{clean(dest)}"
+
+def topic_of(application: str, src: str, dest: str) -> str:
+    """The topic of the connection ``src -> dest`` of ``application``: ``/coco/APP/SRC/to/DEST``."""
+    return f"/coco/{ros_name(application)}/{ros_name(src)}/to/{ros_name(dest)}"

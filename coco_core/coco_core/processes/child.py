@@ -30,6 +30,8 @@ from ..builder import build_application
 from ..deployment import deployed, drive
 from ..errors import CocoError
 from ..garbage import GarbageBetweenCycles
+from ..hosts.level import ends_between_hosts
+from ..hosts.transport import Ends
 from ..launcher import stopped_by_a_failure
 from ..memory_lock import lock_memory
 from ..report import snapshot
@@ -120,6 +122,8 @@ class ChildProcess:
         self.launch = ""
         self.garbage: GarbageBetweenCycles | None = None
         """The collections between cycles of a ``gc="between_cycles"`` process."""
+        self.ends: Ends | None = None
+        """This process's ends of connections between hosts (over the network), when it has any."""
 
     def run(self) -> int:
         config = self.link.receive()
@@ -138,6 +142,7 @@ class ChildProcess:
             app = self.app = build_application(spec, process)
             drive(app, config.deployment, config.wakes)
             attach(app, config.plans, config.wakes)
+            self.ends = ends_between_hosts(app, spec, config.clock) if config.clock is not None else None
         except CocoError as error:
             self.link.send(BuildFailed(str(error)))
             return 1
@@ -160,6 +165,8 @@ class ChildProcess:
             log.info("process %s: %s", process, self.garbage.describe())
         failed = stopped_by_a_failure(app)  # a component's error policy, or damaged input
         self.link.send(Stopped(clean, failed, snapshot(app, process)))
+        if self.ends is not None:
+            self.ends.close()
         return 0 if clean else 1
 
     def call(self, process: str, component: str, operation: str, args: tuple[Any, ...],

@@ -78,6 +78,9 @@ class Config(Message):
     log_level: int
     host: dict[str, Any] = field(default_factory=dict)
     """What the child's host needs beyond the plan (the ROS launcher's node name and ROS arguments)."""
+    clock: Any = None
+    """This host's clock against the application's (:class:`~coco_core.hosts.clock.ClockOffset`),
+    when the application has several hosts; None otherwise."""
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 from ..activity import Activity
 from ..application import Application
@@ -60,6 +60,8 @@ from .placement import LAUNCHER, Placement
 from .remote import call_over, serve_call
 
 if TYPE_CHECKING:
+    from ..hosts.clock import ClockOffset
+    from ..hosts.session import HostSession
     from ..shm import Arena
 
 log = logging.getLogger("coco")
@@ -159,11 +161,15 @@ class ProcessSupervisor:
     """Starts, watches and stops the child processes of ``app`` (the launcher's part of ``spec``)."""
 
     def __init__(self, spec: AppSpec, app: Application, deployment: Deployment, log_level: int = logging.INFO,
-                 child_module: str = "coco_core.processes.child", child_config: dict[str, Any] | None = None) -> None:
+                 child_module: str = "coco_core.processes.child", child_config: dict[str, Any] | None = None,
+                 clock: ClockOffset | None = None) -> None:
         self.child_module = child_module
         """The module a child runs (``python -m``): the ROS launcher's children host an rclpy node."""
         self.child_config = child_config or {}
         """Extra configuration every child receives (the ROS launcher's node name and ROS arguments)."""
+        self.clock = clock
+        """This host's clock against the application's, when the application has several hosts: a
+        child with ends of connections between hosts puts its stamps on the application's clock."""
         self.spec = spec
         self.app = app
         self.deployment = deployment
@@ -182,6 +188,9 @@ class ProcessSupervisor:
         self._lock = threading.Lock()
         self.failure = ""
         """Why the application failed because of a child (its death), for the exit status."""
+        self.hosts: HostSession | None = None
+        """The other hosts of the application, when it has several: the calls to their components
+        go there (:mod:`coco_core.hosts`)."""
 
     # --- start ----------------------------------------------------------------------------------
     def launch(self) -> None:
@@ -228,7 +237,7 @@ class ProcessSupervisor:
         finally:
             os.close(theirs)
         link.send(Config(self.spec, name, self.launch_id, self._wakes, self.plans, self.deployment, self.log_level,
-                         self.child_config))
+                         self.child_config, self.clock))
         return Child(name, link, popen, activities)
 
     def _wait_built(self, child: Child) -> None:
@@ -325,19 +334,29 @@ class ProcessSupervisor:
 
     def call(self, process: str, component: str, operation: str, args: tuple[Any, ...],
              kwargs: dict[str, Any]) -> Future[Any]:
-        """An operation of a component that child ``process`` runs (the :class:`Router` protocol)."""
+        """An operation of a component that child ``process`` runs, or another host's (``process@host``,
+        through :attr:`hosts`) (the :class:`Router` protocol)."""
+        if process not in self.children and self.hosts is not None:
+            return self.hosts.call(process, component, operation, args, kwargs)
         return call_over(self.children[process].link, process, component, operation, args, kwargs)
 
     def _route(self, caller: Child, call: Call) -> None:
-        """A child calls an operation of another process: run it here, or pass it on and pass back
-        the outcome as it came (so the exception's own type name reaches the caller)."""
+        """A child calls an operation of another process: run it here, or pass it on."""
         def reply(outcome: Outcome) -> None:
             caller.link.answer(call, outcome)
 
+        self.route(call, reply)
+
+    def route(self, call: Call, reply: Callable[[Outcome], None]) -> None:
+        """Run ``call`` here, or pass it to the process (of this host, or through :attr:`hosts` of
+        another) that runs its component; ``reply`` gets the outcome as it came (so the exception's
+        own type name reaches the caller)."""
         if call.process == LAUNCHER:
             serve_call(self.app, call, reply)
         elif call.process in self.children:
             self.children[call.process].link.request(call, reply)
+        elif self.hosts is not None:
+            self.hosts.forward(call, reply)
         else:
             reply(Outcome.failure("ProcessError", f"no process {call.process!r}"))
 

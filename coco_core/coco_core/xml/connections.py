@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 from ..filters import FILTERS
+from ..hosts.channel import CODECS
 from ..iteration import BEGIN, END, PORTS
 from ..model import ConnectionSpec, FilterSpec, PortRef
 from ..policy import BufferPolicy, SyncPolicy
@@ -19,7 +20,7 @@ from .reader import CONDITIONS, FileReader
 from .tree import Element
 from .values import parse_bool, parse_int, parse_number
 
-CONNECTION_ATTRIBUTES = ("buffersize", "data", "event", "policy", "stamps_only", "transport", *CONDITIONS)
+CONNECTION_ATTRIBUTES = ("buffersize", "codec", "data", "event", "policy", "stamps_only", "transport", *CONDITIONS)
 BUFFER_POLICIES = tuple(policy.value for policy in BufferPolicy)
 SYNC_POLICIES = tuple(policy.value for policy in SyncPolicy)
 SIZED = (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR)
@@ -41,6 +42,7 @@ def read_connection(reader: FileReader, element: Element) -> ConnectionSpec | No
     size = _buffer_size(reader, element, values, data)
     event = reader.parsed(element, values, "event", parse_bool)
     stamps_only = reader.parsed(element, values, "stamps_only", parse_bool)
+    codec = reader.choice(element, values, "codec", CODECS, "pickle")
     children = reader.children(element, ("dest", "filter", "src"))
     src = _port(reader, element, children, "src")
     dest = _port(reader, element, children, "dest")
@@ -59,6 +61,7 @@ def read_connection(reader: FileReader, element: Element) -> ConnectionSpec | No
         location=element.location,
         filter=filter_spec,
         stamps_only=bool(stamps_only),
+        codec=codec,
     )
 
 

@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING
 
 from ..errors import Location
 from ..model import (
-    ActivitySpec, AttributeSpec, ComponentSpec, CompositeSpec, ConnectionSpec, LogSpec, PortRef, ProcessSpec,
+    ActivitySpec, AttributeSpec, ComponentSpec, CompositeSpec, ConnectionSpec, HostSpec, LogSpec, PortRef,
+    ProcessSpec,
 )
 
 if TYPE_CHECKING:
@@ -46,6 +47,7 @@ class Draft:
     connections: list[ConnectionSpec] = field(default_factory=list)
     activities: list[ActivitySpec] = field(default_factory=list)
     processes: list[ProcessSpec] = field(default_factory=list)
+    hosts: list[HostSpec] = field(default_factory=list)
     paths: list[str] = field(default_factory=list)
     log: LogSpec | None = None
     scheduled: list[Scheduled] = field(default_factory=list)

@@ -25,6 +25,7 @@ from .dialect import extension_of
 from .draft import Draft
 from .farm import expand_farms, read_farm
 from .pipeline import read_pipeline
+from .host import read_host
 from .process import read_process
 from .reader import CONDITIONS, FileReader
 from .references import check_draft
@@ -135,6 +136,7 @@ class _Loader:
             connections=self.draft.connections,
             activities=self.draft.activities,
             processes=self.draft.processes,
+            hosts=self.draft.hosts,
             paths=self.draft.paths,
             args=dict(self.arguments.values),
             arg_declarations=dict(self.arguments.declarations),
@@ -226,13 +228,19 @@ class _Loader:
             else:
                 read_pipeline(reader, child, self.draft)
 
-        for child in reader.container(element, ("activity", "farm", "pipeline", "process")):
-            if not reader.kept(child):
-                continue
+        def read_placed(child: Element) -> None:
             if child.tag == "process":
                 read_process(reader, child, self.draft, read_child)
             else:
                 read_child(child)
+
+        for child in reader.container(element, ("activity", "farm", "host", "pipeline", "process")):
+            if not reader.kept(child):
+                continue
+            if child.tag == "host":
+                read_host(reader, child, self.draft, read_placed)
+            else:
+                read_placed(child)
 
     def _log(self, reader: FileReader, element: Element) -> None:
         children = reader.container(element, LOG_CHILDREN)

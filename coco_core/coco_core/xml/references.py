@@ -10,7 +10,7 @@ attribute and ``<urdf>`` file, and ``event`` on connections that feed a pipeline
 from __future__ import annotations
 
 from ..errors import ConfigError, Location, did_you_mean
-from ..model import ActivitySpec, ComponentSpec, ProcessSpec
+from ..model import ActivitySpec, ComponentSpec, HostSpec, ProcessSpec
 from .composite import context_of, resolve_exposed, scope_of
 from .draft import Draft
 from .farm import expand_farms
@@ -77,6 +77,7 @@ def check_draft(draft: Draft) -> list[ConfigError]:
                                           f"{did_you_mean(ref.component, valid)}{context_of(ref.component, composites)}",
                                           ref.location))
 
+    _check_hosts(draft, errors)
     _check_activities(draft.activities, errors)
     _check_processes(draft.processes, draft.activities, errors)
     _resolve_files(draft, errors)
@@ -113,9 +114,9 @@ def _instances(
 
 
 def _check_activities(activities: list[ActivitySpec], errors: list[ConfigError]) -> None:
-    """Activity names are unique, and at most one activity takes the main thread."""
+    """Activity names are unique, and at most one activity of each host takes its main thread."""
     first_named: dict[str, ActivitySpec] = {}
-    main: ActivitySpec | None = None
+    main: dict[str, ActivitySpec] = {}
     for activity in activities:
         if activity.name in first_named:
             errors.append(ConfigError(
@@ -126,14 +127,44 @@ def _check_activities(activities: list[ActivitySpec], errors: list[ConfigError])
         else:
             first_named[activity.name] = activity
         if activity.schedule.main:
-            if main is not None:
+            taken = main.get(activity.host)
+            if taken is not None:
                 errors.append(ConfigError(
                     f"activity {activity.name!r} asks for the main thread, which activity "
-                    f"{main.name!r} at {main.schedule.location} already has; only one can",
+                    f"{taken.name!r} at {taken.schedule.location} already has; only one can"
+                    + (f" on host {activity.host!r}" if activity.host else ""),
                     activity.schedule.location,
                 ))
             else:
-                main = activity
+                main[activity.host] = activity
+
+
+def _check_hosts(draft: Draft, errors: list[ConfigError]) -> None:
+    """Host names are unique, and declared in the application's own file (a composite is placed by
+    the file that instantiates it); then what is in no ``<host>`` goes to the first one."""
+    if not draft.hosts:
+        for activity in draft.activities:
+            if activity.host:
+                errors.append(ConfigError(
+                    f"activity {activity.name!r} is in a <host> of a composite; hosts are declared in the "
+                    "application's own file, around the activities of the instances", activity.location))
+        return
+    first_named: dict[str, HostSpec] = {}
+    for host in draft.hosts:
+        if host.name in first_named:
+            errors.append(ConfigError(
+                f"host name {host.name!r} is already used at {first_named[host.name].location}; put all of its "
+                "processes and activities in one <host>", host.location))
+        else:
+            first_named[host.name] = host
+    for activity in draft.activities:
+        if activity.host and activity.host not in first_named:
+            errors.append(ConfigError(
+                f"activity {activity.name!r} is in a <host> of a composite; hosts are declared in the "
+                "application's own file, around the activities of the instances", activity.location))
+        activity.host = activity.host or draft.hosts[0].name
+    for process in draft.processes:
+        process.host = process.host or draft.hosts[0].name
 
 
 def _check_processes(

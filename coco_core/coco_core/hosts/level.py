@@ -1,0 +1,48 @@
+"""``host_level``: what both launchers wrap around a run of one host's part of an application."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+
+from ..application import Application
+from ..model import AppSpec
+from .clock import ClockOffset
+from .session import HostSession
+from .transport import Ends, host_transport
+
+
+@contextlib.contextmanager
+def host_level(spec: AppSpec, app: Application, timeout: float,
+               interrupted: Callable[[], None] = lambda: None) -> Iterator[HostSession | None]:
+    """Join the other hosts of ``spec`` (one host's part) around a run of ``app``: wait for them and
+    measure the clock (:meth:`HostSession.join`), attach the launcher's process's ends of the
+    connections between hosts; None when the application has one host. ``interrupted`` raises when
+    a signal ends the launch while it waits. At the end, the other hosts are told that this one
+    stops and the network is released."""
+    if not spec.part_of:
+        yield None
+        return
+    transport = host_transport()
+    session = HostSession(spec, app, timeout, interrupted)
+    ends = None
+    try:
+        session.join(transport.bus(spec, session.receive))
+        app.router = session  # the process level's supervisor takes over, passing other hosts' calls on
+        ends = ends_between_hosts(app, spec, session.clock)
+        yield session
+    finally:
+        if not app.stop_requested:  # the launcher ends early (an error): the other hosts too
+            app.request_stop(f"host {spec.part_of} ends", hard=True)
+        if ends is not None:
+            ends.close()
+        session.close()
+
+
+def ends_between_hosts(app: Application, spec: AppSpec, clock: ClockOffset) -> Ends | None:
+    """Attach the ends of ``spec``'s connections between hosts that this process of ``app`` holds
+    (the launcher's process, or a child's); None, and no network, when it holds none."""
+    here = [channel for channel in spec.between_hosts
+            if (channel.src_host, channel.src_process) == (spec.part_of, app.process)
+            or (channel.dest_host, channel.dest_process) == (spec.part_of, app.process)]
+    return host_transport().attach(app, spec, clock) if here else None

@@ -1,0 +1,52 @@
+"""What carries an application over several hosts: a plug-in, found by its entry point.
+
+coco_core knows hosts (the file's ``<host>``, each host's part, the launch's barriers and clock) but
+not the network: the traffic between hosts is DDS, and DDS comes with ROS 2 (``coco_ros.hosts``,
+registered under the entry point group :data:`GROUP`). ``coco-launch`` loads it only when the file
+declares hosts, so a one-host application never imports rclpy.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import entry_points
+from typing import TYPE_CHECKING, Callable, Protocol
+
+from ..errors import MissingPackageError
+
+if TYPE_CHECKING:
+    from ..application import Application
+    from ..model import AppSpec
+    from ..processes.messages import Message
+    from .clock import ClockOffset
+    from .session import Bus
+
+GROUP = "coco.host_transports"
+
+
+class Ends(Protocol):
+    """This process's ends of the connections between hosts, closed at the process's end."""
+
+    def close(self) -> None: ...
+
+
+class HostTransport(Protocol):
+    """The network between the hosts of an application."""
+
+    def bus(self, spec: AppSpec, receive: Callable[[str, Message], None]) -> Bus:
+        """The launch's messages between the hosts of ``spec`` (one host's part); ``receive(sender,
+        message)`` gets those for this host."""
+
+    def attach(self, app: Application, spec: AppSpec, clock: ClockOffset) -> Ends:
+        """Attach this process's ends of ``spec``'s connections between hosts to ``app``'s ports;
+        ``clock`` puts the stamps on the application's clock and back."""
+
+
+def host_transport() -> HostTransport:
+    """The installed transport; a :class:`MissingPackageError` when there is none."""
+    found = list(entry_points(group=GROUP))
+    if not found:
+        raise MissingPackageError("the application runs on several hosts (<host>), whose connections go over DDS: "
+                                  "install the coco_ros package, which provides it (its entry point "
+                                  f"{GROUP})")
+    transport: HostTransport = found[0].load()()
+    return transport

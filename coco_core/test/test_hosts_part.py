@@ -1,0 +1,129 @@
+"""The host level in the file: ``<host>``, each host's part, and what ``--check`` prints for it."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from coco_core.builder import build_application
+from coco_core.errors import ConfigErrors
+from coco_core.filters import MaxFrequency
+from coco_core.hosts.part import host_part, split_address
+from coco_core.policy import BufferPolicy
+from coco_core.xml import load_application
+
+APP = """<package name="spread">
+  <components>
+    <component><name>generator</name><task>SignalGenerator</task></component>
+    <component><name>filter</name><task>MovingAverage</task></component>
+    <component><name>recorder</name><task>CsvRecorder</task>
+      <attributes><attribute name="path" value="{tmp}/out.csv"/></attributes></component>
+    <component><name>idle</name><task>MovingAverage</task></component>
+    <component><name>outsider</name><task>MovingAverage</task></component>
+  </components>
+  <connections>
+    <connection data="BUFFER" buffersize="16"><src task="generator" port="sample"/><dest task="filter" port="sample"/>{filter}</connection>
+    <connection data="BUFFER" buffersize="64"><src task="filter" port="filtered"/><dest task="recorder" port="values"/></connection>
+  </connections>
+  <activities>
+    <host name="robot">
+      <activity name="acquisition"><schedule type="periodic" period="10"/>
+        <components><component name="generator"/></components></activity>
+    </host>
+    <host name="graphics">
+      <process name="work">
+        <activity name="filtering"><schedule type="triggered"/><components><component name="filter"/></components></activity>
+      </process>
+      <activity name="recording"><schedule type="periodic" period="100" main="true"/>
+        <components><component name="recorder"/></components></activity>
+    </host>
+    <activity name="outside"><schedule type="periodic" period="100" main="true"/>
+      <components><component name="outsider"/></components></activity>
+  </activities>
+</package>
+"""
+
+
+def write(tmp_path: Path, text: str = APP, filter: str = "") -> Path:
+    path = tmp_path / "spread.xml"
+    path.write_text(text.format(tmp=tmp_path, filter=filter))
+    return path
+
+
+def test_every_activity_and_process_is_on_a_host_the_first_takes_the_rest(tmp_path: Path) -> None:
+    spec = load_application(str(write(tmp_path)))
+    assert [host.name for host in spec.hosts] == ["robot", "graphics"]
+    assert {a.name: a.host for a in spec.activities} == {
+        "acquisition": "robot", "filtering": "graphics", "recording": "graphics", "outside": "robot"}
+    assert [(p.name, p.host) for p in spec.processes] == [("work", "graphics")]
+
+
+def test_each_host_builds_its_own_part_and_knows_the_connections_between_hosts(tmp_path: Path) -> None:
+    spec = load_application(str(write(tmp_path)))
+    robot, graphics = host_part(spec, "robot"), host_part(spec, "graphics")
+    assert [c.name for c in robot.components] == ["generator", "idle", "outsider"]  # no activity runs idle: the first host's
+    assert [c.name for c in graphics.components] == ["filter", "recorder"]
+    assert robot.connections == [] and [str(c.dest) for c in graphics.connections] == ["recorder.values"]
+    assert robot.between_hosts == graphics.between_hosts  # both plan it alike, from the file alone
+    (channel,) = robot.between_hosts
+    assert (channel.src, channel.dest, channel.src_host, channel.dest_host, channel.dest_process) == (
+        "generator.sample", "filter.sample", "robot", "graphics", "work")
+    assert channel.policy.data is BufferPolicy.BUFFER and channel.policy.size == 16
+    assert channel.topic == "/coco/spread/generator/sample/to/filter/sample"
+    assert split_address(robot.other_hosts["filter"]) == ("graphics", "work")
+    assert split_address(graphics.other_hosts["generator"]) == ("robot", "")
+    app = build_application(graphics)
+    assert app.elsewhere["generator"] == "@robot" and app.elsewhere["filter"] == "work"
+
+
+def test_a_filter_on_a_connection_from_another_host_is_made_on_the_readers_side(tmp_path: Path) -> None:
+    text = APP.replace('data="BUFFER" buffersize="16">', 'buffersize="16">')
+    spec = load_application(str(write(tmp_path, text, filter='<filter type="MaxFrequency" hz="20"/>')))
+    child = build_application(host_part(spec, "graphics"), "work")
+    assert isinstance(child.incoming_filters["generator.sample->filter.sample"], MaxFrequency)
+    assert not build_application(host_part(spec, "robot")).incoming_filters
+
+
+@pytest.mark.parametrize("text, message", [
+    (APP.replace('<host name="graphics">', '<host name="robot">'), "host name 'robot' is already used at"),
+    (APP.replace('<host name="graphics">', '<host name="graphics"><process name="x"/>').replace(
+        "</activities>", "</activities>"), "<process> 'x' has no activity"),
+    (APP.replace('policy="LOCKED"', "").replace('data="BUFFER" buffersize="16"',
+                                                 'data="BUFFER" buffersize="16" policy="UNSYNC"'),
+     "UNSYNC connection generator.sample -> filter.sample joins host 'robot' and host 'graphics'"),
+    (APP.replace('period="10"/>', 'period="10" main="true"/>'),
+     "which activity 'acquisition' at"),
+])
+def test_wrong_hosts_are_reported_with_file_and_line(tmp_path: Path, text: str, message: str) -> None:
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigErrors) as raised:
+        spec = load_application(str(path))
+        host_part(spec, "robot")
+    assert message in str(raised.value)
+    assert "UNSYNC" in message or f"{path}:" in str(raised.value)
+
+
+def test_an_unknown_host_lists_the_valid_ones(tmp_path: Path) -> None:
+    spec = load_application(str(write(tmp_path)))
+    with pytest.raises(ConfigErrors, match="no such host.*graphics"):
+        host_part(spec, "grapics")
+
+
+def test_check_prints_every_hosts_part_and_the_connections_between_them(tmp_path: Path) -> None:
+    path = write(tmp_path)
+    done = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--check"], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    out = done.stdout
+    assert "application spread, host robot of robot, graphics (the application's clock)" in out
+    assert "application spread, host graphics of robot, graphics (on robot's clock)" in out
+    assert "generator.sample -> filter.sample  BUFFER/LOCKED[16], pickle  (robot/launcher -> graphics/work" in out
+    one = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--check", "--host", "graphics"],
+                         capture_output=True, text=True, timeout=120)
+    assert one.returncode == 0 and "host robot of" not in one.stdout and "process work" in one.stdout
+    run = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--duration", "1"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1 and "say which one this machine is with --host NAME" in run.stderr
