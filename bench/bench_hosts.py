@@ -60,6 +60,7 @@ PAYLOADS: dict[str, dict[str, Any]] = {
 goal: the connection between hosts at most ``goal`` times the anchor's latency p50 and at least
 1/``goal`` its throughput (frames: strictly better)."""
 RUN_TIMEOUT_S = 90.0
+GRACE_S = 15.0
 
 APP = """<package name="bench_hosts">
   <components>
@@ -104,14 +105,18 @@ class Failed(Exception):
     """A variant could not run (its reason goes into the table)."""
 
 
-def finish(processes: dict[str, subprocess.Popen[str]], deadline: float) -> None:
-    """Wait for every process until ``deadline``; a launcher still running once the others ended is
-    stopped with SIGINT (as a user would); any non-zero exit is a failure with its output."""
+def finish(processes: dict[str, subprocess.Popen[str]], logs: dict[str, Path], deadline: float) -> None:
+    """Wait for every process until ``deadline``. Once one has ended, the others get ``GRACE_S`` to
+    end by themselves (a subscriber still taking what was acknowledged, a host stopped by the other's
+    stop), then SIGINT (as a user would); any non-zero exit is a failure, told with its output."""
     import signal
 
     interrupted: set[str] = set()
+    grace: float | None = None
     while any(p.poll() is None for p in processes.values()) and time.monotonic() < deadline:
-        if any(p.poll() is not None for p in processes.values()):
+        if grace is None and any(p.poll() is not None for p in processes.values()):
+            grace = time.monotonic() + GRACE_S
+        if grace is not None and time.monotonic() > grace and not interrupted:
             for name, process in processes.items():
                 if process.poll() is None:
                     process.send_signal(signal.SIGINT)
@@ -121,7 +126,8 @@ def finish(processes: dict[str, subprocess.Popen[str]], deadline: float) -> None
     late = [name for name, p in processes.items() if p.poll() is None]
     for name in late:
         processes[name].kill()
-    outputs = {name: p.communicate()[0] for name, p in processes.items()}
+        processes[name].wait()
+    outputs = {name: logs[name].read_text(errors="replace") for name in processes}
     if late:
         raise Failed(f"{', '.join(late)} still running after {RUN_TIMEOUT_S:.0f} s:\n" +
                      "\n".join(f"--- {n}:\n{outputs[n][-2000:]}" for n in late))
@@ -133,28 +139,37 @@ def finish(processes: dict[str, subprocess.Popen[str]], deadline: float) -> None
 
 def run(net: Network, variant: str, payload: dict[str, Any], folder: Path) -> list[list[float]]:
     """One run of ``variant``: the sink's records (number, phase, written, received)."""
-    record = folder / f"record-{time.monotonic_ns()}.json"
+    tag = time.monotonic_ns()
+    record = folder / f"record-{tag}.json"
     deadline = time.monotonic() + RUN_TIMEOUT_S
-    pipes: dict[str, Any] = {"stdout": subprocess.PIPE, "stderr": subprocess.STDOUT, "text": True,
-                             "env": environment(), "cwd": str(_report.REPO)}
+    processes: dict[str, subprocess.Popen[str]] = {}
+    logs: dict[str, Path] = {}
+
+    def start(name: str, host: str, argv: list[str]) -> None:
+        logs[name] = folder / f"{name}-{tag}.log"
+        with logs[name].open("w") as log:  # a file, not a pipe: a long output never blocks the process
+            processes[name] = net[host].popen(argv, stdout=log, stderr=subprocess.STDOUT, text=True,
+                                              env=environment(), cwd=str(_report.REPO))
+
     if variant == ANCHOR:
         script = str(BENCH / "_hosts_rclpy.py")
         counts = [payload["kind"], str(payload["latency"]), str(payload["burst"])]
-        sub = net["graphics"].popen([sys.executable, script, "sub", *counts, str(record)], **pipes)
-        assert sub.stdout is not None
-        if sub.stdout.readline() != "ready\n":
-            finish({"subscriber": sub}, deadline)
-        pub = net["robot"].popen([sys.executable, script, "pub", *counts, str(payload["period"])], **pipes)
-        finish({"subscriber": sub, "publisher": pub}, deadline)
+        start("subscriber", "graphics", [sys.executable, script, "sub", *counts, str(record)])
+        while "ready" not in logs["subscriber"].read_text() and processes["subscriber"].poll() is None:
+            if time.monotonic() > deadline:
+                break
+            time.sleep(0.01)
+        start("publisher", "robot", [sys.executable, script, "pub", *counts, str(payload["period"])])
     else:
         path = folder / f"{variant.split(',')[1].strip().replace(' ', '_')}.xml"
         path.write_text(application(variant, payload, record))
         launch = [sys.executable, "-m", "coco_core.launcher", str(path)]
         if variant == HOSTS:
-            finish({host: net[host].popen([*launch, "--host", host], **pipes) for host in ("graphics", "robot")},
-                   deadline)
+            for host in ("graphics", "robot"):
+                start(host, host, [*launch, "--host", host])
         else:
-            finish({"launcher": net["robot"].popen(launch, **pipes)}, deadline)
+            start("launcher", "robot", launch)
+    finish(processes, logs, deadline)
     if not record.exists():
         raise Failed("the sink wrote no record")
     records: list[list[float]] = json.loads(record.read_text())
