@@ -48,6 +48,9 @@ setup(
             "palpation-session = coco_ros.palpation.session:main",
             "coco-replay = coco_ros.replay.cli:main",
         ],
+        "coco.host_transports": [
+            "dds = coco_ros.hosts.transport:DdsTransport",
+        ],
         "coco.components": [
             "BagReplay = coco_ros.replay.component:BagReplay",
             "BagRecorder = coco_ros.replay.recorder:BagRecorder",

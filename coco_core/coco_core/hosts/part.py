@@ -5,8 +5,10 @@ and processes of its ``<host>``, the components they run, the connections betwee
 first host) every component no activity runs, as the launcher's process holds those on one machine.
 The part is an ordinary one-host application (:class:`~coco_core.model.AppSpec`): processes,
 shared-memory channels and the deployment plan work on it unchanged. What joins it to the other
-hosts is listed beside it: the connections between hosts (:class:`HostChannel`, over DDS) and where
-every component of another host runs (for its operations, called by name as across processes).
+hosts travels with it: its connections to other hosts (:attr:`AppSpec.between_hosts`, over DDS),
+the file's whole list of connections (a Split numbers its outputs among all of them) and where
+every component of another host runs (:attr:`AppSpec.other_hosts`, for its operations, called by
+name as across processes).
 """
 
 from __future__ import annotations

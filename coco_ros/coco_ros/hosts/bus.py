@@ -18,19 +18,17 @@ import logging
 import pickle
 from collections.abc import Callable
 
-from rclpy.duration import Duration
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from coco_core.hosts.channel import ros_name
 from coco_core.processes.messages import Message
 from coco_interfaces.msg import HostMessage
 
+from .bridge import HostBridge
+
 log = logging.getLogger("coco")
 
 DEPTH = 256
-FLUSH_TIMEOUT = 1.0
-"""Seconds :meth:`DdsBus.close` waits for the other hosts to acknowledge the last messages."""
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DEPTH, reliability=ReliabilityPolicy.RELIABLE,
                  durability=DurabilityPolicy.VOLATILE)
 
@@ -40,18 +38,20 @@ def bus_topic(application: str) -> str:
 
 
 class DdsBus:
-    """The :class:`coco_core.hosts.session.Bus` of one host, on ``node`` (whose executor runs
-    ``receive(sender, message)`` for each message to this host)."""
+    """The :class:`coco_core.hosts.session.Bus` of one host, on ``bridge`` (whose thread runs
+    ``receive(sender, message)`` for each message to this host). Closing the bridge delivers the
+    last messages (it waits, bounded, for the other hosts to acknowledge them)."""
 
-    def __init__(self, node: Node, application: str, host: str, receive: Callable[[str, Message], None]) -> None:
-        self.node = node
+    def __init__(self, bridge: HostBridge, application: str, host: str,
+                 receive: Callable[[str, Message], None], release: Callable[[], None]) -> None:
         self.host = host
         self.receive = receive
+        self.release = release
         self.damaged = 0
         """Messages whose body did not unpickle (reported, dropped)."""
         topic = bus_topic(application)
-        self.publisher = node.create_publisher(HostMessage, topic, QOS)
-        self.subscription = node.create_subscription(HostMessage, topic, self._heard, QOS)
+        self.publisher = bridge.publisher(HostMessage, topic, QOS)
+        self.subscription = bridge.subscribe(HostMessage, topic, self._heard, QOS)
 
     def send(self, recipient: str, message: Message) -> None:
         out = HostMessage()
@@ -76,9 +76,5 @@ class DdsBus:
         self.receive(message.sender, body)
 
     def close(self) -> None:
-        """Wait (bounded) until the other hosts have the last messages, then leave the topic."""
-        try:
-            self.publisher.wait_for_all_acked(Duration(seconds=FLUSH_TIMEOUT))
-        finally:
-            self.node.destroy_subscription(self.subscription)
-            self.node.destroy_publisher(self.publisher)
+        """This host is done with the bus (the bridge closes once nothing else of it is used)."""
+        self.release()

@@ -1,0 +1,380 @@
+"""The two ends of a connection between hosts, over DDS, and how a process attaches its ends.
+
+Each host plans the connections between hosts from the application file alone
+(:class:`~coco_core.hosts.channel.HostChannel`: topic, policy, codec), so the writer's end and the
+reader's end meet on their topic without asking each other. As between processes
+(:mod:`coco_core.processes.channels`), every end is a :class:`~coco_core.connections.Connection` on
+a port and nothing else about the ports changes: read status, round-robin over several
+connections, message stamps, event ports, filters.
+
+- :class:`DdsWriter`, on the output port: each write is encoded (:mod:`.sample`) and published at
+  once, in the writing thread; a publish never blocks (keep-last QoS, :mod:`.qos`). It numbers its
+  writes, so that the reader tells a sample lost on the way from one never written.
+- :class:`DdsReader`, on the input port: the subscription (served by the bridge's ``coco:dds``
+  thread) decodes each sample and stores it in a local connection made with the connection's own
+  policy (:func:`~coco_core.connections.make_connection`), so DATA overwrites, a full BUFFER
+  refuses, a CIRCULAR pushes out its oldest, and NEW/OLD/NO_DATA read exactly as in one process.
+  Decoding there, not in the reader's ``pop``, keeps a damaged sample out of the reader's way and
+  lets the decoding (JPEG and Zstandard release the GIL) overlap the reader's own work.
+- :class:`DdsFrameReader`, on an input fed by a pooled output: each frame is copied into a slot of a
+  local pool of the port's slot count, which the reader takes as from a pooled output of its own
+  process (the newest frame, once, a :class:`~coco_core.pool.Slot` to release).
+
+Counters keep the contract of :class:`~coco_core.connections.Connection` on each side:
+
+- the reader's end: ``written`` is the highest write number that arrived (the ``writer_done`` sample
+  brings the last), so a sample lost on the network, one the writer's DDS history dropped, one
+  written before the reader joined, or a damaged one is ``dropped``, together with what the
+  connection's policy discarded; ``read`` and ``pending`` are the local connection's;
+- the writer's end (profiled on the writer's host too, which cannot see the reader's):
+  ``written`` what its port offered, ``read`` what it published, so its ``dropped`` is what could
+  not be published (a value that cannot be encoded, a write after the bridge closed).
+
+Damaged input (a sample that does not decode) is counted (``damaged``), reported to the application
+as other damaged input is (:meth:`~coco_core.application.Application.report_damage`: the first
+:data:`~coco_core.component.DAMAGE_LISTED` of each connection, as a component reports its refused
+samples, so that a flood does not flood the summary), and skipped.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Callable
+
+import numpy as np
+
+from coco_core.component import DAMAGE_LISTED
+from coco_core.connections import Connection, CountedConnection, make_connection
+from coco_core.errors import ChannelError, CocoError, ConfigError, PacketError
+from coco_core.filters import Merge
+from coco_core.hosts.channel import HostChannel
+from coco_core.iteration import port_of
+from coco_core.policy import BufferPolicy, SyncPolicy
+from coco_core.pool import LocalFramePool, PoolReader
+from coco_core.ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
+from coco_core.processes.filtered import FedFilter
+from coco_core.stamps import Message, Stamp
+from coco_interfaces.msg import Sample
+
+from .bridge import HostBridge
+from .qos import qos_of
+from .sample import STAMP_CODEC, Clock, Frame, SampleDecoder, SampleEncoder, same_clock
+
+if TYPE_CHECKING:
+    from coco_core.application import Application
+
+log = logging.getLogger("coco.hosts")
+
+
+class DdsWriter(CountedConnection):
+    """The writer's end of a connection between hosts (see the module's docstring): ``read``
+    counts the samples published."""
+
+    __slots__ = ("channel", "_encoder", "_publisher")
+    carries_stamps = True
+
+    def __init__(self, bridge: HostBridge, channel: HostChannel, to_app: Clock = same_clock) -> None:
+        super().__init__(channel.policy)
+        self.channel = channel
+        self._encoder = SampleEncoder(STAMP_CODEC if channel.stamps_only else channel.codec, to_app)
+        self._publisher = bridge.publisher(Sample, channel.topic, qos_of(channel.policy))
+
+    def push(self, value: Any) -> None:
+        self.written += 1
+        try:
+            sample = self._encoder.encode(value, self.written)
+        except Exception as error:  # counted: the number is skipped, which the reader's side counts too
+            raise ChannelError(f"connection {self.label}: a {type(value).__name__} value cannot be sent to host "
+                               f"{self.channel.dest_host}: {type(error).__name__}: {error}") from None
+        if self._publish(sample):
+            self.read += 1
+
+    def writer_done(self) -> None:
+        """Tell the reader's host that nothing more comes, and how many writes there were."""
+        self._publish(self._encoder.done(self.written))
+
+    def _publish(self, sample: Sample) -> bool:
+        try:
+            self._publisher.publish(sample)
+        except Exception as error:  # the bridge closed under a late writer: dropped, as counted
+            log.debug("connection %s: not published: %s", self.label, error)
+            return False
+        return True
+
+    @property
+    def matched(self) -> bool:
+        """Whether a reader's end on another host subscribes (what a start barrier waits for)."""
+        try:
+            return self._publisher.get_subscription_count() > 0
+        except Exception:  # closed
+            return False
+
+    def pop(self) -> Any:
+        raise CocoError(f"connection {self.label}: the writer's end cannot be read")
+
+    @property
+    def pending(self) -> int:
+        return 0
+
+    @property
+    def label(self) -> str:
+        return f"{self.channel.src} -> {self.channel.dest}"
+
+    def describe(self) -> str:
+        return f"{super().describe()}, DDS to host {self.channel.dest_host}{_codec(self.channel)}"
+
+
+def _codec(channel: HostChannel) -> str:
+    return "" if channel.codec == "pickle" or channel.stamps_only else f", {channel.codec} codec"
+
+
+class Arrivals:
+    """The subscription of a reader's end: decodes each sample and hands it to ``store``; counts
+    the highest write number (the reader's ``written``), the writer's end and damaged samples."""
+
+    __slots__ = ("channel", "number", "finished", "damaged", "_decoder", "_store", "_report", "subscription")
+
+    def __init__(self, bridge: HostBridge, channel: HostChannel, from_app: Clock, store: Callable[[Any], None],
+                 report: Callable[[str], None] | None) -> None:
+        self.channel = channel
+        self.number = 0
+        """The highest write number that arrived (every write up to it was made)."""
+        self.finished = False
+        """Whether the writer's ``writer_done`` arrived."""
+        self.damaged = 0
+        """Samples that did not decode (each reported, and counted as dropped)."""
+        self._decoder = SampleDecoder(from_app)
+        self._store = store
+        self._report = report
+        self.subscription = bridge.subscribe(Sample, channel.topic, self._arrive, qos_of(channel.policy))
+
+    def _arrive(self, sample: Sample) -> None:
+        if sample.writer_done:
+            self.number = max(self.number, sample.number)
+            self.finished = True
+            return
+        try:
+            item = self._decoder.decode(sample)
+            number = sample.number
+            if number > self.number:  # first: a reader must never see read > written
+                self.number = number
+            self._store(item)
+        except PacketError as error:
+            self.damaged += 1
+            damaged = self.damaged
+            what = f"connection {self.channel.label} from host {self.channel.src_host}: {error}"
+            if damaged == 1:
+                log.warning("%s", what)
+            if self._report is not None and damaged <= DAMAGE_LISTED:  # as a component's refused samples
+                more = "; further damaged samples are only counted (dropped)" if damaged == DAMAGE_LISTED else ""
+                self._report(what + more)
+
+
+class DdsReader(Connection):
+    """The reader's end of a connection between hosts of values (see the module's docstring).
+
+    ``front`` is the connection the input port holds: this end, or the filter fed from it
+    (:class:`~coco_core.processes.filtered.FedFilter`), whose trigger a stored sample calls."""
+
+    __slots__ = ("channel", "store", "front", "arrivals")
+
+    def __init__(self, bridge: HostBridge, channel: HostChannel, from_app: Clock = same_clock,
+                 report: Callable[[str], None] | None = None) -> None:
+        super().__init__(channel.policy)
+        self.channel = channel
+        self.store = make_connection(channel.policy)
+        """What arrived and was not read yet, kept with the connection's own policy."""
+        self.store.trigger = self._wake
+        self.front: Connection = self
+        self.arrivals = Arrivals(bridge, channel, from_app, self.store.push, report)
+
+    def _wake(self) -> None:
+        trigger = self.front.trigger
+        if trigger is not None:
+            trigger()
+
+    def push(self, value: Any) -> None:
+        raise CocoError(f"connection {self.label}: the reader's end cannot be written")
+
+    def pop(self) -> Any:
+        return self.store.pop()
+
+    def pop_newest(self) -> Any:
+        return self.store.pop_newest()
+
+    def skip(self, count: int = 1) -> None:
+        self.store.skip(count)
+
+    def ready_at(self) -> float | None:
+        return self.store.ready_at()
+
+    @property
+    def written(self) -> int:
+        return self.arrivals.number
+
+    @property
+    def read(self) -> int:
+        return self.store.read
+
+    @property
+    def pending(self) -> int:
+        return self.store.pending
+
+    @property
+    def damaged(self) -> int:
+        return self.arrivals.damaged
+
+    @property
+    def writer_finished(self) -> bool:
+        return self.arrivals.finished
+
+    @property
+    def label(self) -> str:
+        return f"{self.channel.src} -> {self.channel.dest}"
+
+    def describe(self) -> str:
+        stamps = ", stamps only" if self.channel.stamps_only else ""
+        return f"{self.policy}{stamps}, DDS from host {self.channel.src_host}{_codec(self.channel)}"
+
+
+class DdsFrameReader(PoolReader):
+    """The reader's end of a connection between hosts from a pooled output: each frame that arrives
+    is copied into a slot of a local pool (``channel.policy.size`` slots, the output's), and read as
+    from a pooled output in this process. A frame that finds every slot held by the reader is
+    dropped (counted), as a local pool refuses its writer."""
+
+    __slots__ = ("read", "channel", "arrivals")
+
+    read: int  # a field here, where PoolReader only asks for a value
+
+    def __init__(self, bridge: HostBridge, channel: HostChannel, from_app: Clock = same_clock,
+                 report: Callable[[str], None] | None = None) -> None:
+        super().__init__(LocalFramePool(max(2, channel.policy.size)), channel.policy)
+        self.read = 0
+        self.channel = channel
+        self.arrivals = Arrivals(bridge, channel, from_app, self._store, report)
+
+    def _store(self, item: Any) -> None:
+        frame = item.value if type(item) is Message else item
+        if not isinstance(frame, Frame):
+            raise PacketError("garbage", f"a pooled output's sample holds a {type(frame).__name__}, not a frame")
+        pool = self.pool
+        slot = pool.acquire(frame.array.shape, frame.array.dtype)
+        if slot is None:
+            return  # every slot held by the reader: dropped (written - read - pending)
+        np.copyto(slot.array, frame.array)
+        slot.stamp = frame.stamp
+        slot.message = Message(None, item.time, item.seq, item.source, item.it) if type(item) is Message else None
+        pool.publish(slot)
+        if self.trigger is not None:
+            self.trigger()
+
+    def push(self, value: Any) -> None:
+        raise CocoError(f"connection {self.label}: the reader's end cannot be written")
+
+    @property
+    def written(self) -> int:
+        return self.arrivals.number
+
+    @property
+    def damaged(self) -> int:
+        return self.arrivals.damaged
+
+    @property
+    def writer_finished(self) -> bool:
+        return self.arrivals.finished
+
+    @property
+    def label(self) -> str:
+        return f"{self.channel.src} -> {self.channel.dest}"
+
+    def describe(self) -> str:
+        return f"{self.policy}, DDS from host {self.channel.src_host}"
+
+
+@dataclass
+class HostEnds:
+    """The ends of connections between hosts that one process attached."""
+
+    writers: list[DdsWriter] = field(default_factory=list)
+    readers: list[DdsReader | DdsFrameReader] = field(default_factory=list)
+
+    @property
+    def matched(self) -> bool:
+        """Whether every writer's reader subscribes (the hosts' start barrier waits for it)."""
+        return all(writer.matched for writer in self.writers)
+
+
+def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[HostChannel], host: str,
+                         to_app: Clock = same_clock, from_app: Clock = same_clock) -> HostEnds:
+    """Attach the ends of ``channels`` that run in this process (``host``, ``app.process``) to
+    ``app``'s ports, as :func:`coco_core.processes.channels.attach` attaches the ends of channels
+    between processes: a :class:`DdsWriter` on each output (in ``app.outgoing``, and in
+    ``app.connections`` so that the writer's host profiles it), a :class:`DdsReader` (or
+    :class:`DdsFrameReader` for a pooled output's frames, ``policy`` POOL) on each input, behind the
+    connection's filter when it has one (made by the builder, ``app.incoming_filters``: the filter
+    stays on the reader's side, fed from the network). An activity's ``endit``/``beginit`` is an end
+    like a component's port. ``to_app``/``from_app`` convert stamp times to and from the
+    application's clock (:mod:`.sample`)."""
+    from coco_core.application import types_compatible
+
+    ends = HostEnds()
+    process = app.process
+    for channel in channels:
+        frames = channel.policy.data is BufferPolicy.POOL
+        if channel.policy.sync is SyncPolicy.UNSYNC and host in (channel.src_host, channel.dest_host):
+            raise ConfigError(f"connection {channel.label} joins hosts {channel.src_host} and {channel.dest_host}: "
+                              "UNSYNC is only valid inside one activity (use LOCKED or LOCK_FREE)")
+        if channel.src_host == host and channel.src_process == process:
+            out = _port(app, channel.src, channel.src_activity)
+            if not isinstance(out, OutputPort):
+                raise ConfigError(f"{channel.src} is an input port; a connection starts at an output")
+            if isinstance(out, PooledOutputPort) != frames:
+                raise ConfigError(f"connection {channel.label} between hosts: {channel.src} is "
+                                  f"{'a pooled' if isinstance(out, PooledOutputPort) else 'not a pooled'} output, its "
+                                  f"policy {channel.policy}: a pooled output's frames cross with data=POOL only")
+            if frames and channel.codec != "pickle":
+                raise ConfigError(f"connection {channel.label} between hosts: a pooled output's frames are arrays "
+                                  f"without an image format; the {channel.codec} codec takes RGBDFrame and Image "
+                                  "values (write them on a plain output)")
+            writer = DdsWriter(bridge, channel, to_app)
+            out.add_connection(writer, channel.stamps_only)
+            app.outgoing.append(writer)
+            app.connections.append(writer)
+            ends.writers.append(writer)
+        if channel.dest_host == host and channel.dest_process == process:
+            into = _port(app, channel.dest, channel.dest_activity)
+            if not isinstance(into, InputPort):
+                raise ConfigError(f"{channel.dest} is an output port; a connection ends at an input")
+            if channel.stamps_only and not types_compatible(Stamp, into.type):
+                raise ConfigError(f"a stamps-only connection gives {channel.dest} the messages' stamps "
+                                  f"(coco_core.stamps.Stamp), and that port takes {type_name(into.type)}; "
+                                  "connect it to a port of type Stamp or object")
+            reader: DdsReader | DdsFrameReader
+            if frames:
+                reader = DdsFrameReader(bridge, channel, from_app, app.report_damage)
+                front: Connection = reader
+            else:
+                reader = DdsReader(bridge, channel, from_app, app.report_damage)
+                front = reader
+                if channel.filtered:  # the filter on this side, fed from the network
+                    made = app.incoming_filters[channel.label]
+                    fed = FedFilter(made, reader)
+                    front = reader.front = fed
+                    if isinstance(made, Merge):
+                        made.group.feeds.append(fed.pull)
+            into.add_connection(front, channel.event)
+            app.connections.append(front)
+            ends.readers.append(reader)
+            if front.pending and front.trigger is not None:
+                front.trigger()  # it holds messages from the start (a PreSignal's tokens): as if written now
+    return ends
+
+
+def _port(app: Application, name: str, of_activity: bool) -> Port:
+    """The port ``name`` (``component.port``, or ``activity.beginit``/``activity.endit``) in this
+    process's application."""
+    owner, _, port = name.rpartition(".")
+    return port_of(app.activity(owner), port) if of_activity else app.component(owner).port(port)
+

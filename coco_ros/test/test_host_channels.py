@@ -1,0 +1,446 @@
+"""Connections between hosts over real DDS (coco_ros.hosts): the writer's end on one HostBridge, the
+reader's end on another (two rclpy contexts, two DDS participants, as two hosts have), and a writer
+in another process. Values and stamps arrive (times through the hosts' clock functions), the
+reader's policy decides what it keeps, every loss is counted on the reader's side, damaged samples
+are counted and skipped, filters run on the reader's side. Domain 164, localhost only."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import numpy as np
+import pytest
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+
+from coco_core import Application, Component, InputPort, OutputPort, PeriodicActivity, TriggeredActivity
+from coco_core.errors import ConfigError
+from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup
+from coco_core.hosts.channel import HostChannel, topic_of
+from coco_core.policy import NEW_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, SyncPolicy
+from coco_core.pool import Slot
+from coco_core.ports import PooledOutputPort
+from coco_core.report import snapshot
+from coco_core.stamps import Stamp, Stamped
+from coco_interfaces.msg import Sample
+from coco_ros.hosts.bridge import THREAD_NAME, HostBridge
+from coco_ros.hosts.channel import DdsFrameReader, DdsReader, DdsWriter, attach_between_hosts
+from coco_ros.hosts.qos import qos_of
+from coco_ros.hosts.sample import SampleEncoder
+
+DOMAIN = "164"  # its own: no other test uses it
+REDWOOD = Path(__file__).resolve().parents[3] / "shared" / "data" / "rgbd" / "redwood"
+DATA = ConnectionPolicy(BufferPolicy.DATA, SyncPolicy.LOCKED, 1)
+
+
+def buffer(size: int) -> ConnectionPolicy:
+    return ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, size)
+
+
+def to_app(seconds: float) -> float:
+    """The writer's host: its clock is 1000 s behind the application's."""
+    return seconds + 1000.0
+
+
+def from_app(seconds: float) -> float:
+    """The reader's host: its clock is 999.5 s behind the application's (0.5 s ahead of the writer's)."""
+    return seconds - 999.5
+
+
+def wait_for(predicate: Callable[[], object], timeout: float = 10.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            return bool(predicate())
+        time.sleep(0.002)
+    return True
+
+
+@pytest.fixture(scope="module", autouse=True)
+def dds_domain() -> Iterator[None]:
+    with pytest.MonkeyPatch.context() as env:  # the environment of the later test modules stays as it was
+        env.setenv("ROS_DOMAIN_ID", DOMAIN)  # read by rclpy.init, and by the writer's process
+        env.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        yield
+
+
+@pytest.fixture(scope="module")
+def hosts() -> Iterator[tuple[HostBridge, HostBridge]]:
+    """The DDS side of a process on host alpha and of one on host beta."""
+    alpha, beta = HostBridge("coco_test_alpha"), HostBridge("coco_test_beta")
+    yield alpha, beta
+    alpha.close()
+    beta.close()
+
+
+class Source(Component):
+    out = OutputPort(object)
+
+    def init(self) -> None:
+        self.limit = 0
+        self.written: list[Stamp] = []
+
+    def on_update(self) -> None:
+        if len(self.written) < self.limit:
+            count = len(self.written)
+            made = Stamp(time.perf_counter() - 0.25, count, "camera").step("made")
+            self.out.write(Stamped({"count": count, "array": np.arange(count + 1.0)}, made), stamps={"box": (count, 1)})
+            assert self.out.last is not None
+            self.written.append(self.out.last.stamp)
+
+
+class Sink(Component):
+    sample = InputPort(object, event=True)
+
+    def init(self) -> None:
+        self.got: list[Any] = []
+
+    def on_update(self) -> None:
+        self.got += self.sample.read_all()
+
+
+class Stamps(Component):
+    sample = InputPort(Stamp)
+
+
+class Frames(Component):
+    out = PooledOutputPort(slots=3)
+
+
+class Link:
+    """A connection ``source.out -> sink.sample`` from host alpha's process to host beta's."""
+
+    def __init__(self, hosts: tuple[HostBridge, HostBridge], name: str, policy: ConnectionPolicy, *,
+                 source: Component | None = None, sink: Component | None = None, codec: str = "pickle",
+                 filter: Any = None, stamps_only: bool = False, event: bool | None = None) -> None:
+        self.channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", policy, event, codec,
+                                   topic_of(name, "source.out", "sink.sample"), stamps_only, filter is not None)
+        self.writer_app, self.reader_app = Application(name), Application(name)
+        self.source = self.writer_app.add(source or Source("source"))
+        self.sink = self.reader_app.add(sink or Sink("sink"))
+        if filter is not None:  # as the builder makes it on the reader's side
+            self.reader_app.incoming_filters[self.channel.label] = filter
+        alpha, beta = hosts
+        [self.reader] = attach_between_hosts(self.reader_app, beta, [self.channel], "beta", from_app=from_app).readers
+        [self.writer] = attach_between_hosts(self.writer_app, alpha, [self.channel], "alpha", to_app=to_app).writers
+        assert wait_for(lambda: self.writer.matched)
+
+    @property
+    def front(self) -> Any:
+        [connection] = self.sink.port("sample").connections
+        return connection
+
+
+@pytest.fixture
+def link(hosts: tuple[HostBridge, HostBridge]) -> Iterator[Callable[..., Link]]:
+    made: list[Link] = []
+
+    def make(name: str, policy: ConnectionPolicy, **options: Any) -> Link:
+        made.append(Link(hosts, name, policy, **options))
+        return made[-1]
+
+    yield make
+    for each in made:
+        each.writer_app.stop()
+        each.reader_app.stop()
+
+
+def test_the_qos_follows_the_connections_policy():
+    for policy, depth in ((DATA, 2), (buffer(7), 8), (ConnectionPolicy(BufferPolicy.CIRCULAR, size=3), 4),
+                          (ConnectionPolicy(BufferPolicy.POOL, size=4), 2)):
+        qos = qos_of(policy)
+        assert (qos.history, qos.depth) == (HistoryPolicy.KEEP_LAST, depth), policy
+        assert (qos.reliability, qos.durability) == (ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE)
+
+
+def test_values_and_stamps_cross_on_the_applications_clock(link):
+    """An activity writes three Stamped values with user stamps: the reader on the other host reads
+    them with the stamp the writing port made (number, iteration, source, user stamps) and every time
+    in it, the value's own stamp's included, moved from the writer's clock to the reader's (0.5 s);
+    the activity's end reaches the reader as its writer_done."""
+    crossing = link("stamps", buffer(10))
+    source, sink = crossing.source, crossing.sink
+    source.limit = 3
+    crossing.writer_app.add_activity(PeriodicActivity("ticks", 0.002, [source]))
+    crossing.writer_app.start()
+    assert wait_for(lambda: crossing.reader.pending == 3)
+    assert not crossing.reader.writer_finished
+    for count, sent in enumerate(source.written):
+        status, value = sink.sample.read()
+        stamp = sink.sample.stamp
+        assert status is NEW_DATA and value.value["count"] == count
+        assert np.array_equal(value.value["array"], np.arange(count + 1.0))
+        assert (stamp.seq, stamp.source, stamp.it, dict(stamp.user)) == (count + 1, "source.out", sent.it, {"box": (count, 1)})
+        assert sent.it >= count and stamp.time == pytest.approx(sent.time + 0.5, abs=1e-9)
+        assert [name for name, _ in stamp.steps] == ["made"]
+        assert stamp.steps[0][1] == pytest.approx(sent.steps[0][1] + 0.5, abs=1e-9)
+        own = value.stamp  # the Stamped value's own stamp: its number and source, its times moved too
+        assert (own.seq, own.source) == (count, "camera") and own.time == pytest.approx(sent.time + 0.5, abs=1e-9)
+    crossing.writer_app.stop()  # the activity's finish: writer_done
+    assert wait_for(lambda: crossing.reader.writer_finished)
+    assert crossing.reader.counters() == {"written": 3, "read": 3, "dropped": 0, "pending": 0}
+
+
+def test_a_buffer_delivers_every_sample_in_order(link):
+    crossing = link("buffer", buffer(500))
+    for count in range(300):
+        crossing.source.out.write(count)
+    assert wait_for(lambda: crossing.reader.pending == 300)
+    assert crossing.sink.sample.read_all() == list(range(300))
+    assert crossing.reader.counters() == {"written": 300, "read": 300, "dropped": 0, "pending": 0}
+
+
+def test_data_with_a_slow_reader_counts_what_it_missed_on_both_sides(link):
+    """DATA: the reader keeps the newest. 200 writes, 10 reads: at least 189 dropped on the reader's
+    side, every one of them accounted for (written = read + dropped + pending), the last value
+    delivered; the writer's side published all 200. Both profiles show their side."""
+    crossing = link("latest", DATA)
+    reads = []
+    for count in range(200):
+        crossing.source.out.write(count)
+        if count % 20 == 19:
+            reads.append(crossing.sink.sample.read())
+    crossing.writer.writer_done()
+    assert wait_for(lambda: crossing.reader.writer_finished)  # after the last value: samples keep their order
+    reads.append(crossing.sink.sample.read())
+    assert reads[-1][1] == 199
+    counters = crossing.reader.counters()
+    assert counters["written"] == 200 and counters["pending"] == 0
+    assert counters["read"] == sum(status is NEW_DATA for status, _ in reads) <= 11
+    assert counters["dropped"] == 200 - counters["read"] >= 189
+    assert crossing.writer.counters() == {"written": 200, "read": 200, "dropped": 0, "pending": 0}
+    [writer_row] = snapshot(crossing.writer_app).connections
+    [reader_row] = snapshot(crossing.reader_app).connections
+    assert writer_row == ["source.out -> sink.sample", "DATA/LOCKED, DDS to host beta", "200", "200", "0", "0"]
+    assert reader_row == ["source.out -> sink.sample", "DATA/LOCKED, DDS from host alpha", "200",
+                          str(counters["read"]), str(counters["dropped"]), "0"]
+
+
+def test_a_triggered_reader_is_woken_by_what_arrives(link):
+    crossing = link("woken", buffer(10))
+    crossing.reader_app.add_activity(TriggeredActivity("reading", [crossing.sink]))
+    crossing.reader_app.start()
+    for count in range(5):
+        crossing.source.out.write(count)
+    assert wait_for(lambda: crossing.sink.got == list(range(5)))
+    assert crossing.reader_app.activity("reading").stats.cycles >= 1
+    crossing.writer.writer_done()  # the reader's natural stop waits for the writer of its BUFFER: it is done
+
+
+def test_a_writer_in_another_process(hosts, tmp_path):
+    """A writer in its own process (its own DDS participant, as on another host): 20 values, then
+    its writer_done; the reader here gets all of them, in order, with their user stamps."""
+    script = tmp_path / "writer.py"
+    script.write_text(WRITER_PROCESS)
+    crossing_channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", buffer(50), None, "pickle",
+                                   topic_of("process", "source.out", "sink.sample"))
+    app = Application("process")
+    sink = app.add(Sink("sink"))
+    [reader] = attach_between_hosts(app, hosts[1], [crossing_channel], "beta").readers
+    writer = subprocess.Popen([sys.executable, str(script)], env=dict(os.environ), stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True)
+    try:
+        output = writer.communicate(timeout=60)[0]
+    finally:
+        writer.kill()
+    assert writer.returncode == 0, output
+    assert wait_for(lambda: reader.writer_finished and reader.pending == 20)
+    values = []
+    while (item := sink.sample.read())[0] is NEW_DATA:
+        values.append((item[1], dict(sink.sample.stamp.user)))
+    assert values == [(count, {"i": count}) for count in range(20)]
+    assert reader.counters() == {"written": 20, "read": 20, "dropped": 0, "pending": 0}
+
+
+WRITER_PROCESS = """
+import time
+from coco_core import Application, Component, OutputPort
+from coco_core.hosts.channel import HostChannel, topic_of
+from coco_core.policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from coco_ros.hosts.bridge import HostBridge
+from coco_ros.hosts.channel import attach_between_hosts
+
+class Source(Component):
+    out = OutputPort(object)
+
+channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "",
+                      ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 50), None, "pickle",
+                      topic_of("process", "source.out", "sink.sample"))
+app = Application("process")
+source = app.add(Source("source"))
+with HostBridge("coco_test_writer_process") as bridge:
+    ends = attach_between_hosts(app, bridge, [channel], "alpha")
+    deadline = time.monotonic() + 30
+    while not ends.matched:
+        assert time.monotonic() < deadline, "the reader never subscribed"
+        time.sleep(0.005)
+    for count in range(20):
+        source.out.write(count, stamps={"i": count})
+    ends.writers[0].writer_done()
+"""
+
+
+def test_the_rgbd_codec_carries_a_redwood_frame(link):
+    """JPEG colour (close), Zstandard depth (exact), intrinsics, depth scale, the images' stamps and
+    the Stamped value's stamp on the reader's clock; a colour image alone comes back in its format."""
+    from coco_mr_vision.image import CameraIntrinsics, ImageFormat
+    from coco_mr_vision.rgbd import RGBDFrame
+
+    if not REDWOOD.exists():
+        pytest.skip(f"{REDWOOD} is absent (the shared data sets are not beside this checkout)")
+    intrinsics = CameraIntrinsics.from_json(REDWOOD / "camera_primesense.json")
+    frame = RGBDFrame.load(REDWOOD / "color" / "00000.jpg", REDWOOD / "depth" / "00000.png", intrinsics,
+                           stamp=17.5, frame_id="camera")
+    rgb = frame.color.to(ImageFormat.RGB8)
+    crossing = link("rgbd", buffer(4), codec="rgbd")
+    taken = Stamp.now(9, "camera")
+    crossing.source.out.write(Stamped(frame, taken))
+    written = crossing.source.out.last
+    crossing.source.out.write(rgb)
+    assert wait_for(lambda: crossing.reader.pending == 2)
+    [got, image] = crossing.sink.sample.read_all()
+    assert got.stamp.time == pytest.approx(taken.time + 0.5, abs=1e-9) and got.stamp.seq == 9
+    arrived = got.value
+    assert isinstance(arrived, RGBDFrame) and arrived.depth_scale == frame.depth_scale
+    assert arrived.depth.format is ImageFormat.DEPTH16 and np.array_equal(arrived.depth.data, frame.depth.data)
+    assert arrived.color.format is ImageFormat.BGR8
+    assert np.abs(arrived.color.data.astype(int) - frame.color.data).mean() < 3
+    assert arrived.intrinsics is not None and np.array_equal(arrived.intrinsics.K, intrinsics.K)
+    assert (arrived.depth.stamp, arrived.depth.frame_id) == (17.5, "camera")
+    assert image.format is ImageFormat.RGB8 and np.abs(image.data.astype(int) - rgb.data).mean() < 3
+    raw = frame.color.data.nbytes + frame.depth.data.nbytes
+    coded = len(SampleEncoder("rgbd").encode(written, 1).payload)
+    assert coded < raw / 4, (coded, raw)
+
+
+def test_a_damaged_sample_is_counted_reported_and_skipped(link, hosts):
+    """Samples that do not decode (garbage, an unknown codec, user stamps that are not) are counted
+    and reported as damaged input, the first ten of the connection (a flood is only counted); the
+    next good sample is read as usual."""
+    crossing = link("damaged", buffer(20))
+    garbage = hosts[0].node.create_publisher(Sample, crossing.channel.topic, qos_of(crossing.channel.policy))
+    assert wait_for(lambda: garbage.get_subscription_count() == 1)
+    bad = [Sample(number=1, seq=1, codec="pickle", payload=b"garbage, not a pickle"),
+           Sample(number=2, seq=2, codec="morse", payload=b"..."),
+           Sample(number=3, seq=3, codec="pickle", user=b"\x00\x01")]
+    bad += [Sample(number=number, seq=number, codec="pickle", payload=bytes(number)) for number in range(4, 13)]
+    for sample in bad:
+        garbage.publish(sample)
+    assert wait_for(lambda: crossing.reader.damaged == 12)
+    damage = crossing.reader_app.damage
+    assert len(damage) == 10 and all("source.out->sink.sample from host alpha" in what for what in damage)
+    assert "unknown codec 'morse'" in damage[1] and "further damaged samples are only counted" in damage[-1]
+    crossing.source.out.write("intact")
+    assert wait_for(lambda: crossing.reader.pending == 1)
+    assert crossing.sink.sample.read() == (NEW_DATA, "intact")
+    hosts[0].node.destroy_publisher(garbage)
+
+
+def test_a_greedy_filter_between_hosts_is_on_the_readers_side(link):
+    """The Greedy filter of a connection between hosts runs where its reader is: the reader gets
+    the newest message that reached its host, then OLD_DATA; what it never took is dropped."""
+    crossing = link("greedy", DATA, filter=Greedy(DATA))
+    for count in range(5):
+        crossing.source.out.write(count)
+    crossing.writer.writer_done()
+    assert wait_for(lambda: crossing.reader.writer_finished)  # after the last value: samples keep their order
+    assert crossing.sink.sample.read() == (NEW_DATA, 4)
+    assert crossing.sink.sample.read() == (OLD_DATA, 4)
+    assert crossing.front.describe() == "Greedy" and crossing.front.label == "source.out -> sink.sample"
+    assert crossing.front.counters() == {"written": 5, "read": 1, "dropped": 4, "pending": 0}
+
+
+def test_a_max_frequency_filter_between_hosts_times_on_the_readers_side(link):
+    crossing = link("frequency", buffer(4), filter=MaxFrequency(buffer(4), hz=20))
+    front = crossing.front
+    status, token = crossing.sink.sample.read()
+    taken = time.perf_counter()
+    assert status is NEW_DATA and token is None  # the filter's own token, at once
+    crossing.source.out.write("later")
+    assert wait_for(lambda: front.pending == 1)
+    due = front.ready_at()
+    assert due is not None and due >= taken + 0.05 - 1e-3
+    assert wait_for(lambda: crossing.sink.sample.read() == (NEW_DATA, "later"))
+    assert time.perf_counter() >= due
+    assert front.counters() == {"written": 2, "read": 2, "dropped": 0, "pending": 0}
+
+
+def test_a_merge_joins_an_input_from_another_host_and_one_of_its_own(link):
+    """One Merge input fed from the network (its filter on the reader's side, in its group), one
+    from a writer on the reader's host: one tuple once each has a message, stamped as the first's."""
+    group = MergeGroup()
+    far, near = Merge(buffer(4), group), Merge(buffer(4), group)
+    crossing = link("merge", buffer(4), filter=far)
+    right = crossing.reader_app.add(Source("right"))
+    crossing.reader_app.connect(right.out, crossing.sink.sample, connection=near)
+    crossing.source.out.write("left")
+    assert wait_for(lambda: crossing.reader.pending == 1)
+    assert crossing.sink.sample.read()[0] is not NEW_DATA  # the right one has nothing yet
+    right.out.write("right")
+    assert crossing.sink.sample.read() == (NEW_DATA, ("left", "right"))
+    stamp = crossing.sink.sample.stamp
+    assert (stamp.source, stamp.seq) == ("source.out", 1)
+
+
+def test_a_stamps_only_connection_sends_no_payload(link):
+    crossing = link("dashed", buffer(4), sink=Stamps("sink"), stamps_only=True)
+    crossing.source.out.write(np.zeros(1_000_000), stamps={"box": (1, 2)})
+    assert wait_for(lambda: crossing.reader.pending == 1)
+    status, stamp = crossing.sink.sample.read()
+    assert status is NEW_DATA and isinstance(stamp, Stamp) and (stamp.seq, stamp.source) == (1, "source.out")
+    sent = crossing.source.out.stamp
+    assert stamp.time == pytest.approx(sent.time + 0.5, abs=1e-9) and dict(stamp.user) == {"box": (1, 2)}
+    assert crossing.reader.describe() == "BUFFER/LOCKED[4], stamps only, DDS from host alpha"
+
+
+def test_a_pooled_outputs_frames_cross_into_a_pool_of_the_readers(link):
+    pooled = ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 3)
+    crossing = link("frames", pooled, source=Frames("source"))
+    out = crossing.source.out
+    for value in (1, 2):
+        slot = out.acquire((480, 640, 3))
+        slot.array[:] = value
+        slot.stamp = Stamp(100.0 + value, value, "camera")
+        out.write(slot)
+    assert isinstance(crossing.reader, DdsFrameReader)
+    assert wait_for(lambda: crossing.reader.pool.published == 2)  # both stored in the reader's pool
+    status, frame = crossing.sink.sample.read()
+    assert status is NEW_DATA and isinstance(frame, Slot) and frame.array.shape == (480, 640, 3)
+    assert (frame.array == 2).all() and frame.stamp == Stamp(102.5, 2, "camera")
+    assert crossing.sink.sample.stamp.seq == 2
+    frame.release()
+    assert crossing.sink.sample.read()[0] is not NEW_DATA
+    assert crossing.reader.counters() == {"written": 2, "read": 1, "dropped": 1, "pending": 0}
+
+
+def test_a_pooled_output_needs_a_pool_connection(hosts):
+    channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", DATA, None, "pickle",
+                          topic_of("wrong", "source.out", "sink.sample"))
+    app = Application("wrong")
+    app.add(Frames("source"))
+    with pytest.raises(ConfigError, match="a pooled output's frames cross with data=POOL only"):
+        attach_between_hosts(app, hosts[0], [channel], "alpha")
+    assert app.connections == []
+
+
+def test_unsync_cannot_join_two_hosts(hosts):
+    unsync = ConnectionPolicy(BufferPolicy.DATA, SyncPolicy.UNSYNC, 1)
+    channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", unsync, None, "pickle",
+                          topic_of("unsync", "source.out", "sink.sample"))
+    app = Application("unsync")
+    app.add(Source("source"))
+    with pytest.raises(ConfigError, match="UNSYNC is only valid inside one activity"):
+        attach_between_hosts(app, hosts[0], [channel], "alpha")
+
+
+def test_a_bridge_stops_its_thread_within_a_second():
+    bridge = HostBridge("coco_test_closing")
+    assert bridge.running and any(thread.name == THREAD_NAME for thread in threading.enumerate())
+    assert bridge.close(timeout=1.0) and not bridge.running
+    assert bridge.close()  # twice: harmless
