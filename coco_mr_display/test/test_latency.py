@@ -13,7 +13,8 @@ from coco_core.component import Component
 from coco_core.policy import BufferPolicy, ConnectionPolicy
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamp, Stamped
-from coco_core.transforms.samples import FramePose
+from coco_core.transforms.interface import TransformationInterface
+from coco_core.transforms.samples import FramePose, TransformSample
 from coco_mr_display.camera import GLCameraManager
 from coco_mr_display.entity import GLEntity
 from coco_mr_display.manager import GLManager
@@ -171,5 +172,31 @@ def test_a_plain_input_is_timed_from_its_message_stamp():
 
         manager.step()  # nothing new: no latency, as for stamped inputs
         assert collected.latency.read_all() == [] and manager.stats.latency.count == 1
+    finally:
+        manager.stop()
+
+
+class PlainTransforms(Component):
+    tf = OutputPort(TransformSample)
+
+
+def test_a_plain_transform_into_the_graph_is_timed_from_its_message_stamp():
+    """A plain TransformSample written to a TransformationInterface: the edge it changes keeps the
+    sample's message stamp as its cause, and the frame that first shows the moved entity is stamped
+    with it (latency-to-pixel through the graph, from the write in the producer)."""
+    app, manager, inputs, collected = scene()
+    feeder, interface = PlainTransforms("feeder"), TransformationInterface("interface")
+    app.add(feeder)
+    app.add(interface)
+    app.connect("feeder.tf", "interface.transform")
+    assert manager.configure(), "GLManager failed to configure (see the log)"
+    try:
+        feeder.tf.write(TransformSample("base", "bowl", np.eye(4), 1.0))
+        written = feeder.tf.stamp
+        interface.on_update()
+        manager.step()
+        [frame] = collected.frames.read_all()
+        assert written is not None and (frame.stamp.time, frame.stamp.source) == (written.time, "feeder.tf")
+        assert manager.stats.latency.count == 1
     finally:
         manager.stop()
