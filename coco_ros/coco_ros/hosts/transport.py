@@ -21,12 +21,14 @@ from coco_core.processes.messages import Message
 from .bridge import HostBridge
 from .bus import DdsBus
 from .channel import HostEnds, attach_between_hosts
+from .fastdds import use_hosts_profile
 
 
 class DdsTransport:
     """The network of one process of an application over several hosts."""
 
     def __init__(self) -> None:
+        use_hosts_profile()  # before this process's first participant (the ROS launcher did it before its node)
         self._bridge: HostBridge | None = None
         self._users = 0
         self._lock = threading.Lock()
