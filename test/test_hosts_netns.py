@@ -161,3 +161,45 @@ def test_a_lossy_delayed_link_still_delivers_every_sample_of_a_reliable_connecti
     written, _, _ = counters((tmp_path / "robot.log").read_text(), "generator.sample -> recorder.values")
     assert counters((tmp_path / "graphics.log").read_text(), "generator.sample -> recorder.values") == (written, written, 0)
     assert len(rows(output)) == written > 100
+
+
+def two_host_baxter(tmp_path: Path) -> Path:
+    """config/baxter_teleop_replay.xml with its activities placed on two hosts, and nothing else
+    changed: the replay, the transformation graph, the distance and the summary on ``robot``; the
+    view process (its own frames, the display) and the writer on ``graphics``."""
+    text = (ROOT / BAXTER).read_text()
+    first, view = text.index('        <activity name="replay">'), text.index('        <process name="view"')
+    end = text.index("        </process>", view) + len("        </process>")
+    placed = (text[:first] + '        <host name="robot">\n' + text[first:view] + "        </host>\n"
+              + '        <host name="graphics">\n' + text[view:end] + "\n        </host>" + text[end:])
+    path = ROOT / "config" / f".test_two_hosts_{os.getpid()}.xml"  # beside the original: its paths resolve alike
+    path.write_text(placed)
+    return path
+
+
+BAXTER = "config/baxter_teleop_replay.xml"
+
+
+def test_the_baxter_replay_split_over_two_hosts_writes_the_same_distances(session, tmp_path: Path) -> None:
+    folder, info = session
+    one, two = tmp_path / "one", tmp_path / "two"
+    alone = subprocess.run([str(LAUNCH), BAXTER, f"bag:={folder}", f"output:={one}", "display:=false", "rate:=3",
+                            f"time_origin:={info.start_ns / 1e9}", "--duration", "60"], cwd=ROOT,
+                           capture_output=True, text=True, timeout=120)
+    assert alone.returncode == 0, alone.stderr
+    app = two_host_baxter(tmp_path)
+    try:
+        args = (str(app), f"bag:={folder}", f"output:={two}", "rate:=3", f"time_origin:={info.start_ns / 1e9}")
+        with Network(["robot", "graphics"], domain=183) as network:
+            graphics = start(network, "graphics", tmp_path / "graphics.log", *args, "--profile", "100")
+            robot = start(network, "robot", tmp_path / "robot.log", *args, "--duration", "60", "--profile", "100")
+            assert robot.wait(150) == 0, (tmp_path / "robot.log").read_text()
+            assert graphics.wait(30) == 0, (tmp_path / "graphics.log").read_text()
+    finally:
+        app.unlink()
+    robot_log, graphics_log = (tmp_path / "robot.log").read_text(), (tmp_path / "graphics.log").read_text()
+    assert "DDS to host graphics" in robot_log and "DDS from host robot" in graphics_log
+    timeless = [{k: v for k, v in row.items() if k != "latency_ms"} for row in rows(one / "distance.csv")]
+    assert len(timeless) > 500  # a 12 s session
+    assert [{k: v for k, v in row.items() if k != "latency_ms"} for row in rows(two / "distance.csv")] == timeless
+    assert (two / "frames.mp4").stat().st_size > 0  # the view on the other host rendered and recorded
