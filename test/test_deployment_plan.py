@@ -28,6 +28,7 @@ from coco_core.model import AppSpec
 from coco_core.processes.channels import plan_channels, wake_targets
 from coco_core.processes.placement import LAUNCHER, Placement
 from coco_core.shm import Arena
+from coco_core.hosts.part import host_part
 from coco_core.xml import load_application
 from coco_ros.hosting import ExecutorHost
 from conftest import ROOT, SHARED_DATA, run_launcher
@@ -128,14 +129,16 @@ def test_every_process_executes_the_plan_check_prints(path: Path, host: str, nod
                                                       request: pytest.FixtureRequest) -> None:
     if not path.exists():
         pytest.skip(f"{path} is not available")
-    spec = load(path, request)
-    deployment = plan_deployment(spec, HOSTS[host])
-    for process in [LAUNCHER, *(p.name for p in spec.processes)]:
-        execute(spec, deployment, node, process)
-    if host == "plain":  # what --check prints (it builds every part again: once is enough)
-        printed = describe(spec, build_application(spec, allow_unknown=True), deployment, allow_unknown=True)
-        lines = [line.strip() for line in printed.splitlines() if line.strip().startswith("activity ")]
-        assert sorted(lines) == sorted(a.line() for a in deployment.activities.values())
+    whole = load(path, request)
+    # An application over several hosts: each host plans and runs its own part (coco_core.hosts.part).
+    for spec in [host_part(whole, machine.name) for machine in whole.hosts] or [whole]:
+        deployment = plan_deployment(spec, HOSTS[host])
+        for process in [LAUNCHER, *(p.name for p in spec.processes)]:
+            execute(spec, deployment, node, process)
+        if host == "plain":  # what --check prints (it builds every part again: once is enough)
+            printed = describe(spec, build_application(spec, allow_unknown=True), deployment, allow_unknown=True)
+            lines = [line.strip() for line in printed.splitlines() if line.strip().startswith("activity ")]
+            assert sorted(lines) == sorted(a.line() for a in deployment.activities.values())
 
 
 def test_a_run_that_differs_from_its_plan_is_refused(tmp_path: Path) -> None:
