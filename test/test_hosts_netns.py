@@ -41,8 +41,11 @@ PAIR = """<package name="pair" on_error="stop_app">
   <arg name="period" default="20"/>
   <components>
     <component><name>generator</name><task>SignalGenerator</task></component>
+    <component><name>supervisor</name><task>Supervisor</task>
+      <attributes><attribute name="target" value="filter"/><attribute name="values" value="3, 5"/></attributes></component>
     <component><name>recorder</name><task>CsvRecorder</task>
       <attributes><attribute name="path" value="$(arg output)"/></attributes></component>
+    <component><name>filter</name><task>MovingAverage</task></component>
   </components>
   <connections>
     <connection data="BUFFER" buffersize="4096"><src task="generator" port="sample"/><dest task="recorder" port="values"/></connection>
@@ -51,15 +54,20 @@ PAIR = """<package name="pair" on_error="stop_app">
     <host name="robot">
       <activity name="acquisition"><schedule type="periodic" period="$(arg period)"/>
         <components><component name="generator"/></components></activity>
+      <activity name="supervision"><schedule type="periodic" period="200"/>
+        <components><component name="supervisor"/></components></activity>
     </host>
     <host name="graphics">
-      <activity name="recording"><schedule type="periodic" period="50"/>
-        <components><component name="recorder"/></components></activity>
+      <process name="rec">
+        <activity name="recording"><schedule type="periodic" period="50"/>
+          <components><component name="recorder"/><component name="filter"/></components></activity>
+      </process>
     </host>
   </activities>
 </package>
 """
-
+"""Samples from the robot's launcher to a child process of the graphics host, and operation calls
+from the robot to a component in that child process."""
 
 def start(network: Network, host: str, log: Path, *args: str, launcher: Path = LAUNCH) -> subprocess.Popen[str]:
     """A launcher in ``host`` writing its output to ``log`` (a file: nothing blocks on a full pipe)."""
@@ -86,7 +94,7 @@ def rows(path: Path) -> list[dict[str, str]]:
 
 def counters(log: str, connection: str) -> tuple[int, int, int]:
     """(written, read, dropped) of ``connection`` in the last profile of a launcher's output."""
-    found = re.findall(rf"^{re.escape(connection)}\s+.*?\s(\d+)\s+(\d+)\s+(\d+)\s+\d+\s*$", log, re.M)
+    found = re.findall(rf"^(?:\S+\s+)?{re.escape(connection)}\s+.*?\s(\d+)\s+(\d+)\s+(\d+)\s+\d+\s*$", log, re.M)
     assert found, f"no {connection} in the profile:\n{log}"
     written, read, dropped = found[-1]
     return int(written), int(read), int(dropped)
@@ -145,6 +153,8 @@ def test_ctrl_c_on_either_host_stops_both(two_hosts: Network, tmp_path: Path, in
         assert process.wait(20) == 0, (tmp_path / f"{host}.log").read_text()
     log = (tmp_path / f"{other}.log").read_text()
     assert f"stopping application pair: host {interrupted}: received SIGINT" in log, log
+    # An operation of a component in a child process of the other host, called by name.
+    assert re.search(r"supervisor: filter.set_window -> previous value \d+", (tmp_path / "robot.log").read_text())
 
 
 def test_a_lossy_delayed_link_still_delivers_every_sample_of_a_reliable_connection(tmp_path: Path) -> None:

@@ -141,17 +141,11 @@ class HostSession:
         if processes is not None:
             processes.hosts = self
             self.local = processes.route
-        if self.ends is not None:
-            self.matched(self.ends)
+        if self.ends is not None:  # a sample written before its reader subscribed would be lost
+            matched(self.ends, self.timeout, self.interrupted, self.app)
         self._enter(Stage.BUILT)
         self._wait_for(Stage.BUILT, "to build their parts")
         self.app.gate.hold(self._configured)
-
-    def matched(self, ends: Ends) -> None:
-        """Wait until every writer of ``ends`` (this process's) has its reader on the other host,
-        bounded by the start timeout: a sample written before would be lost (a child process waits
-        so before it says it is built, :func:`matched`)."""
-        matched(ends, self.timeout, self.interrupted, self.app)
 
     def _configured(self) -> None:
         """The start gate's report: every activity of this host is configured. Waits for the others
@@ -355,7 +349,9 @@ class HostSession:
 
 def matched(ends: Ends, timeout: float, interrupted: Callable[[], None], app: Application) -> None:
     """Wait until every writer of ``ends`` has its reader on another host (:meth:`Ends.unmatched`),
-    for ``timeout`` seconds at most (a :class:`HostError` names the others) or until ``app`` stops."""
+    for ``timeout`` seconds at most (a :class:`HostError` names the others) or until ``app`` stops:
+    what a writer wrote before its reader subscribed would be lost. The launcher's process waits so
+    before its host says it is built, a child process before it says it is."""
     deadline = time.monotonic() + timeout
     while (left := ends.unmatched()) and not app.stop_requested:
         if time.monotonic() > deadline:
