@@ -131,7 +131,7 @@ class Link:
         alpha, beta = hosts
         [self.reader] = attach_between_hosts(self.reader_app, beta, [self.channel], "beta", from_app=from_app).readers
         [self.writer] = attach_between_hosts(self.writer_app, alpha, [self.channel], "alpha", to_app=to_app).writers
-        assert wait_for(lambda: self.writer.matched)
+        assert wait_for(lambda: self.writer.matched and self.reader.matched)
 
     @property
     def front(self) -> Any:
@@ -253,9 +253,10 @@ def test_an_activitys_endit_on_one_host_paces_an_activitys_beginit_on_another(ho
     counter = reader_app.add(Counter("counter"))
     ticks = writer_app.add_activity(PeriodicActivity("ticks", 0.005, [source]))
     loop = reader_app.add_activity(TriggeredActivity("loop", [counter]))
-    [reader] = attach_between_hosts(reader_app, hosts[1], [channel], "beta").readers
-    ends = attach_between_hosts(writer_app, hosts[0], [channel], "alpha")
-    assert wait_for(lambda: ends.matched)
+    readers = attach_between_hosts(reader_app, hosts[1], [channel], "beta")
+    writers = attach_between_hosts(writer_app, hosts[0], [channel], "alpha")
+    assert wait_for(lambda: readers.matched and writers.matched)
+    [reader] = readers.readers
     reader_app.start()
     writer_app.start()
     try:
