@@ -22,7 +22,7 @@ from rclpy.context import Context
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
 from coco_core import Application, Component, InputPort, OutputPort, PeriodicActivity, TriggeredActivity
-from coco_core.errors import ConfigError
+from coco_core.errors import ChannelError, ConfigError
 from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup
 from coco_core.hosts.channel import HostChannel, topic_of
 from coco_core.policy import NEW_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -376,6 +376,17 @@ def test_a_damaged_sample_is_counted_reported_and_skipped(link, hosts):
     assert wait_for(lambda: crossing.reader.pending == 1)
     assert crossing.sink.sample.read() == (NEW_DATA, "intact")
     hosts[0].node.destroy_publisher(garbage)
+
+
+def test_a_value_that_cannot_be_sent_is_an_error_and_counted_on_both_sides(link):
+    crossing = link("unpicklable", buffer(4))
+    with pytest.raises(ChannelError, match="a function value cannot be sent to host beta"):
+        crossing.source.out.write(lambda: None)
+    crossing.source.out.write("next")
+    assert wait_for(lambda: crossing.reader.pending == 1)
+    assert crossing.sink.sample.read() == (NEW_DATA, "next")
+    assert crossing.writer.counters() == {"written": 2, "read": 1, "dropped": 1, "pending": 0}
+    assert crossing.reader.counters() == {"written": 2, "read": 1, "dropped": 1, "pending": 0}
 
 
 def test_a_greedy_filter_between_hosts_is_on_the_readers_side(link):

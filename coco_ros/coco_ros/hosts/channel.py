@@ -87,7 +87,8 @@ class DdsWriter(CountedConnection):
         try:
             sample = self._encoder.encode(value, self.written)
         except Exception as error:  # counted: the number is skipped, which the reader's side counts too
-            raise ChannelError(f"connection {self.label}: a {type(value).__name__} value cannot be sent to host "
+            payload = value.value if type(value) is Message else value
+            raise ChannelError(f"connection {self.label}: a {type(payload).__name__} value cannot be sent to host "
                                f"{self.channel.dest_host}: {type(error).__name__}: {error}") from None
         if self._publish(sample):
             self.read += 1
