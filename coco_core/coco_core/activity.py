@@ -259,11 +259,13 @@ class Activity:
         self._run_pending()
         for component in self.components:
             component.stop()
-        for component in self.components:  # what on_stop wrote was the last: readers elsewhere may stop
-            for member in component.walk():
-                for port in member.outputs.values():
-                    for connection in port.connections:
-                        connection.writer_done()
+        writers = [member for component in self.components for member in component.walk()]
+        if self.iteration is not None:  # its endit, the last cycle's number written: done too
+            writers.append(self.iteration)
+        for member in writers:  # what on_stop wrote was the last: readers elsewhere may stop
+            for port in member.outputs.values():
+                for connection in port.connections:
+                    connection.writer_done()
         self._finished.set()
         self._run_pending()
 

@@ -17,10 +17,12 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 import pytest
+import rclpy
+from rclpy.context import Context
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
 from coco_core import Application, Component, InputPort, OutputPort, PeriodicActivity, TriggeredActivity
-from coco_core.errors import ConfigError
+from coco_core.errors import ChannelError, ConfigError
 from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup
 from coco_core.hosts.channel import HostChannel, topic_of
 from coco_core.policy import NEW_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -129,7 +131,7 @@ class Link:
         alpha, beta = hosts
         [self.reader] = attach_between_hosts(self.reader_app, beta, [self.channel], "beta", from_app=from_app).readers
         [self.writer] = attach_between_hosts(self.writer_app, alpha, [self.channel], "alpha", to_app=to_app).writers
-        assert wait_for(lambda: self.writer.matched)
+        assert wait_for(lambda: self.writer.matched and self.reader.matched)
 
     @property
     def front(self) -> Any:
@@ -231,6 +233,40 @@ def test_a_triggered_reader_is_woken_by_what_arrives(link):
     assert wait_for(lambda: crossing.sink.got == list(range(5)))
     assert crossing.reader_app.activity("reading").stats.cycles >= 1
     crossing.writer.writer_done()  # the reader's natural stop waits for the writer of its BUFFER: it is done
+
+
+class Counter(Component):
+    def init(self) -> None:
+        self.updates = 0
+
+    def on_update(self) -> None:
+        self.updates += 1
+
+
+def test_an_activitys_endit_on_one_host_paces_an_activitys_beginit_on_another(hosts):
+    """FlowVR's data-driven coupling across hosts: each cycle of ``ticks`` (host alpha) sends its
+    ``endit``, and ``loop`` (host beta) cycles once per message on its ``beginit``."""
+    channel = HostChannel("ticks.endit", "loop.beginit", "alpha", "beta", "", "", buffer(100), None, "pickle",
+                          topic_of("paced", "ticks.endit", "loop.beginit"), src_activity=True, dest_activity=True)
+    writer_app, reader_app = Application("paced"), Application("paced")
+    source = writer_app.add(Source("source"))
+    counter = reader_app.add(Counter("counter"))
+    ticks = writer_app.add_activity(PeriodicActivity("ticks", 0.005, [source]))
+    loop = reader_app.add_activity(TriggeredActivity("loop", [counter]))
+    readers = attach_between_hosts(reader_app, hosts[1], [channel], "beta")
+    writers = attach_between_hosts(writer_app, hosts[0], [channel], "alpha")
+    assert wait_for(lambda: readers.matched and writers.matched)
+    [reader] = readers.readers
+    reader_app.start()
+    writer_app.start()
+    try:
+        assert wait_for(lambda: counter.updates >= 5)
+    finally:
+        writer_app.stop()  # its finish sends writer_done: the reader's natural stop need not wait
+        assert wait_for(lambda: reader.writer_finished)
+        reader_app.stop()
+    assert ticks.stats.cycles == reader.written and loop.stats.cycles == reader.read
+    assert reader.counters()["dropped"] == 0 and counter.updates == loop.stats.cycles
 
 
 def test_a_writer_in_another_process(hosts, tmp_path):
@@ -342,6 +378,17 @@ def test_a_damaged_sample_is_counted_reported_and_skipped(link, hosts):
     hosts[0].node.destroy_publisher(garbage)
 
 
+def test_a_value_that_cannot_be_sent_is_an_error_and_counted_on_both_sides(link):
+    crossing = link("unpicklable", buffer(4))
+    with pytest.raises(ChannelError, match="a function value cannot be sent to host beta"):
+        crossing.source.out.write(lambda: None)
+    crossing.source.out.write("next")
+    assert wait_for(lambda: crossing.reader.pending == 1)
+    assert crossing.sink.sample.read() == (NEW_DATA, "next")
+    assert crossing.writer.counters() == {"written": 2, "read": 1, "dropped": 1, "pending": 0}
+    assert crossing.reader.counters() == {"written": 2, "read": 1, "dropped": 1, "pending": 0}
+
+
 def test_a_greedy_filter_between_hosts_is_on_the_readers_side(link):
     """The Greedy filter of a connection between hosts runs where its reader is: the reader gets
     the newest message that reached its host, then OLD_DATA; what it never took is dropped."""
@@ -397,6 +444,7 @@ def test_a_stamps_only_connection_sends_no_payload(link):
     sent = crossing.source.out.stamp
     assert stamp.time == pytest.approx(sent.time + 0.5, abs=1e-9) and dict(stamp.user) == {"box": (1, 2)}
     assert crossing.reader.describe() == "BUFFER/LOCKED[4], stamps only, DDS from host alpha"
+    assert len(SampleEncoder("stamp").encode(crossing.source.out.last, 1).payload) == 0
 
 
 def test_a_pooled_outputs_frames_cross_into_a_pool_of_the_readers(link):
@@ -439,8 +487,14 @@ def test_unsync_cannot_join_two_hosts(hosts):
         attach_between_hosts(app, hosts[0], [channel], "alpha")
 
 
-def test_a_bridge_stops_its_thread_within_a_second():
+def test_a_bridge_stops_its_thread_within_a_second_and_leaves_the_launchers_ros_alone():
+    """The bridge has a context of its own: closing it leaves the ROS launcher's (here a context of
+    this test's) running."""
+    launcher = Context()
+    rclpy.init(context=launcher)
     bridge = HostBridge("coco_test_closing")
     assert bridge.running and any(thread.name == THREAD_NAME for thread in threading.enumerate())
     assert bridge.close(timeout=1.0) and not bridge.running
     assert bridge.close()  # twice: harmless
+    assert launcher.ok()
+    launcher.try_shutdown()

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
+from rclpy.exceptions import InvalidHandle
 
 from coco_core.component import DAMAGE_LISTED
 from coco_core.connections import Connection, CountedConnection, make_connection
@@ -71,7 +72,7 @@ class DdsWriter(CountedConnection):
     """The writer's end of a connection between hosts (see the module's docstring): ``read``
     counts the samples published."""
 
-    __slots__ = ("channel", "_encoder", "_publisher")
+    __slots__ = ("channel", "_encoder", "_publisher", "_unpublished")
     carries_stamps = True
 
     def __init__(self, bridge: HostBridge, channel: HostChannel, to_app: Clock = same_clock) -> None:
@@ -79,13 +80,15 @@ class DdsWriter(CountedConnection):
         self.channel = channel
         self._encoder = SampleEncoder(STAMP_CODEC if channel.stamps_only else channel.codec, to_app)
         self._publisher = bridge.publisher(Sample, channel.topic, qos_of(channel.policy))
+        self._unpublished = False
 
     def push(self, value: Any) -> None:
         self.written += 1
         try:
             sample = self._encoder.encode(value, self.written)
         except Exception as error:  # counted: the number is skipped, which the reader's side counts too
-            raise ChannelError(f"connection {self.label}: a {type(value).__name__} value cannot be sent to host "
+            payload = value.value if type(value) is Message else value
+            raise ChannelError(f"connection {self.label}: a {type(payload).__name__} value cannot be sent to host "
                                f"{self.channel.dest_host}: {type(error).__name__}: {error}") from None
         if self._publish(sample):
             self.read += 1
@@ -97,17 +100,20 @@ class DdsWriter(CountedConnection):
     def _publish(self, sample: Sample) -> bool:
         try:
             self._publisher.publish(sample)
-        except Exception as error:  # the bridge closed under a late writer: dropped, as counted
-            log.debug("connection %s: not published: %s", self.label, error)
+        except InvalidHandle as error:  # the bridge closed under a late writer
+            if not self._unpublished:
+                log.warning("connection %s: not published (%s): later writes are counted as dropped", self.label,
+                            error)
+                self._unpublished = True
             return False
         return True
 
     @property
     def matched(self) -> bool:
-        """Whether a reader's end on another host subscribes (what a start barrier waits for)."""
+        """Whether a reader's end on another host subscribes (discovered it)."""
         try:
             return self._publisher.get_subscription_count() > 0
-        except Exception:  # closed
+        except InvalidHandle:  # the bridge closed
             return False
 
     def pop(self) -> Any:
@@ -143,11 +149,19 @@ class Arrivals:
         self.finished = False
         """Whether the writer's ``writer_done`` arrived."""
         self.damaged = 0
-        """Samples that did not decode (each reported, and counted as dropped)."""
+        """Samples that did not decode (counted as dropped; the first :data:`DAMAGE_LISTED` reported)."""
         self._decoder = SampleDecoder(from_app)
         self._store = store
         self._report = report
         self.subscription = bridge.subscribe(Sample, channel.topic, self._arrive, qos_of(channel.policy))
+
+    @property
+    def matched(self) -> bool:
+        """Whether the writer's end on the other host publishes to this end."""
+        try:
+            return self.subscription.get_publisher_count() > 0
+        except InvalidHandle:  # the bridge closed
+            return False
 
     def _arrive(self, sample: Sample) -> None:
         if sample.writer_done:
@@ -171,7 +185,41 @@ class Arrivals:
                 self._report(what + more)
 
 
-class DdsReader(Connection):
+class FromHost:
+    """What the two reader's ends share: ``written``, the writer's end and the damaged samples come
+    from their :class:`Arrivals`; the reader's end is never written to."""
+
+    __slots__ = ()
+
+    channel: HostChannel
+    arrivals: Arrivals
+
+    @property
+    def written(self) -> int:
+        return self.arrivals.number
+
+    @property
+    def matched(self) -> bool:
+        """Whether the writer's end on the other host publishes to this end (discovered it)."""
+        return self.arrivals.matched
+
+    @property
+    def damaged(self) -> int:
+        return self.arrivals.damaged
+
+    @property
+    def writer_finished(self) -> bool:
+        return self.arrivals.finished
+
+    @property
+    def label(self) -> str:
+        return f"{self.channel.src} -> {self.channel.dest}"
+
+    def push(self, value: Any) -> None:
+        raise CocoError(f"connection {self.label}: the reader's end cannot be written")
+
+
+class DdsReader(FromHost, Connection):
     """The reader's end of a connection between hosts of values (see the module's docstring).
 
     ``front`` is the connection the input port holds: this end, or the filter fed from it
@@ -194,9 +242,6 @@ class DdsReader(Connection):
         if trigger is not None:
             trigger()
 
-    def push(self, value: Any) -> None:
-        raise CocoError(f"connection {self.label}: the reader's end cannot be written")
-
     def pop(self) -> Any:
         return self.store.pop()
 
@@ -210,10 +255,6 @@ class DdsReader(Connection):
         return self.store.ready_at()
 
     @property
-    def written(self) -> int:
-        return self.arrivals.number
-
-    @property
     def read(self) -> int:
         return self.store.read
 
@@ -221,24 +262,12 @@ class DdsReader(Connection):
     def pending(self) -> int:
         return self.store.pending
 
-    @property
-    def damaged(self) -> int:
-        return self.arrivals.damaged
-
-    @property
-    def writer_finished(self) -> bool:
-        return self.arrivals.finished
-
-    @property
-    def label(self) -> str:
-        return f"{self.channel.src} -> {self.channel.dest}"
-
     def describe(self) -> str:
         stamps = ", stamps only" if self.channel.stamps_only else ""
         return f"{self.policy}{stamps}, DDS from host {self.channel.src_host}{_codec(self.channel)}"
 
 
-class DdsFrameReader(PoolReader):
+class DdsFrameReader(FromHost, PoolReader):
     """The reader's end of a connection between hosts from a pooled output: each frame that arrives
     is copied into a slot of a local pool (``channel.policy.size`` slots, the output's), and read as
     from a pooled output in this process. A frame that finds every slot held by the reader is
@@ -270,25 +299,6 @@ class DdsFrameReader(PoolReader):
         if self.trigger is not None:
             self.trigger()
 
-    def push(self, value: Any) -> None:
-        raise CocoError(f"connection {self.label}: the reader's end cannot be written")
-
-    @property
-    def written(self) -> int:
-        return self.arrivals.number
-
-    @property
-    def damaged(self) -> int:
-        return self.arrivals.damaged
-
-    @property
-    def writer_finished(self) -> bool:
-        return self.arrivals.finished
-
-    @property
-    def label(self) -> str:
-        return f"{self.channel.src} -> {self.channel.dest}"
-
     def describe(self) -> str:
         return f"{self.policy}, DDS from host {self.channel.src_host}"
 
@@ -302,8 +312,11 @@ class HostEnds:
 
     @property
     def matched(self) -> bool:
-        """Whether every writer's reader subscribes (the hosts' start barrier waits for it)."""
-        return all(writer.matched for writer in self.writers)
+        """Whether every end found its other end: what the hosts' start barrier waits for. Both
+        sides matter: a sample written before the reader's side discovered its writer is resent by
+        DDS's reliability only at its next heartbeat (measured here: the first samples came 130 ms
+        late), and one written before the writer's side discovered the reader is lost (counted)."""
+        return all(end.matched for end in [*self.writers, *self.readers])
 
 
 def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[HostChannel], host: str,

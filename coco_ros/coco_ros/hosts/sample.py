@@ -10,9 +10,9 @@ connection (its value the :class:`~coco_core.stamps.Stamp`), or, from a pooled o
 the payload, by ``ros2 topic echo`` or a bag too) and the value in ``payload``, as the connection's
 codec says:
 
-- ``pickle`` (the default): the value pickled (protocol 5; numpy arrays go out of band, straight
-  from their memory into the payload, and come back as arrays over the received buffer: one copy
-  each way besides DDS's own). A pooled frame goes as :class:`Frame` (its array and its
+- ``pickle`` (the default): the value pickled (protocol 5; numpy arrays go out of band, not pickled
+  into bytes first: joined into the payload, which rclpy's setter copies once more; on the reader's
+  side they are arrays over the received buffer, not copied). A pooled frame goes as :class:`Frame` (its array and its
   ``Slot.stamp``). The hosts of one application trust each other as the processes of one launch do
   (a pickle can run code): the DDS domain of an application is its own (``docs/hosts.md``);
 - ``rgbd``: the same pickle, except that every :class:`~coco_mr_vision.rgbd.RGBDFrame` and
