@@ -18,7 +18,11 @@ from dataclasses import dataclass, field
 
 from ..errors import ConfigError, ConfigErrors, did_you_mean
 from ..model import AppSpec, ConnectionSpec, PortRef
-from ..policy import ConnectionPolicy, SyncPolicy
+from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from ..pool import DEFAULT_SLOTS
+from ..ports import PooledOutputPort
+from ..processes.channels import declared_port
+from ..processes.placement import ring_policy
 from .channel import HostChannel, topic_of
 
 SEPARATOR = "@"
@@ -104,12 +108,22 @@ def host_part(spec: AppSpec, host: str) -> AppSpec:
 
 def _channel(spec: AppSpec, connection: ConnectionSpec, src_host: str, src_process: str, dest_host: str,
              dest_process: str) -> HostChannel:
-    size = max(1, connection.buffersize)
     return HostChannel(
         src=str(connection.src), dest=str(connection.dest), src_host=src_host, dest_host=dest_host,
-        src_process=src_process, dest_process=dest_process,
-        policy=ConnectionPolicy(connection.data, connection.policy, size), event=connection.wakes(),
-        codec=connection.codec, topic=topic_of(spec.name, str(connection.src), str(connection.dest)),
+        src_process=src_process, dest_process=dest_process, policy=_policy(spec, connection),
+        event=connection.wakes(), codec=connection.codec,
+        topic=topic_of(spec.name, str(connection.src), str(connection.dest)),
         stamps_only=connection.stamps_only, filtered=connection.filter is not None,
         src_activity=connection.src.activity, dest_activity=connection.dest.activity)
 
+
+def _policy(spec: AppSpec, connection: ConnectionSpec) -> ConnectionPolicy:
+    """What the reader's side stores a connection between hosts with, as a ring between processes
+    would (:func:`~coco_core.processes.placement.ring_policy`: a filter's feed), and for a pooled
+    output's frames a pool of the slots the output declares."""
+    if connection.data is BufferPolicy.POOL:
+        components = {component.name: component for component in spec.all_components()}
+        out = declared_port(components.get(connection.src.component), connection.src.port)
+        return ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED,
+                                out.slots if isinstance(out, PooledOutputPort) else DEFAULT_SLOTS)
+    return ring_policy(connection)

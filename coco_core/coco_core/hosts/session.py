@@ -348,14 +348,15 @@ class HostSession:
 
 
 def matched(ends: Ends, timeout: float, interrupted: Callable[[], None], app: Application) -> None:
-    """Wait until every writer of ``ends`` has its reader on another host (:meth:`Ends.unmatched`),
+    """Wait until every end of ``ends`` found its other end on another host (:meth:`Ends.unmatched`),
     for ``timeout`` seconds at most (a :class:`HostError` names the others) or until ``app`` stops:
     what a writer wrote before its reader subscribed would be lost. The launcher's process waits so
     before its host says it is built, a child process before it says it is."""
     deadline = time.monotonic() + timeout
     while (left := ends.unmatched()) and not app.stop_requested:
         if time.monotonic() > deadline:
-            raise HostError(f"no reader subscribed within {timeout:g} s to {', '.join(left)} (--host-timeout)")
+            raise HostError(f"connections between hosts not joined within {timeout:g} s: {', '.join(left)} "
+                            "(--host-timeout)")
         interrupted()
         time.sleep(SIGNAL_CHECK / 5)
 

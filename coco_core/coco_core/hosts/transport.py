@@ -28,8 +28,9 @@ class Ends(Protocol):
     """This process's ends of the connections between hosts, closed at the process's end."""
 
     def unmatched(self) -> list[str]:
-        """The writers whose reader on another host has not subscribed yet: a sample written now
-        would not reach it, so no host starts before every writer has its reader."""
+        """The ends whose other end on another host has not been found yet: a sample written before
+        a writer found its reader would be lost, one written before a reader found its writer late,
+        so no host starts before every end found its other."""
 
     def close(self) -> None: ...
 

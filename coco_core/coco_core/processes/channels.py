@@ -76,9 +76,10 @@ class ChannelPlan:
     :class:`~coco_core.stamps.Stamp` into the ring, never its payload."""
 
 
-def _declared(spec: ComponentSpec | None, port: str) -> Any:
+def declared_port(spec: ComponentSpec | None, port: str) -> Any:
     """The class-level declaration of ``port`` on the component of ``spec``, if it has one: the
-    launcher plans channels without building the children's components."""
+    launcher plans channels (and each host the connections between hosts) without building the
+    other processes' components."""
     if spec is None:
         return None
     try:
@@ -100,7 +101,7 @@ def _woken_by(connection: ConnectionSpec, components: dict[str, ComponentSpec],
         event = wakes if wakes is not None else True
         activity = activities.get(connection.dest.component)
     else:
-        into = _declared(components.get(connection.dest.component), connection.dest.port)
+        into = declared_port(components.get(connection.dest.component), connection.dest.port)
         event = wakes if wakes is not None else (into.event if isinstance(into, InputPort) else None)
         activity = activity_of.get(placement.top_of.get(connection.dest.component, connection.dest.component))
     triggered = activity is not None and activity.schedule.type == "triggered"
@@ -126,7 +127,7 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
     activity_of = {name: activity for activity in spec.activities for name in activity.components}
     activities = {activity.name: activity for activity in spec.activities}
     crossing = placement.crossing(spec)
-    outputs = {str(c.src): _declared(components.get(c.src.component), c.src.port) for c in crossing}
+    outputs = {str(c.src): declared_port(components.get(c.src.component), c.src.port) for c in crossing}
     pooled = [c for c in crossing if isinstance(outputs[str(c.src)], PooledOutputPort) or c.data is BufferPolicy.POOL]
     readers = Counter(str(c.src) for c in pooled)
     pools: dict[str, Any] = {}
