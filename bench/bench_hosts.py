@@ -15,7 +15,9 @@ The hosts ``robot`` and ``graphics`` are network namespaces of this machine join
 - *CoCo, two processes, one host*: the same application with the source in a ``<process>`` of its
   own (the shared-memory channel), one ``coco-launch`` in ``robot``.
 
-Payloads: a small sample (19 float64) and a 640x480 RGB-D frame (a real Redwood frame). Each run has
+Payloads: a small sample (19 float64) and a 640x480 RGB-D frame (a real Redwood frame); the frames
+twice, on the bare veth pairs (memory speed) and on the link limited to 1 Gbit/s (``tc tbf``: a
+gigabit Ethernet between two computers, where a codec pays). Each run has
 two phases: *latency*, one sample per period (small: 100 Hz, frames: 30 Hz; the first tenth left
 out), the time from the write (carried in the payload) to the sink's update (p50, p99); then
 *burst*, N samples written back to back: throughput = samples received / (last arrival - first
@@ -52,13 +54,19 @@ ANCHOR = "rclpy pair, two hosts"
 HOSTS = "CoCo, two hosts"
 PROCESSES = "CoCo, two processes, one host"
 VARIANTS = [ANCHOR, HOSTS, PROCESSES]
-PAYLOADS: dict[str, dict[str, Any]] = {
-    "small sample (19 float64)": {"kind": "small", "latency": 300, "burst": 1000, "period": 0.01, "goal": 1.1},
-    "640x480 RGB-D frame": {"kind": "frame", "latency": 60, "burst": 20, "period": 1 / 30, "goal": 1.0},
+SMALL = {"kind": "small", "latency": 300, "burst": 1000, "period": 0.01, "goal": 1.1}
+FRAME = {"kind": "frame", "latency": 60, "burst": 20, "period": 1 / 30, "goal": 1.0}
+GIGABIT = 1000.0
+CASES: dict[str, dict[str, Any]] = {
+    "small sample (19 float64), veth": {**SMALL, "rate": None, "variants": VARIANTS},
+    "640x480 RGB-D frame, veth": {**FRAME, "rate": None, "variants": VARIANTS},
+    "640x480 RGB-D frame, 1 Gbit/s": {**FRAME, "rate": GIGABIT, "variants": [ANCHOR, HOSTS]},
 }
-"""Per payload: samples of the latency phase and of the burst, the latency phase's period, and the
-goal: the connection between hosts at most ``goal`` times the anchor's latency p50 and at least
-1/``goal`` its throughput (frames: strictly better)."""
+"""Per case: samples of the latency phase and of the burst, the latency phase's period, the link's rate
+limit (None: the bare veth pairs, which move data at memory speed; 1 Gbit/s: a gigabit Ethernet
+between the robot's and the graphics computer, ``tc tbf``), the variants (two processes of one host
+use no link), and the goal: the connection between hosts at most ``goal`` times the anchor's latency
+p50 and at least 1/``goal`` its throughput (frames, ``goal`` 1: strictly better)."""
 RUN_TIMEOUT_S = 90.0
 GRACE_S = 15.0
 
@@ -197,16 +205,17 @@ def main() -> None:
     if reason:
         raise SystemExit(f"bench_hosts needs simulated hosts: {reason}")
     load = os.getloadavg()[0]
-    rounds: dict[str, list[dict[str, dict[str, float]]]] = {name: [] for name in PAYLOADS}
+    rounds: dict[str, list[dict[str, dict[str, float]]]] = {name: [] for name in CASES}
     failures: dict[tuple[str, str], str] = {}
     """(payload, variant) -> why it could not run (it is not tried again in later rounds)."""
     with tempfile.TemporaryDirectory(prefix="bench_hosts") as name, Network(["robot", "graphics"], DOMAIN) as net:
         folder = Path(name)
         for index in range(args.rounds):
-            for payload_name, payload in PAYLOADS.items():
+            for payload_name, payload in CASES.items():
+                net.limit(payload["rate"])
                 round_: dict[str, dict[str, float]] = {}
-                order = VARIANTS[index % 3:] + VARIANTS[:index % 3]
-                for variant in order:
+                variants = payload["variants"]
+                for variant in variants[index % len(variants):] + variants[:index % len(variants)]:
                     if (payload_name, variant) in failures:
                         continue
                     started = time.monotonic()
@@ -229,13 +238,13 @@ def main() -> None:
         values = [r[variant][key] / r[ANCHOR][key] for r in rounds[payload] if variant in r and ANCHOR in r]
         return statistics.median(values) if values else float("nan")
 
-    table = Table(f"Across a network link between two hosts (network namespaces, veth + bridge): medians of "
-                  f"{args.rounds} round(s)",
-                  ["payload", "variant", "received", "latency p50", "p50 / rclpy", "latency p99", "p99 / rclpy",
+    table = Table(f"Across a network link between two hosts (network namespaces, veth pairs on a bridge): medians "
+                  f"of {args.rounds} round(s)",
+                  ["payload, link", "variant", "received", "latency p50", "p50 / rclpy", "latency p99", "p99 / rclpy",
                    "throughput", "throughput / rclpy", "goal"])
     verdicts: dict[str, Any] = {}
-    for payload_name, payload in PAYLOADS.items():
-        for variant in VARIANTS:
+    for payload_name, payload in CASES.items():
+        for variant in payload["variants"]:
             if not any(variant in r for r in rounds[payload_name]):
                 table.add(payload_name, variant, "-", "n/a", "-", "n/a", "-", "n/a", "-", "did not run")
                 continue
@@ -266,6 +275,8 @@ def main() -> None:
     table.notes.append("frames: the rclpy pair sends raw sensor_msgs/Image (rgb8 + 16UC1, 1.5 MB); CoCo between "
                        "hosts the connection's codec=\"rgbd\" (JPEG colour, Zstandard depth); between processes "
                        "the shared-memory channel (no codec)")
+    table.notes.append("veth: the bare veth pairs, at memory speed; 1 Gbit/s: what each host sends limited by a token "
+                       "bucket on its eth0 (tc tbf, 1 ms burst), as a gigabit network card")
     for (payload_name, variant), why in failures.items():
         table.notes.append(f"{variant}, {payload_name}: did not run: {why.splitlines()[0][:300]}")
     table.notes.append(f"load average before the run: {load:.2f} on {os.cpu_count()} cores")
@@ -273,23 +284,25 @@ def main() -> None:
                                                 "failures": {f"{p}, {v}": why for (p, v), why in failures.items()}})
 
     def draw(plt: Any) -> Any:
-        figure, axes = plt.subplots(1, 2 * len(PAYLOADS), figsize=(14, 3.4))
-        colors = ["#4c72b0", "#dd8452", "#55a868"]
-        for column, payload_name in enumerate(PAYLOADS):
+        figure, axes = plt.subplots(1, 2 * len(CASES), figsize=(18, 3.4))
+        colors = {ANCHOR: "#4c72b0", HOSTS: "#dd8452", PROCESSES: "#55a868"}
+        for column, (payload_name, payload) in enumerate(CASES.items()):
             left, right = axes[2 * column], axes[2 * column + 1]
-            y = np.arange(len(VARIANTS))
-            left.barh(y - 0.2, [median(payload_name, v, "p50") * 1e3 for v in VARIANTS], 0.4, label="p50",
+            variants = payload["variants"]
+            y = np.arange(len(variants))
+            left.barh(y - 0.2, [median(payload_name, v, "p50") * 1e3 for v in variants], 0.4, label="p50",
                       color="#4c72b0")
-            left.barh(y + 0.2, [median(payload_name, v, "p99") * 1e3 for v in VARIANTS], 0.4, label="p99",
+            left.barh(y + 0.2, [median(payload_name, v, "p99") * 1e3 for v in variants], 0.4, label="p99",
                       color="#dd8452")
-            left.set_yticks(y, VARIANTS if column == 0 else [""] * len(VARIANTS))
+            left.set_yticks(y, [v.replace(", ", ",\n") for v in variants], fontsize=7)
             left.set_xlabel("latency (ms)")
-            left.set_title(payload_name, fontsize=9)
+            left.set_title(payload_name, fontsize=8)
             left.legend(fontsize=7)
-            right.barh(y, [median(payload_name, v, "throughput") for v in VARIANTS], color=colors)
-            right.set_yticks(y, [""] * len(VARIANTS))
-            right.set_xlabel("throughput (samples/s)")
-            right.set_title(f"{payload_name}: burst", fontsize=9)
+            right.barh(y, [median(payload_name, v, "throughput") for v in variants],
+                       color=[colors[v] for v in variants])
+            right.set_yticks(y, [""] * len(variants))
+            right.set_xlabel("burst throughput (samples/s)")
+            right.set_title("throughput", fontsize=8)
         figure.tight_layout()
         return figure
 
