@@ -59,8 +59,8 @@ FRAME = {"kind": "frame", "latency": 60, "burst": 20, "period": 1 / 30, "goal": 
 GIGABIT = 1000.0
 CASES: dict[str, dict[str, Any]] = {
     "small sample (19 float64), veth": {**SMALL, "rate": None, "variants": VARIANTS},
-    "640x480 RGB-D frame, veth": {**FRAME, "rate": None, "variants": VARIANTS},
-    "640x480 RGB-D frame, 1 Gbit/s": {**FRAME, "rate": GIGABIT, "variants": [ANCHOR, HOSTS]},
+    "RGB-D frame 640x480, veth": {**FRAME, "rate": None, "variants": VARIANTS},
+    "RGB-D frame 640x480, 1 Gbit/s": {**FRAME, "rate": GIGABIT, "variants": [ANCHOR, HOSTS]},
 }
 """Per case: samples of the latency phase and of the burst, the latency phase's period, the link's rate
 limit (None: the bare veth pairs, which move data at memory speed; 1 Gbit/s: a gigabit Ethernet
@@ -199,7 +199,7 @@ def figures(records: list[list[float]], payload: dict[str, Any]) -> dict[str, fl
 
 def main() -> None:
     parser = _report.parser("bench_hosts", __doc__.splitlines()[0])
-    parser.add_argument("--rounds", type=int, default=1, help="interleaved rounds of every variant (default 1)")
+    parser.add_argument("--rounds", type=int, default=2, help="interleaved rounds of every variant (default 2)")
     args = parser.parse_args()
     reason = unavailable()
     if reason:
@@ -301,7 +301,8 @@ def main() -> None:
             right.barh(y, [median(payload_name, v, "throughput") for v in variants],
                        color=[colors[v] for v in variants])
             right.set_yticks(y, [""] * len(variants))
-            right.set_xlabel("burst throughput (samples/s)")
+            right.set_xscale("log")
+            right.set_xlabel("burst throughput (samples/s, log)")
             right.set_title("throughput", fontsize=8)
         figure.tight_layout()
         return figure
