@@ -31,6 +31,7 @@ setup(
         (f"share/{PACKAGE}/hook", ["hook/scripts_path.dsv", "hook/scripts_path.sh"]),
         *installed_tree("../config", "config"),
         *installed_tree("launch", "launch"),
+        *installed_tree("fastdds", "fastdds"),
     ],
     # The launcher is a plain script, not a console-script entry point: see scripts/launcher.
     scripts=["scripts/launcher"],

@@ -374,7 +374,9 @@ class Component:
 
     def record_latency(self, stamp: Stamp) -> None:
         """Record the age of ``stamp`` now: call when this component outputs what the stamped data
-        produced, and the profiler reports the end-to-end latency."""
+        produced, and the profiler reports the end-to-end latency. Give it the input's
+        :attr:`InputPort.origin <coco_core.ports.InputPort.origin>` (a ``Stamped`` value's own
+        stamp, a plain value's message stamp), so that a plain input is measured from its write."""
         self.stats.latency.add(time.perf_counter() - stamp.time)
 
     def call(self, operation_name: str, *args: Any, **kwargs: Any) -> Future:

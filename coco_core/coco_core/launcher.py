@@ -409,7 +409,8 @@ def launch(spec: AppSpec, app: Application, options: argparse.Namespace, signals
     configure_logging(spec.log, level)  # may open the file's log
     with host_level(spec, app, options.host_timeout, signals.check) as hosts:
         with process_level(spec, app, deployment, level, child_module=host.child_module,
-                           child_config=host.child_config(), clock=hosts.clock if hosts else None) as processes:
+                           child_config=host.child_config(), clock=hosts.clock if hosts else None,
+                           host_timeout=options.host_timeout) as processes:
             if hosts is not None:
                 hosts.built(processes)
             clean = host.run(spec, app, deployment, options, processes, signals)

@@ -354,6 +354,35 @@ class InputPort(Port):
             return None if item.message is None else item.message.stamp
         return item.stamp if isinstance(item, Stamped) else None
 
+    @property
+    def origin(self) -> Stamp | None:
+        """Where the data of the value the last read returned began, what a latency is measured
+        from: a :class:`~coco_core.stamps.Stamped` value's own stamp (its acquisition, the source
+        that acquired it, the steps of its way), else the stamp of the message that carried it
+        (:attr:`stamp`: its write, in this process or another; a pooled frame's write), so that a
+        plain value written through a port has an origin too. None only for a plain value pushed
+        into a connection without a port.
+
+        It differs from :attr:`stamp` only in the fields FlowVR's stamp list gives the carrying
+        message: ``seq`` and ``source`` stay the acquisition's, as the latency split by source
+        (the sensor-to-display figures) needs; the time and the steps are the same."""
+        item = self._taken
+        value = item.value if type(item) is Message else item
+        if isinstance(value, Stamped):
+            return value.stamp
+        return self.stamp
+
+    def read_all_origins(self) -> list[tuple[Any, Stamp | None]]:
+        """Like :meth:`read_all`, each value with its :attr:`origin`: a reader that takes the whole
+        backlog in one update and measures each value's latency (the stamp of the last read alone
+        would stand for every value)."""
+        taken: list[tuple[Any, Stamp | None]] = []
+        while True:
+            status, value = self.read()
+            if status is not NEW_DATA:
+                return taken
+            taken.append((value, self.origin))
+
     def read_newest(self) -> tuple[ReadStatus, Any]:
         """Like :meth:`read`, for a consumer that wants only the newest value: everything waiting is
         taken and only the newest returned; every older value skipped counts as *dropped* on its

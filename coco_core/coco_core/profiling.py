@@ -53,7 +53,9 @@ class ComponentStats:
         self.compute = RunningStats()
         self.service = RunningStats()
         self.latency = RunningStats()
-        """Stamp-to-output latency, fed by the component (:meth:`Component.record_latency`)."""
+        """Stamp-to-output latency, fed by the component (:meth:`Component.record_latency`), from
+        its inputs' origins (:attr:`InputPort.origin <coco_core.ports.InputPort.origin>`): a
+        ``Stamped`` value's acquisition, a plain value's message stamp (its write)."""
         self.errors = 0
         self.refused = 0
         """Input samples the component read and refused (malformed values), see

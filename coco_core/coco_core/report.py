@@ -3,7 +3,8 @@
 Per process (when the application has several): pid, CPU time and resident memory. Per activity:
 cycles, overruns and period error percentiles. Per component: executions, total time, mean and
 standard deviation of compute time and of service time (time between activations), errors, and
-stamp-to-output latency when the component records it. Per connection: flow counters. Per pooled
+stamp-to-output latency when the component records it (from its inputs' origins: a ``Stamped``
+value's acquisition, a plain value's message stamp, its write in this process or another). Per connection: flow counters. Per pooled
 output (a frame pool): frames published, and the writer's stalls, frames it could not publish
 because readers held every slot (they never reach a connection, so no connection counts them).
 

@@ -101,3 +101,37 @@ def test_the_newest_read_takes_the_newest_messages_stamp(make_app):
         writer.out.write(value)
     assert reader.sample.read_newest() == (NEW_DATA, 3)
     assert reader.sample.stamp is not None and reader.sample.stamp.seq == 4
+
+
+def test_the_origin_of_a_value_is_its_own_stamp_or_its_messages(make_app):
+    """What a latency is measured from: a Stamped value's own stamp (its source and number kept), a
+    plain value's message stamp (the write), each value of a backlog with its own; an old value
+    keeps its origin."""
+    app = make_app()
+    writer, reader = app.add(Counter("writer")), app.add(Collector("reader"))
+    app.connect("writer.out", "reader.sample", BUFFERED)
+    acquired = Stamp(12.0, 7, "camera", (("sent", 12.5),))
+    writer.out.write(Stamped(3.5, acquired))
+    writer.out.write(4)
+    first = writer.out.last
+    writer.out.write(5)
+    assert first is not None and writer.out.stamp is not None
+    assert reader.sample.read_all_origins() == [(Stamped(3.5, acquired), acquired), (4, first.stamp),
+                                                (5, writer.out.stamp)]
+    assert (first.stamp.seq, first.stamp.source) == (2, "writer.out")
+    assert reader.sample.read() == (OLD_DATA, 5) and reader.sample.origin == writer.out.stamp
+    assert reader.sample.read_all_origins() == []
+
+
+def test_a_plain_value_pushed_without_a_port_has_no_origin():
+    from coco_core.connections import make_connection
+
+    port = InputPort(object).bind(Collector("reader"), "sample")
+    connection = make_connection(ConnectionPolicy())
+    port.add_connection(connection)
+    assert port.origin is None  # nothing read yet
+    connection.push(4)
+    assert port.read() == (NEW_DATA, 4) and port.origin is None
+    stamped = Stamped(5, Stamp(1.0, 2, "elsewhere"))
+    connection.push(stamped)
+    assert port.read() == (NEW_DATA, stamped) and port.origin is stamped.stamp

@@ -31,7 +31,11 @@ APP = """<package name="pair" on_error="{on_error}">
     <component><name>generator</name><task>SignalGenerator</task></component>
     <component><name>filter</name><task>MovingAverage</task>
       <attributes><attribute name="window" value="8"/></attributes></component>
+    <component><name>frames</name><task>TransformationInterface</task></component>
   </components>
+  <transforms>
+    <static parent="world" child="camera" xyz="0.1 -0.2 1.2" rpy="0 0 0"/>
+  </transforms>
   <activities>
     <host name="robot">
       <activity name="acquisition"><schedule type="periodic" period="20"/>
@@ -181,6 +185,15 @@ def test_an_operation_of_another_host_is_called_by_name(hosts: Hosts) -> None:
     assert hosts.apps["graphics"].component("filter").window == 3
     with pytest.raises(RemoteError, match="no_such"):
         hosts.apps["robot"].operation("filter", "no_such")().result(10)
+
+
+def test_a_host_without_the_transformation_interface_looks_up_through_its_operation(hosts: Hosts) -> None:
+    """The graph is whole on the first host (whose TransformationInterface no activity runs); another
+    host asks it by name, as a child process does."""
+    hosts.start()
+    assert "frames" not in hosts.apps["graphics"].components
+    pose = hosts.apps["graphics"].operation("frames", "lookup")("world", "camera").result(10)
+    assert pose[:3, 3].tolist() == pytest.approx([0.1, -0.2, 1.2])
 
 
 def test_a_stop_on_one_host_stops_the_others_with_its_reason(hosts: Hosts) -> None:

@@ -26,7 +26,6 @@ from coco_core.errors import SetupError
 from coco_core.operations import operation
 from coco_core.ports import InputPort
 from coco_core.policy import NEW_DATA
-from coco_core.stamps import unstamped
 from coco_core.transforms import se3
 from coco_core.transforms.samples import FramePose, TransformSample
 
@@ -137,7 +136,7 @@ class GLCameraManager(Component):
         status, value = self.pose.read_newest()
         if status is NEW_DATA:
             self._pose = self._to_gl(as_transform(value))
-            self.shown.add(unstamped(value)[1])
+            self.shown.add(self.pose.origin)
         graph = self.transform_graph
         if self.follow_frame:
             self._pose = self._to_gl(graph.lookup(self._world(), self.follow_frame))
@@ -145,7 +144,7 @@ class GLCameraManager(Component):
         status, value = self.eye.read_newest()
         if status is NEW_DATA:
             self._set_head(value)
-            self.shown.add(unstamped(value)[1])
+            self.shown.add(self.eye.origin)
         if self.eye_frame:
             self._head, self._head_oriented = graph.lookup(self._world(), self.eye_frame), True
             self.shown.add_graph(graph.query(self._world(), self.eye_frame).dependencies)

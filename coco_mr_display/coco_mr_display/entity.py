@@ -30,7 +30,6 @@ from coco_core.attributes import Attribute
 from coco_core.errors import ExtrapolationError, GeometryError
 from coco_core.policy import NEW_DATA
 from coco_core.ports import InputPort
-from coco_core.stamps import unstamped
 from coco_core.transforms import se3
 from coco_core.transforms.graph import TransformError
 
@@ -117,7 +116,7 @@ class GLEntity(PhongPeer):
         status, value = self.pose.read_newest()  # a display shows the newest pose; skipped ones count as dropped
         if status is NEW_DATA:
             self._received = reference_of(value)  # a bad value raises here once; the last good one stays
-            self.shown.add(unstamped(value)[1])
+            self.shown.add(self.pose.origin)
         state = self.base_state()
         for pre_render in self._pre_render:
             pre_render(state)

@@ -86,7 +86,7 @@ class GLImage(GLPeer):
     def on_update(self) -> None:
         status, value = self.image.read_newest()  # the newest image is drawn; skipped ones count as dropped
         if status is NEW_DATA:
-            image, stamp = unstamped(value)
+            image, stamp = unstamped(value)[0], self.image.origin
             self._pending = image
             self.shown.add(stamp)
             if stamp is not None:

@@ -12,7 +12,8 @@ manager's own pixel-space view), the framebuffer is cleared and every drawing pe
 then the outputs are read back and, in a window, the frame is shown.
 
 Sensor-to-display latency (:mod:`.shown`): once a frame is drawn, the manager takes from every peer
-the origins of the inputs it shows for the first time and stamps the frame with the oldest (seq: the
+the origins of the inputs it shows for the first time (a ``Stamped`` input's own stamp, a plain
+input's message stamp: its write) and stamps the frame with the oldest (seq: the
 frame's number); a frame that shows nothing new is stamped at its own render time with the manager's
 name as source. When the frame is read back (the pixels exist), the manager records the frame's
 latency (``record_latency``: the ``display`` row of ``--profile``) and writes it on ``latency``

@@ -298,18 +298,18 @@ class GLRGBDImage(GLPeer):
             self._port_intrinsics = intrinsics
         status, value = self.rgbd.read_newest()
         if status is NEW_DATA:
-            frame, origin = unstamped(value)
+            frame = unstamped(value)[0]
             self._color, self._depth = frame.color, (frame.depth, frame.depth_scale)
             self._data_intrinsics = frame.intrinsics
-            self.shown.add(origin)
+            self.shown.add(self.rgbd.origin)
         status, value = self.color.read_newest()
         if status is NEW_DATA:
-            self._color, origin = unstamped(value)
-            self.shown.add(origin)
+            self._color = unstamped(value)[0]
+            self.shown.add(self.color.origin)
         status, value = self.depth.read_newest()
         if status is NEW_DATA:
-            depth, origin = unstamped(value)
-            self.shown.add(origin)
+            depth = unstamped(value)[0]
+            self.shown.add(self.depth.origin)
             if not depth.format.is_depth:
                 raise ImageError(f"{self.name}.depth takes DEPTH16 or DEPTH32F images, got {depth.format.name}")
             self._depth = (depth, self.depth_scale)

@@ -2,8 +2,11 @@
 
 Sensor-to-display latency (the paper's 89 ms for teleoperation) runs from the moment an input was
 acquired or emitted upstream (its :class:`~coco_core.stamps.Stamp`) to the frame that first shows
-it. Every display peer that takes an input keeps a :class:`ShownInputs`, ``shown``: a stamped value
-read from a port (``add``), or a pose the peer looked up in the transformation graph (``add_graph``:
+it. Every display peer that takes an input keeps a :class:`ShownInputs`, ``shown``: the origin of a
+value read from a port (``add`` of the port's :attr:`~coco_core.ports.InputPort.origin`: a
+``Stamped`` value's own stamp, else the stamp of the message that carried it, so that a plain value
+written through a port, in this process or another, is timed from its write), or a pose the peer
+looked up in the transformation graph (``add_graph``:
 the ``cause`` the graph's writer left on each edge or robot on the path, e.g. the joint state a
 ``TransformationInterface`` applied). GLManager ``take``\\ s them from all its peers once the frame is
 drawn and stamps the frame with the oldest: the frame's own stamp, carried in the data it writes
@@ -32,7 +35,8 @@ class ShownInputs:
         """Per graph dependency (edge or robot model, by id): the origin already reported."""
 
     def add(self, origin: Stamp | None) -> None:
-        """An input with this origin (None: unstamped, nothing to measure) is drawn in the next frame."""
+        """An input with this origin (None: a value that came without a port's stamp, nothing to
+        measure) is drawn in the next frame."""
         if origin is not None and (self.oldest is None or origin.time < self.oldest.time):
             self.oldest = origin
 

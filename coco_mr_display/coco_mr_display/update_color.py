@@ -86,13 +86,12 @@ class UpdateColor(Component):
         # The newest value or colour is drawn; the ones skipped count as dropped on their connections.
         status, value = self.value.read_newest()
         if status is NEW_DATA:
-            scalar, stamp = unstamped(value)
+            scalar = unstamped(value)[0]
             if not math.isnan(float(scalar)):
-                self._apply(self.map(float(scalar)), stamp)
+                self._apply(self.map(float(scalar)), self.value.origin)
         status, value = self.color.read_newest()
         if status is NEW_DATA:
-            color, stamp = unstamped(value)
-            self._apply(_color_of(color), stamp)
+            self._apply(_color_of(unstamped(value)[0]), self.color.origin)
 
     def _apply(self, color: tuple[float, ...], stamp: Stamp | None) -> None:
         """Use ``color`` from now on; a stamped input's latency to this peer ends here, to the screen

@@ -62,7 +62,7 @@ class UpdateVector(Component):
         status, value = self.vector.read_newest()  # a display shows the newest; skipped ones count as dropped
         if status is not NEW_DATA:
             return
-        vector, stamp = unstamped(value)
+        vector, stamp = unstamped(value)[0], self.vector.origin
         try:
             values = np.asarray(vector, dtype=float).reshape(-1)
             if values.shape != (3,) or not np.isfinite(values).all():

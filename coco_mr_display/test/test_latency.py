@@ -13,7 +13,8 @@ from coco_core.component import Component
 from coco_core.policy import BufferPolicy, ConnectionPolicy
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamp, Stamped
-from coco_core.transforms.samples import FramePose
+from coco_core.transforms.interface import TransformationInterface
+from coco_core.transforms.samples import FramePose, TransformSample
 from coco_mr_display.camera import GLCameraManager
 from coco_mr_display.entity import GLEntity
 from coco_mr_display.manager import GLManager
@@ -128,3 +129,74 @@ def test_a_display_reading_the_newest_counts_the_skipped_inputs_as_dropped():
         manager.stop()
     connection = next(c for c in app.connections if c.sink is not None and c.sink.name == "color")
     assert connection.counters() == {"written": 5, "read": 1, "dropped": 4, "pending": 0}
+
+
+class PlainInputs(Component):
+    """A producer that writes plain values (no ``Stamped``): their message stamps are their origins."""
+
+    color = OutputPort(tuple)
+    pose = OutputPort(FramePose)
+
+
+def test_a_plain_input_is_timed_from_its_message_stamp():
+    """A colour and a pose written as plain values: the frame that first shows them is stamped with
+    the older message's stamp (its write: time, number on its port, the writing port), and its
+    latency reaches ``latency`` and the manager's profile, as a ``Stamped`` input's does."""
+    app = Application("plain-latency-test")
+    manager = GLManager("display", width=64, height=48, stamped=True, world="base")
+    manager.add_peer(GLCameraManager("camera", position=[0.0, -3.0, 0.0], look_at=[0.0, 0.0, 0.0]))
+    bowl = GLEntity("bowl", mesh="sphere")
+    bowl.add_peer(UpdateColor("bowl_color"))
+    manager.add_peer(bowl)
+    manager.add_peer(GLEntity("marker", mesh="box", size=[0.1, 0.1, 0.1]))
+    inputs, collected = PlainInputs("inputs"), Collected("collected")
+    for component in (manager, inputs, collected):
+        app.add(component)
+    app.connect("inputs.color", "bowl_color.color")
+    app.connect("inputs.pose", "marker.pose")
+    app.connect("display.color", "collected.frames")
+    app.connect("display.latency", "collected.latency")
+    app.transforms.add_frame("base")
+    assert manager.configure(), "GLManager failed to configure (see the log)"
+    try:
+        inputs.color.write((0.0, 1.0, 0.0))
+        written = inputs.color.stamp
+        inputs.pose.write(FramePose("base", "marker", np.eye(4), 2.0))
+        assert written is not None and inputs.pose.stamp is not None and inputs.pose.stamp.time >= written.time
+        manager.step()
+        [frame] = collected.frames.read_all()
+        assert (frame.stamp.time, frame.stamp.source) == (written.time, "inputs.color"), frame.stamp
+        [latency] = collected.latency.read_all()
+        assert latency.stamp.time == written.time and latency.value >= latency.stamp.steps[-1][1] - written.time
+        assert manager.stats.latency.count == 1 and bowl.peers[0].stats.latency.count == 1
+
+        manager.step()  # nothing new: no latency, as for stamped inputs
+        assert collected.latency.read_all() == [] and manager.stats.latency.count == 1
+    finally:
+        manager.stop()
+
+
+class PlainTransforms(Component):
+    tf = OutputPort(TransformSample)
+
+
+def test_a_plain_transform_into_the_graph_is_timed_from_its_message_stamp():
+    """A plain TransformSample written to a TransformationInterface: the edge it changes keeps the
+    sample's message stamp as its cause, and the frame that first shows the moved entity is stamped
+    with it (latency-to-pixel through the graph, from the write in the producer)."""
+    app, manager, inputs, collected = scene()
+    feeder, interface = PlainTransforms("feeder"), TransformationInterface("interface")
+    app.add(feeder)
+    app.add(interface)
+    app.connect("feeder.tf", "interface.transform")
+    assert manager.configure(), "GLManager failed to configure (see the log)"
+    try:
+        feeder.tf.write(TransformSample("base", "bowl", np.eye(4), 1.0))
+        written = feeder.tf.stamp
+        interface.on_update()
+        manager.step()
+        [frame] = collected.frames.read_all()
+        assert written is not None and (frame.stamp.time, frame.stamp.source) == (written.time, "feeder.tf")
+        assert manager.stats.latency.count == 1
+    finally:
+        manager.stop()

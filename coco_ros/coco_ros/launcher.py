@@ -150,6 +150,10 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
             built = load_and_build(options, signals)
         except CocoError as error:
             return failure(_NAME, error)
+    if options.host is not None:  # before the node: Fast DDS reads its profiles at the first participant
+        from .hosts.fastdds import use_hosts_profile
+
+        use_hosts_profile()
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 

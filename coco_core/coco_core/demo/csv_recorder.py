@@ -1,4 +1,4 @@
-"""A sink that records stamped values to a CSV file; nothing written is lost on stop."""
+"""A sink that records numbers and their stamps to a CSV file; nothing written is lost on stop."""
 
 from __future__ import annotations
 
@@ -10,15 +10,20 @@ from typing import IO
 from ..attributes import Attribute
 from ..component import Component
 from ..ports import InputPort
-from ..stamps import Stamped
+from ..stamps import Stamped, unstamped
 
 
 class CsvRecorder(Component):
-    """Appends ``seq, source, stamp_s, value, latency_ms`` rows; flushes every update and on stop."""
+    """Appends ``seq, source, stamp_s, value, latency_ms`` rows; flushes every update and on stop.
+
+    The stamp of a row is its value's origin (:attr:`InputPort.origin
+    <coco_core.ports.InputPort.origin>`): a ``Stamped`` value's own, a plain number's message stamp
+    (its number on the writing port, that port, the time of the write), so plain numbers are
+    recorded, and their latency profiled, as stamped ones are."""
 
     path = Attribute(Path, Path("coco_record.csv"), "output file; its folder is created")
 
-    values = InputPort(Stamped, doc="values to record")
+    values = InputPort(Stamped | float | int, doc="numbers to record, plain or Stamped")
 
     def on_config(self) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -28,13 +33,16 @@ class CsvRecorder(Component):
         self.rows = 0
 
     def on_update(self) -> None:
-        samples = self.values.read_all()
+        samples = self.values.read_all_origins()
         if not samples:
             return
         now = time.perf_counter()
-        for sample in samples:
-            stamp = sample.stamp
-            self._writer.writerow([stamp.seq, stamp.source, f"{stamp.time:.6f}", f"{sample.value:.6f}",
+        for sample, stamp in samples:
+            value = unstamped(sample)[0]
+            if stamp is None:  # a number pushed into the connection without a port: no stamp to give
+                self._writer.writerow(["", "", "", f"{value:.6f}", ""])
+                continue
+            self._writer.writerow([stamp.seq, stamp.source, f"{stamp.time:.6f}", f"{value:.6f}",
                                    f"{(now - stamp.time) * 1e3:.3f}"])
             self.record_latency(stamp)
         self.rows += len(samples)

@@ -29,7 +29,7 @@ def host_level(spec: AppSpec, app: Application, timeout: float,
     try:
         session.join(transport.bus(spec, session.receive))
         app.router = session  # the process level's supervisor takes over, passing other hosts' calls on
-        ends = ends_between_hosts(app, spec, session.clock)
+        ends = session.ends = ends_between_hosts(app, spec, session.clock)
         yield session
     finally:
         if not app.stop_requested:  # the launcher ends early (an error): the other hosts too

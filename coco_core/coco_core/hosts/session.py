@@ -32,6 +32,7 @@ from ..processes.remote import serve_call, settle
 from .clock import EXCHANGES, ClockOffset, best, exchange
 from .messages import ClockRequest, Heartbeat, Stage
 from .part import split_address
+from .transport import Ends
 
 if TYPE_CHECKING:
     from ..application import Application
@@ -97,6 +98,8 @@ class HostSession:
         self.stage = Stage.JOINED
         self.bus: Bus | None = None
         self.clock = ClockOffset()
+        self.ends: Ends | None = None
+        """The launcher's process's ends of connections between hosts (:mod:`.level` attaches them)."""
         self.local: Callable[[Call, Callable[[Outcome], None]], None] | None = None
         """Routes a call to a process of this host and passes its outcome on as it came (the process
         level's :meth:`~coco_core.processes.supervisor.ProcessSupervisor.route`); None: this host
@@ -138,9 +141,17 @@ class HostSession:
         if processes is not None:
             processes.hosts = self
             self.local = processes.route
+        if self.ends is not None:
+            self.matched(self.ends)
         self._enter(Stage.BUILT)
         self._wait_for(Stage.BUILT, "to build their parts")
         self.app.gate.hold(self._configured)
+
+    def matched(self, ends: Ends) -> None:
+        """Wait until every writer of ``ends`` (this process's) has its reader on the other host,
+        bounded by the start timeout: a sample written before would be lost (a child process waits
+        so before it says it is built, :func:`matched`)."""
+        matched(ends, self.timeout, self.interrupted, self.app)
 
     def _configured(self) -> None:
         """The start gate's report: every activity of this host is configured. Waits for the others
@@ -340,6 +351,17 @@ class HostSession:
         if self.bus is not None:
             self.bus.close()
             self.bus = None
+
+
+def matched(ends: Ends, timeout: float, interrupted: Callable[[], None], app: Application) -> None:
+    """Wait until every writer of ``ends`` has its reader on another host (:meth:`Ends.unmatched`),
+    for ``timeout`` seconds at most (a :class:`HostError` names the others) or until ``app`` stops."""
+    deadline = time.monotonic() + timeout
+    while (left := ends.unmatched()) and not app.stop_requested:
+        if time.monotonic() > deadline:
+            raise HostError(f"no reader subscribed within {timeout:g} s to {', '.join(left)} (--host-timeout)")
+        interrupted()
+        time.sleep(SIGNAL_CHECK / 5)
 
 
 def _waiting_for(peers: list[Peer]) -> str:

@@ -8,6 +8,7 @@ declares hosts, so a one-host application never imports rclpy.
 
 from __future__ import annotations
 
+import functools
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Callable, Protocol
 
@@ -26,6 +27,10 @@ GROUP = "coco.host_transports"
 class Ends(Protocol):
     """This process's ends of the connections between hosts, closed at the process's end."""
 
+    def unmatched(self) -> list[str]:
+        """The writers whose reader on another host has not subscribed yet: a sample written now
+        would not reach it, so no host starts before every writer has its reader."""
+
     def close(self) -> None: ...
 
 
@@ -41,8 +46,10 @@ class HostTransport(Protocol):
         ``clock`` puts the stamps on the application's clock and back."""
 
 
+@functools.cache
 def host_transport() -> HostTransport:
-    """The installed transport; a :class:`MissingPackageError` when there is none."""
+    """The installed transport, one per process (the launch's messages and this process's ends of
+    connections share its DDS participant); a :class:`MissingPackageError` when there is none."""
     found = list(entry_points(group=GROUP))
     if not found:
         raise MissingPackageError("the application runs on several hosts (<host>), whose connections go over DDS: "

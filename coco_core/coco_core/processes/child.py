@@ -31,6 +31,7 @@ from ..deployment import deployed, drive
 from ..errors import CocoError
 from ..garbage import GarbageBetweenCycles
 from ..hosts.level import ends_between_hosts
+from ..hosts.session import matched
 from ..hosts.transport import Ends
 from ..launcher import stopped_by_a_failure
 from ..memory_lock import lock_memory
@@ -142,7 +143,10 @@ class ChildProcess:
             app = self.app = build_application(spec, process)
             drive(app, config.deployment, config.wakes)
             attach(app, config.plans, config.wakes)
-            self.ends = ends_between_hosts(app, spec, config.clock) if config.clock is not None else None
+            if config.clock is not None:
+                self.ends = ends_between_hosts(app, spec, config.clock)
+                if self.ends is not None:
+                    matched(self.ends, config.host_timeout, lambda: None, app)
         except CocoError as error:
             self.link.send(BuildFailed(str(error)))
             return 1

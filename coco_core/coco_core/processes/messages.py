@@ -81,6 +81,8 @@ class Config(Message):
     clock: Any = None
     """This host's clock against the application's (:class:`~coco_core.hosts.clock.ClockOffset`),
     when the application has several hosts; None otherwise."""
+    host_timeout: float = 60.0
+    """Seconds a child waits for the readers of its connections to other hosts (``--host-timeout``)."""
 
 
 @dataclass(frozen=True)

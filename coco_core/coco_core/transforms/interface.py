@@ -6,10 +6,12 @@ their path changes; other components may also call its ``lookup`` operation from
 
 Each published :class:`FramePose` carries, as ``stamp``, the graph-time stamp (e.g. ROS time) of the
 input sample that changed it (None when the change did not come through this component's ports).
-Inputs may be :class:`~coco_core.stamps.Stamped` (e.g. a ``BagReplay`` with ``stamped``); with
-``stamped`` the lookups are published as ``Stamped(FramePose, stamp)`` carrying the stamp of the input
-that caused them, so a consumer's ``record_latency`` measures from that input's origin, through the
-graph. With ``wait_for_joints``, a lookup through a URDF robot is not published before the robot's
+Inputs may be :class:`~coco_core.stamps.Stamped` (e.g. a ``BagReplay`` with ``stamped``); each
+input's origin (:attr:`InputPort.origin <coco_core.ports.InputPort.origin>`: a ``Stamped`` value's
+own stamp, a plain value's message stamp, its write) is kept on what it changed in the graph (the
+display's latency-to-pixel reads it there), and with ``stamped`` the lookups are published as
+``Stamped(FramePose, stamp)`` carrying the origin of the input that caused them, so a consumer's
+``record_latency`` measures from that input's origin, through the graph. With ``wait_for_joints``, a lookup through a URDF robot is not published before the robot's
 first joint state (its zero-joint pose is no data), as robot_state_publisher; static lookups are.
 """
 
@@ -106,16 +108,16 @@ class TransformationInterface(Component):
         matrix that is not a rigid transform, positions that do not match the names) is refused and
         counted (:meth:`record_refusal`), and the samples after it are still applied."""
         graph = self.transform_graph
-        for item in self.transform.read_all():
-            item, origin = unstamped(item)
+        for item, origin in self.transform.read_all_origins():
+            item = unstamped(item)[0]
             for sample in item if isinstance(item, (list, tuple)) else (item,):
                 self._cause = (origin, sample.stamp)
                 try:
                     self._apply_transform(graph, sample, origin)
                 except (ValueError, LookupError) as error:
                     self.record_refusal(f"a transform sample on port {self.transform.name}", error)
-        for joints in self.joints.read_all():
-            joints, origin = unstamped(joints)
+        for joints, origin in self.joints.read_all_origins():
+            joints = unstamped(joints)[0]
             self._cause = (origin, joints.stamp)
             try:  # the positions stay an array down to the kinematic models
                 graph.set_joint_array(joints.names, joints.positions, origin)

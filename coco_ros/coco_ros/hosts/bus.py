@@ -7,9 +7,12 @@ application trust each other as the processes of one launch do (use a DDS domain
 application's own, or SROS 2, where the network is shared with others). A body that does not
 unpickle is reported and dropped, never a crash.
 
-Reliable, volatile, keeping the last :data:`DEPTH`: a heartbeat says a host's whole state and comes
-again a fifth of a second later, so what a host missed before it listened costs nothing; an
-operation's call and result must arrive, which reliability gives while both hosts are there.
+The heartbeats go on a topic of their own, ``/coco/<application>/hosts/heartbeat``, best effort: a
+heartbeat says a host's whole state and comes again a fifth of a second later, so a lost one costs
+nothing, where on a reliable topic one lost packet would hold up every later heartbeat until it is
+sent again (Fast DDS asks for repairs every 3 s by default: on a lossy link the other hosts saw a
+host silent for 3 s, "disappeared", while it was there). The other messages (operation calls and
+results, the clock exchange) must arrive: reliable, volatile, keeping the last :data:`DEPTH`.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from collections.abc import Callable
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from coco_core.hosts.channel import ros_name
+from coco_core.hosts.messages import Heartbeat
 from coco_core.processes.messages import Message
 from coco_interfaces.msg import HostMessage
 
@@ -31,6 +35,8 @@ log = logging.getLogger("coco")
 DEPTH = 256
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DEPTH, reliability=ReliabilityPolicy.RELIABLE,
                  durability=DurabilityPolicy.VOLATILE)
+BEATS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.BEST_EFFORT,
+                   durability=DurabilityPolicy.VOLATILE)
 
 
 def bus_topic(application: str) -> str:
@@ -39,8 +45,7 @@ def bus_topic(application: str) -> str:
 
 class DdsBus:
     """The :class:`coco_core.hosts.session.Bus` of one host, on ``bridge`` (whose thread runs
-    ``receive(sender, message)`` for each message to this host). Closing the bridge delivers the
-    last messages (it waits, bounded, for the other hosts to acknowledge them)."""
+    ``receive(sender, message)`` for each message to this host)."""
 
     def __init__(self, bridge: HostBridge, application: str, host: str,
                  receive: Callable[[str, Message], None], release: Callable[[], None]) -> None:
@@ -50,13 +55,17 @@ class DdsBus:
         self.damaged = 0
         """Messages whose body did not unpickle (reported, dropped)."""
         topic = bus_topic(application)
-        self.publisher = bridge.publisher(HostMessage, topic, QOS)
-        self.subscription = bridge.subscribe(HostMessage, topic, self._heard, QOS)
+        # Not among the bridge's flushed publishers: at the end the other hosts may be gone already,
+        # and a stop was said as soon as it began, then by every heartbeat.
+        self.publisher = bridge.node.create_publisher(HostMessage, topic, QOS)
+        self.beats = bridge.node.create_publisher(HostMessage, f"{topic}/heartbeat", BEATS)
+        self.subscriptions = [bridge.subscribe(HostMessage, topic, self._heard, QOS),
+                              bridge.subscribe(HostMessage, f"{topic}/heartbeat", self._heard, BEATS)]
 
     def send(self, recipient: str, message: Message) -> None:
         out = HostMessage()
         out.sender, out.recipient, out.body = self.host, recipient, pickle.dumps(message)
-        self.publisher.publish(out)
+        (self.beats if isinstance(message, Heartbeat) else self.publisher).publish(out)
 
     def _heard(self, message: HostMessage) -> None:
         if message.sender == self.host or message.recipient not in ("", self.host):

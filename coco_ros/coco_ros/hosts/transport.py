@@ -20,13 +20,15 @@ from coco_core.processes.messages import Message
 
 from .bridge import HostBridge
 from .bus import DdsBus
-from .channel import attach_between_hosts
+from .channel import HostEnds, attach_between_hosts
+from .fastdds import use_hosts_profile
 
 
 class DdsTransport:
     """The network of one process of an application over several hosts."""
 
     def __init__(self) -> None:
+        use_hosts_profile()  # before this process's first participant (the ROS launcher did it before its node)
         self._bridge: HostBridge | None = None
         self._users = 0
         self._lock = threading.Lock()
@@ -51,21 +53,26 @@ class DdsTransport:
     def bus(self, spec: AppSpec, receive: Callable[[str, Message], None]) -> DdsBus:
         return DdsBus(self._use(spec, ""), spec.name, spec.part_of, receive, self._release)
 
-    def attach(self, app: Application, spec: AppSpec, clock: ClockOffset) -> HostEnds:
+    def attach(self, app: Application, spec: AppSpec, clock: ClockOffset) -> ProcessEnds:
         bridge = self._use(spec, app.process)
         try:
-            attach_between_hosts(app, bridge, spec.between_hosts, spec.part_of, clock.to_app, clock.from_app)
+            ends = attach_between_hosts(app, bridge, spec.between_hosts, spec.part_of, clock.to_app, clock.from_app)
         except BaseException:
             self._release()
             raise
-        return HostEnds(self._release)
+        return ProcessEnds(ends, self._release)
 
 
-class HostEnds:
+class ProcessEnds:
     """This process's ends of the connections between hosts (:class:`coco_core.hosts.transport.Ends`)."""
 
-    def __init__(self, release: Callable[[], None]) -> None:
+    def __init__(self, ends: HostEnds, release: Callable[[], None]) -> None:
+        self.ends = ends
         self._release = release
+
+    def unmatched(self) -> list[str]:
+        return [f"{writer.channel.label} (to host {writer.channel.dest_host})" for writer in self.ends.writers
+                if not writer.matched]
 
     def close(self) -> None:
         self._release()

@@ -23,7 +23,9 @@ Attributes (lists of topic specs, syntax in :mod:`coco_ros.interface.topic`)::
   A ``Stamped(value, stamp)`` is accepted on every publish port (its type is the converter's
   ``coco_type`` or ``Stamped``): the converter gets ``value``, and once the message is published the
   component records the stamp's age (``record_latency``), so ``--profile`` shows the latency from
-  the stamp's origin to the message handed to DDS. A :class:`~coco_ros.bag.BagMessage` of the port's
+  the stamp's origin to the message handed to DDS. A plain value is measured from its message stamp
+  (its write on the port that fed this one, in this process or another: :attr:`InputPort.origin
+  <coco_core.ports.InputPort.origin>`). A :class:`~coco_ros.bag.BagMessage` of the port's
   type (a ``BagReplay`` with ``output=bag``) is published as its recorded CDR bytes, nothing decoded
   or converted: replaying a bag onto DDS through an application then costs what ``coco-replay`` does.
 
@@ -47,7 +49,7 @@ from coco_core.attributes import Attribute
 from coco_core.component import Component
 from coco_core.errors import CocoError, WrongTypeError
 from coco_core.operations import operation
-from coco_core.stamps import Stamped
+from coco_core.stamps import Stamped, unstamped
 
 from ..bag import BagMessage
 from ..bag.message_types import normalize_type
@@ -188,10 +190,8 @@ class ROSInterface(Component):
     def on_update(self) -> None:
         for route in self._publications:
             entity = route.entity
-            for value in route.port.read_all():
-                stamp = None
-                if isinstance(value, Stamped):
-                    value, stamp = value.value, value.stamp
+            for value, stamp in route.port.read_all_origins():
+                value = unstamped(value)[0]
                 try:
                     msg = self._passed_through(route, value) if isinstance(value, BagMessage) else \
                         route.encode(value)

@@ -34,7 +34,9 @@ Latency (``record_latency``, reported by ``--profile``): the outputs' stamp keep
 ``source``) of the oldest :class:`Stamp` among the input poses the sample is the first to show (the
 pose that made it, or an earlier one that waited for the other pose), so the interval measured runs **from the emission of that input upstream** (e.g. ``BagReplay`` with ``stamped``: the
 joint state or bowl pose leaving the replay, through the graph) **to the outputs written here**; its
-``seq`` counts this component's samples. A plain (unstamped) input counts from the moment it is read
+``seq`` counts this component's samples. A plain (unstamped) input counts from its message stamp:
+its write on the port that fed this one (:attr:`InputPort.origin <coco_core.ports.InputPort.origin>`,
+whose source is that port); only a value pushed without a port counts from the moment it is read
 here. The stamp travels with the outputs, so ``TeleopSummary`` measures *emission -> CSV row* with it.
 """
 
@@ -107,9 +109,8 @@ class EndEffectorDistance(Component):
         read = Stamp.now()
         changes: list[tuple[Stamp, str, FramePose]] = []
         for port, attr in ((self.gripper, "_gripper"), (self.bowl, "_bowl")):
-            for value in port.read_all():
-                pose, origin = unstamped(value)
-                changes.append((origin or read, attr, pose))
+            for value, origin in port.read_all_origins():
+                changes.append((origin or read, attr, unstamped(value)[0]))
         changes.sort(key=lambda change: change[0].time)  # stable: each port's own order is kept
         for origin, attr, pose in changes:
             previous = getattr(self, attr)
