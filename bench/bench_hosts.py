@@ -53,6 +53,8 @@ DOMAIN = 179
 ANCHOR = "rclpy pair, two hosts"
 HOSTS = "CoCo, two hosts"
 PROCESSES = "CoCo, two processes, one host"
+ENCODED = "rclpy pair, CoCo's Sample encoding"
+"""``--split``: the anchor's pair sending CoCo's own Sample of the small value (``_hosts_rclpy.py``)."""
 VARIANTS = [ANCHOR, HOSTS, PROCESSES]
 SMALL = {"kind": "small", "latency": 300, "burst": 1000, "period": 0.01, "goal": 1.1}
 FRAME = {"kind": "frame", "latency": 60, "burst": 20, "period": 1 / 30, "goal": 1.0}
@@ -159,9 +161,10 @@ def run(net: Network, variant: str, payload: dict[str, Any], folder: Path) -> li
             processes[name] = net[host].popen(argv, stdout=log, stderr=subprocess.STDOUT, text=True,
                                               env=environment(), cwd=str(_report.REPO))
 
-    if variant == ANCHOR:
+    if variant in (ANCHOR, ENCODED):
         script = str(BENCH / "_hosts_rclpy.py")
-        counts = [payload["kind"], str(payload["latency"]), str(payload["burst"])]
+        kind = "sample" if variant == ENCODED else payload["kind"]
+        counts = [kind, str(payload["latency"]), str(payload["burst"])]
         start("subscriber", "graphics", [sys.executable, script, "sub", *counts, str(record)])
         while "ready" not in logs["subscriber"].read_text() and processes["subscriber"].poll() is None:
             if time.monotonic() > deadline:
@@ -197,16 +200,17 @@ def figures(records: list[list[float]], payload: dict[str, Any]) -> dict[str, fl
     return out
 
 
-def draw(plt: Any, rounds: dict[str, list[dict[str, dict[str, float]]]]) -> Any:
+def draw(plt: Any, rounds: dict[str, list[dict[str, dict[str, float]]]], cases: dict[str, dict[str, Any]]) -> Any:
     """Per case: latency p50/p99 and burst throughput of each variant (medians over the rounds), the
     value written on each bar (the variants differ by up to 40x: a linear axis with its numbers)."""
     def median(case: str, variant: str, key: str) -> float:
         values = [r[variant][key] for r in rounds[case] if variant in r]
         return statistics.median(values) if values else float("nan")
 
-    figure, axes = plt.subplots(1, 2 * len(CASES), figsize=(18, 3.6))
-    colors = {ANCHOR: "#4c72b0", HOSTS: "#dd8452", PROCESSES: "#55a868"}
-    for column, (case, payload) in enumerate(CASES.items()):
+    figure, axes = plt.subplots(1, 2 * len(cases), figsize=(6 * len(cases), 3.6), squeeze=False)
+    axes = axes[0]
+    colors = {ANCHOR: "#4c72b0", HOSTS: "#dd8452", PROCESSES: "#55a868", ENCODED: "#8172b2"}
+    for column, (case, payload) in enumerate(cases.items()):
         left, right = axes[2 * column], axes[2 * column + 1]
         variants = payload["variants"]
         y = np.arange(len(variants))
@@ -233,18 +237,30 @@ def draw(plt: Any, rounds: dict[str, list[dict[str, dict[str, float]]]]) -> Any:
 def main() -> None:
     parser = _report.parser("bench_hosts", __doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=2, help="interleaved rounds of every variant (default 2)")
+    parser.add_argument("--cases", nargs="+", metavar="WORD", help="only the cases whose name has one of these "
+                        f"words ({'; '.join(CASES)})")
+    parser.add_argument("--split", action="store_true",
+                        help=f"small samples: also the variant '{ENCODED}' (what the encoding costs)")
     args = parser.parse_args()
+    cases = {name: dict(case) for name, case in CASES.items()
+             if not args.cases or any(word in name for word in args.cases)}
+    if not cases:
+        raise SystemExit(f"no case has any of {args.cases}; cases: {'; '.join(CASES)}")
+    if args.split:
+        for case in cases.values():
+            if case["kind"] == "small":
+                case["variants"] = [*case["variants"], ENCODED]
     reason = unavailable()
     if reason:
         raise SystemExit(f"bench_hosts needs simulated hosts: {reason}")
     load = os.getloadavg()[0]
-    rounds: dict[str, list[dict[str, dict[str, float]]]] = {name: [] for name in CASES}
+    rounds: dict[str, list[dict[str, dict[str, float]]]] = {name: [] for name in cases}
     failures: dict[tuple[str, str], str] = {}
     """(payload, variant) -> why it could not run (it is not tried again in later rounds)."""
     with tempfile.TemporaryDirectory(prefix="bench_hosts") as name, Network(["robot", "graphics"], DOMAIN) as net:
         folder = Path(name)
         for index in range(args.rounds):
-            for payload_name, payload in CASES.items():
+            for payload_name, payload in cases.items():
                 net.limit(payload["rate"])
                 round_: dict[str, dict[str, float]] = {}
                 variants = payload["variants"]
@@ -276,7 +292,7 @@ def main() -> None:
                   ["payload, link", "variant", "received", "latency p50", "p50 / rclpy", "latency p99", "p99 / rclpy",
                    "throughput", "throughput / rclpy", "goal"])
     verdicts: dict[str, Any] = {}
-    for payload_name, payload in CASES.items():
+    for payload_name, payload in cases.items():
         for variant in payload["variants"]:
             if not any(variant in r for r in rounds[payload_name]):
                 table.add(payload_name, variant, "-", "n/a", "-", "n/a", "-", "n/a", "-", "did not run")
@@ -310,13 +326,17 @@ def main() -> None:
                        "the shared-memory channel (no codec)")
     table.notes.append("veth: the bare veth pairs, at memory speed; 1 Gbit/s: what each host sends limited by a token "
                        "bucket on its eth0 (tc tbf, 1 ms burst), as a gigabit network card")
+    if args.split:
+        table.notes.append(f"{ENCODED}: the rclpy pair sending the small value as a coco_interfaces/Sample made by "
+                           "CoCo's encoder, decoded by its decoder in the subscriber's callback (received: decoded); "
+                           "the rest of CoCo two hosts' latency is its ports and threads")
     for (payload_name, variant), why in failures.items():
         table.notes.append(f"{variant}, {payload_name}: did not run: {why.splitlines()[0][:300]}")
     table.notes.append(f"load average before the run: {load:.2f} on {os.cpu_count()} cores")
     _report.emit("bench_hosts", args, [table], {"rounds": rounds, "verdicts": verdicts,
                                                 "failures": {f"{p}, {v}": why for (p, v), why in failures.items()}})
 
-    _report.save_plot(args, lambda plt: draw(plt, rounds))
+    _report.save_plot(args, lambda plt: draw(plt, rounds, cases))
 
 
 if __name__ == "__main__":
