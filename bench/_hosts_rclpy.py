@@ -1,10 +1,13 @@
 """The anchor of ``bench_hosts.py``: a plain rclpy publisher and subscriber, the same two phases and
 the same payloads as ``_hosts_components.py``, the way a ROS 2 user would send them.
 
-    python _hosts_rclpy.py pub small|frame LATENCY BURST PERIOD_S
-    python _hosts_rclpy.py sub small|frame LATENCY BURST RECORD.json
+    python _hosts_rclpy.py pub small|sample|frame LATENCY BURST PERIOD_S
+    python _hosts_rclpy.py sub small|sample|frame LATENCY BURST RECORD.json
 
-Small samples: ``sensor_msgs/JointState`` with 19 positions. Frames: two ``sensor_msgs/Image``
+Small samples: ``sensor_msgs/JointState`` with 19 positions; ``sample``: the same 19 float64 as a CoCo
+connection between hosts sends them, a ``coco_interfaces/Sample`` made by CoCo's own encoder and
+decoded by its decoder (``coco_ros.hosts.sample``) in the callback, with none of the ports and
+threads around them: how much of the connection's cost is its encoding. Frames: two ``sensor_msgs/Image``
 (rgb8 colour, 16UC1 depth, raw: what a ROS camera driver publishes), the frame counted when both
 halves came. The write time is the header's stamp (the monotonic clock, one clock for the hosts of
 one machine), the phase and number its ``frame_id`` (``phase:number``). Reliable, keep last BURST:
@@ -41,6 +44,12 @@ def publish(node: Any, kind: str, latency: int, burst: int, period: float) -> No
     if kind == "small":
         publishers = [node.create_publisher(JointState, "bench_small", qos)]
         joints = [f"joint_{i}" for i in range(SMALL)]
+    elif kind == "sample":
+        from coco_interfaces.msg import Sample
+        from coco_ros.hosts.sample import SampleEncoder
+
+        publishers = [node.create_publisher(Sample, "bench_sample", qos)]
+        encoder = SampleEncoder("pickle")
     else:
         publishers = [node.create_publisher(Image, "bench_color", qos), node.create_publisher(Image, "bench_depth", qos)]
         frame = redwood_frame()
@@ -62,6 +71,11 @@ def publish(node: Any, kind: str, latency: int, burst: int, period: float) -> No
             message = JointState(name=joints, position=[now, float(number), float(phase)] + [0.0] * (SMALL - 3))
             stamp(message, now, tag)
             publishers[0].publish(message)
+            return
+        if kind == "sample":
+            value = np.zeros(SMALL)
+            value[:3] = now, number, phase
+            publishers[0].publish(encoder.encode(value, number + 1))
             return
         for publisher, half in zip(publishers, halves):
             stamp(half, now, tag)
@@ -85,7 +99,6 @@ def subscribe(node: Any, kind: str, latency: int, burst: int, path: str) -> None
     done = False
 
     def arrived(message: Any) -> None:
-        nonlocal done
         received = time.perf_counter()
         if kind == "frame":
             np.frombuffer(message.data, np.uint8)  # the pixels as an array, as a user's callback takes them
@@ -97,11 +110,25 @@ def subscribe(node: Any, kind: str, latency: int, burst: int, path: str) -> None
             del halves[tag]
         phase, number = (int(part) for part in tag.split(":"))
         written = message.header.stamp.sec + message.header.stamp.nanosec * 1e-9
+        record(number, phase, written, received)
+
+    def decoded(message: Any) -> None:
+        value = decoder.decode(message)
+        record(int(value[1]), int(value[2]), float(value[0]), time.perf_counter())  # received: decoded
+
+    def record(number: int, phase: int, written: float, received: float) -> None:
+        nonlocal done
         records.append((number, phase, written, received))
         done = number == last
 
     if kind == "small":
         node.create_subscription(JointState, "bench_small", arrived, qos)
+    elif kind == "sample":
+        from coco_interfaces.msg import Sample
+        from coco_ros.hosts.sample import SampleDecoder
+
+        decoder = SampleDecoder()
+        node.create_subscription(Sample, "bench_sample", decoded, qos)
     else:
         node.create_subscription(Image, "bench_color", arrived, qos)
         node.create_subscription(Image, "bench_depth", arrived, qos)

@@ -15,7 +15,9 @@ The hosts ``robot`` and ``graphics`` are network namespaces of this machine join
 - *CoCo, two processes, one host*: the same application with the source in a ``<process>`` of its
   own (the shared-memory channel), one ``coco-launch`` in ``robot``.
 
-Payloads: a small sample (19 float64) and a 640x480 RGB-D frame (a real Redwood frame). Each run has
+Payloads: a small sample (19 float64) and a 640x480 RGB-D frame (a real Redwood frame); the frames
+twice, on the bare veth pairs (memory speed) and on the link limited to 1 Gbit/s (``tc tbf``: a
+gigabit Ethernet between two computers, where a codec pays). Each run has
 two phases: *latency*, one sample per period (small: 100 Hz, frames: 30 Hz; the first tenth left
 out), the time from the write (carried in the payload) to the sink's update (p50, p99); then
 *burst*, N samples written back to back: throughput = samples received / (last arrival - first
@@ -51,14 +53,22 @@ DOMAIN = 179
 ANCHOR = "rclpy pair, two hosts"
 HOSTS = "CoCo, two hosts"
 PROCESSES = "CoCo, two processes, one host"
+ENCODED = "rclpy pair, CoCo's Sample encoding"
+"""``--split``: the anchor's pair sending CoCo's own Sample of the small value (``_hosts_rclpy.py``)."""
 VARIANTS = [ANCHOR, HOSTS, PROCESSES]
-PAYLOADS: dict[str, dict[str, Any]] = {
-    "small sample (19 float64)": {"kind": "small", "latency": 300, "burst": 1000, "period": 0.01, "goal": 1.1},
-    "640x480 RGB-D frame": {"kind": "frame", "latency": 60, "burst": 20, "period": 1 / 30, "goal": 1.0},
+SMALL = {"kind": "small", "latency": 300, "burst": 1000, "period": 0.01, "goal": 1.1}
+FRAME = {"kind": "frame", "latency": 60, "burst": 20, "period": 1 / 30, "goal": 1.0}
+GIGABIT = 1000.0
+CASES: dict[str, dict[str, Any]] = {
+    "small sample (19 float64), veth": {**SMALL, "rate": None, "variants": VARIANTS},
+    "RGB-D frame 640x480, veth": {**FRAME, "rate": None, "variants": VARIANTS},
+    "RGB-D frame 640x480, 1 Gbit/s": {**FRAME, "rate": GIGABIT, "variants": [ANCHOR, HOSTS]},
 }
-"""Per payload: samples of the latency phase and of the burst, the latency phase's period, and the
-goal: the connection between hosts at most ``goal`` times the anchor's latency p50 and at least
-1/``goal`` its throughput (frames: strictly better)."""
+"""Per case: samples of the latency phase and of the burst, the latency phase's period, the link's rate
+limit (None: the bare veth pairs, which move data at memory speed; 1 Gbit/s: a gigabit Ethernet
+between the robot's and the graphics computer, ``tc tbf``), the variants (two processes of one host
+use no link), and the goal: the connection between hosts at most ``goal`` times the anchor's latency
+p50 and at least 1/``goal`` its throughput (frames, ``goal`` 1: strictly better)."""
 RUN_TIMEOUT_S = 90.0
 GRACE_S = 15.0
 
@@ -151,9 +161,10 @@ def run(net: Network, variant: str, payload: dict[str, Any], folder: Path) -> li
             processes[name] = net[host].popen(argv, stdout=log, stderr=subprocess.STDOUT, text=True,
                                               env=environment(), cwd=str(_report.REPO))
 
-    if variant == ANCHOR:
+    if variant in (ANCHOR, ENCODED):
         script = str(BENCH / "_hosts_rclpy.py")
-        counts = [payload["kind"], str(payload["latency"]), str(payload["burst"])]
+        kind = "sample" if variant == ENCODED else payload["kind"]
+        counts = [kind, str(payload["latency"]), str(payload["burst"])]
         start("subscriber", "graphics", [sys.executable, script, "sub", *counts, str(record)])
         while "ready" not in logs["subscriber"].read_text() and processes["subscriber"].poll() is None:
             if time.monotonic() > deadline:
@@ -189,24 +200,71 @@ def figures(records: list[list[float]], payload: dict[str, Any]) -> dict[str, fl
     return out
 
 
+def draw(plt: Any, rounds: dict[str, list[dict[str, dict[str, float]]]], cases: dict[str, dict[str, Any]]) -> Any:
+    """Per case: latency p50/p99 and burst throughput of each variant (medians over the rounds), the
+    value written on each bar (the variants differ by up to 40x: a linear axis with its numbers)."""
+    def median(case: str, variant: str, key: str) -> float:
+        values = [r[variant][key] for r in rounds[case] if variant in r]
+        return statistics.median(values) if values else float("nan")
+
+    figure, axes = plt.subplots(1, 2 * len(cases), figsize=(6 * len(cases), 3.6), squeeze=False)
+    axes = axes[0]
+    colors = {ANCHOR: "#4c72b0", HOSTS: "#dd8452", PROCESSES: "#55a868", ENCODED: "#8172b2"}
+    for column, (case, payload) in enumerate(cases.items()):
+        left, right = axes[2 * column], axes[2 * column + 1]
+        variants = payload["variants"]
+        y = np.arange(len(variants))
+        for offset, key, color in ((-0.2, "p50", "#4c72b0"), (0.2, "p99", "#dd8452")):
+            values = [median(case, v, key) * 1e3 for v in variants]
+            left.barh(y + offset, values, 0.4, label=key, color=color)
+            for row, value in zip(y, values):
+                left.text(value, row + offset, f" {value:.3g}", va="center", fontsize=6)
+        left.set_yticks(y, [v.replace(", ", ",\n") for v in variants], fontsize=7)
+        left.set_xlabel("latency (ms)")
+        left.set_title(case, fontsize=8)
+        left.legend(fontsize=7)
+        rates = [median(case, v, "throughput") for v in variants]
+        right.barh(y, rates, color=[colors[v] for v in variants])
+        for row, rate in zip(y, rates):
+            right.text(rate, row, f" {rate:,.0f}", va="center", fontsize=7)
+        right.set_yticks(y, [""] * len(variants))
+        right.set_xlabel("burst throughput (samples/s)")
+        right.set_title("throughput", fontsize=8)
+    figure.tight_layout()
+    return figure
+
+
 def main() -> None:
     parser = _report.parser("bench_hosts", __doc__.splitlines()[0])
-    parser.add_argument("--rounds", type=int, default=1, help="interleaved rounds of every variant (default 1)")
+    parser.add_argument("--rounds", type=int, default=2, help="interleaved rounds of every variant (default 2)")
+    parser.add_argument("--cases", nargs="+", metavar="WORD", help="only the cases whose name has one of these "
+                        f"words ({'; '.join(CASES)})")
+    parser.add_argument("--split", action="store_true",
+                        help=f"small samples: also the variant '{ENCODED}' (what the encoding costs)")
     args = parser.parse_args()
+    cases = {name: dict(case) for name, case in CASES.items()
+             if not args.cases or any(word in name for word in args.cases)}
+    if not cases:
+        raise SystemExit(f"no case has any of {args.cases}; cases: {'; '.join(CASES)}")
+    if args.split:
+        for case in cases.values():
+            if case["kind"] == "small":
+                case["variants"] = [*case["variants"], ENCODED]
     reason = unavailable()
     if reason:
         raise SystemExit(f"bench_hosts needs simulated hosts: {reason}")
     load = os.getloadavg()[0]
-    rounds: dict[str, list[dict[str, dict[str, float]]]] = {name: [] for name in PAYLOADS}
+    rounds: dict[str, list[dict[str, dict[str, float]]]] = {name: [] for name in cases}
     failures: dict[tuple[str, str], str] = {}
     """(payload, variant) -> why it could not run (it is not tried again in later rounds)."""
     with tempfile.TemporaryDirectory(prefix="bench_hosts") as name, Network(["robot", "graphics"], DOMAIN) as net:
         folder = Path(name)
         for index in range(args.rounds):
-            for payload_name, payload in PAYLOADS.items():
+            for payload_name, payload in cases.items():
+                net.limit(payload["rate"])
                 round_: dict[str, dict[str, float]] = {}
-                order = VARIANTS[index % 3:] + VARIANTS[:index % 3]
-                for variant in order:
+                variants = payload["variants"]
+                for variant in variants[index % len(variants):] + variants[:index % len(variants)]:
                     if (payload_name, variant) in failures:
                         continue
                     started = time.monotonic()
@@ -229,13 +287,13 @@ def main() -> None:
         values = [r[variant][key] / r[ANCHOR][key] for r in rounds[payload] if variant in r and ANCHOR in r]
         return statistics.median(values) if values else float("nan")
 
-    table = Table(f"Across a network link between two hosts (network namespaces, veth + bridge): medians of "
-                  f"{args.rounds} round(s)",
-                  ["payload", "variant", "received", "latency p50", "p50 / rclpy", "latency p99", "p99 / rclpy",
+    table = Table(f"Across a network link between two hosts (network namespaces, veth pairs on a bridge): medians "
+                  f"of {args.rounds} round(s)",
+                  ["payload, link", "variant", "received", "latency p50", "p50 / rclpy", "latency p99", "p99 / rclpy",
                    "throughput", "throughput / rclpy", "goal"])
     verdicts: dict[str, Any] = {}
-    for payload_name, payload in PAYLOADS.items():
-        for variant in VARIANTS:
+    for payload_name, payload in cases.items():
+        for variant in payload["variants"]:
             if not any(variant in r for r in rounds[payload_name]):
                 table.add(payload_name, variant, "-", "n/a", "-", "n/a", "-", "n/a", "-", "did not run")
                 continue
@@ -266,34 +324,19 @@ def main() -> None:
     table.notes.append("frames: the rclpy pair sends raw sensor_msgs/Image (rgb8 + 16UC1, 1.5 MB); CoCo between "
                        "hosts the connection's codec=\"rgbd\" (JPEG colour, Zstandard depth); between processes "
                        "the shared-memory channel (no codec)")
+    table.notes.append("veth: the bare veth pairs, at memory speed; 1 Gbit/s: what each host sends limited by a token "
+                       "bucket on its eth0 (tc tbf, 1 ms burst), as a gigabit network card")
+    if args.split:
+        table.notes.append(f"{ENCODED}: the rclpy pair sending the small value as a coco_interfaces/Sample made by "
+                           "CoCo's encoder, decoded by its decoder in the subscriber's callback (received: decoded); "
+                           "the rest of CoCo two hosts' latency is its ports and threads")
     for (payload_name, variant), why in failures.items():
         table.notes.append(f"{variant}, {payload_name}: did not run: {why.splitlines()[0][:300]}")
     table.notes.append(f"load average before the run: {load:.2f} on {os.cpu_count()} cores")
     _report.emit("bench_hosts", args, [table], {"rounds": rounds, "verdicts": verdicts,
                                                 "failures": {f"{p}, {v}": why for (p, v), why in failures.items()}})
 
-    def draw(plt: Any) -> Any:
-        figure, axes = plt.subplots(1, 2 * len(PAYLOADS), figsize=(14, 3.4))
-        colors = ["#4c72b0", "#dd8452", "#55a868"]
-        for column, payload_name in enumerate(PAYLOADS):
-            left, right = axes[2 * column], axes[2 * column + 1]
-            y = np.arange(len(VARIANTS))
-            left.barh(y - 0.2, [median(payload_name, v, "p50") * 1e3 for v in VARIANTS], 0.4, label="p50",
-                      color="#4c72b0")
-            left.barh(y + 0.2, [median(payload_name, v, "p99") * 1e3 for v in VARIANTS], 0.4, label="p99",
-                      color="#dd8452")
-            left.set_yticks(y, VARIANTS if column == 0 else [""] * len(VARIANTS))
-            left.set_xlabel("latency (ms)")
-            left.set_title(payload_name, fontsize=9)
-            left.legend(fontsize=7)
-            right.barh(y, [median(payload_name, v, "throughput") for v in VARIANTS], color=colors)
-            right.set_yticks(y, [""] * len(VARIANTS))
-            right.set_xlabel("throughput (samples/s)")
-            right.set_title(f"{payload_name}: burst", fontsize=9)
-        figure.tight_layout()
-        return figure
-
-    _report.save_plot(args, draw)
+    _report.save_plot(args, lambda plt: draw(plt, rounds, cases))
 
 
 if __name__ == "__main__":

@@ -15,6 +15,9 @@ of an application spread over several hosts (issue 21), with real DDS over real 
         net.counters()      # {"robot->graphics": {"forwarded": .., "dropped": .., ...}, ...}
         net.impair(Impairment(delay_s=0, loss=0.2, seed=3))        # change it mid-run
 
+    with Network(["robot", "graphics"], domain=172) as net:
+        net.limit(1000)     # a gigabit link (tc tbf on each host's eth0); net.limit(None) lifts it
+
 Each host is a network namespace with loopback, an ``eth0`` at ``10.77.0.N/24`` (N from 1, in the
 order given; ``subnet`` changes the prefix) and a route for multicast (DDS discovery). Commands run
 in a host through ``nsenter`` into the namespace, with the DDS environment that makes two hosts
@@ -273,6 +276,12 @@ class Network:
         impairment), failed (the destination's interface refused them), bytes; ``{}`` on a plain link."""
         counters: dict[str, dict[str, int]] = self.ask({"op": "counters"})["counters"]
         return counters
+
+    def limit(self, mbit: float | None) -> None:
+        """Limit what each host sends to ``mbit`` megabits a second, as its network card's line rate
+        (``tc tbf`` on its ``eth0``), or lift the limit (None): a veth alone moves data at memory
+        speed, no real link does."""
+        self.ask({"op": "rate", "mbit": mbit})
 
     def impair(self, impairment: Impairment) -> None:
         """Change the impaired link's delay and loss from now on (a network opened with an impairment)."""

@@ -10,6 +10,8 @@ hosts, and then serves commands, one JSON object a line on stdin, one answer a l
 
 - ``{"op": "counters"}``: the hub's frames forwarded and dropped per direction (``{}`` on a bridge);
 - ``{"op": "impair", "delay_s": .., "loss": .., "seed": ..}``: change the hub's impairment;
+- ``{"op": "rate", "mbit": .. or null}``: limit what every host sends (``tc tbf`` on its ``eth0``,
+  which the kernel has where it lacks netem), or lift the limit;
 - ``{"op": "kill", "host": NAME}``: SIGKILL every process in that host's namespace (a host that
   dies; the namespace itself stays, as a powered-off machine's cable does).
 
@@ -82,6 +84,8 @@ class Keeper:
         self.sleepers: dict[str, subprocess.Popen[bytes]] = {}
         self.namespaces: dict[str, int] = {}
         self.hub: Hub | None = None
+        self.rate: float | None = None
+        """The plain link's limit toward each host (megabits a second), None: none."""
         impairment = config.get("impairment")
         self.impairment = Impairment(**impairment) if impairment is not None else None
 
@@ -120,6 +124,25 @@ class Keeper:
             commands += [f"link add h{index} mtu {self.mtu} type veth peer name {INTERFACE} mtu {self.mtu} "
                          f"netns {self.sleepers[name].pid}", f"link set h{index} master br0 up"]
         ip(commands)
+
+    def limit(self, mbit: float | None) -> None:
+        """Every host's ``eth0`` sends at most ``mbit`` megabits a second (a token bucket on its egress,
+        as a NIC's line rate: a sender that outruns it waits for its socket's buffer, as on a real
+        link, instead of losing what a switch's queue would drop), or without limit (None)."""
+        if mbit is None and self.rate is None:
+            return
+        for name in self.names:
+            if mbit is None:
+                tc = ["tc", "qdisc", "del", "dev", INTERFACE, "root"]
+            else:
+                bucket = max(32_000, int(mbit * 1e6 / 8 / 1000))  # 1 ms of traffic, at least a few frames
+                tc = ["tc", "qdisc", "replace", "dev", INTERFACE, "root", "tbf", "rate", f"{mbit}mbit",
+                      "burst", str(bucket), "latency", "50ms"]
+            argv = ["nsenter", "-t", str(self.sleepers[name].pid), "-n", *tc]
+            result = subprocess.run(argv, capture_output=True, text=True)
+            if result.returncode != 0:
+                raise ValueError(f"{' '.join(tc)} in host {name} failed: {result.stderr.strip()}")
+        self.rate = mbit
 
     def _hub(self, impairment: Impairment) -> None:
         """One TAP device per host, made here and moved into the host (its descriptor stays the hub's)."""
@@ -164,6 +187,11 @@ class Keeper:
                                      "change one")
                 self.hub.set_impairment(Impairment(command["delay_s"], command["loss"], command.get("seed", 0)))
                 reply = {"ok": True}
+            elif op == "rate":
+                if self.hub is not None:
+                    raise ValueError("a rate limit is for the plain link (a bridge); the impaired one is the hub's")
+                self.limit(command["mbit"])
+                reply = {"ok": True}
             elif op == "kill":
                 host = command["host"]
                 if host not in self.namespaces:
@@ -171,7 +199,7 @@ class Keeper:
                 spare = {sleeper.pid for sleeper in self.sleepers.values()} | {os.getpid()}
                 reply = {"killed": sweep({self.namespaces[host]}, spare)}
             else:
-                raise ValueError(f"unknown op {op!r}; ops: counters, impair, kill")
+                raise ValueError(f"unknown op {op!r}; ops: counters, impair, rate, kill")
         except (ValueError, KeyError, TypeError) as error:
             reply = {"error": str(error)}
         sys.stdout.write(json.dumps(reply) + "\n")

@@ -5,12 +5,13 @@ real DDS over real UDP between them, an impaired link, and nothing left behind.
   every message, and the traffic went through the hosts' ``eth0`` (the link), not loopback;
 - the impaired link delays (a UDP echo takes at least twice the one-way delay) and drops (the hub
   counts drops) yet a reliable topic delivers every message;
+- a rate-limited link (``tc tbf``) takes at least the time its rate says for a TCP transfer;
 - a host killed loses its processes, the other host keeps running; a host disconnected (its cable
   pulled) is unreachable until it is reconnected;
 - closing the network, also when the body raises (an error, Ctrl-C) or when the process that opened
   it is killed, leaves no process and no namespace.
 
-DDS domains 170-175. Skipped only where unprivileged user namespaces are missing.
+DDS domains 170-176. Skipped only where unprivileged user namespaces are missing.
 """
 
 from __future__ import annotations
@@ -110,6 +111,41 @@ def test_an_impaired_link_delays_and_drops_yet_a_reliable_topic_delivers_every_m
     assert received == list(range(100))
     assert counters["robot->graphics"]["forwarded"] >= 100
     assert counters["robot->graphics"]["dropped"] + counters["graphics->robot"]["dropped"] > 0
+
+
+SERVE = """
+import socket, time
+server = socket.create_server(("0.0.0.0", 5001))
+print("listening", flush=True)
+connection, _ = server.accept()
+first = None
+total = 0
+while data := connection.recv(1 << 16):
+    first = first or time.monotonic()
+    total += len(data)
+print(total, time.monotonic() - first, flush=True)
+"""
+SEND = """
+import socket, sys
+with socket.create_connection((sys.argv[1], 5001)) as connection:
+    connection.sendall(bytes(int(sys.argv[2])))
+"""
+
+
+def test_a_rate_limited_link_takes_the_time_its_rate_says() -> None:
+    size, mbit = 1_000_000, 20.0
+    with Network(["robot", "graphics"], domain=176) as net:
+        net.limit(None)  # no limit to lift: nothing happens
+        net.limit(mbit)
+        server = net["graphics"].popen([sys.executable, "-c", SERVE], stdout=subprocess.PIPE, text=True)
+        assert server.stdout is not None and server.stdout.readline() == "listening\n"
+        sent = net["robot"].run([sys.executable, "-c", SEND, net["graphics"].address, str(size)], timeout=30)
+        assert sent.returncode == 0
+        received, seconds = server.stdout.readline().split()
+        net.limit(None)
+    assert int(received) == size
+    # The token bucket lets its burst (1 ms of traffic, at least 32 kB) through at once, then the rate.
+    assert float(seconds) >= (size - 32_000) * 8 / (mbit * 1e6) * 0.9
 
 
 def test_a_killed_host_loses_its_processes_and_the_other_keeps_running() -> None:
