@@ -85,6 +85,11 @@ class ActivityWaitSet:
         if not self._thread.is_alive() and not self._stopped:
             self._thread.start()
 
+    @property
+    def running(self) -> bool:
+        """Whether the thread runs (started, not stopped yet)."""
+        return self._thread.is_alive()
+
     def wake(self) -> None:
         """Make the thread wait again: it computes its timeout from the group's timers anew."""
         try:

@@ -11,11 +11,14 @@ gets them here, apart from anything else ROS in the same process:
   launcher's (``coco_ros.launcher``);
 - **one node** (named by the caller, e.g. ``coco_<app>_<host>_<process>``, so that ``ros2 node
   list`` tells the hosts' processes apart);
-- **one executor thread**, ``coco:dds`` (a daemon: it never keeps a stopping process alive), that
-  runs every subscription made through :meth:`HostBridge.subscribe`. A ``SingleThreadedExecutor``:
-  it waits with no timeout and wakes on each sample, and the callbacks here are short (decode and
-  store; the activities run elsewhere). rclpy 7's multi-threaded executor can miss a wake-up
-  (``coco_ros.hosting``), which a data path cannot afford.
+- **one thread**, ``coco:dds (wait set)`` (a daemon: it never keeps a stopping process alive), that
+  runs every subscription made through :meth:`HostBridge.subscribe`: an
+  :class:`~coco_ros.wait_set.ActivityWaitSet` on the bridge's group, which waits on those
+  subscriptions only, with a wait set filled again without being reallocated, and runs each callback
+  in place. The callbacks are short (decode and store; the activities run elsewhere). rclpy's
+  ``SingleThreadedExecutor`` did the same job first: it rebuilds its wait set in Python for every
+  sample, and a small sample between hosts took 1.54x the time of a plain rclpy pair's; with the wait
+  set, 0.88-1.09x (``bench/bench_hosts.py``, ``docs/benchmarks.md``).
 
 :meth:`HostBridge.close` first lets the publishers made through :meth:`HostBridge.publisher` get
 their last samples acknowledged (the ``writer_done`` of each connection, what a BUFFER reader waits
@@ -26,25 +29,23 @@ for), for half its timeout at most, then stops the thread and destroys node and 
 from __future__ import annotations
 
 import logging
-import threading
 import time
 from typing import Any, Callable
 
 import rclpy
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.context import Context
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
-from rclpy.task import Future
+
+from ..wait_set import ActivityWaitSet, WaitSetGroup
 
 log = logging.getLogger("coco.hosts")
 
-THREAD_NAME = "coco:dds"
+THREAD_NAME = "coco:dds (wait set)"
 
 
 class HostBridge:
@@ -60,14 +61,12 @@ class HostBridge:
         except BaseException:
             self.context.try_shutdown()
             raise
-        self.group = MutuallyExclusiveCallbackGroup()
+        self.group = WaitSetGroup()
         """The callback group of everything that :meth:`subscribe` makes, which the thread runs."""
-        self._executor = SingleThreadedExecutor(context=self.context)
-        self._executor.add_node(self.node)
+        self._waits = ActivityWaitSet(self.group, self.context, "dds")
         self._publishers: list[Publisher] = []
-        self._closing = Future()
-        self._thread = threading.Thread(target=self._spin, name=THREAD_NAME, daemon=True)
-        self._thread.start()
+        self._closed = False
+        self._waits.start()
 
     def subscribe(self, message_type: Any, topic: str, callback: Callable[[Any], None],
                   qos: QoSProfile) -> Subscription:
@@ -82,32 +81,19 @@ class HostBridge:
 
     @property
     def running(self) -> bool:
-        """Whether the executor thread still runs (False once closed)."""
-        return self._thread.is_alive()
-
-    def _spin(self) -> None:
-        executor, closing = self._executor, self._closing
-        while not closing.done() and self.context.ok():
-            try:
-                executor.spin_once_until_future_complete(closing)
-            except ExternalShutdownException:
-                return
-            except Exception:  # a callback's own failure: the others go on being served
-                log.exception("a DDS callback of %s failed", self.name)
+        """Whether the thread still runs (False once closed)."""
+        return self._waits.running
 
     def close(self, timeout: float = 1.0) -> bool:
         """Flush the publishers (half of ``timeout`` at most), stop the thread, destroy node and
         context; whether the thread stopped within ``timeout`` seconds. Closing twice is harmless."""
-        if self._closing.done():
-            return not self._thread.is_alive()
+        if self._closed:
+            return not self.running
+        self._closed = True
         deadline = time.monotonic() + timeout
         flushed = self._flush(deadline - timeout / 2)
-        self._closing.set_result(None)
-        self._executor.wake()
-        self._thread.join(max(0.0, deadline - time.monotonic()))
-        stopped = not self._thread.is_alive()
+        stopped = self._waits.stop(max(0.0, deadline - time.monotonic()))
         if stopped:  # a callback still running would use what is destroyed here: left to the daemon then
-            self._executor.shutdown(0)
             self.node.destroy_node()
         else:
             log.warning("the DDS thread of %s did not stop within %.1f s", self.name, timeout)
