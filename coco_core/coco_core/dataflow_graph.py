@@ -3,11 +3,12 @@
 FlowVR's tools draw a network as the graph of its modules, connections and filters, which is how
 one reads a large application at a glance. ``--check --graph FILE`` draws this project's
 equivalent from the loaded application (:class:`~coco_core.model.AppSpec`, so that nothing is
-instantiated): a cluster per process (when the file has ``<process>``es) holding a cluster per
-activity, whose components are nodes (a component with peers is a cluster of its own holding them,
+instantiated): a cluster per host (when the file has ``<host>``s) holding a cluster per process
+(when it has ``<process>``es) holding a cluster per activity, whose components are nodes (a component with peers is a cluster of its own holding them,
 since they run inside it), each connection an edge labelled with its ports and policy, a filter a
 node of its own on its connection's path, an activity's ``beginit``/``endit`` ports small nodes in
-the activity's cluster. Components no activity runs stand in their process outside any activity.
+the activity's cluster. Components no activity runs stand in their process outside any activity (on
+the first host). A connection between processes is bold, one between hosts too and says so.
 
 DOT is written by this module (plain text: no Python dependency); other formats are rendered by
 the ``dot`` program of Graphviz, which is then needed on PATH (``apt install graphviz``).
@@ -25,6 +26,7 @@ from .files import check_writable_file
 from .iteration import BEGIN, END
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, PortRef
 from .policy import ConnectionPolicy
+from .hosts.part import Where
 from .processes.placement import LAUNCHER, Placement
 
 DOT_SUFFIXES = (".dot", ".gv")
@@ -113,6 +115,8 @@ class _Drawing:
     def __init__(self, spec: AppSpec) -> None:
         self.spec = spec
         self.placement = Placement.of(spec)
+        self.where = Where.of(spec) if spec.hosts else None
+        """The host of every activity and component, when the application has several."""
         self.scheduled = {name: activity for activity in spec.activities for name in activity.components}
         self.definitions = {component.name: component for component in spec.components}
         self.activity_ports = {(ref.component, ref.port) for connection in spec.connections
@@ -126,27 +130,44 @@ class _Drawing:
         yield '  edge [fontname="Helvetica", fontsize=9];'
         yield '  graph [fontname="Helvetica", fontsize=12, style=rounded];'
         yield f"  label={quote(f'application {self.spec.name}')}; labelloc=t;"
-        processes = [LAUNCHER, *self.placement.processes] if self.placement.several else [LAUNCHER]
-        for index, process in enumerate(processes):
-            inner = self._process_body(process)
-            if not self.placement.several:
-                yield from ("  " + line for line in inner)
+        hosts: list[str | None] = [host.name for host in self.spec.hosts] or [None]
+        for host_index, host in enumerate(hosts):
+            body = list(self._host_body(host_index, host))
+            if host is None:
+                yield from body
                 continue
-            title = f"process {process or 'launcher'}"
-            yield f"  subgraph {quote(f'cluster_process_{index}')} {{"
-            yield f"    label={quote(title)}; style=dashed;"
-            yield from ("    " + line for line in inner)
+            yield f"  subgraph {quote(f'cluster_host_{host_index}')} {{"
+            yield f"    label={quote(f'host {host}')}; style=bold;"
+            yield from ("  " + line for line in body)
             yield "  }"
         for index, connection in enumerate(self.spec.connections):
             yield from ("  " + line for line in self._connection(index, connection))
         yield "}"
 
-    def _process_body(self, process: str) -> Iterator[str]:
+    def _host_body(self, host_index: int, host: str | None) -> Iterator[str]:
+        """The processes of ``host`` (None: the application has one host), each a cluster when there
+        are several."""
+        children = [name for name, process in self.placement.processes.items() if host is None or process.host == host]
+        several = bool(children)
+        for index, process in enumerate([LAUNCHER, *children]):
+            inner = self._process_body(process, host)
+            if not several:
+                yield from ("  " + line for line in inner)
+                continue
+            title = f"process {process or 'launcher'}"
+            yield f"  subgraph {quote(f'cluster_process_{host_index}_{index}')} {{"
+            yield f"    label={quote(title)}; style=dashed;"
+            yield from ("    " + line for line in inner)
+            yield "  }"
+
+    def _process_body(self, process: str, host: str | None) -> Iterator[str]:
         for index, activity in enumerate(self.spec.activities):
-            if activity.process == process:
+            if activity.process == process and (host is None or activity.host == host):
                 yield from self._activity(index, activity)
+        first = host is None or host == self.spec.hosts[0].name  # what no activity runs is the first host's
         for component in self.spec.components:
-            if component.name not in self.scheduled and self.placement.process_of(component.name) == process:
+            if (first and component.name not in self.scheduled
+                    and self.placement.process_of(component.name) == process):
                 yield from self._component(component)
 
     def _activity(self, index: int, activity: ActivitySpec) -> Iterator[str]:
@@ -182,10 +203,12 @@ class _Drawing:
 
     def _connection(self, index: int, connection: ConnectionSpec) -> Iterator[str]:
         src, dest = self._node(connection.src), self._node(connection.dest)
-        crossing = self.placement.several and self.placement.crosses(connection)
+        between_hosts = self.where is not None and self.where.of_ref(connection.src)[0] != self.where.of_ref(connection.dest)[0]
+        crossing = between_hosts or (self.placement.several and self.placement.crosses(connection))
         notes = [word for word, present in (("event", connection.event), ("shared", connection.shared),
                                             ("stamps only", connection.stamps_only),
-                                            ("between processes", crossing)) if present]
+                                            ("between hosts (DDS)", between_hosts),
+                                            ("between processes", crossing and not between_hosts)) if present]
         styles = [word for word, present in (("bold", crossing), ("dashed", connection.stamps_only)) if present]
         style = f", style={quote(','.join(styles))}" if styles else ""
         if connection.filter is None:

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from coco_core.builder import build_application
+from coco_core.dataflow_graph import dataflow_dot
 from coco_core.errors import ConfigErrors
 from coco_core.filters import MaxFrequency
 from coco_core.hosts.part import host_part, split_address
@@ -127,3 +128,11 @@ def test_check_prints_every_hosts_part_and_the_connections_between_them(tmp_path
     run = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--duration", "1"],
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 1 and "say which one this machine is with --host NAME" in run.stderr
+
+
+def test_the_data_flow_graph_draws_each_host_around_its_processes(tmp_path: Path) -> None:
+    dot = dataflow_dot(load_application(str(write(tmp_path))))
+    robot, graphics = dot.index('label="host robot"'), dot.index('label="host graphics"')
+    assert robot < dot.index('"activity acquisition') < graphics < dot.index('label="process work"')
+    assert dot.index('"activity outside') < graphics  # outside any <host>: the first host's
+    assert "between hosts (DDS)" in dot and dot.count("between hosts (DDS)") == 1
