@@ -177,16 +177,13 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
     activity to its eventfd (inherited from the launcher)."""
     if not plans:
         return
-    from ..application import types_compatible
     from ..shm import ShmFrameNotifier, ShmFramePool, ShmPoolReader, ShmReader, ShmWriter
 
     process = app.process
     flags = _flags(app, plans)
     for plan in plans:
         if plan.src_process == process:
-            out = _port(app, plan.src, plan.src_activity)
-            if not isinstance(out, OutputPort):
-                raise ConfigError(f"{plan.src} is an input port; a connection starts at an output")
+            out = output_end(app, plan.src, plan.src_activity)
             writer: Connection
             if plan.frames:
                 if not isinstance(out, PooledOutputPort):
@@ -201,19 +198,10 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
             if plan.wakes:
                 writer.trigger = _waker(wakes[plan.wakes], flags, plan.asks)
         if plan.dest_process == process:
-            into = _port(app, plan.dest, plan.dest_activity)
-            if not isinstance(into, InputPort):
-                raise ConfigError(f"{plan.dest} is an output port; a connection ends at an input")
-            if plan.stamps_only and not types_compatible(Stamp, into.type):
-                raise ConfigError(f"a stamps-only connection gives {plan.dest} the messages' stamps "
-                                  f"(coco_core.stamps.Stamp), and that port takes {type_name(into.type)}; "
-                                  "connect it to a port of type Stamp or object")
+            into = input_end(app, plan.dest, plan.dest_activity, plan.stamps_only)
             reader: Connection = ShmPoolReader(plan.channel) if plan.frames else ShmReader(plan.channel)
             if plan.filtered:  # the filter on this side, fed from the channel
-                made = app.incoming_filters[f"{plan.src}->{plan.dest}"]
-                reader = FedFilter(made, reader)
-                if isinstance(made, Merge):
-                    made.group.feeds.append(reader.pull)
+                reader = fed_filter(app, f"{plan.src}->{plan.dest}", reader)
             into.add_connection(reader, plan.event)
             app.connections.append(reader)
             if reader.pending and reader.trigger is not None:
@@ -227,6 +215,42 @@ def _port(app: Application, name: str, of_activity: bool) -> Port:
     process's application."""
     owner, _, port = name.rpartition(".")
     return port_of(app.activity(owner), port) if of_activity else app.component(owner).port(port)
+
+
+def output_end(app: Application, name: str, of_activity: bool) -> OutputPort:
+    """The output port ``name`` of this process where a connection to another process or host
+    starts (:func:`_port`); a :class:`ConfigError` for an input."""
+    out = _port(app, name, of_activity)
+    if not isinstance(out, OutputPort):
+        raise ConfigError(f"{name} is an input port; a connection starts at an output")
+    return out
+
+
+def input_end(app: Application, name: str, of_activity: bool, stamps_only: bool) -> InputPort:
+    """The input port ``name`` of this process where a connection from another process or host
+    ends; a :class:`ConfigError` for an output, or for a stamps-only connection into a port that
+    does not take :class:`~coco_core.stamps.Stamp`."""
+    from ..application import types_compatible
+
+    into = _port(app, name, of_activity)
+    if not isinstance(into, InputPort):
+        raise ConfigError(f"{name} is an output port; a connection ends at an input")
+    if stamps_only and not types_compatible(Stamp, into.type):
+        raise ConfigError(f"a stamps-only connection gives {name} the messages' stamps "
+                          f"(coco_core.stamps.Stamp), and that port takes {type_name(into.type)}; "
+                          "connect it to a port of type Stamp or object")
+    return into
+
+
+def fed_filter(app: Application, label: str, feed: Connection) -> FedFilter:
+    """The filter the builder made for the connection ``label`` on the reader's side
+    (:attr:`Application.incoming_filters`), fed from ``feed`` (a channel from another process or
+    host), in its place in a Merge's group."""
+    made = app.incoming_filters[label]
+    fed = FedFilter(made, feed)
+    if isinstance(made, Merge):
+        made.group.feeds.append(fed.pull)
+    return fed
 
 
 def _flags(app: Application, plans: list[ChannelPlan]) -> memoryview | None:

@@ -48,14 +48,12 @@ from rclpy.exceptions import InvalidHandle
 from coco_core.component import DAMAGE_LISTED
 from coco_core.connections import Connection, CountedConnection, make_connection
 from coco_core.errors import ChannelError, CocoError, ConfigError, PacketError
-from coco_core.filters import Merge
 from coco_core.hosts.channel import HostChannel
-from coco_core.iteration import port_of
 from coco_core.policy import BufferPolicy, SyncPolicy
 from coco_core.pool import LocalFramePool, PoolReader
-from coco_core.ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
-from coco_core.processes.filtered import FedFilter
-from coco_core.stamps import Message, Stamp
+from coco_core.ports import PooledOutputPort
+from coco_core.processes.channels import fed_filter, input_end, output_end
+from coco_core.stamps import Message
 from coco_interfaces.msg import Sample
 
 from .bridge import HostBridge
@@ -330,8 +328,6 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
     stays on the reader's side, fed from the network). An activity's ``endit``/``beginit`` is an end
     like a component's port. ``to_app``/``from_app`` convert stamp times to and from the
     application's clock (:mod:`.sample`)."""
-    from coco_core.application import types_compatible
-
     ends = HostEnds()
     process = app.process
     for channel in channels:
@@ -340,9 +336,7 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
             raise ConfigError(f"connection {channel.label} joins hosts {channel.src_host} and {channel.dest_host}: "
                               "UNSYNC is only valid inside one activity (use LOCKED or LOCK_FREE)")
         if channel.src_host == host and channel.src_process == process:
-            out = _port(app, channel.src, channel.src_activity)
-            if not isinstance(out, OutputPort):
-                raise ConfigError(f"{channel.src} is an input port; a connection starts at an output")
+            out = output_end(app, channel.src, channel.src_activity)
             if isinstance(out, PooledOutputPort) != frames:
                 raise ConfigError(f"connection {channel.label} between hosts: {channel.src} is "
                                   f"{'a pooled' if isinstance(out, PooledOutputPort) else 'not a pooled'} output, its "
@@ -357,13 +351,7 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
             app.connections.append(writer)
             ends.writers.append(writer)
         if channel.dest_host == host and channel.dest_process == process:
-            into = _port(app, channel.dest, channel.dest_activity)
-            if not isinstance(into, InputPort):
-                raise ConfigError(f"{channel.dest} is an output port; a connection ends at an input")
-            if channel.stamps_only and not types_compatible(Stamp, into.type):
-                raise ConfigError(f"a stamps-only connection gives {channel.dest} the messages' stamps "
-                                  f"(coco_core.stamps.Stamp), and that port takes {type_name(into.type)}; "
-                                  "connect it to a port of type Stamp or object")
+            into = input_end(app, channel.dest, channel.dest_activity, channel.stamps_only)
             reader: DdsReader | DdsFrameReader
             if frames:
                 reader = DdsFrameReader(bridge, channel, from_app, app.report_damage)
@@ -372,22 +360,11 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
                 reader = DdsReader(bridge, channel, from_app, app.report_damage)
                 front = reader
                 if channel.filtered:  # the filter on this side, fed from the network
-                    made = app.incoming_filters[channel.label]
-                    fed = FedFilter(made, reader)
-                    front = reader.front = fed
-                    if isinstance(made, Merge):
-                        made.group.feeds.append(fed.pull)
+                    front = reader.front = fed_filter(app, channel.label, reader)
             into.add_connection(front, channel.event)
             app.connections.append(front)
             ends.readers.append(reader)
             if front.pending and front.trigger is not None:
                 front.trigger()  # it holds messages from the start (a PreSignal's tokens): as if written now
     return ends
-
-
-def _port(app: Application, name: str, of_activity: bool) -> Port:
-    """The port ``name`` (``component.port``, or ``activity.beginit``/``activity.endit``) in this
-    process's application."""
-    owner, _, port = name.rpartition(".")
-    return port_of(app.activity(owner), port) if of_activity else app.component(owner).port(port)
 
