@@ -43,6 +43,14 @@ package_tests() {  # package_tests LOG_BASE COLCON_SELECTION...
     timeout --kill-after=30 2400 colcon --log-base "$log_base" test --build-base build --install-base install \
         --event-handlers console_direct+ summary+ "$@"
 }
+SECONDS=0
+# The type checker (mypy.ini): the five packages must stay clean, and every `type: ignore` needed.
+start_suite mypy "type check (mypy)" python -m mypy
+# The numba kernels compiled once into the installed packages' cache, beside mypy, before the suites
+# that use them start: on a fresh build each of their processes compiled them at the same time
+# (scripts/compile_kernels.py says why). A failure here shows again in the tests that use them.
+python scripts/compile_kernels.py >"$LOGS/compile_kernels.log" 2>&1 || true
+tail -n 1 "$LOGS/compile_kernels.log"
 start_suite core "coco_core's tests (colcon test)" package_tests log/test_core --packages-select coco_core
 start_suite packages "the other packages' tests (colcon test)" package_tests log/test_packages --packages-skip coco_core
 # The workspace tests in three pytest processes: the Baxter and camera apps (they replay and render for
@@ -62,11 +70,8 @@ start_suite documented "workspace tests: the documented commands (test/)" \
 start_suite workspace "workspace tests: the rest (test/)" \
     python -m pytest test "${APPS[@]/#/--ignore=}" "${DOCUMENTED[@]/#/--ignore=}" "${ALONE[@]/#/--ignore=}" \
     -o cache_dir=build/workspace_tests/.pytest_cache --junit-xml=build/workspace_tests/pytest.xml --junit-prefix=workspace
-# The type checker (mypy.ini): the five packages must stay clean, and every `type: ignore` needed.
-start_suite mypy "type check (mypy)" python -m mypy
 
 status=0
-SECONDS=0
 while [ "${#SUITE_OF[@]}" -gt 0 ]; do
     finished=""
     suite_status=0
