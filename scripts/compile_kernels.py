@@ -17,12 +17,13 @@ import time
 
 def main() -> int:
     start = time.perf_counter()
-    from coco_core import Application
-    from coco_mr_haptics import local_surface, proxy
+    from coco_core.application import Application
+    from coco_mr_haptics.local_surface import warm_up as fits_warm_up
+    from coco_mr_haptics.proxy import warm_up as step_warm_up
     from coco_mr_vision.mesh_reconstructor import MeshReconstructor
 
-    proxy.warm_up()
-    local_surface.warm_up()
+    step_warm_up()
+    fits_warm_up()
     app = Application("compile_kernels")
     for stride in (1, 2):
         mesher = app.add(MeshReconstructor(f"mesher_{stride}", stride=stride))
