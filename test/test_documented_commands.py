@@ -22,7 +22,7 @@ How a documented line is run (the rules a reader of a failure needs):
   applications that run for seconds. When a block builds the workspace (``scripts/setup.sh``, also
   sourced by run_app.sh), ``scripts/setup.sh`` runs first and alone, as the blocks run what it
   installs; the blocks then all run side by side, their own setup.sh finding the workspace up to date
-  (it then writes nothing). Blocks that name the same application file or ``out/`` path run one
+  (it then writes nothing; should that first setup fail, the blocks that build run first and alone). Blocks that name the same application file or ``out/`` path run one
   after the other in one worker (an application's default outputs are the same in both); the
   longest groups start first (``expected_seconds``); each block has a ROS domain of its own;
 - the lines in ``NOT_RUN`` are not run, each for the reason given there (a test checks the list
@@ -351,13 +351,21 @@ def documented_runs(request: pytest.FixtureRequest):
             runs[block_id(block)] = run_block(block, domains[block_id(block)])
 
     try:
-        if any(BUILDS.search(c.bare) and not not_run_reason(c.bare) for block in blocks for c in block.commands):
-            # The build the blocks' setup.sh would make, once, before any block runs what it installs (a
-            # failure shows in the blocks' own setup.sh lines).
-            subprocess.run(["bash", "-c", "source scripts/setup.sh"], cwd=ROOT, env=fresh_terminal_env(),
-                           capture_output=True, text=True, timeout=TIMEOUT)
+        builders = [block for block in blocks if any(BUILDS.search(c.bare) and not not_run_reason(c.bare)
+                                                      for c in block.commands)]
+        if builders:
+            # The build the blocks' setup.sh would make, once, before any block runs what it installs.
+            # Should it fail, the blocks that build run first and alone, as they would build each time
+            # (two builds at once would share build/): their own lines then show the failure.
+            prepared = subprocess.run(["bash", "-c", "source scripts/setup.sh"], cwd=ROOT, env=fresh_terminal_env(),
+                                      capture_output=True, text=True, timeout=TIMEOUT)
+            if prepared.returncode == 0:
+                builders = []
+        for block in builders:
+            run_chain([block])
         with ThreadPoolExecutor(WORKERS) as pool:
-            list(pool.map(run_chain, sorted(chains(blocks), key=expected_seconds, reverse=True)))
+            list(pool.map(run_chain, sorted(chains([block for block in blocks if block not in builders]),
+                                            key=expected_seconds, reverse=True)))
         yield runs
     finally:
         for path, aside in moved:
