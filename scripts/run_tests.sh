@@ -15,8 +15,9 @@ export PYTEST_ADDOPTS="--timeout=300 ${PYTEST_ADDOPTS:-}"
 python -m coco_ros.fastdds_segments
 LOGS="build/test_logs"
 # build/test_inputs: sessions the test processes generate once per run and share (test/conftest.py).
-rm -rf build/*/pytest.xml build/workspace_tests build/workspace_apps build/workspace_alone build/test_inputs "$LOGS"
-mkdir -p build/workspace_tests build/workspace_apps build/workspace_alone "$LOGS"
+rm -rf build/*/pytest.xml build/workspace_tests build/workspace_apps build/workspace_documented build/workspace_alone \
+    build/test_inputs "$LOGS"
+mkdir -p build/workspace_tests build/workspace_apps build/workspace_documented build/workspace_alone "$LOGS"
 
 # The suites are independent (each reads the built workspace, none writes it) and mostly wait: on
 # applications that run for seconds, on DDS discovery, on child processes. Run one after the other
@@ -42,24 +43,35 @@ package_tests() {  # package_tests LOG_BASE COLCON_SELECTION...
     timeout --kill-after=30 2400 colcon --log-base "$log_base" test --build-base build --install-base install \
         --event-handlers console_direct+ summary+ "$@"
 }
+SECONDS=0
+# The type checker (mypy.ini): the five packages must stay clean, and every `type: ignore` needed.
+start_suite mypy "type check (mypy)" python -m mypy
+# The numba kernels compiled once into the installed packages' cache, beside mypy, before the suites
+# that use them start: on a fresh build each of their processes compiled them at the same time
+# (scripts/compile_kernels.py says why). A failure here shows again in the tests that use them.
+python scripts/compile_kernels.py >"$LOGS/compile_kernels.log" 2>&1 || true
+tail -n 1 "$LOGS/compile_kernels.log"
 start_suite core "coco_core's tests (colcon test)" package_tests log/test_core --packages-select coco_core
 start_suite packages "the other packages' tests (colcon test)" package_tests log/test_packages --packages-skip coco_core
-# The workspace tests in two pytest processes: the Baxter and camera apps (they replay and render for
-# seconds each) and the rest; a new test file goes to the rest. The remote palpation app (six
-# processes that need both cores) runs alone once these are done: ALONE.
+# The workspace tests in three pytest processes: the Baxter and camera apps (they replay and render for
+# seconds each), the documented commands (the README's and docs' command lines, run side by side in
+# the test: about a minute, mostly waiting on applications) and the rest; a new test file goes to the
+# rest. The remote palpation app (six processes that need both cores) runs alone once these are
+# done: ALONE.
 APPS=(test/test_baxter_*.py test/test_camera_registration_app.py)
+DOCUMENTED=(test/test_documented_commands.py)
 ALONE=(test/test_palpation_app.py test/test_palpation_bad_input.py)
 start_suite apps "workspace tests: the apps (test/)" \
     python -m pytest "${APPS[@]}" -o cache_dir=build/workspace_apps/.pytest_cache \
     --junit-xml=build/workspace_apps/pytest.xml --junit-prefix=workspace
+start_suite documented "workspace tests: the documented commands (test/)" \
+    python -m pytest "${DOCUMENTED[@]}" -o cache_dir=build/workspace_documented/.pytest_cache \
+    --junit-xml=build/workspace_documented/pytest.xml --junit-prefix=workspace
 start_suite workspace "workspace tests: the rest (test/)" \
-    python -m pytest test "${APPS[@]/#/--ignore=}" "${ALONE[@]/#/--ignore=}" -o cache_dir=build/workspace_tests/.pytest_cache \
-    --junit-xml=build/workspace_tests/pytest.xml --junit-prefix=workspace
-# The type checker (mypy.ini): the five packages must stay clean, and every `type: ignore` needed.
-start_suite mypy "type check (mypy)" python -m mypy
+    python -m pytest test "${APPS[@]/#/--ignore=}" "${DOCUMENTED[@]/#/--ignore=}" "${ALONE[@]/#/--ignore=}" \
+    -o cache_dir=build/workspace_tests/.pytest_cache --junit-xml=build/workspace_tests/pytest.xml --junit-prefix=workspace
 
 status=0
-SECONDS=0
 while [ "${#SUITE_OF[@]}" -gt 0 ]; do
     finished=""
     suite_status=0

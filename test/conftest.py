@@ -27,21 +27,34 @@ def coco_launch() -> Path:
 
 
 @pytest.fixture(scope="session")
-def session(tmp_path_factory):
+def session():
     """A 12 s Baxter session, written with the installed ``baxter-session`` script, and its SessionInfo
-    (generated in-process: same seed, same layout and times). Generated once per run: the app and view
-    tests only read it."""
+    (generated in-process beside it: same seed, same layout and times), once per run of the test
+    command (:func:`generated`): the app and view tests, in two pytest processes, only read it."""
+    import pickle
+    import tempfile
+
     from coco_ros.baxter.session import generate_session
 
-    folder = tmp_path_factory.mktemp("baxter") / "session"
     script = ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "baxter-session"
-    if script.exists():
-        result = run_launcher(script, str(folder), "--quiet", timeout=120)
-        assert result.returncode == 0, result.stderr
-        info = generate_session(folder.parent / "info_only", duration=12.0)
-    else:
-        info = generate_session(folder, duration=12.0)
-    return folder, info
+    if not script.exists():
+        pytest.fail(f"{script} is missing: build the workspace first (scripts/setup.sh does)")
+
+    def make(folder: Path) -> None:
+        folder.mkdir(parents=True)
+        writing = start_launcher(script, str(folder / "session"), "--quiet")
+        try:
+            with tempfile.TemporaryDirectory() as scratch:  # the info's own bag: only the info is kept
+                info = generate_session(Path(scratch) / "info_only", duration=12.0)
+            out, _ = writing.communicate(timeout=120)
+        finally:
+            writing.kill()
+        assert writing.returncode == 0, out
+        info.folder = folder / "session"
+        (folder / "info.pickle").write_bytes(pickle.dumps(info))
+
+    folder = generated("baxter_session", make)
+    return folder / "session", pickle.loads((folder / "info.pickle").read_bytes())
 
 
 TEST_INPUTS = ROOT / "build" / "test_inputs"

@@ -19,10 +19,12 @@ How a documented line is run (the rules a reader of a failure needs):
   earlier run is moved aside for the block and put back afterwards (a bag is never overwritten);
 - it must exit with status 0 within ``TIMEOUT`` seconds;
 - the blocks run once per test session, side by side (``documented_runs``): they mostly wait on
-  applications that run for seconds. A block that builds the workspace (``scripts/setup.sh``, also
-  sourced by run_app.sh) runs first and alone, as the others run what it installs; blocks that name
-  the same application file or ``out/`` path run one after the other in one worker (an application's
-  default outputs are the same in both); each block has a ROS domain of its own;
+  applications that run for seconds. When a block builds the workspace (``scripts/setup.sh``, also
+  sourced by run_app.sh), ``scripts/setup.sh`` runs first and alone, as the blocks run what it
+  installs; the blocks then all run side by side, their own setup.sh finding the workspace up to date
+  (it then writes nothing; should that first setup fail, the blocks that build run first and alone). Blocks that name the same application file or ``out/`` path run one
+  after the other in one worker (an application's default outputs are the same in both); the
+  longest groups start first (``expected_seconds``); each block has a ROS domain of its own;
 - the lines in ``NOT_RUN`` are not run, each for the reason given there (a test checks the list
   names only lines the docs still show, so it cannot rot), nor are lines that run a benchmark script
   (``bench/*.py``: see ``not_run_reason``).
@@ -225,9 +227,10 @@ def test_shortened_inserts_the_duration_after_the_application_file() -> None:
 
 
 BUILDS = re.compile(r"\bscripts/(setup|run_app)\.sh\b")
-"""A line that builds the workspace (run_app.sh sources setup.sh): its block runs before the others."""
-WORKERS = 2
-"""Blocks run side by side (on a 2-core machine they mostly wait on applications that run for seconds)."""
+"""A line that builds the workspace (run_app.sh sources setup.sh): scripts/setup.sh runs before the blocks."""
+WORKERS = 3
+"""Blocks run side by side: on a 2-core machine they mostly wait on applications that run for seconds
+(the whole test used about half a core), so three at a time keep one core busy, not more."""
 DOMAIN_BASE = 120
 """Block i runs on ROS domain DOMAIN_BASE + i: launchers of two blocks never see each other's topics."""
 
@@ -256,9 +259,19 @@ def out_paths(block: Block) -> list[Path]:
     return paths
 
 
+RUN_APP_FILES = {"palpation": "config/palpation_replay.xml", "": "config/baxter_teleop_replay.xml"}
+"""The application file ``scripts/run_app.sh [palpation]`` runs (with its default outputs, which a
+block running that file without ``output:=`` writes too)."""
+
+
 def resources(block: Block) -> set[str]:
-    """What two blocks must not use at the same time: the application files and ``out/`` paths named."""
+    """What two blocks must not use at the same time: the application files (those run_app.sh runs
+    too) and ``out/`` paths named."""
     words = {word.partition(":=")[2] or word for command in block.commands for word in shlex.split(command.bare)}
+    for command in block.commands:
+        run_app = shlex.split(command.bare)
+        if run_app and Path(run_app[0]).name == "run_app.sh":
+            words.add(RUN_APP_FILES["palpation" if run_app[1:2] == ["palpation"] else ""])
     return {word for word in words if word.endswith(".xml")} | {str(path) for path in out_paths(block)}
 
 
@@ -277,6 +290,25 @@ def chains(blocks: list[Block]) -> list[list[Block]]:
         merged[1].sort(key=blocks.index)
         groups.append(merged)
     return [group[1] for group in groups]
+
+
+def expected_seconds(chain: list[Block]) -> float:
+    """About how long a group of blocks runs (seconds): the groups start longest first, so that the
+    longest is not the last one started while the other workers sit idle (it is the run's length).
+    An application run to its end takes ~20 s (camera_registration.xml: 20-30 s), run_app.sh builds,
+    may generate its session and runs its application (~20 s), an application cut to APP_SECONDS
+    takes that and ~2 s to start; any other line ~1 s."""
+    def seconds(command: Command) -> float:
+        if not_run_reason(command.bare) is not None:
+            return 0.0
+        if any(name in command.bare for name in RUN_TO_ITS_END):
+            return 20.0
+        if "run_app.sh" in command.bare:
+            return 20.0
+        if shortened(command.text) != command.text or "--duration" in command.bare:
+            return APP_SECONDS + 2.0
+        return 1.0
+    return sum(seconds(command) for block in chain for command in block.commands)
 
 
 def run_block(block: Block, domain: int) -> BlockRun:
@@ -330,10 +362,19 @@ def documented_runs(request: pytest.FixtureRequest):
     try:
         builders = [block for block in blocks if any(BUILDS.search(c.bare) and not not_run_reason(c.bare)
                                                       for c in block.commands)]
+        if builders:
+            # The build the blocks' setup.sh would make, once, before any block runs what it installs.
+            # Should it fail, the blocks that build run first and alone, as they would build each time
+            # (two builds at once would share build/): their own lines then show the failure.
+            prepared = subprocess.run(["bash", "-c", "source scripts/setup.sh"], cwd=ROOT, env=fresh_terminal_env(),
+                                      capture_output=True, text=True, timeout=TIMEOUT)
+            if prepared.returncode == 0:
+                builders = []
         for block in builders:
             run_chain([block])
         with ThreadPoolExecutor(WORKERS) as pool:
-            list(pool.map(run_chain, chains([block for block in blocks if block not in builders])))
+            list(pool.map(run_chain, sorted(chains([block for block in blocks if block not in builders]),
+                                            key=expected_seconds, reverse=True)))
         yield runs
     finally:
         for path, aside in moved:
@@ -348,6 +389,20 @@ def test_blocks_that_share_an_application_or_output_run_in_one_chain() -> None:
     c.commands.append(Command(c.path, 3, "launcher config/x.xml --ros-args -r __node:=n"))
     d.commands.append(Command(d.path, 4, "baxter-import a.dat out/y"))
     assert chains([a, b, c, d]) == [[a, c], [b, d]]
+    # run_app.sh runs the Baxter replay (its outputs the file's defaults): with a block that runs that file.
+    e, f, g = (Block(ROOT / "README.md", line) for line in (5, 6, 7))
+    e.commands.append(Command(e.path, 5, "./scripts/run_app.sh   # main job"))
+    f.commands.append(Command(f.path, 6, "coco-launch config/baxter_teleop_replay.xml bag:=out/b"))
+    g.commands.append(Command(g.path, 7, "./scripts/run_app.sh palpation"))
+    assert chains([e, g, f]) == [[g], [e, f]]
+
+
+def test_the_longest_groups_start_first() -> None:
+    """The group that runs longest would otherwise start last and outlast the others by its length."""
+    quick, to_its_end = (Block(ROOT / "README.md", line) for line in (1, 2))
+    quick.commands.append(Command(quick.path, 1, "coco-launch config/x.xml --check"))
+    to_its_end.commands.append(Command(to_its_end.path, 2, "coco-launch config/camera_registration.xml"))
+    assert sorted([[quick], [to_its_end]], key=expected_seconds, reverse=True) == [[to_its_end], [quick]]
 
 
 @pytest.mark.timeout(3 * TIMEOUT)  # the first block's test waits for every block (they run side by side)
