@@ -267,10 +267,10 @@ def stopped_by_a_failure(app: Application) -> bool:
 
 def load_spec(options: argparse.Namespace, signals: LaunchSignals,
               parameters: Mapping[str, str] | None = None) -> AppSpec:
-    """The application file of ``options``, loaded (every host's part when it declares hosts); its
-    warnings (what the file sets but this version ignores) are logged. A signal ends the reading of
-    the file at once (:meth:`LaunchSignals.loading`). ``parameters``: values for the file's args
-    ranked below the command line's ``name:=value`` (the ROS launcher's node parameters)."""
+    """The application file of ``options``, loaded (every host's part when it declares hosts). A
+    signal ends the reading of the file at once (:meth:`LaunchSignals.loading`). ``parameters``:
+    values for the file's args ranked below the command line's ``name:=value`` (the ROS launcher's
+    node parameters)."""
     if options.allow_unknown and not options.check:
         raise CocoError("--allow-unknown goes with --check only: an application without some of its "
                         "components cannot run")
@@ -281,19 +281,23 @@ def load_spec(options: argparse.Namespace, signals: LaunchSignals,
     args = parse_assignments(options.args)
     log.debug("reading %s", options.app)
     with signals.loading():
-        spec = load_application(find_application(options.app), args, parameters)
+        return load_application(find_application(options.app), args, parameters)
+
+
+def log_warnings(spec: AppSpec) -> None:
+    """What the file sets but this version ignores, and the components ``--allow-unknown`` left out
+    (which building adds): logged once the application is built."""
     for warning in spec.warnings:
         log.warning("%s", warning)
-    return spec
 
 
 def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
                    parameters: Mapping[str, str] | None = None) -> tuple[AppSpec, Application]:
     """The application of ``options`` (this host's part, with ``--host``) loaded (:func:`load_spec`)
-    and built; the building stops at its end on a signal. Components ``--allow-unknown`` left out
-    are logged."""
+    and built, its warnings logged; the building stops at its end on a signal."""
     spec = select_host(load_spec(options, signals, parameters), options)
     app = build_application(spec, allow_unknown=options.allow_unknown)
+    log_warnings(spec)
     return spec, app
 
 
@@ -389,6 +393,7 @@ def check(options: argparse.Namespace, signals: LaunchSignals, host: LaunchHost,
             app = build_application(part, allow_unknown=options.allow_unknown)
             trees.append(describe(part, app, plan_deployment(part, host.launch_options(options)),
                                   options.allow_unknown))
+        log_warnings(spec)  # the parts share the file's list of warnings
         signals.check()
         print("\n".join(trees))
         if options.graph is not None:
