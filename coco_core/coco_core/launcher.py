@@ -267,7 +267,7 @@ def stopped_by_a_failure(app: Application) -> bool:
 
 def load_spec(options: argparse.Namespace, signals: LaunchSignals,
               parameters: Mapping[str, str] | None = None) -> AppSpec:
-    """The application file of ``options``, loaded (every host's part when it declares hosts). A
+    """The application file of ``options``, loaded whole (every host's part, when it declares hosts). A
     signal ends the reading of the file at once (:meth:`LaunchSignals.loading`). ``parameters``:
     values for the file's args ranked below the command line's ``name:=value`` (the ROS launcher's
     node parameters)."""
@@ -303,16 +303,13 @@ def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
 
 def select_host(spec: AppSpec, options: argparse.Namespace) -> AppSpec:
     """The part of ``spec`` that ``--host`` names (:func:`coco_core.hosts.part.host_part`), or the
-    whole application: one that declares no host, or ``--check`` without ``--host`` (which prints
-    every host's part)."""
+    whole of an application that declares no host."""
     if not spec.hosts:
         if options.host is not None:
             raise CocoError(f"--host {options.host}: application {spec.name} declares no <host>; it runs on one "
                             "machine (docs/hosts.md)")
         return spec
     if options.host is None:
-        if options.check:
-            return spec
         raise CocoError(f"application {spec.name} runs on several hosts ({', '.join(h.name for h in spec.hosts)}): "
                         "say which one this machine is with --host NAME")
     return host_part(spec, options.host)
@@ -405,10 +402,12 @@ def check(options: argparse.Namespace, signals: LaunchSignals, host: LaunchHost,
 
 def launch(spec: AppSpec, app: Application, options: argparse.Namespace, signals: LaunchSignals,
            host: LaunchHost) -> int:
-    """Run a built application with ``host``: plan its deployment, start its child processes, let the
-    host run the launcher's part to its stop; the exit code: 0 after a clean stop, 1 when a component
-    stopped the application, damage was found or a child died, :data:`HUNG` when an activity did not
-    stop in time, 128 + the signal number after a second Ctrl-C (:mod:`coco_core.signals`)."""
+    """Run a built application with ``host``: plan its deployment, join the other hosts when it is
+    one host's part (:mod:`coco_core.hosts`), start its child processes, let the host run the
+    launcher's part to its stop; the exit code: 0 after a clean stop, 1 when a component stopped the
+    application, damage was found, a child died or another host failed, :data:`HUNG` when an
+    activity did not stop in time, 128 + the signal number after a second Ctrl-C
+    (:mod:`coco_core.signals`)."""
     deployment = plan_deployment(spec, host.launch_options(options))
     level = logging.getLevelName(options.log_level)
     configure_logging(spec.log, level)  # may open the file's log
