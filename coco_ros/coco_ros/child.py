@@ -14,6 +14,10 @@ import sys
 from coco_core import Application
 from coco_core.processes.child import ChildProcess, main
 from coco_core.processes.messages import Config
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+from .hosting import ExecutorHost
 
 from .launcher import host_in_node, node_name, run_hosted
 from .parameters import ArgParameters
@@ -41,29 +45,41 @@ def without_node_renames(ros_args: list[str]) -> list[str]:
 class RosChildProcess(ChildProcess):
     """A child that hosts its part of the application in an rclpy node."""
 
+    node: Node | None = None
+    host: ExecutorHost | None = None
+    """The node's host, once the application stopped cleanly (closed by :meth:`release`)."""
+
     def run_app(self, app: Application, config: Config) -> bool:
         import rclpy
-        from rclpy.node import Node
-        from rclpy.signals import SignalHandlerOptions
 
         rclpy.init(args=["launcher", *without_node_renames(config.host["ros_args"])],
                    signal_handler_options=SignalHandlerOptions.NO)
-        node = None
         try:
-            node = Node(f"{config.host['node']}_{node_name(app.process)}", automatically_declare_parameters_from_overrides=True)
+            node = self.node = Node(f"{config.host['node']}_{node_name(app.process)}",
+                                    automatically_declare_parameters_from_overrides=True)
             # The launcher resolved the args (its -p values included) and reported the -p values no arg
             # takes: a child's node shows the args and refuses changes as the launcher's does.
             ArgParameters(node, config.spec).declare({})
             host, executor = host_in_node(node, app, config.deployment)
             with RosoutLogging(node):  # this process's log lines on /rosout, under its node's name
                 clean = run_hosted(app, host, executor)
-            if clean:
-                host.close()
+            self.host = host if clean else None  # else a hung callback may still use it: left to the exit
             return clean
-        finally:
-            if node is not None:
-                node.destroy_node()
-            rclpy.try_shutdown()
+        except BaseException:
+            self.release()
+            raise
+
+    def release(self) -> None:
+        """The node and rclpy, after the launcher heard that this process stopped: destroying a node
+        and shutting rclpy down took over a second on a loaded machine, and a launcher that waited
+        for it before it learnt that the activities had stopped called them hung."""
+        import rclpy
+
+        if self.host is not None:
+            self.host.close()
+        if self.node is not None:
+            self.node.destroy_node()
+        rclpy.try_shutdown()
 
 
 if __name__ == "__main__":

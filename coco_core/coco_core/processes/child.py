@@ -169,6 +169,7 @@ class ChildProcess:
             log.info("process %s: %s", process, self.garbage.describe())
         failed = stopped_by_a_failure(app)  # a component's error policy, or damaged input
         self.link.send(Stopped(clean, failed, snapshot(app, process)))
+        self.release()
         if self.ends is not None:
             self.ends.close()
         return 0 if clean else 1
@@ -185,6 +186,10 @@ class ChildProcess:
         deployed(app, config.deployment)
         app.run()
         return app.stop()
+
+    def release(self) -> None:
+        """What a launcher with more to host holds beyond the application (the ROS launcher's node),
+        released once the launcher heard that this process stopped; nothing here."""
 
     def _configured(self) -> None:
         """Every activity of this process is configured: tell the launcher, whose gate counts them.

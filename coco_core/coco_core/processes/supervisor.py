@@ -304,7 +304,12 @@ class ProcessSupervisor:
             self.app.gate.configured(name)
 
     def _stopped(self, child: Child, message: Stopped) -> None:
+        """The child's activities have all stopped: their stand-ins here have (``ProcessDriver.join``),
+        while the process still ends (a ROS child destroys its node and shuts rclpy down, which took
+        over a second on a loaded machine: the launcher then called the activity hung)."""
         child.clean, child.failed, child.last = message.clean, message.failed, message.snapshot
+        child.stopped.set()
+        self.app.progress.advance()
 
     def _stop_requested(self, child: Child, message: StopRequest) -> None:
         self.app.request_stop(f"process {child.name}: {message.reason}", hard=message.hard)
