@@ -205,6 +205,14 @@ def test_a_stop_on_one_host_stops_the_others_with_its_reason(hosts: Hosts) -> No
     assert not hosts.sessions["graphics"].failure
 
 
+def test_damage_found_on_one_host_reaches_the_others(hosts: Hosts) -> None:
+    """As between processes: every host's summary reports it, and every host exits with status 1."""
+    hosts.start()
+    hosts.apps["graphics"].report_damage("bag truncated at 12 s")
+    assert wait_until(lambda: hosts.apps["robot"].damage == ["bag truncated at 12 s"])
+    assert hosts.apps["graphics"].damage == ["bag truncated at 12 s"]  # once: not sent back
+
+
 def test_a_host_that_does_not_come_is_named(tmp_path: Path) -> None:
     alone = Hosts(tmp_path)
     session = alone.sessions["graphics"]

@@ -5,7 +5,8 @@ says where it is in the launch in its :class:`~coco_core.hosts.messages.Heartbea
 every other host to be as far before going on, so that the same rules hold as between the
 processes of one launcher (:mod:`coco_core.processes.supervisor`): every part is built before any
 activity configures anywhere, every activity is configured before any cycles, and a stop anywhere
-(Ctrl-C, ``--duration``, a component's ``stop_app``) stops every host. A host whose heartbeats
+(Ctrl-C, ``--duration``, a component's ``stop_app``) stops every host, and damaged input found on
+any host reaches every host's summary and exit status. A host whose heartbeats
 stop before it said it stops has disappeared (killed, unplugged): it is reported by name and the
 application's ``on_error`` policy decides (``stop_app``: every other host stops, exit status 1;
 otherwise the others go on without it, and say so).
@@ -27,7 +28,7 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 from ..component import ErrorPolicy
 from ..errors import HostError
-from ..processes.messages import Call, Message, Outcome, Result
+from ..processes.messages import Call, Damage, Message, Outcome, Result
 from ..processes.remote import serve_call, settle
 from .clock import EXCHANGES, ClockOffset, best, exchange
 from .messages import ClockRequest, Heartbeat, Stage
@@ -98,6 +99,8 @@ class HostSession:
         self.stage = Stage.JOINED
         self.bus: Bus | None = None
         self.clock = ClockOffset()
+        self.processes: ProcessSupervisor | None = None
+        """This host's child processes (the damage another host found is passed on to them)."""
         self.ends: Ends | None = None
         """The launcher's process's ends of connections between hosts (:mod:`.level` attaches them)."""
         self.local: Callable[[Call, Callable[[Outcome], None]], None] | None = None
@@ -126,6 +129,7 @@ class HostSession:
         clock against the first host's. A :class:`HostError` names the hosts that did not come."""
         self.bus = bus
         self.app.add_stop_listener(self._stopping_here)
+        self.app.add_damage_listener(self.damage_found)
         self._beater.start()
         self._wait_for(Stage.JOINED, "to start")
         if self.host != self.leader:
@@ -141,6 +145,7 @@ class HostSession:
         if processes is not None:
             processes.hosts = self
             self.local = processes.route
+            self.processes = processes
         if self.ends is not None:  # a sample written before its reader subscribed would be lost
             matched(self.ends, self.timeout, self.interrupted, self.app)
         self._enter(Stage.BUILT)
@@ -212,6 +217,10 @@ class HostSession:
             self._answer(sender, message, Outcome(True, (received, time.perf_counter())))
         elif isinstance(message, Call):
             self._serve_call(sender, message)
+        elif isinstance(message, Damage):
+            self.app.report_damage(message.what, here=False)
+            if self.processes is not None:
+                self.processes.pass_on_damage(message.what)
         elif isinstance(message, Result):
             with self._lock:
                 waiting = self._waiting.pop(message.id, None)
@@ -266,6 +275,13 @@ class HostSession:
         else:
             log.warning("host %s: going on without host %s (the application's on_error is %s; stop_app would "
                         "stop every host)", self.host, peer.name, self.app.on_error.value)
+
+    def damage_found(self, what: str) -> None:
+        """Damaged input found on this host (its launcher's components, or a child process): every
+        other host's :attr:`Application.damage` gets it too, as between processes, so that each host's
+        summary reports it and each exits with status 1."""
+        if self.bus is not None:
+            self.bus.send("", Damage(what))
 
     def _enter(self, stage: Stage) -> None:
         with self._lock:

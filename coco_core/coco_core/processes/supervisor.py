@@ -226,7 +226,7 @@ class ProcessSupervisor:
                               self._wakes.get(name))
             threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True).start()
         self.app.router = self
-        self.app.add_damage_listener(self._pass_on_damage)
+        self.app.add_damage_listener(self.pass_on_damage)
 
     def _spawn(self, name: str) -> Child:
         link, theirs = ControlLink.pair(f"process {name}")
@@ -316,9 +316,11 @@ class ProcessSupervisor:
 
     def _damaged(self, child: Child, message: Damage) -> None:
         self.app.report_damage(message.what, here=False)
-        self._pass_on_damage(message.what, found_by=child)
+        self.pass_on_damage(message.what, found_by=child)
+        if self.hosts is not None:  # and to the other hosts (the launcher's own damage goes there itself)
+            self.hosts.damage_found(message.what)
 
-    def _pass_on_damage(self, what: str, found_by: Child | None = None) -> None:
+    def pass_on_damage(self, what: str, found_by: Child | None = None) -> None:
         """Damaged input that one process found (a child, or the launcher's own components) goes to
         every other process's :attr:`Application.damage`: a summary written in one process (the
         palpation's, beside the haptic loop) reports the damage the others' readers found, and each
