@@ -4,12 +4,12 @@ Every host runs the same file with its own ``--host NAME`` and no host commands 
 says where it is in the launch in its :class:`~coco_core.hosts.messages.Heartbeat` and waits for
 every other host to be as far before going on, so that the same rules hold as between the
 processes of one launcher (:mod:`coco_core.processes.supervisor`): every part is built before any
-activity configures anywhere, every activity is configured before any cycles, and a stop anywhere
+activity configures anywhere, every activity is configured before any cycles, a stop anywhere
 (Ctrl-C, ``--duration``, a component's ``stop_app``) stops every host, and damaged input found on
-any host reaches every host's summary and exit status. A host whose heartbeats
-stop before it said it stops has disappeared (killed, unplugged): it is reported by name and the
-application's ``on_error`` policy decides (``stop_app``: every other host stops, exit status 1;
-otherwise the others go on without it, and say so).
+any host reaches every host's summary and exit status. A host whose heartbeats stop before it said
+it stops has disappeared (killed, unplugged): it is reported by name and the application's
+``on_error`` policy decides (``stop_app``: every other host stops, exit status 1; otherwise the
+others go on without it, and say so).
 
 The messages travel over a :class:`Bus` that a transport provides (``coco_ros.hosts``: DDS);
 nothing here knows the network.
