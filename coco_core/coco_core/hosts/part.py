@@ -14,7 +14,7 @@ name as across processes).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from ..errors import ConfigError, ConfigErrors, did_you_mean
 from ..model import AppSpec, ConnectionSpec, PortRef
@@ -22,7 +22,7 @@ from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from ..pool import DEFAULT_SLOTS
 from ..ports import PooledOutputPort
 from ..processes.channels import declared_port
-from ..processes.placement import ring_policy
+from ..processes.placement import Placement, ring_policy
 from .channel import HostChannel, topic_of
 
 SEPARATOR = "@"
@@ -46,25 +46,23 @@ class Where:
     """The host and process of every activity and component of an application with hosts."""
 
     hosts: tuple[str, ...]
-    of_activity: dict[str, tuple[str, str]] = field(default_factory=dict)
-    of_component: dict[str, tuple[str, str]] = field(default_factory=dict)
+    of_activity: dict[str, tuple[str, str]]
+    of_component: dict[str, tuple[str, str]]
     """Every component, peers included."""
 
     @classmethod
     def of(cls, spec: AppSpec) -> Where:
-        where = cls(tuple(host.name for host in spec.hosts))
-        for activity in spec.activities:
-            where.of_activity[activity.name] = (activity.host, activity.process)
-        scheduled = {name: (activity.host, activity.process) for activity in spec.activities
-                     for name in activity.components}
-        for top in spec.components:
-            place = scheduled.get(top.name, (where.hosts[0], ""))
-            stack = [top]
-            while stack:
-                component = stack.pop()
-                where.of_component[component.name] = place
-                stack.extend(component.peers)
-        return where
+        """The process level's :class:`~coco_core.processes.placement.Placement` of ``spec`` (every
+        component's process, through the activity that runs its top-level owner) with each one's
+        host: the host of that activity, or the first host for what no activity runs."""
+        placement = Placement.of(spec)
+        hosts = tuple(host.name for host in spec.hosts)
+        host_of = {activity.name: activity.host for activity in spec.activities}
+        runs = {name: activity.host for activity in spec.activities for name in activity.components}
+        return cls(hosts,
+                   {name: (host_of[name], process) for name, process in placement.of_activity.items()},
+                   {name: (runs.get(placement.top_of[name], hosts[0]), process)
+                    for name, process in placement.of_component.items()})
 
     def of_ref(self, ref: PortRef) -> tuple[str, str]:
         """(host, process) of the component, or activity (``beginit``/``endit``), ``ref`` names."""
