@@ -314,7 +314,14 @@ class HostEnds:
         sides matter: a sample written before the reader's side discovered its writer is resent by
         DDS's reliability only at its next heartbeat (measured here: the first samples came 130 ms
         late), and one written before the writer's side discovered the reader is lost (counted)."""
-        return all(end.matched for end in [*self.writers, *self.readers])
+        return not self.unmatched()
+
+    def unmatched(self) -> list[str]:
+        """The ends that have not found their other end yet, each with the host it is on."""
+        return ([f"{writer.channel.label} (its reader on host {writer.channel.dest_host})"
+                 for writer in self.writers if not writer.matched]
+                + [f"{reader.channel.label} (its writer on host {reader.channel.src_host})"
+                   for reader in self.readers if not reader.matched])
 
 
 def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[HostChannel], host: str,

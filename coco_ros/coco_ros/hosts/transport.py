@@ -71,10 +71,7 @@ class ProcessEnds:
         self._release = release
 
     def unmatched(self) -> list[str]:
-        return ([f"{writer.channel.label} (its reader on host {writer.channel.dest_host})"
-                 for writer in self.ends.writers if not writer.matched]
-                + [f"{reader.channel.label} (its writer on host {reader.channel.src_host})"
-                   for reader in self.ends.readers if not reader.matched])
+        return self.ends.unmatched()
 
     def close(self) -> None:
         self._release()
