@@ -169,7 +169,7 @@ def connection_counts(report: str, connection: str) -> tuple[int, int, int]:
     """(written, read, dropped) of a connection in a profile report."""
     line = re.search(rf"^{re.escape(connection)}\s.*$", report, re.M)
     assert line, f"no connection {connection} in:\n{report}"
-    written, read, dropped = line.group(0).split()[-4:-1]
+    written, read, dropped = re.findall(r"(\d+)\s+(\d+)\s+(\d+)\s+\d+\s+(?:-|\S+ / \S+)$", line.group(0))[0]
     return int(written), int(read), int(dropped)
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -145,8 +146,9 @@ def check_nothing_dropped(profile: str) -> None:
                        "distance.distance -> summary.distance", "distance.color -> summary.color"):
         line = next((line for line in profile.splitlines() if connection in line), None)
         assert line is not None, f"{connection} missing from the profile:\n{profile[-3000:]}"
-        cells = [cell.strip() for cell in line.split("|") if cell.strip()] if "|" in line else line.split()
-        written, read, dropped = (int(cell) for cell in cells[-4:-1])
+        counters = re.search(r"(\d+)\s+(\d+)\s+(\d+)\s+\d+\s+(?:-|\S+ / \S+)$", line.strip())
+        assert counters, line
+        written, read, dropped = (int(cell) for cell in counters.groups())
         assert dropped == 0 and written == read, line
 
 

@@ -94,7 +94,7 @@ def rows(path: Path) -> list[dict[str, str]]:
 
 def counters(log: str, connection: str) -> tuple[int, int, int]:
     """(written, read, dropped) of ``connection`` in the last profile of a launcher's output."""
-    found = re.findall(rf"^(?:\S+\s+)?{re.escape(connection)}\s+.*?\s(\d+)\s+(\d+)\s+(\d+)\s+\d+\s*$", log, re.M)
+    found = re.findall(rf"^(?:\S+\s+)?{re.escape(connection)}\s+.*?\s(\d+)\s+(\d+)\s+(\d+)\s+\d+\s+(?:-|\S+ / \S+)\s*$", log, re.M)
     assert found, f"no {connection} in the profile:\n{log}"
     written, read, dropped = found[-1]
     return int(written), int(read), int(dropped)

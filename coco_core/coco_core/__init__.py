@@ -22,7 +22,7 @@ _EXPORTS = {
     "Connection": "connections",
     "CocoError": "errors", "ConfigError": "errors", "ConfigErrors": "errors", "Location": "errors",
     "Greedy": "filters", "MaxFrequency": "filters", "Merge": "filters", "MergeGroup": "filters",
-    "PreSignal": "filters", "Split": "filters", "Cull": "filters",
+    "PreSignal": "filters", "Split": "filters", "Cull": "filters", "Gather": "filters", "GatherGroup": "filters",
     "iteration_ports": "iteration",
     "Operation": "operations", "current_activity": "operations", "operation": "operations",
     "NEW_DATA": "policy", "NO_DATA": "policy", "OLD_DATA": "policy", "BufferPolicy": "policy",
@@ -53,7 +53,7 @@ if TYPE_CHECKING:
     from .component import Component, ErrorPolicy, UnknownNameError
     from .connections import Connection
     from .errors import CocoError, ConfigError, ConfigErrors, Location
-    from .filters import Cull, Greedy, MaxFrequency, Merge, MergeGroup, PreSignal, Split
+    from .filters import Cull, Gather, GatherGroup, Greedy, MaxFrequency, Merge, MergeGroup, PreSignal, Split
     from .iteration import iteration_ports
     from .operations import Operation, current_activity, operation
     from .policy import NEW_DATA, NO_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, ReadStatus, SyncPolicy

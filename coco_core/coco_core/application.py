@@ -21,6 +21,7 @@ from .lifecycle import STOP_TIMEOUT, Progress, StartGate
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from .operations import Operation
 from .ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
+from .profiling import MessageAges
 from .processes.remote import RemoteOperation, Router
 from .scheduling import available_cores
 from .stamps import Stamp
@@ -107,6 +108,11 @@ class Application:
         self._clean = True
         """Whether the stop was clean (every activity finished in time): what later stop() calls say."""
         self.started_at = 0.0
+        self.measure_ages = False
+        """Whether each connection's reader records the age of what it takes (:class:`~coco_core.
+        profiling.MessageAges`, the profile's ``age`` column): set by a profiled launch
+        (``--profile``) before :meth:`start`, which gives every connection its record then, once the
+        process level has attached the channels from other processes."""
         self.transforms = TransformGraph()
         """The application's transformation graph, shared by every component (thread-safe)."""
         self._hard_at: float | None = None
@@ -300,6 +306,9 @@ class Application:
             raise CocoError("\n".join(text for _, text in problems))
         self._started = True
         self.started_at = time.perf_counter()
+        if self.measure_ages:
+            for connection in self.connections:
+                connection.age = MessageAges()
         reserved = self._exclusive_cores()
         self.gate.expect(self.activities)
         for component in self.unscheduled():

@@ -16,7 +16,7 @@ from .application import Application, types_compatible
 from .attributes import AttributeValueError
 from .component import Component, ErrorPolicy
 from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, WiringError, did_you_mean
-from .filters import FILTERS, Cull, Filter, MaxFrequency, Merge, MergeGroup, PreSignal, Split
+from .filters import FILTERS, Cull, Filter, Gather, GatherGroup, MaxFrequency, Merge, MergeGroup, PreSignal, Split
 from .iteration import IterationPorts, port_of
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
 from .policy import ConnectionPolicy
@@ -219,8 +219,7 @@ class _Builder:
                 continue
             try:
                 policy = ConnectionPolicy(connection_spec.data, connection_spec.policy, max(1, connection_spec.buffersize))
-                merged = connection_spec.filter is not None and connection_spec.filter.type == Merge.name
-                group = merges.setdefault(str(connection_spec.dest), MergeGroup()) if merged else None
+                group = _merge_group(merges, connection_spec)
                 made = _filter(connection_spec.filter, policy, group, splits.get(id(connection_spec), (0, 1)))
                 if incoming:  # its filter on the reader's side, in its place in a merge (file order)
                     assert made is not None
@@ -273,6 +272,20 @@ def split_places(connections: list[ConnectionSpec]) -> dict[int, tuple[int, int]
             for group in groups.values() for index, connection in enumerate(group)}
 
 
+def _merge_group(merges: dict[str, MergeGroup], connection: ConnectionSpec) -> MergeGroup | None:
+    """The group of the Merge or Gather ``connection`` is an input of (one per input port, made by
+    its first connection; ``merges`` holds them), None for another filter; a port's connections
+    cannot mix the two (each is one tree of what is read)."""
+    kind = connection.filter.type if connection.filter is not None else ""
+    if kind not in (Merge.name, Gather.name):
+        return None
+    group = merges.setdefault(str(connection.dest), GatherGroup() if kind == Gather.name else MergeGroup())
+    if isinstance(group, GatherGroup) != (kind == Gather.name):
+        raise WiringError(f"{connection.dest} already reads a {'Gather' if isinstance(group, GatherGroup) else 'Merge'}"
+                          f" of its other connections: every connection into it takes the same filter")
+    return group
+
+
 def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup | None,
             split: tuple[int, int] = (0, 1)) -> Filter | None:
     """The filter ``spec`` describes, with ``policy``'s buffer size (a Merge joins ``merge``, its
@@ -286,6 +299,9 @@ def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup
     if spec.type == Merge.name:
         assert merge is not None  # the caller gives the port's group
         return Merge(policy, merge)
+    if spec.type == Gather.name:
+        assert isinstance(merge, GatherGroup)  # the caller gives the port's group
+        return Gather(policy, merge)
     if spec.type == Split.name:
         return Split(policy, *split, by=spec.by)
     if spec.type == Cull.name:

@@ -24,6 +24,7 @@ from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 
 if TYPE_CHECKING:
     from .ports import InputPort, OutputPort
+    from .profiling import MessageAges
 
 log = logging.getLogger("coco")
 
@@ -61,7 +62,7 @@ class Connection(abc.ABC):
     wake the sink's triggered activity.
     """
 
-    __slots__ = ("source", "sink", "policy", "trigger", "__weakref__")
+    __slots__ = ("source", "sink", "policy", "trigger", "age", "__weakref__")
 
     carries_stamps: ClassVar[bool] = False
     """Whether the writing port hands this connection :class:`~coco_core.stamps.Message` objects
@@ -75,6 +76,8 @@ class Connection(abc.ABC):
         self.source: OutputPort | None = None
         self.sink: InputPort | None = None
         self.trigger: Callable[[], None] | None = None
+        self.age: MessageAges | None = None
+        """The age of each message the reader takes, in a profiled run (None: not measured)."""
 
     @abc.abstractmethod
     def push(self, value: Any) -> None:
@@ -146,11 +149,18 @@ class Connection(abc.ABC):
         sink = self.sink.qualified_name if self.sink else "?"
         return f"{source} -> {sink}"
 
+    @property
+    def stamps_only(self) -> bool:
+        """Whether the connection carries its messages' stamps only (FlowVR's dashed connection):
+        its writing port says so in the writer's process; a reader's end from another process knows
+        it from its channel."""
+        source = self.source
+        return source is not None and source.carries_stamps_only(self)
+
     def describe(self) -> str:
         """What stores the values, for ``--check`` and the profile: the policy, or a filter's name;
-        a stamps-only connection (its writer in this process) says so."""
-        source = self.source
-        return f"{self.policy}, stamps only" if source is not None and source.carries_stamps_only(self) else str(self.policy)
+        a stamps-only connection says so, in the writer's process and in the reader's."""
+        return f"{self.policy}, stamps only" if self.stamps_only else str(self.policy)
 
     def counters(self) -> dict[str, int]:
         """Snapshot of the flow counters, for the profiler and diagnostics."""

@@ -24,9 +24,11 @@ their payload.
   region, given to the filter: one Cull on each connection of an output routes each message to the
   receivers that see it (FlowVR Render's culling against each viewer's frustum).
 
-A ``Gather`` is a :class:`Merge` of many connections (the binary tree of FlowVR's merges matters
-between hosts, not here: see ``docs/flowvr.md``); a ``Broadcast`` is what an output with several
-connections already does (each gets every message, with its own policy or filter).
+- :class:`Gather` joins many connections into one input port as FlowVR's binary tree of merges
+  does: the reader gets the nested pairs (``((a, b), (c, d))``), stamped as the first's message.
+
+A ``Broadcast`` is what an output with several connections already does (each gets every message,
+with its own policy or filter; ``docs/flowvr.md``).
 
 Every filter keeps the counting contract of :class:`~coco_core.connections.Connection` (a token a
 filter adds counts as written; a message it discards, as dropped), so the profile shows them.
@@ -195,10 +197,14 @@ class MergeGroup:
         if not self.ready():
             return EMPTY
         items = [Filter.pop(connection) for connection in self.inputs]
-        values = tuple(item.value if type(item) is Message else item for item in items)
+        values = self.joined(tuple(item.value if type(item) is Message else item for item in items))
         first = items[0]
         if type(first) is Message:
             return Message(values, first.time, first.seq, first.source, first.it)
+        return values
+
+    def joined(self, values: tuple[Any, ...]) -> Any:
+        """What the reader gets of one value from each input, in order: their tuple."""
         return values
 
     def skip(self) -> None:
@@ -243,6 +249,40 @@ class Merge(Filter):
 
     def describe(self) -> str:
         return f"Merge(in{self.index} of {len(self.group.inputs)})"
+
+
+class GatherGroup(MergeGroup):
+    """The connections of one :class:`Gather`: a :class:`MergeGroup` whose reader gets the values
+    joined as FlowVR's binary tree of two-input merges would: neighbours in pairs, level by level,
+    an odd one out carried up to the next level (``a, b, c, d, e`` gives ``(((a, b), (c, d)), e)``)."""
+
+    def joined(self, values: tuple[Any, ...]) -> Any:
+        level: list[Any] = list(values)
+        while len(level) > 1:
+            pairs: list[Any] = [(level[index], level[index + 1]) for index in range(0, len(level) - 1, 2)]
+            level = pairs + level[len(pairs) * 2:]
+        return level[0]
+
+
+class Gather(Merge):
+    """One input of a gather: FlowVR's binary tree of merges (``FilterMerge`` nodes) gathering many
+    connections into one input port, as one filter: the connections into one port that each carry
+    it form one :class:`GatherGroup` (file order gives each its leaf), and the reader gets, once
+    every connection holds a message, the nested pairs of one value of each, stamped as the first
+    connection's message (each node of FlowVR's tree is stamped as its in0's, so the root as the
+    first leaf's). Inside one reader's process (where the filter runs, whichever processes or hosts
+    its writers are in) a node needs no buffer or thread of its own: the tree is the shape of what
+    is read, each connection keeping its own FIFO (``buffersize``) until its sibling's messages
+    arrive."""
+
+    __slots__ = ()
+    name = "Gather"
+
+    def __init__(self, policy: ConnectionPolicy, group: GatherGroup) -> None:
+        super().__init__(policy, group)
+
+    def describe(self) -> str:
+        return f"Gather(leaf {self.index} of {len(self.group.inputs)})"
 
 
 class Router(Filter):
@@ -360,5 +400,6 @@ class Cull(Router):
         return f"Cull({self.stamp} meets {' '.join(f'{v:g}' for v in self.low + self.high)})"
 
 
-FILTERS: dict[str, type[Filter]] = {cls.name: cls for cls in (PreSignal, MaxFrequency, Greedy, Merge, Split, Cull)}
+FILTERS: dict[str, type[Filter]] = {cls.name: cls for cls in (PreSignal, MaxFrequency, Greedy, Merge, Gather, Split,
+                                                               Cull)}
 """Every filter by its XML name."""

@@ -73,6 +73,9 @@ class IterationPorts(Component):
         if due > time.perf_counter() and not (activity.wakes_on_data and _sleep_until(activity, due)):
             return False
         items = [connection.pop() for connection in connections]
+        for connection, item in zip(connections, items):
+            if connection.age is not None:
+                connection.age.took(item)
         first = items[0]
         self.begun = first.stamp if type(first) is Message else None
         return all(item is not EMPTY for item in items)

@@ -409,6 +409,7 @@ def launch(spec: AppSpec, app: Application, options: argparse.Namespace, signals
     activity did not stop in time, 128 + the signal number after a second Ctrl-C
     (:mod:`coco_core.signals`)."""
     deployment = plan_deployment(spec, host.launch_options(options))
+    app.measure_ages = bool(options.profile)  # the profile's age column, in every process
     level = logging.getLevelName(options.log_level)
     configure_logging(spec.log, level)  # may open the file's log
     with host_level(spec, app, options.host_timeout, signals.check) as hosts:

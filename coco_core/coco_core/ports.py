@@ -313,8 +313,11 @@ class InputPort(Port):
         connections = self.connections
         count = len(connections)
         if count == 1:
-            item = connections[0].pop()
+            connection = connections[0]
+            item = connection.pop()
             if item is not EMPTY:  # _took, inlined: the common case
+                if connection.age is not None:
+                    connection.age.took(item)
                 self._taken = item
                 value = item.value if type(item) is Message else item
                 if self._keeps_last:
@@ -324,8 +327,11 @@ class InputPort(Port):
             start = self._next
             for offset in range(count):
                 index = (start + offset) % count
-                item = connections[index].pop()
+                connection = connections[index]
+                item = connection.pop()
                 if item is not EMPTY:
+                    if connection.age is not None:
+                        connection.age.took(item)
                     self._next = (index + 1) % count
                     return NEW_DATA, self._took(item)
         if self._has_last:
@@ -406,6 +412,8 @@ class InputPort(Port):
                     newest.release()
             newest, newest_connection = value, connection
         if newest_connection is not None:
+            if newest_connection.age is not None:
+                newest_connection.age.took(newest)
             return NEW_DATA, self._took(newest)
         if self._has_last:
             return OLD_DATA, self._last

@@ -3,15 +3,21 @@
 A component records, for every execution, its *compute time* (how long ``on_update`` took) and its
 *service time* (the time since its previous activation), as count, total, mean and variance with
 Welford's running update: no samples are stored. An activity records its period error (actual wake
-time minus deadline) into a fixed ring, from which percentiles are computed on demand.
+time minus deadline) into a fixed ring, from which percentiles are computed on demand. A profiled
+run also records the age of what each connection's reader takes (:class:`MessageAges`).
 """
 
 from __future__ import annotations
 
 import math
 import threading
+import time
 from array import array
 from dataclasses import dataclass
+from typing import Any
+
+from .pool import Slot
+from .stamps import Message
 
 
 class RunningStats:
@@ -42,6 +48,44 @@ class RunningStats:
     @property
     def std(self) -> float:
         return math.sqrt(self.variance)
+
+
+class MessageAges:
+    """The age of each message a connection's reader takes (the read time - the message's stamp
+    time: its write, or a ``Stamped`` value's acquisition), as count, mean and max: the profile's
+    per-connection latency, which needs no component to record it. The stamps of every process of
+    a host share ``perf_counter``'s clock (CLOCK_MONOTONIC), and a connection between hosts puts
+    them on the application's clock, so the age is meaningful wherever the writer ran.
+
+    Kept only in a profiled run (``--profile``, :attr:`Application.measure_ages
+    <coco_core.application.Application.measure_ages>`): the reader's port then pays a clock read
+    per message, which an unprofiled 1 kHz loop should not."""
+
+    __slots__ = ("count", "total", "max")
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.total = 0.0
+        self.max = 0.0
+
+    def took(self, item: Any) -> None:
+        """The reader took ``item`` from the connection (a message, a pooled frame or a bare value,
+        which has no stamp and is not counted)."""
+        if type(item) is Message:
+            born = item.time
+        elif type(item) is Slot and item.message is not None:
+            born = item.message.time
+        else:
+            return
+        age = time.perf_counter() - born
+        self.count += 1
+        self.total += age
+        if age > self.max:
+            self.max = age
+
+    @property
+    def mean(self) -> float:
+        return self.total / self.count if self.count else 0.0
 
 
 class ComponentStats:

@@ -7,6 +7,8 @@ stamp-to-output latency when the component records it (from its inputs' origins:
 value's acquisition, a plain value's message stamp, its write in this process or another). Per connection: flow counters. Per pooled
 output (a frame pool): frames published, and the writer's stalls, frames it could not publish
 because readers held every slot (they never reach a connection, so no connection counts them).
+Per connection, in a profiled run, the age of what its reader took (the read time - the message's
+stamp time), so that the latency of every link shows without a component recording it.
 
 A report is rendered from :class:`ProfileSnapshot` objects, one per process: plain data that a child
 process sends to the launcher, so that one report shows every process of the application.
@@ -98,12 +100,16 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
 
 
 def connection_rows(connections: Iterable[Connection]) -> list[list[str]]:
-    """The profile's rows of ``connections``: label, policy and flow counters."""
+    """The profile's rows of ``connections``: label, policy, flow counters, and the age of the
+    messages the reader took (mean/max, in a profiled run; ``-`` when not measured or none had a
+    stamp)."""
     rows = []
     for connection in connections:
         counters = connection.counters()
+        age = connection.age
         rows.append([connection.label, connection.describe(), str(counters["written"]), str(counters["read"]),
-                     str(counters["dropped"]), str(counters["pending"])])
+                     str(counters["dropped"]), str(counters["pending"]),
+                     f"{_ms(age.mean)} / {_ms(age.max)}" if age is not None and age.count else "-"])
     return rows
 
 
@@ -138,7 +144,8 @@ def render(name: str, snapshots: list[ProfileSnapshot]) -> str:
                         rows("components")))
     connections = rows("connections")
     if connections:
-        parts.append(_table([*where, "connection", "policy", "written", "read", "dropped", "pending"], connections))
+        parts.append(_table([*where, "connection", "policy", "written", "read", "dropped", "pending",
+                             "age mean/max ms"], connections))
     pools = rows("pools")
     if pools:
         parts.append(_table([*where, "pooled output", "slots", "published", "stalls (no free slot)"], pools))

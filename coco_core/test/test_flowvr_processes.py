@@ -58,9 +58,10 @@ def run(name: str, apart: str, tmp_path: Path, stop_after: int, env: dict[str, s
     rows = {}
     for line in launched.stdout.splitlines():
         cells = re.split(r"\s{2,}", line.strip())
-        if len(cells) == 7 and " -> " in cells[1] and cells[3].isdigit():
+        if len(cells) == 8 and " -> " in cells[1] and cells[3].isdigit():
             rows[cells[1]] = {"policy": cells[2], **dict(zip(("written", "read", "dropped", "pending"),
-                                                             map(int, cells[3:]))), "process": cells[0]}
+                                                             map(int, cells[3:7]))), "process": cells[0],
+                              "age": cells[7]}
     return load_record(tmp_path / "producer.json"), load_record(tmp_path / "consumer.json"), rows
 
 

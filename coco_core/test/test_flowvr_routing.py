@@ -254,7 +254,7 @@ ROUTED = """<package name="routed">
     ("", '<filter type="Cull" region="0 0 1 1" stamp=""/>', 'app.xml:10: <filter type="Cull"> attribute stamp=""'),
     ("", '<filter type="Split" by=""/>', 'app.xml:10: <filter type="Split"> attribute by="": expected the name'),
     ("", '<filter type="Split" hz="3"/>', "app.xml:10: "),
-    ("", '<filter type="Scatter"/>', "expected one of: PreSignal, MaxFrequency, Greedy, Merge, Split, Cull"),
+    ("", '<filter type="Scatter"/>', "expected one of: PreSignal, MaxFrequency, Greedy, Merge, Gather, Split, Cull"),
     (' stamps_only="maybe"', "", "app.xml:7: "),
 ])
 def test_wrong_routing_parameters_are_errors_with_file_and_line(attributes: str, filter: str, expected: str):
@@ -311,12 +311,14 @@ def test_cull_split_and_stamps_only_route_the_same_between_processes(tmp_path: P
     assert [entry["seq"] for entry in monitor] == list(range(1, len(monitor) + 1))
     assert monitor[0]["user"] == {"bbox": [0.0, 0.0, 1.0, 1.0], "part": 0}
     rows = {cells[1]: cells for line in launched.stdout.splitlines()
-            if len(cells := re.split(r"\s{2,}", line.strip())) == 7 and " -> " in cells[1]}
+            if len(cells := re.split(r"\s{2,}", line.strip())) == 8 and " -> " in cells[1]}
     left = rows["emitter.out -> left.item"]
     assert left[2].startswith("Cull(bbox meets 0 0 5 1), routed away ") and left[0] == "apart"
-    written, read, dropped, pending = map(int, left[3:])
+    written, read, dropped, pending = map(int, left[3:7])
     assert written == read + dropped + pending and read == len(got["left"])
     assert rows["emitter.out -> worker1.item"][2].startswith("Split(out1 of 2, in turn), routed away ")
+    monitor_row = rows["emitter.out -> monitor.item"]  # the reader's process knows it from its channel
+    assert monitor_row[0] == "apart" and monitor_row[2].endswith(", stamps only"), monitor_row
 
 
 
@@ -355,3 +357,97 @@ def test_a_gather_tree_of_merges_gives_the_nested_tuple_of_one_message_of_each_l
         assert value == ((f"a{round_}", f"b{round_}"), (f"c{round_}", f"d{round_}"))
         assert stamp.source == "node0.output"  # a merge is stamped as its first input's message
         assert [v for v, _ in read_all(flat.item)] == [(f"a{round_}", f"b{round_}", f"c{round_}", f"d{round_}")]
+
+
+def test_a_gather_filter_is_the_binary_tree_of_merges_in_the_reader_s_path(make_app):
+    """``Gather`` as one filter: the reader gets, once each connection holds a message, what
+    FlowVR's tree of two-input merges gives (neighbours in pairs, the odd one out joined a level
+    up), stamped as the first connection's message; every connection keeps its counters."""
+    from coco_core.filters import Gather, GatherGroup
+
+    app = make_app()
+    leaves = [app.add(Writer(name)) for name in "abcde"]
+    root = app.add(Reader("root"))
+    group = GatherGroup()
+    connections = [app.connect(leaf.out, root.item, connection=Gather(BUFFERED, group)) for leaf in leaves]
+    for round_ in range(3):
+        for leaf in leaves[1:]:
+            leaf.out.write(f"{leaf.name}{round_}")
+    assert read_all(root.item) == []  # a has not written: no tree yet
+    for round_ in range(2):
+        leaves[0].out.write(f"a{round_}")
+    got = read_all(root.item)
+    assert [value for value, _ in got] == [((((f"a{n}", f"b{n}"), (f"c{n}", f"d{n}")), f"e{n}")) for n in range(2)]
+    assert [(stamp.source, stamp.seq) for _, stamp in got] == [("a.out", 1), ("a.out", 2)]
+    assert [c.counters() for c in connections] == [{"written": 2, "read": 2, "dropped": 0, "pending": 0}] + \
+        [{"written": 3, "read": 2, "dropped": 0, "pending": 1}] * 4
+    assert [c.describe() for c in connections] == [f"Gather(leaf {index} of 5)" for index in range(5)]
+
+
+GATHER = """<package name="gathered">
+    <components>
+        <component><name>a</name><task>CostlyProducer</task><library>coco_core</library></component>
+        <component><name>b</name><task>CostlyProducer</task><library>coco_core</library></component>
+        <component><name>c</name><task>CostlyProducer</task><library>coco_core</library></component>
+        <component><name>root</name><task>Relay</task><library>coco_core</library></component>
+    </components>
+    <connections>
+        <connection buffersize="4"><src task="a" port="out"/><dest task="root" port="input"/><filter type="Gather"/></connection>
+        <connection buffersize="4"><src task="b" port="out"/><dest task="root" port="input"/><filter type="Gather"/></connection>
+        <connection buffersize="4"><src task="c" port="out"/><dest task="root" port="input"/><filter type="{third}"/></connection>
+    </connections>
+    {activities}
+</package>"""
+
+
+def test_the_xml_gathers_the_connections_into_one_port_in_file_order():
+    from coco_core.filters import Gather, GatherGroup
+
+    app = build_application(parse_application_string(GATHER.format(third="Gather", activities=""), filename="app.xml"))
+    a, b, c = app.connections
+    assert all(isinstance(x, Gather) for x in (a, b, c)) and isinstance(a.group, GatherGroup)  # type: ignore[attr-defined]
+    assert a.group is b.group is c.group and [x.index for x in (a, b, c)] == [0, 1, 2]  # type: ignore[attr-defined]
+    for connection, value in zip((a, b, c), (1, 2, 3)):
+        assert connection.source is not None
+        connection.source.write(value)
+    assert app.component("root").input.read() == (NEW_DATA, ((1, 2), 3))  # type: ignore[attr-defined]
+
+
+def test_a_port_whose_connections_mix_gather_and_merge_is_an_error_with_file_and_line():
+    with pytest.raises(ConfigErrors) as raised:
+        build_application(parse_application_string(GATHER.format(third="Merge", activities=""), filename="app.xml"))
+    assert "app.xml:11:" in str(raised.value) and "root.input already reads a Gather" in str(raised.value)
+
+
+def test_a_gather_joins_leaves_from_another_process_and_from_its_own():
+    """One leaf in another process (its ring fed into the Gather on the reader's side, in its file
+    place), two in the reader's: one tree once each has a message, stamped as the first leaf's,
+    which crossed with its stamp."""
+    from coco_core.filters import Gather
+    from coco_core.processes.channels import attach, plan_channels
+    from coco_core.processes.filtered import FedFilter
+    from coco_core.processes.placement import Placement
+    from coco_core.stamps import Message
+
+    far = ('<activities><process name="far"><activity name="making"><schedule type="triggered"/>'
+           '<components><component name="a"/></components></activity></process></activities>')
+    spec = parse_application_string(GATHER.format(third="Gather", activities=far), filename="app.xml")
+    app = build_application(spec)
+    arena = Arena(f"gather{os.getpid()}")
+    try:
+        plans = plan_channels(arena, spec, Placement.of(spec))
+        attach(app, plans, {})
+        root = app.component("root")
+        b, c, fed = root.input.connections  # type: ignore[attr-defined]  # the channel is attached after the build
+        assert isinstance(fed, FedFilter) and isinstance(fed.filter, Gather) and fed.filter.index == 0
+        assert isinstance(b, Gather) and (b.index, c.index) == (1, 2) and b.group is fed.filter.group
+        ShmWriter(plans[0].channel).push(Message(7, 12.5, 1, "a.out", 4))
+        app.component("b").out.write(8)  # type: ignore[attr-defined]
+        assert root.input.read()[0] is not NEW_DATA  # c has nothing yet  # type: ignore[attr-defined]
+        app.component("c").out.write(9)  # type: ignore[attr-defined]
+        assert root.input.read() == (NEW_DATA, ((7, 8), 9))  # type: ignore[attr-defined]
+        stamp = root.input.stamp  # type: ignore[attr-defined]
+        assert stamp is not None and (stamp.source, stamp.seq, stamp.it, stamp.time) == ("a.out", 1, 4, 12.5)
+        assert fed.describe() == "Gather(leaf 0 of 3)" and fed.counters()["read"] == 1
+    finally:
+        arena.close()

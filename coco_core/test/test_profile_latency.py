@@ -2,6 +2,8 @@
 through a port has the stamp of its write, so the component that records its latency
 (``record_latency``, the profile's latency column) measures it as it measures a ``Stamped`` one,
 in one process and when the value crossed from another process (the channel carries the stamp).
+A profiled run also gives each connection the age of what its reader took (the ``age`` column),
+whether or not a component records a latency.
 
 The application: a producer writing plain numbers, a :class:`~coco_core.demo.CsvRecorder` taking
 them (it records each number's stamp and latency), and a consumer of the same numbers that stops the
@@ -13,11 +15,12 @@ import csv
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
-from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, OutputPort
+from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort
 from coco_core.demo.csv_recorder import CsvRecorder
 from coco_core.report import profile_report
 
@@ -65,6 +68,15 @@ def latency_cell(report: str, component: str) -> str:
     raise AssertionError(f"no row of {component} in the profile:\n{report}")
 
 
+def age_cell(report: str, connection: str) -> str:
+    """The age column (mean / max ms, or -) of ``connection``'s row in a profile report."""
+    for line in report.splitlines():
+        cells = re.split(r"\s{2,}", line.strip())
+        if connection in cells:
+            return cells[-1]
+    raise AssertionError(f"no row of {connection} in the profile:\n{report}")
+
+
 def milliseconds(cell: str) -> tuple[float, float]:
     match = re.fullmatch(r"(\d+\.\d+) / (\d+\.\d+)", cell)
     assert match, f"no latency figure: {cell!r}"
@@ -73,6 +85,10 @@ def milliseconds(cell: str) -> tuple[float, float]:
 
 class Numbers(Component):
     out = OutputPort(float)
+
+
+class Taker(Component):
+    values = InputPort(float)
 
 
 def test_a_plain_value_gets_a_latency_from_its_message_stamp(tmp_path: Path) -> None:
@@ -110,8 +126,39 @@ def test_a_plain_value_gets_a_latency_in_the_launched_profile(tmp_path: Path, ap
     assert "(clean)" in launched.stderr, launched.stderr
     mean, biggest = milliseconds(latency_cell(launched.stdout, "recorder"))
     assert 0.0 < mean <= biggest, launched.stdout
+    for connection in ("producer.out -> recorder.values", "producer.out -> consumer.item"):
+        mean, biggest = milliseconds(age_cell(launched.stdout, connection))  # measured in the reader's process
+        assert 0.0 < mean <= biggest, launched.stdout
     with rows.open() as file:
         recorded = list(csv.DictReader(file))
     assert len(recorded) >= 20 and {row["source"] for row in recorded} == {"producer.out"}
     assert [int(row["seq"]) for row in recorded] == list(range(1, len(recorded) + 1))
     assert all(float(row["latency_ms"]) > 0.0 for row in recorded)
+
+
+@pytest.mark.parametrize("measured", [False, True], ids=["unprofiled", "profiled"])
+def test_each_connection_shows_the_age_of_what_its_reader_took(measured: bool) -> None:
+    """No component records a latency here: the connection's own row has the ages, from each
+    message's stamp to its read, in a profiled run only (an unprofiled reader reads no clock)."""
+    app = Application("ages")
+    numbers, taker = Numbers("numbers"), Taker("taker")
+    app.add(numbers)
+    app.add(taker)
+    connection = app.connect("numbers.out", "taker.values", ConnectionPolicy(BufferPolicy.BUFFER, size=8))
+    app.measure_ages = measured
+    app.start()
+    try:
+        before = time.perf_counter()
+        for value in (1.0, 2.0, 3.0):
+            numbers.out.write(value)
+        assert [taker.values.read()[1] for _ in range(3)] == [1.0, 2.0, 3.0]
+        longest = time.perf_counter() - before
+    finally:
+        app.stop()
+    cell = age_cell(profile_report(app), "numbers.out -> taker.values")
+    if not measured:
+        assert connection.age is None and cell == "-"
+        return
+    assert connection.age is not None and connection.age.count == 3
+    assert 0.0 < connection.age.mean <= connection.age.max <= longest
+    assert milliseconds(cell) == pytest.approx((connection.age.mean * 1e3, connection.age.max * 1e3), abs=1e-3)

@@ -29,8 +29,8 @@ from coco_core.report import ProfileSnapshot
 
 ACTIVITY_COLUMNS = ("schedule", "cycles", "overruns", "period error p50/p99/max us")
 COMPONENT_COLUMNS = ("activity", "execs", "total ms", "compute mean us", "compute std us", "service mean ms",
-                     "service std ms", "errors", "refused", "latency mean/max ms")
-CONNECTION_COLUMNS = ("policy", "written", "read", "dropped", "pending")
+                     "service std ms", "errors", "refused", "merged", "latency mean/max ms")
+CONNECTION_COLUMNS = ("policy", "written", "read", "dropped", "pending", "age mean/max ms")
 POOL_COLUMNS = ("slots", "published", "stalls")
 PERIOD = "diagnostics.period"
 THRESHOLDS: dict[str, tuple[float, str]] = {

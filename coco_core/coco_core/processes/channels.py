@@ -161,7 +161,7 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
                                               frames=True, readers=readers[source])
             channel = replace(pools[source], label=label, reader=number)
         else:
-            channel = arena.channel(ring_policy(connection), label)
+            channel = replace(arena.channel(ring_policy(connection), label), stamps_only=connection.stamps_only)
         plans.append(ChannelPlan(str(connection.src), str(connection.dest),
                                  placement.process_of_ref(connection.src),
                                  placement.process_of_ref(connection.dest), channel, frames,

@@ -141,6 +141,7 @@ class ChildProcess:
             log.warning("process %s: %s", process, refused)
         try:
             app = self.app = build_application(spec, process)
+            app.measure_ages = config.measure_ages
             drive(app, config.deployment, config.wakes)
             attach(app, config.plans, config.wakes)
             if config.clock is not None:

@@ -86,8 +86,12 @@ class FedFilter(Connection):
     def label(self) -> str:
         return self.channel.label
 
+    @property
+    def stamps_only(self) -> bool:
+        return self.channel.stamps_only
+
     def describe(self) -> str:
-        return self.filter.describe()
+        return f"{self.filter.describe()}, stamps only" if self.stamps_only else self.filter.describe()
 
     def __repr__(self) -> str:
         return f"<{self.describe()} {self.label} (from another process)>"

@@ -83,6 +83,8 @@ class Config(Message):
     when the application has several hosts; None otherwise."""
     host_timeout: float = 60.0
     """Seconds a child waits for the readers of its connections to other hosts (``--host-timeout``)."""
+    measure_ages: bool = False
+    """Whether the child's readers record the age of what they take (a profiled launch)."""
 
 
 @dataclass(frozen=True)

@@ -239,7 +239,7 @@ class ProcessSupervisor:
         finally:
             os.close(theirs)
         link.send(Config(self.spec, name, self.launch_id, self._wakes, self.plans, self.deployment, self.log_level,
-                         self.child_config, self.clock, self.host_timeout))
+                         self.child_config, self.clock, self.host_timeout, self.app.measure_ages))
         return Child(name, link, popen, activities)
 
     def _wait_built(self, child: Child) -> None:

@@ -128,6 +128,9 @@ class ChannelSpec:
     locked: bool = False
     """Values: whether both ends take the ring's locked path (decided once per launch, by the CPU:
     :func:`coco_core.shm.ordering.rings_locked`)."""
+    stamps_only: bool = False
+    """Values: the writer puts each message's stamp into the ring, not its payload (a stamps-only
+    connection): what the reader's process's profile says beside the policy."""
 
 
 def large_name(spec: ChannelSpec, index: int) -> str:
@@ -233,6 +236,10 @@ class ShmConnection(Connection):
     def label(self) -> str:
         source, _, sink = self.ring.spec.label.partition("->")
         return f"{source} -> {sink}"
+
+    @property
+    def stamps_only(self) -> bool:
+        return self.ring.spec.stamps_only or super().stamps_only
 
     def close(self) -> None:
         self.ring.close()

@@ -124,14 +124,15 @@ def _port(
     )
 
 
-FILTER_ATTRIBUTES = {"PreSignal": ("tokens",), "MaxFrequency": ("hz",), "Greedy": (), "Merge": (),
+FILTER_ATTRIBUTES = {"PreSignal": ("tokens",), "MaxFrequency": ("hz",), "Greedy": (), "Merge": (), "Gather": (),
                      "Split": ("by",), "Cull": ("region", "stamp")}
 """Each filter's own attributes (beside ``type``)."""
 
 
 def _filter(reader: FileReader, element: Element, data: BufferPolicy, size: int) -> FilterSpec | None:
     """``<filter type="PreSignal" tokens="N"/>``, ``<filter type="MaxFrequency" hz="F"/>``,
-    ``<filter type="Greedy"/>``, ``<filter type="Merge"/>``, ``<filter type="Split" by="stamp"/>``
+    ``<filter type="Greedy"/>``, ``<filter type="Merge"/>``, ``<filter type="Gather"/>``,
+    ``<filter type="Split" by="stamp"/>``
     or ``<filter type="Cull" region="x0 y0 x1 y1" stamp="bbox"/>``: the filter decides the
     buffering, so ``data`` stays DATA."""
     kind = (reader.attribute(element, "type") or "").strip()

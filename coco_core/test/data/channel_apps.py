@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -210,10 +211,11 @@ def run(case: Case, folder: Path, processes: bool, timeout: float = 60.0) -> Res
 def _rows(output: str) -> dict[str, list[int]]:
     rows = {}
     for line in output.splitlines():
-        if " -> " in line and line.split()[-1].isdigit():
+        counters = re.search(r"(\d+)\s+(\d+)\s+(\d+)\s+(\d+)\s+(?:-|\S+ / \S+)$", line)  # then the age
+        if " -> " in line and counters:
             words = line.split()
             arrow = words.index("->")
-            rows[f"{words[arrow - 1]} -> {words[arrow + 1]}"] = [int(word) for word in words[-4:]]
+            rows[f"{words[arrow - 1]} -> {words[arrow + 1]}"] = [int(word) for word in counters.groups()]
     return rows
 
 

@@ -213,6 +213,10 @@ class FromHost:
     def label(self) -> str:
         return f"{self.channel.src} -> {self.channel.dest}"
 
+    @property
+    def stamps_only(self) -> bool:
+        return self.channel.stamps_only
+
     def push(self, value: Any) -> None:
         raise CocoError(f"connection {self.label}: the reader's end cannot be written")
 
@@ -261,8 +265,7 @@ class DdsReader(FromHost, Connection):
         return self.store.pending
 
     def describe(self) -> str:
-        stamps = ", stamps only" if self.channel.stamps_only else ""
-        return f"{self.policy}{stamps}, DDS from host {self.channel.src_host}{_codec(self.channel)}"
+        return f"{super().describe()}, DDS from host {self.channel.src_host}{_codec(self.channel)}"
 
 
 class DdsFrameReader(FromHost, PoolReader):
