@@ -6,6 +6,12 @@ busy activity moved into a ``<process>`` of its own. The period error is the run
 (``ActivityStats``: wake-up minus deadline, every cycle) and *missed* are the deadlines the activity
 skipped (overruns). Goal: the moved case's p99 within 1.5x of the idle case's, in the same run.
 
+Under load (issue 24): the 1 kHz activity in a ``<process>`` of its own (beside the busy one in
+another), idle and with every core kept busy by CPU burners the bench starts (two per core), with
+the scheduling tree's real-time settings off and on (``realtime="FIFO" priority="80"`` on its
+schedule, ``lock_memory="true" gc="between_cycles"`` on its process). Goal: the loaded p99 with the
+settings within 2x of the idle p99 with the same settings.
+
 Also the wake-up latency across processes: an event port's write in one process to the start of the
 reader's ``on_update`` in another (the reader's eventfd), against the same in one process.
 
@@ -28,6 +34,9 @@ from coco_core.processes.level import process_level
 from coco_core.xml import parse_application_string
 
 GOAL_RATIO = 1.5
+GOAL_LOADED_RATIO = 2.0
+"""The 1 kHz process's p99 period error with both cores busy, at most this times its idle one's."""
+BURNERS_PER_CORE = 2
 
 APP = """<package name="bench_processes">
   <components>
@@ -62,6 +71,74 @@ def run(condition: str, seconds: float) -> dict[str, Any]:
     assert summary is not None
     return {"cycles": haptic.stats.cycles, "missed": haptic.stats.overruns,
             "p50_ns": summary.p50 * 1e9, "p99_ns": summary.p99 * 1e9, "max_ns": summary.max * 1e9}
+
+
+LOADED_APP = """<package name="bench_processes_loaded">
+  <components>
+    <component><name>tick</name><task>_process_components:Tick</task></component>
+    <component><name>burn</name><task>_process_components:Burn</task></component>
+  </components>
+  <activities>
+    <process name="haptic"{process}>
+      <activity name="haptic"><schedule type="periodic" period="1"{schedule}/>
+        <components><component name="tick"/></components></activity>
+    </process>
+    <process name="busy">
+      <activity name="busy"><schedule type="periodic" period="10"/>
+        <components><component name="burn"/></components></activity>
+    </process>
+  </activities>
+</package>
+"""
+SETTINGS = {
+    "settings off": dict(process="", schedule=""),
+    "settings on": dict(process=' lock_memory="true" gc="between_cycles"', schedule=' realtime="FIFO" priority="80"'),
+}
+"""The 1 kHz process's real-time settings, in the XML only (docs/processes.md)."""
+
+
+def loaded_run(settings: str, burners: int, seconds: float) -> dict[str, Any]:
+    """The 1 kHz activity in its own process with ``settings``, while ``burners`` CPU burners spin;
+    its figures from the child's profile."""
+    spec = parse_application_string(LOADED_APP.format(**SETTINGS[settings]), "bench_processes_loaded.xml")
+    app = build_application(spec)
+    with _report.other_processes(burners), _report.LoadMeter() as load:
+        with process_level(spec, app, plan_deployment(spec)) as processes:
+            assert processes is not None
+            app.run(seconds)
+            shots = processes.snapshots()
+    row = next(row for shot in shots if shot.process == "haptic" for row in shot.activities if row[0] == "haptic")
+    p50, p99, largest = (float(word) * 1e3 for word in row[4].split(" / "))  # microseconds in the profile
+    return {"cycles": int(row[2]), "missed": int(row[3]), "p50_ns": p50, "p99_ns": p99, "max_ns": largest,
+            "others": load.others}
+
+
+def under_load(seconds: float) -> tuple[Table, dict[str, Any]]:
+    cores = os.cpu_count() or 1
+    burners = BURNERS_PER_CORE * cores
+    results: dict[str, Any] = {}
+    for settings in SETTINGS:
+        for load in ("idle", "loaded"):
+            name = f"{load}, {settings}"
+            results[name] = loaded_run(settings, burners if load == "loaded" else 0, seconds)
+            print(f"{name}: {results[name]}", flush=True)
+    table = Table(f"1 kHz activity in a process of its own, idle and with {burners} CPU burners on {cores} cores",
+                  ["condition", "cycles", "missed", "p50", "p99", "max", "p99 / idle (same settings)",
+                   f"goal <= {GOAL_LOADED_RATIO:g}x idle", "others' CPU"])
+    for name, r in results.items():
+        load, settings = name.split(", ")
+        ratio = r["p99_ns"] / results[f"idle, {settings}"]["p99_ns"]
+        r["ratio_to_idle"] = ratio
+        goal = ratio <= GOAL_LOADED_RATIO if name == "loaded, settings on" else None
+        table.add(name, r["cycles"], r["missed"], fmt_time_ns(r["p50_ns"]), fmt_time_ns(r["p99_ns"]),
+                  fmt_time_ns(r["max_ns"]), fmt_ratio(ratio) if load == "loaded" else "-", verdict(goal),
+                  f"{r['others'] * 100:.0f}%" if r["others"] is not None else "n/a")
+    table.notes.append("settings on: realtime=\"FIFO\" priority=\"80\" on the 1 kHz schedule, lock_memory=\"true\" "
+                       "gc=\"between_cycles\" on its process (granted here: the bench runs as root; without "
+                       "CAP_SYS_NICE the launcher warns once and runs as with them off). Burners: `python -c 'while "
+                       "True: pass'`; the busy activity (10 ms of Python every 10 ms) runs in a process of its own "
+                       "throughout.")
+    return table, results
 
 
 WAKE_APP = """<package name="bench_wakeup">
@@ -128,13 +205,14 @@ def main() -> None:
     wake = {"same process (thread, threading.Event)": wakeups(False, args.seconds),
             "other process (shared-memory channel, eventfd)": wakeups(True, args.seconds)}
     results["wakeup"] = wake
+    load_table, results["under_load"] = under_load(args.seconds)
     anchor = wake["same process (thread, threading.Event)"]
     wake_table = Table("Wake-up latency: event-port write -> the reader's on_update starts (500 writes/s)",
                        ["reader", "samples", "p50", "p99", "max", "p50 / same process"])
     for name, r in wake.items():
         wake_table.add(name, r["samples"], fmt_time_ns(r["p50_ns"]), fmt_time_ns(r["p99_ns"]),
                        fmt_time_ns(r["max_ns"]), fmt_ratio(r["p50_ns"] / anchor["p50_ns"]))
-    _report.emit("bench_processes", args, [table, wake_table], results)
+    _report.emit("bench_processes", args, [table, load_table, wake_table], results)
 
     def draw(plt: Any) -> Any:
         figure, (left, right) = plt.subplots(1, 2, figsize=(11, 3.4))
