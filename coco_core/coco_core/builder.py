@@ -19,6 +19,7 @@ from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, Wiring
 from .filters import FILTERS, Cull, Filter, Gather, GatherGroup, MaxFrequency, Merge, MergeGroup, PreSignal, Split
 from .iteration import IterationPorts, port_of
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
+from .schedule import DEFAULT_SPIN
 from .policy import ConnectionPolicy
 from .ports import InputPort, Port, type_name
 from .processes.placement import LAUNCHER, Placement
@@ -97,7 +98,9 @@ class _Builder:
         request = SchedulingRequest.of(schedule)
         if schedule.type == "periodic":
             assert schedule.period_ms is not None  # the loader guarantees it
-            return PeriodicActivity(spec.name, schedule.period_ms / 1e3, main=schedule.main, scheduling=request)
+            spin = DEFAULT_SPIN if schedule.spin_ms is None else schedule.spin_ms / 1e3
+            return PeriodicActivity(spec.name, schedule.period_ms / 1e3, main=schedule.main, scheduling=request,
+                                    spin=spin)
         return TriggeredActivity(spec.name, main=schedule.main, scheduling=request)
 
     def install_transforms(self, app: Application) -> None:

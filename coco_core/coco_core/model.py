@@ -122,6 +122,9 @@ class ScheduleSpec:
     """Run this activity in the launcher's main thread (needed by e.g. some GUI toolkits)."""
     realtime: str = "none"
     """``none``, ``FIFO`` or ``RR`` (scheduling class), ``DEADLINE`` is not available from Python."""
+    spin_ms: float | None = None
+    """Periodic: milliseconds before each deadline at which the thread stops sleeping and spins
+    (:attr:`Schedule.spin <coco_core.schedule.Schedule.spin>`); None: the runtime's default."""
     priority: int | None = None
     nice: int | None = None
     affinity: list[int] = field(default_factory=list)

@@ -1,7 +1,9 @@
 """``<schedule>`` (``<schedulepolicy>`` in the per-activity layout): when and where an activity runs.
 
 Both spellings of the period (``period=`` and CoCo's older ``value=``) are accepted, in
-milliseconds. ``type`` may be left out: a period makes the activity periodic. ``runtime`` (a
+milliseconds. ``spin`` (milliseconds, periodic only) is how long before each deadline the thread
+stops sleeping and spins: a real-time loop on a loaded machine whose timer wake-ups come late gives
+it more. ``type`` may be left out: a period makes the activity periodic. ``runtime`` (a
 SCHED_DEADLINE budget in the C++ CoCo) is accepted and ignored, since DEADLINE is not available
 from Python.
 """
@@ -24,7 +26,7 @@ COMMON_ATTRIBUTES = (
     "realtime",
     "runtime",
 )
-ACTIVITY_SCHEDULE_ATTRIBUTES = (*COMMON_ATTRIBUTES, "main", "period", "type", "value")
+ACTIVITY_SCHEDULE_ATTRIBUTES = (*COMMON_ATTRIBUTES, "main", "period", "spin", "type", "value")
 PIPELINE_SCHEDULE_ATTRIBUTES = (*COMMON_ATTRIBUTES, "buffersize")
 """A pipeline's stages are triggered by their input, so there is no type or period to give."""
 
@@ -40,6 +42,7 @@ def read_schedule(reader: FileReader, element: Element, values: dict[str, str]) 
         activity=reader.choice(element, values, "activity", ("parallel", "sequential"), "parallel"),
         main=bool(reader.parsed(element, values, "main", parse_bool)),
         realtime=_realtime(reader, element, values),
+        spin_ms=_spin(reader, element, values, kind, period),
         priority=reader.parsed(element, values, "priority", parse_int),
         nice=reader.parsed(element, values, "nice", parse_nice),
         affinity=reader.parsed(element, values, "affinity", parse_cores) or [],
@@ -87,6 +90,26 @@ def _activation(
         )
         period = None
     return kind, period
+
+
+def _spin(reader: FileReader, element: Element, values: dict[str, str], kind: str,
+          period: float | None) -> float | None:
+    """``spin`` (milliseconds before each deadline at which a periodic thread stops sleeping and
+    spins): from 0 to less than the period, on a periodic schedule only."""
+    if not values.get("spin", "").strip():
+        return None
+    spin = reader.parsed(element, values, "spin", _milliseconds)
+    if spin is None:
+        return None
+    if kind != "periodic":
+        reader.error(f'<{element.tag}> attribute spin="{values["spin"]}": only a periodic activity spins to its '
+                     "deadlines; leave it out of a triggered one", element)
+        return None
+    if not 0 <= spin < (period if period is not None else float("inf")):
+        reader.error(f'<{element.tag}> attribute spin="{values["spin"]}": expected milliseconds from 0 to less '
+                     f"than the period ({period:g})", element)
+        return None
+    return spin
 
 
 def _realtime(reader: FileReader, element: Element, values: dict[str, str]) -> str:
