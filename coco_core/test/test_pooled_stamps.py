@@ -303,17 +303,19 @@ APP = """<package name="pooled_stamps">
 </package>"""
 
 
-def test_pooled_frames_stamps_reach_a_reader_and_a_culled_stamps_only_connection_in_another_process(tmp_path: Path):
-    """The camera in process ``cam``: the viewer reads the frames from shared memory with their user
-    stamps and their own acquisition stamps; the monitor's stamps-only connection, through a Cull on
-    its side, gets the stamps of the frames whose box meets its region, from a ring (no slot held).
-    A filter's reader does not wait for its writer at the stop, so the monitor may miss the last
-    few: the checks hold for what it got up to its last message."""
-    frames = 50
+@pytest.mark.parametrize("apart", [True, False], ids=["camera in a process of its own", "one process"])
+def test_pooled_frames_stamps_reach_a_frame_reader_and_a_culled_stamps_only_connection(tmp_path: Path, apart: bool):
+    """The camera in process ``cam`` (or, the same file without its ``<process>``, in the
+    launcher's): the viewer reads the frames (from shared memory) with their user stamps and their
+    own acquisition stamps; the monitor's stamps-only connection, through a Cull on its side, gets
+    the stamps of the frames whose box meets its region (from a ring, no slot held). A filter's
+    reader does not wait for its writer at the stop, so the monitor may miss the last few: the
+    checks hold for what it got up to its last message."""
     out = tmp_path / "out"
     out.mkdir()
     path = tmp_path / "app.xml"
-    path.write_text(APP.format(frames=frames, out=out))
+    text = APP.format(frames=50, out=out)
+    path.write_text(text if apart else re.sub(r'<process name="cam">(.*?)</process>', r"\1", text, flags=re.S))
     env = dict(os.environ, PYTHONPATH=f"{DATA}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
     launched = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--profile", "600"],
                               capture_output=True, text=True, timeout=TIMEOUT, env=env)
@@ -330,11 +332,12 @@ def test_pooled_frames_stamps_reach_a_reader_and_a_culled_stamps_only_connection
     assert seqs, "the monitor got stamps"
     assert seqs == [seq for seq in range(1, seqs[-1] + 1) if (seq - 1) % 10 <= 5]
     assert all(entry["stamps_only"] and entry["user"]["part"] == entry["seq"] - 1 for entry in monitor)
-    rows = {cells[1]: cells for line in launched.stdout.splitlines()
-            if len(cells := re.split(r"\s{2,}", line.strip())) == 7 and " -> " in cells[1]}
+    rows = {cells[-6]: cells for line in launched.stdout.splitlines()  # [process,] connection, policy, 4 counters
+            if len(cells := re.split(r"\s{2,}", line.strip())) in (6, 7) and " -> " in cells[-6]}
     culled = rows["camera.frames -> monitor.item"]
-    assert culled[2].startswith("Cull(bbox meets 0 0 5 1), routed away ")
-    written, read, dropped, pending = map(int, culled[3:])
+    assert culled[-5].startswith("Cull(bbox meets 0 0 5 1), routed away ")
+    assert culled[:-6] == (["launcher"] if apart else []), "the reader's process reports the connection"
+    written, read, dropped, pending = map(int, culled[-4:])
     assert written == read + dropped + pending and read == len(monitor)
 
 
