@@ -367,9 +367,8 @@ class InputPort(Port):
         that acquired it, the steps of its way), a pooled frame's own acquisition stamp (its
         :attr:`Slot.stamp <coco_core.pool.Slot.stamp>`'s, :func:`~coco_core.pool.frame_stamp`), else
         the stamp of the message that carried it (:attr:`stamp`: its write, in this process or
-        another; a pooled frame's write), so that a
-        plain value written through a port has an origin too. None only for a plain value pushed
-        into a connection without a port.
+        another; a pooled frame's write), so that a plain value written through a port has an
+        origin too. None only for a plain value pushed into a connection without a port.
 
         It differs from :attr:`stamp` only in the fields FlowVR's stamp list gives the carrying
         message: ``seq`` and ``source`` stay the acquisition's, as the latency split by source

@@ -471,7 +471,8 @@ def test_a_pooled_frames_user_stamps_and_own_stamp_cross_between_hosts(link):
     """The frame's user stamps travel in the Sample's own field, its own acquisition stamp in the
     frame: the reader's port.stamp has the user stamps and the acquisition's time (on its clock),
     port.origin is the acquisition stamp, as in the writer's process."""
-    crossing = link("stamped_frames", ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 3), source=Frames("source"))
+    pooled = ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 3)
+    crossing = link("stamped_frames", pooled, source=Frames("source"))
     out = crossing.source.out
     slot = out.acquire((4, 4))
     slot.array[:] = 7

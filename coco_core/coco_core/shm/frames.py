@@ -4,11 +4,12 @@ The same protocol as :class:`coco_core.pool.FramePool` (FREE -> WRITING -> READY
 release), kept in a *control* segment that every process of the pool maps: per slot its state,
 reader count, sequence number, the shape and dtype of its frame, its stamp and its message's stamp
 (user stamps included); then, per reader in another process, its ``read`` counter (in shared
-memory, so that the launcher still has a reader's figures when that reader's process died). One pool serves every reader of a pooled output, in any
-process, with the slot count the port declares, as the in-process pool does. A slot's pixels live in
-a segment of their own, made by the writer when the frame size first needs it (and made anew, under a
-new generation number, when the size changes: readers that still hold the old one keep their
-mapping). A reader gets a numpy array *over* the slot's segment: no copy, whatever the frame size.
+memory, so that the launcher still has a reader's figures when that reader's process died). One
+pool serves every reader of a pooled output, in any process, with the slot count the port declares,
+as the in-process pool does. A slot's pixels live in a segment of their own, made by the writer
+when the frame size first needs it (and made anew, under a new generation number, when the size
+changes: readers that still hold the old one keep their mapping). A reader gets a numpy array
+*over* the slot's segment: no copy, whatever the frame size.
 
 State changes are short critical sections under a ``flock`` on the control segment (between
 processes) and a thread lock (between threads of one process, which share the flock):
