@@ -112,7 +112,6 @@ def pool_pair(arena: Arena, slots: int = 3) -> tuple[Camera, ShmFramePool]:
     spec = arena.channel(ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, slots), "camera.frames->far.frames",
                          frames=True, readers=1)
     camera = Camera("camera")
-    camera.frames = Camera.frames.bind(camera, "frames")  # type: ignore[misc]
     pool = ShmFramePool(spec)
     camera.frames.use_pool(pool)
     return camera, pool
