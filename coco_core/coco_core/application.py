@@ -33,12 +33,9 @@ WRITER_POLL = 0.002
 """Seconds between two looks at whether writers in other processes have finished (a natural stop)."""
 
 
-def check_stamps_only(out: OutputPort, into: InputPort) -> None:
+def check_stamps_only(into: InputPort) -> None:
     """A stamps-only connection gives its reader :class:`~coco_core.stamps.Stamp` values: the input
-    must take them; a pooled output publishes its frames to every reader as they are."""
-    if isinstance(out, PooledOutputPort):
-        raise WiringError(f"{out.qualified_name} is a pooled output: its frames go to every reader as they are; "
-                          "a stamps-only connection starts at a plain output")
+    must take them (from a plain output or a pooled one, whose frames it never holds)."""
     if not types_compatible(Stamp, into.type):
         raise WiringError(f"a stamps-only connection gives {into.qualified_name} the messages' stamps "
                           f"(coco_core.stamps.Stamp), and that port takes {type_name(into.type)}; "
@@ -244,13 +241,13 @@ class Application:
                                    f"(inputs of {into.owner.name if into.owner else '?'}: "
                                    f"{', '.join(into.owner.inputs) if into.owner else ''})")
         if stamps_only:
-            check_stamps_only(out, into)
+            check_stamps_only(into)
         elif not types_compatible(out.type, into.type):
             raise WiringError(f"cannot connect {out.qualified_name} ({type_name(out.type)}) to "
                                    f"{into.qualified_name} ({type_name(into.type)}): types differ")
         if connection is None:
-            connection = self._make(out, policy)
-        elif isinstance(out, PooledOutputPort):
+            connection = self._make(out, policy, stamps_only)
+        elif isinstance(out, PooledOutputPort) and not stamps_only:
             raise WiringError(f"{out.qualified_name} is a pooled output: its frames go to every reader as they "
                               f"are and cannot pass through a {connection.describe()} filter")
         out.add_connection(connection, stamps_only)
@@ -261,8 +258,13 @@ class Application:
         return connection
 
     @staticmethod
-    def _make(out: OutputPort, policy: ConnectionPolicy) -> Connection:
-        if isinstance(out, PooledOutputPort):
+    def _make(out: OutputPort, policy: ConnectionPolicy, stamps_only: bool = False) -> Connection:
+        """The connection ``policy`` makes from ``out``: a reader of a pooled output's pool, or a
+        connection of its own (a stamps-only one from a pooled output too: it carries stamps)."""
+        if stamps_only and policy.data is BufferPolicy.POOL:
+            raise WiringError(f"a stamps-only connection from {out.qualified_name} carries the messages' stamps, "
+                              "not frames: connect it with data=DATA, BUFFER or CIRCULAR, not POOL")
+        if isinstance(out, PooledOutputPort) and not stamps_only:
             if policy.data not in (BufferPolicy.DATA, BufferPolicy.POOL):
                 raise WiringError(f"{out.qualified_name} is a pooled output: connect it with data=POOL "
                                        f"(latest frame, no copy), not {policy.data.value}")

@@ -25,7 +25,7 @@ import numpy as np
 from .connections import EMPTY, Connection
 from .errors import PoolError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
-from .stamps import Message
+from .stamps import Message, Stamp
 
 
 DEFAULT_SLOTS = 4
@@ -54,11 +54,14 @@ class Slot:
         self.readers = 0
         self.seq = 0
         self.stamp: Any = None
-        """Free for the writer: e.g. a :class:`~coco_core.stamps.Stamp` of the frame."""
+        """Free for the writer: e.g. a :class:`~coco_core.stamps.Stamp` of the frame, which is then
+        the frame's acquisition stamp (:func:`frame_stamp`)."""
         self.message: Message | None = None
-        """The stamp fields of the write that published the frame (its payload is None: the slot
-        is the payload), set by the pooled output port and read by the reader's
-        :attr:`~coco_core.ports.InputPort.stamp`, in this process or from shared memory."""
+        """The stamp fields of the write that published the frame, user stamps included, set by
+        the pooled output port and read by the reader's :attr:`~coco_core.ports.InputPort.stamp`,
+        in this process or from shared memory. Its value is not the frame (the slot is) but the
+        frame's acquisition stamp (:func:`frame_stamp` of :attr:`stamp`) or None, so that the
+        message's stamp times the frame from its acquisition as a ``Stamped`` value's does."""
 
     def release(self) -> None:
         """Give the slot back after reading; the writer may reuse it."""
@@ -72,6 +75,18 @@ class Slot:
 
     def __repr__(self) -> str:
         return f"<Slot {self.index} {self.state.value} seq={self.seq} readers={self.readers}>"
+
+
+def frame_stamp(stamp: Any) -> Stamp | None:
+    """The acquisition stamp a frame's own :attr:`Slot.stamp` carries: the
+    :class:`~coco_core.stamps.Stamp` itself, or the one in its ``stamp`` attribute (a ``Stamped``,
+    a mesh's ``MeshInfo``); None for anything else (a count, a layout without a stamp). A frame is
+    then timed from its acquisition, not from the write that published it, as a ``Stamped`` value
+    is (its readers' ``port.stamp`` time and steps, ``port.origin``)."""
+    if type(stamp) is Stamp:
+        return stamp
+    inner = getattr(stamp, "stamp", None)
+    return inner if type(inner) is Stamp else None
 
 
 class FramePool(abc.ABC):

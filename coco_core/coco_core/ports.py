@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Callable
 from .connections import EMPTY, Connection
 from .errors import PolicyError, PoolError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
-from .pool import DEFAULT_SLOTS, FramePool, LocalFramePool, PoolConnection, PoolReader, Slot
+from .pool import DEFAULT_SLOTS, FramePool, LocalFramePool, PoolConnection, PoolReader, Slot, frame_stamp
 from .stamps import NO_USER_STAMPS, Message, Stamp, Stamped, user_stamps
 
 if TYPE_CHECKING:
@@ -174,7 +174,8 @@ class PooledOutputPort(OutputPort):
     """An output whose frames live in a :class:`FramePool`: ``acquire`` a slot, fill it, ``write`` it.
 
     Readers receive the :class:`Slot` itself and must ``release()`` it (or use it as a context
-    manager). ``slots`` should be at least 2 + the number of readers that hold a frame at once.
+    manager). ``slots`` should be at least 2 + the number of readers that hold a frame at once
+    (a stamps-only connection's reader holds none: it reads the frames' stamps).
 
     Each bound port starts with a :class:`LocalFramePool` of its own; the process level gives it its
     pool in shared memory, when a reader runs in another process, through :meth:`use_pool`, the one
@@ -222,17 +223,20 @@ class PooledOutputPort(OutputPort):
     def write(self, slot: Slot, stamps: Mapping[str, Any] | None = None) -> None:
         """Publish a filled slot to every reader: the slot is handed over as it is, the stamp of
         this write with it (:attr:`Slot.message <coco_core.pool.Slot.message>`, across processes in
-        the pool's shared records), which its readers' :attr:`InputPort.stamp` reads. User stamps
-        are refused: the pool's records between processes hold the fixed stamp fields only (a
-        frame's own stamp, :attr:`Slot.stamp`, may carry more)."""
-        if stamps:
-            raise PolicyError(f"{self.qualified_name} is a pooled output: its frames carry the fixed stamp fields "
-                              "(number, iteration, time), not user stamps; give the frame's Slot.stamp instead")
-        message = self._message(slot)
-        slot.message = Message(None, message.time, message.seq, message.source, message.it)
+        the pool's shared records), which its readers' :attr:`InputPort.stamp` reads. ``stamps``:
+        user stamps, as on a plain output (across processes in the slot's record, small values).
+        A frame whose own :attr:`Slot.stamp <coco_core.pool.Slot.stamp>` carries a
+        :class:`~coco_core.stamps.Stamp` (:func:`~coco_core.pool.frame_stamp`) is timed from it, as
+        a ``Stamped`` value is. A stamps-only connection gets the stamp, never the slot: no reader
+        holds a slot for it."""
+        slot.message = message = self._message(frame_stamp(slot.stamp), stamps)
         self.pool.publish(slot)
-        for connection in self.connections:
+        for connection in self._every:
             connection.push(slot)
+        if self._stamps_only:
+            stamp_message = message.stamps_only()
+            for connection in self._stamps_only:
+                connection.push(stamp_message if connection.carries_stamps else stamp_message.value)
 
     def share(self, connection: Connection) -> None:
         """Refused: a pooled frame is published to every reader of the pool."""
@@ -350,7 +354,9 @@ class InputPort(Port):
     @property
     def stamp(self) -> Stamp | None:
         """The stamp of the value the last read returned (new or old): the message's stamp inside
-        one process and from another (the channels carry it), a pooled frame's write's, a
+        one process and from another (the channels carry it), a pooled frame's write's (user
+        stamps included; its time and steps the frame's own acquisition stamp's, when its
+        :attr:`Slot.stamp <coco_core.pool.Slot.stamp>` has one), a
         :class:`~coco_core.stamps.Stamped` value's own otherwise (a value pushed into a connection
         without a port); None for a plain value that came without one."""
         item = self._taken
@@ -364,10 +370,11 @@ class InputPort(Port):
     def origin(self) -> Stamp | None:
         """Where the data of the value the last read returned began, what a latency is measured
         from: a :class:`~coco_core.stamps.Stamped` value's own stamp (its acquisition, the source
-        that acquired it, the steps of its way), else the stamp of the message that carried it
-        (:attr:`stamp`: its write, in this process or another; a pooled frame's write), so that a
-        plain value written through a port has an origin too. None only for a plain value pushed
-        into a connection without a port.
+        that acquired it, the steps of its way), a pooled frame's own acquisition stamp (its
+        :attr:`Slot.stamp <coco_core.pool.Slot.stamp>`'s, :func:`~coco_core.pool.frame_stamp`), else
+        the stamp of the message that carried it (:attr:`stamp`: its write, in this process or
+        another; a pooled frame's write), so that a plain value written through a port has an
+        origin too. None only for a plain value pushed into a connection without a port.
 
         It differs from :attr:`stamp` only in the fields FlowVR's stamp list gives the carrying
         message: ``seq`` and ``source`` stay the acquisition's, as the latency split by source
@@ -376,6 +383,8 @@ class InputPort(Port):
         value = item.value if type(item) is Message else item
         if isinstance(value, Stamped):
             return value.stamp
+        if type(value) is Slot and value.message is not None and type(value.message.value) is Stamp:
+            return value.message.value  # the frame's own acquisition stamp (frame_stamp)
         return self.stamp
 
     def read_all_origins(self) -> list[tuple[Any, Stamp | None]]:

@@ -21,7 +21,6 @@ from coco_core import (
     ConnectionPolicy,
     InputPort,
     OutputPort,
-    PooledOutputPort,
     SyncPolicy,
     WiringError,
 )
@@ -125,17 +124,12 @@ def test_a_stamps_only_connection_gives_the_stamp_without_the_payload(make_app):
     assert only.counters() == {"written": 1, "read": 1, "dropped": 0, "pending": 0}
 
 
-def test_a_stamps_only_connection_needs_a_port_that_takes_stamps_and_a_plain_output(make_app):
-    class Camera(Component):
-        frames = PooledOutputPort(4)
-
+def test_a_stamps_only_connection_needs_a_port_that_takes_stamps(make_app):
+    """(From a pooled output too: ``test_pooled_stamps.py``.)"""
     app = make_app()
-    writer, ints, camera = app.add(Writer("writer")), app.add(IntReader("ints")), app.add(Camera("camera"))
+    writer, ints = app.add(Writer("writer")), app.add(IntReader("ints"))
     with pytest.raises(WiringError, match=r"gives ints.item the messages' stamps .* that port takes int"):
         app.connect("writer.out", "ints.item", stamps_only=True)
-    reader = app.add(Reader("reader"))
-    with pytest.raises(WiringError, match="camera.frames is a pooled output: .* starts at a plain output"):
-        app.connect(camera.frames, reader.item, stamps_only=True)
     assert app.connections == []
 
 

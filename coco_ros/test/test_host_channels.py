@@ -26,7 +26,7 @@ from coco_core.errors import ChannelError, ConfigError
 from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup
 from coco_core.hosts.channel import HostChannel, topic_of
 from coco_core.policy import NEW_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, SyncPolicy
-from coco_core.pool import Slot
+from coco_core.pool import Slot, SlotState
 from coco_core.ports import PooledOutputPort
 from coco_core.report import snapshot
 from coco_core.stamps import Stamp, Stamped
@@ -465,6 +465,58 @@ def test_a_pooled_outputs_frames_cross_into_a_pool_of_the_readers(link):
     frame.release()
     assert crossing.sink.sample.read()[0] is not NEW_DATA
     assert crossing.reader.counters() == {"written": 2, "read": 1, "dropped": 1, "pending": 0}
+
+
+def test_a_pooled_frames_user_stamps_and_own_stamp_cross_between_hosts(link):
+    """The frame's user stamps travel in the Sample's own field, its own acquisition stamp in the
+    frame: the reader's port.stamp has the user stamps and the acquisition's time (on its clock),
+    port.origin is the acquisition stamp, as in the writer's process."""
+    pooled = ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, 3)
+    crossing = link("stamped_frames", pooled, source=Frames("source"))
+    out = crossing.source.out
+    slot = out.acquire((4, 4))
+    slot.array[:] = 7
+    slot.stamp = Stamp(100.0, 7, "camera").step("exposed", 100.25)
+    out.write(slot, stamps={"bbox": (0.0, 0.0, 1.0, 1.0), "part": 3})
+    assert wait_for(lambda: crossing.reader.pool.published == 1)
+    port = crossing.sink.sample
+    status, frame = port.read()
+    assert status is NEW_DATA and (frame.array == 7).all()
+    stamp, origin = port.stamp, port.origin
+    frame.release()
+    assert (stamp.seq, stamp.source) == (1, "source.out")
+    assert dict(stamp.user) == {"bbox": (0.0, 0.0, 1.0, 1.0), "part": 3}
+    assert origin == Stamp(100.5, 7, "camera", (("exposed", 100.75),)), "the acquisition, on the reader's clock"
+    assert (stamp.time, stamp.steps) == (origin.time, origin.steps)
+
+
+def test_a_stamps_only_connection_from_a_pooled_output_sends_the_frames_stamps(link):
+    """No frame crosses and none is held: the writer's pool never stalls for this reader."""
+    crossing = link("dashed_frames", buffer(8), source=Frames("source"), sink=Stamps("sink"), stamps_only=True)
+    out = crossing.source.out
+    for number in range(6):
+        slot = out.acquire((480, 640, 3))
+        slot.array[:] = number
+        out.write(slot, stamps={"part": number})
+    assert out.pool.stalls == 0 and SlotState.READING not in out.pool.states()
+    assert wait_for(lambda: crossing.reader.pending == 6)
+    got = crossing.sink.sample.read_all()
+    assert all(isinstance(stamp, Stamp) for stamp in got)
+    assert [(stamp.seq, stamp.source, dict(stamp.user)) for stamp in got] == [
+        (number + 1, "source.out", {"part": number}) for number in range(6)]
+    assert crossing.reader.describe() == "BUFFER/LOCKED[8], stamps only, DDS from host alpha"
+    assert crossing.reader.counters() == {"written": 6, "read": 6, "dropped": 0, "pending": 0}
+
+
+def test_a_stamps_only_connection_between_hosts_carries_no_frames(hosts):
+    channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", ConnectionPolicy(BufferPolicy.POOL),
+                          None, "pickle", topic_of("dashed_pool", "source.out", "sink.sample"), True)
+    app = Application("dashed_pool")
+    app.add(Frames("source"))
+    with pytest.raises(ConfigError, match="a stamps-only connection carries the messages' stamps, not frames: .* "
+                                          "not POOL"):
+        attach_between_hosts(app, hosts[0], [channel], "alpha")
+    assert app.connections == []
 
 
 def test_a_pooled_output_needs_a_pool_connection(hosts):

@@ -122,13 +122,17 @@ def woken_by_other_processes(spec: AppSpec, placement: Placement) -> set[str]:
 def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[ChannelPlan]:
     """One channel for every connection of ``spec`` that crosses processes; one frame pool for
     every pooled output read from another process, with the slots the port declares, shared by all
-    its readers (as in one process, where they all read the port's one pool)."""
+    its readers (as in one process, where they all read the port's one pool); a ring for a
+    stamps-only connection from a pooled output (it carries the frames' stamps, never a slot)."""
     components = {component.name: component for component in spec.all_components()}
     activity_of = {name: activity for activity in spec.activities for name in activity.components}
     activities = {activity.name: activity for activity in spec.activities}
     crossing = placement.crossing(spec)
     outputs = {str(c.src): declared_port(components.get(c.src.component), c.src.port) for c in crossing}
-    pooled = [c for c in crossing if isinstance(outputs[str(c.src)], PooledOutputPort) or c.data is BufferPolicy.POOL]
+    # The connections that read frames from a pool: a stamps-only one reads the frames' stamps from a
+    # ring of its own and holds no slot.
+    pooled = [c for c in crossing if not c.stamps_only
+              and (isinstance(outputs[str(c.src)], PooledOutputPort) or c.data is BufferPolicy.POOL)]
     readers = Counter(str(c.src) for c in pooled)
     pools: dict[str, Any] = {}
     taken: Counter[str] = Counter()
@@ -145,9 +149,6 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
             if connection.filter is not None:
                 raise ConfigError(f"{connection.src} is a pooled output: its frames go to every reader as they are "
                                   f"and cannot pass through a {connection.filter.type} filter", connection.location)
-            if connection.stamps_only:
-                raise ConfigError(f"{connection.src} is a pooled output: its frames go to every reader as they are; "
-                                  "a stamps-only connection starts at a plain output", connection.location)
             if connection.data not in (BufferPolicy.DATA, BufferPolicy.POOL):
                 raise ConfigError(f"{connection.src} is a pooled output: connect it with data=POOL (latest frame, "
                                   f"no copy), not {connection.data.value}", connection.location)
@@ -160,6 +161,9 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
                 pools[source] = arena.channel(ConnectionPolicy(BufferPolicy.POOL, SyncPolicy.LOCKED, slots), label,
                                               frames=True, readers=readers[source])
             channel = replace(pools[source], label=label, reader=number)
+        elif connection.stamps_only and connection.data is BufferPolicy.POOL:
+            raise ConfigError(f"a stamps-only connection from {connection.src} carries the messages' stamps, not "
+                              "frames: connect it with data=DATA, BUFFER or CIRCULAR, not POOL", connection.location)
         else:
             channel = replace(arena.channel(ring_policy(connection), label), stamps_only=connection.stamps_only)
         plans.append(ChannelPlan(str(connection.src), str(connection.dest),

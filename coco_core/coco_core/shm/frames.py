@@ -2,13 +2,14 @@
 
 The same protocol as :class:`coco_core.pool.FramePool` (FREE -> WRITING -> READY -> READING ->
 release), kept in a *control* segment that every process of the pool maps: per slot its state,
-reader count, sequence number, the shape and dtype of its frame and its stamp; then, per reader in
-another process, its ``read`` counter (in shared memory, so that the launcher still has a reader's
-figures when that reader's process died). One pool serves every reader of a pooled output, in any
-process, with the slot count the port declares, as the in-process pool does. A slot's pixels live in
-a segment of their own, made by the writer when the frame size first needs it (and made anew, under a
-new generation number, when the size changes: readers that still hold the old one keep their
-mapping). A reader gets a numpy array *over* the slot's segment: no copy, whatever the frame size.
+reader count, sequence number, the shape and dtype of its frame, its stamp and its message's stamp
+(user stamps included); then, per reader in another process, its ``read`` counter (in shared
+memory, so that the launcher still has a reader's figures when that reader's process died). One
+pool serves every reader of a pooled output, in any process, with the slot count the port declares,
+as the in-process pool does. A slot's pixels live in a segment of their own, made by the writer
+when the frame size first needs it (and made anew, under a new generation number, when the size
+changes: readers that still hold the old one keep their mapping). A reader gets a numpy array
+*over* the slot's segment: no copy, whatever the frame size.
 
 State changes are short critical sections under a ``flock`` on the control segment (between
 processes) and a thread lock (between threads of one process, which share the flock):
@@ -25,15 +26,16 @@ import numpy as np
 
 from ..connections import CountedConnection
 from ..errors import CocoError, PoolError
-from ..pool import FramePool, PoolReader, Slot, SlotState
-from ..stamps import Message
+from ..pool import FramePool, PoolReader, Slot, SlotState, frame_stamp
+from ..stamps import NO_USER_STAMPS, Message
 from .channel import ChannelSpec
 from .segment import Segment, SegmentLock, unlink
 
 HEADER = 64
 PUBLISHED, STALLS, REUSED, NEWEST, SLOTS = range(5)
-RECORD = 512
-"""Bytes of one slot's record: 16 int64 fields, the dtype string, the pickled stamp."""
+RECORD = 1024
+"""Bytes of one slot's record: 16 int64 fields, the dtype string, the pickled stamp, the pickled user
+stamps of the frame's message."""
 STATE, READERS, SEQ, GENERATION, NBYTES, NDIM, SHAPE = 0, 1, 2, 3, 4, 5, 6
 MAX_NDIM = 6
 NUM, IT, TIME = SHAPE + MAX_NDIM, SHAPE + MAX_NDIM + 1, SHAPE + MAX_NDIM + 2
@@ -41,7 +43,12 @@ NUM, IT, TIME = SHAPE + MAX_NDIM, SHAPE + MAX_NDIM + 1, SHAPE + MAX_NDIM + 2
 its number on the port (0: none), the writing activity's iteration, the time of the write (float64)."""
 DTYPE_AT, DTYPE_SIZE = 128, 32
 STAMP_AT = DTYPE_AT + DTYPE_SIZE
-STAMP_SIZE = RECORD - STAMP_AT
+USER_AT = 512
+STAMP_SIZE = USER_AT - STAMP_AT
+USER_SIZE = RECORD - USER_AT
+"""The record's area of the frame message's user stamps (``out.write(slot, stamps=...)``): their
+length (8 bytes, 0: none), then their pickle. FlowVR's user stamps are small named values (a box,
+a part number): a frame's own data belongs in its pixels or its ``Slot.stamp``."""
 STATES = [SlotState.FREE, SlotState.WRITING, SlotState.READY, SlotState.READING]
 CODE = {state: code for code, state in enumerate(STATES)}
 
@@ -171,11 +178,18 @@ class ShmFramePool(FramePool):
         return np.ndarray(shape, dtype, buffer=segment.map)
 
     def publish(self, slot: Slot) -> None:
-        """Make a written slot the newest frame (WRITING -> READY), with its stamp."""
+        """Make a written slot the newest frame (WRITING -> READY), with its stamp and its message's
+        user stamps (pickled only when there are some)."""
         stamp = pickle.dumps(slot.stamp, protocol=5)
         if len(stamp) > STAMP_SIZE - 8:
             raise CocoError(f"connection {self.spec.label}: a frame's stamp of {len(stamp)} bytes is larger than "
                             f"{STAMP_SIZE - 8}")
+        message = slot.message
+        user = pickle.dumps(message.user, protocol=5) if message is not None and message.user else b""
+        if len(user) > USER_SIZE - 8:
+            raise CocoError(f"connection {self.spec.label}: a frame's user stamps of {len(user)} bytes pickled are "
+                            f"larger than {USER_SIZE - 8} (small named values: put larger data in the frame or its "
+                            "Slot.stamp)")
         with self._locked:
             record = self._record(slot.index)
             if slot.pool is not self or record[STATE] != CODE[SlotState.WRITING]:
@@ -183,14 +197,14 @@ class ShmFramePool(FramePool):
             self.header[PUBLISHED] += 1
             slot.seq = record[SEQ] = int(self.header[PUBLISHED])
             record[STATE] = CODE[SlotState.READY]
-            message = slot.message
             record[NUM] = 0 if message is None else message.seq
             if message is not None:
                 record[IT] = message.it
                 self._times(slot.index)[TIME] = message.time
-            target = self._bytes(slot.index, STAMP_AT, STAMP_SIZE)
-            target[:8] = len(stamp).to_bytes(8, "little")
-            target[8:8 + len(stamp)] = stamp
+            for at, size, data in ((STAMP_AT, STAMP_SIZE, stamp), (USER_AT, USER_SIZE, user)):
+                target = self._bytes(slot.index, at, size)
+                target[:8] = len(data).to_bytes(8, "little")
+                target[8:8 + len(data)] = data
             previous = int(self.header[NEWEST])
             self.header[NEWEST] = slot.index
             if previous >= 0 and previous != slot.index and self._record(previous)[STATE] == CODE[SlotState.READY]:
@@ -212,17 +226,23 @@ class ShmFramePool(FramePool):
             seq, generation, ndim = int(record[SEQ]), int(record[GENERATION]), int(record[NDIM])
             shape = tuple(int(n) for n in record[SHAPE:SHAPE + ndim])
             dtype = np.dtype(bytes(self._bytes(index, DTYPE_AT, DTYPE_SIZE)).rstrip(b"\0").decode())
-            stamp_bytes = self._bytes(index, STAMP_AT, STAMP_SIZE)
-            size = int.from_bytes(stamp_bytes[:8], "little")
-            stamp = bytes(stamp_bytes[8:8 + size])
+            stamp, user = self._pickled(index, STAMP_AT, STAMP_SIZE), self._pickled(index, USER_AT, USER_SIZE)
             num, it, at = int(record[NUM]), int(record[IT]), self._times(index)[TIME]
         slot = Slot(self, index)
-        if num:
-            slot.message = Message(None, at, num, self.spec.label.partition("->")[0], it)
         slot.state, slot.seq, slot.readers = SlotState.READING, seq, 1
-        slot.stamp = pickle.loads(stamp) if size else None
+        slot.stamp = pickle.loads(stamp) if stamp else None
+        if num:
+            slot.message = Message(frame_stamp(slot.stamp), at, num, self.spec.label.partition("->")[0], it,
+                                   pickle.loads(user) if user else NO_USER_STAMPS)
         slot.array = self._array(index, generation, shape, dtype)
         return slot
+
+    def _pickled(self, index: int, at: int, size: int) -> bytes:
+        """The bytes of the pickle in slot ``index``'s record area at ``at`` (its length first);
+        empty when none."""
+        area = self._bytes(index, at, size)
+        length = int.from_bytes(area[:8], "little")
+        return bytes(area[8:8 + length])
 
     def release(self, slot: Slot) -> None:
         """One reader is done with ``slot``; the last one returns it to READY (newest) or FREE."""

@@ -50,7 +50,7 @@ from coco_core.connections import Connection, CountedConnection, make_connection
 from coco_core.errors import ChannelError, CocoError, ConfigError, PacketError
 from coco_core.hosts.channel import HostChannel
 from coco_core.policy import BufferPolicy, SyncPolicy
-from coco_core.pool import LocalFramePool, PoolReader
+from coco_core.pool import LocalFramePool, PoolReader, frame_stamp
 from coco_core.ports import PooledOutputPort
 from coco_core.processes.channels import fed_filter, input_end, output_end
 from coco_core.stamps import Message
@@ -295,7 +295,8 @@ class DdsFrameReader(FromHost, PoolReader):
             return  # every slot held by the reader: dropped (written - read - pending)
         np.copyto(slot.array, frame.array)
         slot.stamp = frame.stamp
-        slot.message = Message(None, item.time, item.seq, item.source, item.it) if type(item) is Message else None
+        slot.message = (Message(frame_stamp(frame.stamp), item.time, item.seq, item.source, item.it, item.user)
+                        if type(item) is Message else None)
         pool.publish(slot)
         if self.trigger is not None:
             self.trigger()
@@ -345,9 +346,12 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
         if channel.policy.sync is SyncPolicy.UNSYNC and host in (channel.src_host, channel.dest_host):
             raise ConfigError(f"connection {channel.label} joins hosts {channel.src_host} and {channel.dest_host}: "
                               "UNSYNC is only valid inside one activity (use LOCKED or LOCK_FREE)")
+        if frames and channel.stamps_only and host in (channel.src_host, channel.dest_host):
+            raise ConfigError(f"connection {channel.label} between hosts: a stamps-only connection carries the "
+                              "messages' stamps, not frames: connect it with data=DATA, BUFFER or CIRCULAR, not POOL")
         if channel.src_host == host and channel.src_process == process:
             out = output_end(app, channel.src, channel.src_activity)
-            if isinstance(out, PooledOutputPort) != frames:
+            if isinstance(out, PooledOutputPort) != frames and not channel.stamps_only:
                 raise ConfigError(f"connection {channel.label} between hosts: {channel.src} is "
                                   f"{'a pooled' if isinstance(out, PooledOutputPort) else 'not a pooled'} output, its "
                                   f"policy {channel.policy}: a pooled output's frames cross with data=POOL only")

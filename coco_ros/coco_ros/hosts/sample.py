@@ -148,7 +148,7 @@ class SampleEncoder:
             message = item.message
             value = Frame(item.array, item.stamp)
             stamp = message.stamp if message is not None else Stamp.now()
-            seq, it, source, user = stamp.seq, stamp.it, stamp.source, NO_USER_STAMPS
+            seq, it, source, user = stamp.seq, stamp.it, stamp.source, stamp.user
         else:
             value, stamp, seq, it, source, user = item, Stamp.now(), 0, -1, "", NO_USER_STAMPS
         sample = self._sample
