@@ -316,8 +316,61 @@ def test_cull_split_and_stamps_only_route_the_same_between_processes(tmp_path: P
     assert left[2].startswith("Cull(bbox meets 0 0 5 1), routed away ") and left[0] == "apart"
     written, read, dropped, pending = map(int, left[3:])
     assert written == read + dropped + pending and read == len(got["left"])
-    assert rows["emitter.out -> worker1.item"][2].startswith("Split(out1 of 2, in turn), routed away ")
+    worker1 = rows["emitter.out -> worker1.item"]
+    assert worker1[2] == "Split(out1 of 2, in turn), routed away 50"  # decided by the writer, for all 100
+    assert int(worker1[3]) == 50
 
+
+def test_split_and_cull_decide_on_the_writers_side_so_what_is_routed_away_never_crosses():
+    """config/stamp_routing.xml with the receivers in process ``apart``: both processes' parts built
+    here and attached to real shared-memory rings. Each ring takes only its reader's messages (the
+    ring's offered count: every message crossed into each ring before), each reader gets exactly
+    its messages in order, and the reader's process shows the routed-away count read from the ring
+    as one process does. A message that cannot be routed crosses and is dropped by the reader's
+    filter, counted as in one process."""
+    from coco_core.processes.channels import attach, plan_channels
+    from coco_core.processes.filtered import FedRouter
+    from coco_core.processes.placement import Placement
+    from coco_core.processes.routed import RoutingEnd
+
+    text, wrapped = re.subn(r'(<activity name="view">.*?</activity>)', r'<process name="apart">\1</process>',
+                            (CONFIG / "stamp_routing.xml").read_text(), flags=re.S)
+    assert wrapped == 1
+    spec = parse_application_string(text, filename="apart.xml")
+    writer_app, reader_app = build_application(spec), build_application(spec, "apart")
+    assert sorted(writer_app.outgoing_routers) == ["emitter.out->left.item", "emitter.out->right.item",
+                                                  "emitter.out->worker0.item", "emitter.out->worker1.item"]
+    arena = Arena(f"writerroute{os.getpid()}x{os.urandom(3).hex()}")
+    view = os.eventfd(0)
+    try:
+        plans = plan_channels(arena, spec, Placement.of(spec))
+        attach(writer_app, plans, {"view": view})
+        attach(reader_app, plans, {"view": view})
+        out = writer_app.component("emitter").out
+        assert sum(isinstance(c, RoutingEnd) for c in out.connections) == 4
+        for count in range(10):
+            out.write(count, stamps={"bbox": box_of(count, 10, 1.0), "part": count})
+        out.write(10, stamps={"bbox": (1, 2), "part": 10})  # a 1-d box: the Culls cannot route it
+        ends = {name: reader_app.component(name).item.connections[0]
+                for name in ("left", "right", "worker0", "worker1")}
+        assert all(isinstance(end, FedRouter) for end in ends.values())
+        crossed = {name: end.channel.written for name, end in ends.items()}
+        assert crossed == {"left": 7, "right": 7, "worker0": 6, "worker1": 5}  # not 11 each
+        got = {name: [value for value, _ in read_all(reader_app.component(name).item)] for name in ends}
+        assert got == {"left": [0, 1, 2, 3, 4, 5], "right": [4, 5, 6, 7, 8, 9],
+                       "worker0": [0, 2, 4, 6, 8, 10], "worker1": [1, 3, 5, 7, 9]}
+        assert {name: end.counters() for name, end in ends.items()} == {
+            "left": {"written": 7, "read": 6, "dropped": 1, "pending": 0},
+            "right": {"written": 7, "read": 6, "dropped": 1, "pending": 0},
+            "worker0": {"written": 6, "read": 6, "dropped": 0, "pending": 0},
+            "worker1": {"written": 5, "read": 5, "dropped": 0, "pending": 0}}
+        assert ends["left"].describe() == "Cull(bbox meets 0 0 5 1), routed away 4"
+        assert ends["worker1"].describe() == "Split(out1 of 2, in turn), routed away 6"
+        [monitor] = reader_app.component("monitor").item.connections
+        assert monitor.written == 11  # a plain connection still takes every message
+    finally:
+        os.close(view)
+        arena.close()
 
 
 # --- Gather: a tree of Merges ---------------------------------------------------------------------
