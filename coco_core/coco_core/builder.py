@@ -320,7 +320,7 @@ def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup
     if spec.type == Split.name:
         return Split(policy, *split, by=spec.by)
     if spec.type == Cull.name:
-        return Cull(policy, spec.region, spec.stamp)
+        return Cull(policy, spec.region, spec.stamp, spec.frustum)
     return FILTERS[spec.type](policy)
 
 

@@ -5,7 +5,10 @@ file:line errors. Waiting is on conditions (or on the launcher's exit), never on
 
 from __future__ import annotations
 
+import collections
+import itertools
 import json
+import math
 import os
 import re
 import subprocess
@@ -13,6 +16,7 @@ import sys
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from coco_core import (
@@ -30,6 +34,7 @@ from coco_core.dataflow_graph import dataflow_dot
 from coco_core.demo.routing import box_of
 from coco_core.errors import ConfigErrors
 from coco_core.filters import Cull, Split
+from coco_core.frustum import Frustum
 from coco_core.policy import NEW_DATA
 from coco_core.shm import Arena, ShmReader, ShmWriter
 from coco_core.stamps import Stamp
@@ -215,6 +220,78 @@ def test_cull_refuses_a_region_that_is_not_one():
         Cull(BUFFERED, (3.0, 0.0, 1.0, 1.0))
 
 
+# --- Cull against a frustum -----------------------------------------------------------------------
+
+SEEN = dict(position=(0.0, 0.0, 0.0), look_at=(1.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), fov_y=90.0, aspect=2.0,
+            near=0.1, far=10.0)
+"""A camera at the origin looking along +x (z up): 90 degrees high, twice as wide (|z| <= x,
+|y| <= 2 x), from x = 0.1 to x = 10."""
+
+
+def seen(point) -> list[bool]:
+    """Which of the frustum's six conditions ``point`` meets, from the camera's geometry (not from
+    the matrix the filter uses): left, right, bottom, top, near, far."""
+    x, y, z = point  # the camera's axes are the world's here: forward +x, right -y, up +z
+    half = math.tan(math.radians(SEEN["fov_y"]) / 2) * x
+    return [-y <= SEEN["aspect"] * half, y <= SEEN["aspect"] * half, -z <= half, z <= half,
+            x >= SEEN["near"], x <= SEEN["far"]]
+
+
+@pytest.mark.parametrize("box, kept", [
+    ((4, -0.5, -0.5, 5, 0.5, 0.5), True),  # in front
+    ((-5, -0.5, -0.5, -4, 0.5, 0.5), False),  # behind the camera
+    ((11, -0.5, -0.5, 12, 0.5, 0.5), False),  # beyond far
+    ((0.0, -0.01, -0.01, 0.05, 0.01, 0.01), False),  # before near
+    ((4, 11, -0.5, 5, 12, 0.5), False),  # to the left (y > 2 x)
+    ((4, -0.5, 6, 5, 0.5, 7), False),  # above (z > x)
+    ((4, 9, -0.5, 5, 11, 0.5), True),  # across the left plane
+    ((-20, -20, -20, 20, 20, 20), True),  # around the whole frustum: no corner inside, still seen
+    ((9.9, -0.5, 10.5, 11, 0.5, 12), True),  # beside the far top edge: outside, but behind no one plane
+])
+def test_a_frustum_keeps_a_box_unless_it_is_wholly_outside_one_plane(box, kept):
+    assert Frustum.of_camera(**SEEN).meets(box[:3], box[3:]) is kept
+    corners = list(itertools.product(*zip(box[:3], box[3:])))
+    if any(all(seen(corner)) for corner in corners):  # the expectation, from the camera's geometry
+        assert kept
+    if any(not any(seen(corner)[side] for corner in corners) for side in range(6)):
+        assert not kept
+
+
+def test_a_frustum_never_culls_a_box_it_meets_and_culls_each_box_wholly_behind_one_plane():
+    """Random boxes against the camera's own geometry: a box with a corner or its centre inside is
+    kept; a box whose eight corners all fail one same condition is culled."""
+    frustum = Frustum.of_camera(**SEEN)
+    random = np.random.default_rng(22)
+    tried: collections.Counter[tuple[bool, bool]] = collections.Counter()
+    for _ in range(2000):
+        low = random.uniform((-2, -25, -12), (14, 25, 12))
+        high = low + random.uniform(0, 3, 3)
+        corners = [*itertools.product(*zip(low, high)), (low + high) / 2]
+        meets = frustum.meets(low, high)
+        inside = any(all(seen(corner)) for corner in corners)
+        behind = any(not any(seen(corner)[side] for corner in corners[:8]) for side in range(6))
+        assert meets if inside else True, (low, high)
+        assert not meets if behind else True, (low, high)
+        tried[inside, behind] += 1
+    assert tried[True, False] > 100 and tried[False, True] > 100  # both kinds were drawn
+
+
+def test_a_cull_with_a_frustum_routes_3d_boxes_and_drops_other_ones(make_app):
+    app = make_app()
+    writer, viewer = app.add(Writer("writer")), app.add(Reader("viewer"))
+    cull = app.connect(writer.out, viewer.item, connection=Cull(BUFFERED, frustum=Frustum.of_camera(**SEEN)))
+    writer.out.write("front", stamps={"bbox": (4, -0.5, -0.5, 5, 0.5, 0.5)})
+    writer.out.write("behind", stamps={"bbox": (-5, -0.5, -0.5, -4, 0.5, 0.5)})
+    writer.out.write("flat", stamps={"bbox": (4, -0.5, 5, 0.5)})  # a 2-d box: not against a frustum
+    writer.out.write("unboxed")
+    assert [value for value, _ in read_all(viewer.item)] == ["front", "unboxed"]
+    assert cull.counters() == {"written": 3, "read": 2, "dropped": 1, "pending": 0}
+    assert cull.describe() == ("Cull(bbox in frustum from 0 0 0 to 1 0 0, fov_y 90, aspect 2, near 0.1, far 10), "
+                               "routed away 1")
+    with pytest.raises(Exception, match="a region or a frustum, not both"):
+        Cull(BUFFERED, (0.0, 1.0), frustum=Frustum.of_camera(**SEEN))
+
+
 # --- the XML --------------------------------------------------------------------------------------
 
 def test_the_routing_file_builds_its_filters_in_file_order_and_draws_them():
@@ -246,8 +323,42 @@ ROUTED = """<package name="routed">
 </package>"""
 
 
+def test_a_cull_frustum_from_the_xml_is_the_camera_or_its_view_projection_matrix():
+    camera = ('<filter type="Cull" position="0 0 0" look_at="1 0 0" up="0 0 1" fov_y="90" aspect="2" near="0.1" '
+              'far="10"/>')
+    app = build_application(parse_application_string(ROUTED.format(attributes="", filter=camera), filename="app.xml"))
+    [cull] = app.connections
+    assert isinstance(cull, Cull) and cull.frustum is not None
+    assert cull.frustum.matrix == pytest.approx(Frustum.of_camera(**SEEN).matrix)
+    matrix = " ".join(f"{value!r}" for value in cull.frustum.matrix)
+    spec = parse_application_string(ROUTED.format(attributes="", filter=f'<filter type="Cull" view_projection="{matrix}"/>'),
+                                    filename="app.xml")
+    [by_matrix] = build_application(spec).connections
+    assert isinstance(by_matrix, Cull) and by_matrix.frustum is not None
+    assert np.allclose(by_matrix.frustum.planes, cull.frustum.planes)
+    assert by_matrix.describe() == "Cull(bbox in view_projection), routed away 0"
+    assert '"Cull\\nbbox in view_projection"' in dataflow_dot(spec)
+    defaults = ROUTED.format(attributes="", filter='<filter type="Cull" position="3 0 1" look_at="0 0 0.5"/>')
+    [default] = build_application(parse_application_string(defaults, filename="app.xml")).connections
+    assert default.describe().startswith("Cull(bbox in frustum from 3 0 1 to 0 0 0.5, fov_y 45, aspect 1.33333, "
+                                         "near 0.05, far 100)")
+
+
 @pytest.mark.parametrize("attributes, filter, expected", [
-    ("", '<filter type="Cull"/>', 'app.xml:10: <filter> needs a region= attribute'),
+    ("", '<filter type="Cull"/>', 'app.xml:10: <filter type="Cull"> needs one region for its receiver'),
+    ("", '<filter type="Cull" region="0 0 1 1" position="0 0 0" look_at="1 0 0"/>',
+     "got region= and a camera (position=, look_at=, ...)"),
+    ("", '<filter type="Cull" position="0 0" look_at="1 0 0"/>',
+     'app.xml:10: <filter type="Cull"> attribute position="0 0": expected 3 numbers'),
+    ("", '<filter type="Cull" fov_y="60"/>', "with a camera needs position= and look_at="),
+    ("", '<filter type="Cull" position="1 1 1" look_at="1 1 1"/>', "position 1 1 1 is its look_at point"),
+    ("", '<filter type="Cull" position="0 0 0" look_at="0 0 1"/>', "up=0 0 1 is parallel to the viewing direction"),
+    ("", '<filter type="Cull" position="0 0 0" look_at="1 0 0" fov_y="180"/>', "fov_y=180: expected a vertical"),
+    ("", '<filter type="Cull" position="0 0 0" look_at="1 0 0" fov_y="wide"/>',
+     'attribute fov_y="wide": expected a vertical field of view'),
+    ("", '<filter type="Cull" position="0 0 0" look_at="1 0 0" near="5" far="1"/>', "expected 0 < near < far"),
+    ("", '<filter type="Cull" view_projection="1 2 3"/>', 'view_projection="1 2 3": expected 16 numbers'),
+    ("", f'<filter type="Cull" view_projection="{" ".join(["0"] * 16)}"/>', "has no left plane"),
     ("", '<filter type="Cull" region="0 1 2"/>', 'app.xml:10: <filter type="Cull"> attribute region="0 1 2": '
                                                  "expected 2k numbers"),
     ("", '<filter type="Cull" region="5 0 1 1"/>', "each minimum at most its maximum"),
