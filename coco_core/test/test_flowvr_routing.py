@@ -387,8 +387,8 @@ def test_a_stamps_only_connection_into_a_port_of_another_type_is_an_error_with_f
 
 def test_cull_split_and_stamps_only_route_the_same_between_processes(tmp_path: Path):
     """config/stamp_routing.xml with the receivers in a process of their own: each gets what it gets in
-    one process (the filters on the reader's side, fed from the rings), the monitor the stamps only,
-    the counters in the profile. The emitter stops the application after 100 values; a filter's
+    one process (each Split and Cull decided by the writer's end of its ring), the monitor the stamps
+    only, the counters and the routed-away counts in the reader's process's profile. The emitter stops the application after 100 values; a filter's
     reader does not wait for its writer at the stop, so a receiver may miss the last few: the checks
     hold for what it got up to its last message."""
     text = (CONFIG / "stamp_routing.xml").read_text()
