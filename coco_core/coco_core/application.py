@@ -16,6 +16,7 @@ from .activity import Activity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
 from .filters import Filter
+from .filters import Router as RoutingFilter
 from .errors import CocoError, WiringError, did_you_mean
 from .lifecycle import STOP_TIMEOUT, Progress, StartGate
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -95,6 +96,11 @@ class Application:
         """The filters of connections from other processes into this one, by ``src->dest`` label:
         made by the builder (a Merge in its group, in file order) and put on the reader's side of
         the channel when the process level attaches it (:mod:`coco_core.processes.filtered`)."""
+        self.outgoing_routers: dict[str, RoutingFilter] = {}
+        """The Split and Cull filters of connections from this process into other processes or
+        hosts, by ``src->dest`` label: made by the builder (a Split numbered among its output's
+        connections in file order), they decide on the writer's end of the channel, before a message
+        crosses (:mod:`coco_core.processes.routed`)."""
         self._stop_requested = threading.Event()
         self._stop_listeners: list[Callable[[str], None]] = []
         self._damage_listeners: list[Callable[[str], None]] = []

@@ -16,7 +16,8 @@ from .application import Application, types_compatible
 from .attributes import AttributeValueError
 from .component import Component, ErrorPolicy
 from .errors import CocoError, ConfigError, ConfigErrors, FileWriteError, WiringError, did_you_mean
-from .filters import FILTERS, Cull, Filter, Gather, GatherGroup, MaxFrequency, Merge, MergeGroup, PreSignal, Split
+from .filters import (FILTERS, Cull, Filter, Gather, GatherGroup, MaxFrequency, Merge, MergeGroup, PreSignal, Router,
+                      Split)
 from .iteration import IterationPorts, port_of
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
 from .schedule import DEFAULT_SPIN
@@ -170,6 +171,28 @@ class _Builder:
                 if id(connection) not in own and connection.filter is not None
                 and _here(placement, connection.dest) and placement.process_of_ref(connection.dest) == process]
 
+    def to_other_hosts(self, placement: Placement, process: str) -> list[ConnectionSpec]:
+        """The connections from ``process`` to another host that route (a Split or a Cull): the
+        writer's end decides, here (``coco_ros.hosts`` puts the router before the network)."""
+        own = set(map(id, self.spec.connections))
+        return [connection for connection in self.spec.file_connections
+                if id(connection) not in own and connection.filter is not None
+                and connection.filter.type in ROUTERS and _here(placement, connection.src)
+                and placement.process_of_ref(connection.src) == process]
+
+    def route_out(self, app: Application, connection: ConnectionSpec, splits: dict[int, tuple[int, int]]) -> None:
+        """Make the Split or Cull of ``connection``, which leaves this process, for its writer's end
+        (:attr:`Application.outgoing_routers`); the reader's process makes its own, for its side."""
+        if not connection.src.activity and connection.src.component in self.missing:
+            return
+        try:
+            policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
+            made = _filter(connection.filter, policy, None, splits.get(id(connection), (0, 1)))
+            assert isinstance(made, Router)
+            app.outgoing_routers[f"{connection.src}->{connection.dest}"] = made
+        except (CocoError, ValueError, KeyError) as error:
+            self.fail(error, connection, self.inside(connection))
+
     def build(self, process: str = LAUNCHER) -> Application:
         spec = self.spec
         placement = Placement.of(spec)
@@ -211,9 +234,14 @@ class _Builder:
         """The Merge of each input port that has one (its connections in file order)."""
         splits = split_places(spec.file_connections or spec.connections)
         remote = self.from_other_hosts(placement, process)
-        for connection_spec in [*spec.connections, *remote]:
-            crosses = placement.crosses(connection_spec) or connection_spec in remote
-            incoming = crosses and placement.process_of_ref(connection_spec.dest) == process
+        onward = self.to_other_hosts(placement, process)
+        for connection_spec in [*spec.connections, *remote, *onward]:
+            crosses = placement.crosses(connection_spec) or connection_spec in remote or connection_spec in onward
+            incoming = crosses and connection_spec not in onward and placement.process_of_ref(connection_spec.dest) == process
+            outgoing = crosses and not incoming and placement.process_of_ref(connection_spec.src) == process
+            if outgoing and connection_spec.filter is not None and connection_spec.filter.type in ROUTERS:
+                self.route_out(app, connection_spec, splits)  # decided on the writer's side
+                continue
             if (crosses and not incoming) or (not crosses and placement.process_of_ref(connection_spec.src) != process):
                 continue  # another process's, or a shared-memory channel made by the process level
             if incoming and connection_spec.filter is None:
@@ -263,6 +291,10 @@ def _here(placement: Placement, ref: PortRef) -> bool:
     return ref.component in (placement.of_activity if ref.activity else placement.of_component)
 
 
+ROUTERS = (Split.name, Cull.name)
+"""The filters that decide on the writer's side between processes and hosts."""
+
+
 def split_places(connections: list[ConnectionSpec]) -> dict[int, tuple[int, int]]:
     """(index, count) of each connection with a Split among the Split connections of its output
     port, in file order, by the connection's ``id``: every process computes the same from the
@@ -308,7 +340,7 @@ def _filter(spec: FilterSpec | None, policy: ConnectionPolicy, merge: MergeGroup
     if spec.type == Split.name:
         return Split(policy, *split, by=spec.by)
     if spec.type == Cull.name:
-        return Cull(policy, spec.region, spec.stamp)
+        return Cull(policy, spec.region, spec.stamp, spec.frustum)
     return FILTERS[spec.type](policy)
 
 

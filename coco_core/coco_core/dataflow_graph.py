@@ -232,6 +232,8 @@ def _filter_label(spec: FilterSpec, buffersize: int) -> str:
         return f"MaxFrequency\n{spec.hz:g} Hz"
     if spec.type == "Split":
         return f"Split\nby {spec.by}" if spec.by else "Split\nin turn"
+    if spec.type == "Cull" and spec.frustum is not None:
+        return f"Cull\n{spec.stamp} in {spec.frustum.given}"
     if spec.type == "Cull":
         return f"Cull\n{spec.stamp} meets {' '.join(f'{value:g}' for value in spec.region)}"
     return spec.type

@@ -21,8 +21,9 @@ their payload.
 - :class:`Split` shares the messages of one output among its connections that carry it, one
   connection each message, in turn or by a user stamp (FlowVR's split, a scatter).
 - :class:`Cull` forwards a message only when its bounding box (a user stamp) meets the receiver's
-  region, given to the filter: one Cull on each connection of an output routes each message to the
-  receivers that see it (FlowVR Render's culling against each viewer's frustum).
+  region, given to the filter (a box, or a view frustum): one Cull on each connection of an output
+  routes each message to the receivers that see it (FlowVR Render's culling against each viewer's
+  frustum).
 
 - :class:`Gather` joins many connections into one input port as FlowVR's binary tree of merges
   does: the reader gets the nested pairs (``((a, b), (c, d))``), stamped as the first's message.
@@ -42,6 +43,7 @@ from typing import Any, Callable, ClassVar
 
 from .connections import EMPTY, LockedBufferConnection
 from .errors import PolicyError
+from .frustum import Frustum
 from .policy import ConnectionPolicy
 from .stamps import Message
 
@@ -362,17 +364,24 @@ class Split(Router):
 
 class Cull(Router):
     """Forwards the messages whose bounding box (the user stamp ``stamp``, ``2k`` numbers: the
-    minimum, then the maximum corner) meets ``region`` (``2k`` numbers the same way), as FlowVR
-    Render culls primitives against each viewer's frustum: one Cull per receiver, on each of the
-    output's connections, each with its own region (the frustum's bounding box, or a tile of a
-    display wall). A message without the stamp is forwarded (it cannot be culled: every receiver
-    gets it); one whose box has another dimension than the region's cannot be routed (dropped)."""
+    minimum, then the maximum corner) meets the receiver's region, as FlowVR Render culls primitives
+    against each viewer's frustum: one Cull per receiver, on each of the output's connections, each
+    with its own region. The region is a box (``region``, ``2k`` numbers the same way: a tile of a
+    display wall, a frustum's bounding box) or a true view ``frustum``
+    (:class:`~coco_core.frustum.Frustum`, against 3-d boxes: a box is forwarded unless it is wholly
+    outside one of the six planes). A message without the stamp is forwarded (it cannot be culled:
+    every receiver gets it); one whose box has another dimension than the region's cannot be routed
+    (dropped)."""
 
-    __slots__ = ("stamp", "low", "high")
+    __slots__ = ("stamp", "low", "high", "frustum")
     name = "Cull"
 
-    def __init__(self, policy: ConnectionPolicy, region: tuple[float, ...], stamp: str = "bbox") -> None:
-        if not region or len(region) % 2 or not all(math.isfinite(value) for value in region):
+    def __init__(self, policy: ConnectionPolicy, region: tuple[float, ...] = (), stamp: str = "bbox",
+                 frustum: Frustum | None = None) -> None:
+        if frustum is not None:
+            if region:
+                raise PolicyError("Cull takes a region or a frustum, not both")
+        elif not region or len(region) % 2 or not all(math.isfinite(value) for value in region):
             raise PolicyError(f"Cull needs a region of 2k finite numbers (minimum corner, then maximum), got {region}")
         half = len(region) // 2
         low, high = tuple(region[:half]), tuple(region[half:])
@@ -382,6 +391,7 @@ class Cull(Router):
         self.stamp = stamp
         self.low = low
         self.high = high
+        self.frustum = frustum
 
     def keeps(self, item: Any) -> bool | None:
         box = user_stamp(item, self.stamp)
@@ -391,12 +401,17 @@ class Cull(Router):
             values = [float(value) for value in box]
         except (TypeError, ValueError):
             return None
+        frustum = self.frustum
+        if frustum is not None:
+            return frustum.meets(values[:3], values[3:]) if len(values) == 6 else None
         half = len(self.low)
         if len(values) != 2 * half:
             return None
         return all(values[axis] <= self.high[axis] and self.low[axis] <= values[half + axis] for axis in range(half))
 
     def routes(self) -> str:
+        if self.frustum is not None:
+            return f"Cull({self.stamp} in {self.frustum.given})"
         return f"Cull({self.stamp} meets {' '.join(f'{v:g}' for v in self.low + self.high)})"
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .errors import Location
+from .frustum import Frustum
 from .hosts.channel import HostChannel
 from .policy import BufferPolicy, SyncPolicy
 
@@ -68,7 +69,11 @@ class FilterSpec:
     by: str = ""
     """Split: the user stamp that chooses the output (a whole number); empty: in turn."""
     region: tuple[float, ...] = ()
-    """Cull: the receiver's region, its minimum corner then its maximum (2k numbers)."""
+    """Cull: the receiver's region, its minimum corner then its maximum (2k numbers); empty with a
+    :attr:`frustum`."""
+    frustum: Frustum | None = None
+    """Cull: the receiver's view frustum (from its camera's attributes or its view-projection
+    matrix), instead of a box region."""
     stamp: str = "bbox"
     """Cull: the user stamp holding each message's bounding box."""
     location: Location | None = None

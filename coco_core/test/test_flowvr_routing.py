@@ -5,7 +5,10 @@ file:line errors. Waiting is on conditions (or on the launcher's exit), never on
 
 from __future__ import annotations
 
+import collections
+import itertools
 import json
+import math
 import os
 import re
 import subprocess
@@ -13,6 +16,7 @@ import sys
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from coco_core import (
@@ -29,6 +33,7 @@ from coco_core.dataflow_graph import dataflow_dot
 from coco_core.demo.routing import box_of
 from coco_core.errors import ConfigErrors
 from coco_core.filters import Cull, Split
+from coco_core.frustum import Frustum
 from coco_core.policy import NEW_DATA
 from coco_core.shm import Arena, ShmReader, ShmWriter
 from coco_core.stamps import Stamp
@@ -209,6 +214,78 @@ def test_cull_refuses_a_region_that_is_not_one():
         Cull(BUFFERED, (3.0, 0.0, 1.0, 1.0))
 
 
+# --- Cull against a frustum -----------------------------------------------------------------------
+
+SEEN = dict(position=(0.0, 0.0, 0.0), look_at=(1.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), fov_y=90.0, aspect=2.0,
+            near=0.1, far=10.0)
+"""A camera at the origin looking along +x (z up): 90 degrees high, twice as wide (|z| <= x,
+|y| <= 2 x), from x = 0.1 to x = 10."""
+
+
+def seen(point) -> list[bool]:
+    """Which of the frustum's six conditions ``point`` meets, from the camera's geometry (not from
+    the matrix the filter uses): left, right, bottom, top, near, far."""
+    x, y, z = point  # the camera's axes are the world's here: forward +x, right -y, up +z
+    half = math.tan(math.radians(SEEN["fov_y"]) / 2) * x
+    return [-y <= SEEN["aspect"] * half, y <= SEEN["aspect"] * half, -z <= half, z <= half,
+            x >= SEEN["near"], x <= SEEN["far"]]
+
+
+@pytest.mark.parametrize("box, kept", [
+    ((4, -0.5, -0.5, 5, 0.5, 0.5), True),  # in front
+    ((-5, -0.5, -0.5, -4, 0.5, 0.5), False),  # behind the camera
+    ((11, -0.5, -0.5, 12, 0.5, 0.5), False),  # beyond far
+    ((0.0, -0.01, -0.01, 0.05, 0.01, 0.01), False),  # before near
+    ((4, 11, -0.5, 5, 12, 0.5), False),  # to the left (y > 2 x)
+    ((4, -0.5, 6, 5, 0.5, 7), False),  # above (z > x)
+    ((4, 9, -0.5, 5, 11, 0.5), True),  # across the left plane
+    ((-20, -20, -20, 20, 20, 20), True),  # around the whole frustum: no corner inside, still seen
+    ((9.9, -0.5, 10.5, 11, 0.5, 12), True),  # beside the far top edge: outside, but behind no one plane
+])
+def test_a_frustum_keeps_a_box_unless_it_is_wholly_outside_one_plane(box, kept):
+    assert Frustum.of_camera(**SEEN).meets(box[:3], box[3:]) is kept
+    corners = list(itertools.product(*zip(box[:3], box[3:])))
+    if any(all(seen(corner)) for corner in corners):  # the expectation, from the camera's geometry
+        assert kept
+    if any(not any(seen(corner)[side] for corner in corners) for side in range(6)):
+        assert not kept
+
+
+def test_a_frustum_never_culls_a_box_it_meets_and_culls_each_box_wholly_behind_one_plane():
+    """Random boxes against the camera's own geometry: a box with a corner or its centre inside is
+    kept; a box whose eight corners all fail one same condition is culled."""
+    frustum = Frustum.of_camera(**SEEN)
+    random = np.random.default_rng(22)
+    tried: collections.Counter[tuple[bool, bool]] = collections.Counter()
+    for _ in range(2000):
+        low = random.uniform((-2, -25, -12), (14, 25, 12))
+        high = low + random.uniform(0, 3, 3)
+        corners = [*itertools.product(*zip(low, high)), (low + high) / 2]
+        meets = frustum.meets(low, high)
+        inside = any(all(seen(corner)) for corner in corners)
+        behind = any(not any(seen(corner)[side] for corner in corners[:8]) for side in range(6))
+        assert meets if inside else True, (low, high)
+        assert not meets if behind else True, (low, high)
+        tried[inside, behind] += 1
+    assert tried[True, False] > 100 and tried[False, True] > 100  # both kinds were drawn
+
+
+def test_a_cull_with_a_frustum_routes_3d_boxes_and_drops_other_ones(make_app):
+    app = make_app()
+    writer, viewer = app.add(Writer("writer")), app.add(Reader("viewer"))
+    cull = app.connect(writer.out, viewer.item, connection=Cull(BUFFERED, frustum=Frustum.of_camera(**SEEN)))
+    writer.out.write("front", stamps={"bbox": (4, -0.5, -0.5, 5, 0.5, 0.5)})
+    writer.out.write("behind", stamps={"bbox": (-5, -0.5, -0.5, -4, 0.5, 0.5)})
+    writer.out.write("flat", stamps={"bbox": (4, -0.5, 5, 0.5)})  # a 2-d box: not against a frustum
+    writer.out.write("unboxed")
+    assert [value for value, _ in read_all(viewer.item)] == ["front", "unboxed"]
+    assert cull.counters() == {"written": 3, "read": 2, "dropped": 1, "pending": 0}
+    assert cull.describe() == ("Cull(bbox in frustum from 0 0 0 to 1 0 0, fov_y 90, aspect 2, near 0.1, far 10), "
+                               "routed away 1")
+    with pytest.raises(Exception, match="a region or a frustum, not both"):
+        Cull(BUFFERED, (0.0, 1.0), frustum=Frustum.of_camera(**SEEN))
+
+
 # --- the XML --------------------------------------------------------------------------------------
 
 def test_the_routing_file_builds_its_filters_in_file_order_and_draws_them():
@@ -240,8 +317,42 @@ ROUTED = """<package name="routed">
 </package>"""
 
 
+def test_a_cull_frustum_from_the_xml_is_the_camera_or_its_view_projection_matrix():
+    camera = ('<filter type="Cull" position="0 0 0" look_at="1 0 0" up="0 0 1" fov_y="90" aspect="2" near="0.1" '
+              'far="10"/>')
+    app = build_application(parse_application_string(ROUTED.format(attributes="", filter=camera), filename="app.xml"))
+    [cull] = app.connections
+    assert isinstance(cull, Cull) and cull.frustum is not None
+    assert cull.frustum.matrix == pytest.approx(Frustum.of_camera(**SEEN).matrix)
+    matrix = " ".join(f"{value!r}" for value in cull.frustum.matrix)
+    spec = parse_application_string(ROUTED.format(attributes="", filter=f'<filter type="Cull" view_projection="{matrix}"/>'),
+                                    filename="app.xml")
+    [by_matrix] = build_application(spec).connections
+    assert isinstance(by_matrix, Cull) and by_matrix.frustum is not None
+    assert np.allclose(by_matrix.frustum.planes, cull.frustum.planes)
+    assert by_matrix.describe() == "Cull(bbox in view_projection), routed away 0"
+    assert '"Cull\\nbbox in view_projection"' in dataflow_dot(spec)
+    defaults = ROUTED.format(attributes="", filter='<filter type="Cull" position="3 0 1" look_at="0 0 0.5"/>')
+    [default] = build_application(parse_application_string(defaults, filename="app.xml")).connections
+    assert default.describe().startswith("Cull(bbox in frustum from 3 0 1 to 0 0 0.5, fov_y 45, aspect 1.33333, "
+                                         "near 0.05, far 100)")
+
+
 @pytest.mark.parametrize("attributes, filter, expected", [
-    ("", '<filter type="Cull"/>', 'app.xml:10: <filter> needs a region= attribute'),
+    ("", '<filter type="Cull"/>', 'app.xml:10: <filter type="Cull"> needs one region for its receiver'),
+    ("", '<filter type="Cull" region="0 0 1 1" position="0 0 0" look_at="1 0 0"/>',
+     "got region= and a camera (position=, look_at=, ...)"),
+    ("", '<filter type="Cull" position="0 0" look_at="1 0 0"/>',
+     'app.xml:10: <filter type="Cull"> attribute position="0 0": expected 3 numbers'),
+    ("", '<filter type="Cull" fov_y="60"/>', "with a camera needs position= and look_at="),
+    ("", '<filter type="Cull" position="1 1 1" look_at="1 1 1"/>', "position 1 1 1 is its look_at point"),
+    ("", '<filter type="Cull" position="0 0 0" look_at="0 0 1"/>', "up=0 0 1 is parallel to the viewing direction"),
+    ("", '<filter type="Cull" position="0 0 0" look_at="1 0 0" fov_y="180"/>', "fov_y=180: expected a vertical"),
+    ("", '<filter type="Cull" position="0 0 0" look_at="1 0 0" fov_y="wide"/>',
+     'attribute fov_y="wide": expected a vertical field of view'),
+    ("", '<filter type="Cull" position="0 0 0" look_at="1 0 0" near="5" far="1"/>', "expected 0 < near < far"),
+    ("", '<filter type="Cull" view_projection="1 2 3"/>', 'view_projection="1 2 3": expected 16 numbers'),
+    ("", f'<filter type="Cull" view_projection="{" ".join(["0"] * 16)}"/>', "has no left plane"),
     ("", '<filter type="Cull" region="0 1 2"/>', 'app.xml:10: <filter type="Cull"> attribute region="0 1 2": '
                                                  "expected 2k numbers"),
     ("", '<filter type="Cull" region="5 0 1 1"/>', "each minimum at most its maximum"),
@@ -270,8 +381,8 @@ def test_a_stamps_only_connection_into_a_port_of_another_type_is_an_error_with_f
 
 def test_cull_split_and_stamps_only_route_the_same_between_processes(tmp_path: Path):
     """config/stamp_routing.xml with the receivers in a process of their own: each gets what it gets in
-    one process (the filters on the reader's side, fed from the rings), the monitor the stamps only,
-    the counters in the profile. The emitter stops the application after 100 values; a filter's
+    one process (each Split and Cull decided by the writer's end of its ring), the monitor the stamps
+    only, the counters and the routed-away counts in the reader's process's profile. The emitter stops the application after 100 values; a filter's
     reader does not wait for its writer at the stop, so a receiver may miss the last few: the checks
     hold for what it got up to its last message."""
     text = (CONFIG / "stamp_routing.xml").read_text()
@@ -310,10 +421,63 @@ def test_cull_split_and_stamps_only_route_the_same_between_processes(tmp_path: P
     assert left[2].startswith("Cull(bbox meets 0 0 5 1), routed away ") and left[0] == "apart"
     written, read, dropped, pending = map(int, left[3:7])
     assert written == read + dropped + pending and read == len(got["left"])
-    assert rows["emitter.out -> worker1.item"][2].startswith("Split(out1 of 2, in turn), routed away ")
+    worker1 = rows["emitter.out -> worker1.item"]
+    assert worker1[2] == "Split(out1 of 2, in turn), routed away 50"  # decided by the writer, for all 100
+    assert int(worker1[3]) == 50
     monitor_row = rows["emitter.out -> monitor.item"]  # the reader's process knows it from its channel
     assert monitor_row[0] == "apart" and monitor_row[2].endswith(", stamps only"), monitor_row
 
+
+def test_split_and_cull_decide_on_the_writers_side_so_what_is_routed_away_never_crosses():
+    """config/stamp_routing.xml with the receivers in process ``apart``: both processes' parts built
+    here and attached to real shared-memory rings. Each ring takes only its reader's messages (the
+    ring's offered count: every message crossed into each ring before), each reader gets exactly
+    its messages in order, and the reader's process shows the routed-away count read from the ring
+    as one process does. A message that cannot be routed crosses and is dropped by the reader's
+    filter, counted as in one process."""
+    from coco_core.processes.channels import attach, plan_channels
+    from coco_core.processes.filtered import FedRouter
+    from coco_core.processes.placement import Placement
+    from coco_core.processes.routed import RoutingEnd
+
+    text, wrapped = re.subn(r'(<activity name="view">.*?</activity>)', r'<process name="apart">\1</process>',
+                            (CONFIG / "stamp_routing.xml").read_text(), flags=re.S)
+    assert wrapped == 1
+    spec = parse_application_string(text, filename="apart.xml")
+    writer_app, reader_app = build_application(spec), build_application(spec, "apart")
+    assert sorted(writer_app.outgoing_routers) == ["emitter.out->left.item", "emitter.out->right.item",
+                                                  "emitter.out->worker0.item", "emitter.out->worker1.item"]
+    arena = Arena(f"writerroute{os.getpid()}x{os.urandom(3).hex()}")
+    view = os.eventfd(0)
+    try:
+        plans = plan_channels(arena, spec, Placement.of(spec))
+        attach(writer_app, plans, {"view": view})
+        attach(reader_app, plans, {"view": view})
+        out = writer_app.component("emitter").out
+        assert sum(isinstance(c, RoutingEnd) for c in out.connections) == 4
+        for count in range(10):
+            out.write(count, stamps={"bbox": box_of(count, 10, 1.0), "part": count})
+        out.write(10, stamps={"bbox": (1, 2), "part": 10})  # a 1-d box: the Culls cannot route it
+        ends = {name: reader_app.component(name).item.connections[0]
+                for name in ("left", "right", "worker0", "worker1")}
+        assert all(isinstance(end, FedRouter) for end in ends.values())
+        crossed = {name: end.channel.written for name, end in ends.items()}
+        assert crossed == {"left": 7, "right": 7, "worker0": 6, "worker1": 5}  # not 11 each
+        got = {name: [value for value, _ in read_all(reader_app.component(name).item)] for name in ends}
+        assert got == {"left": [0, 1, 2, 3, 4, 5], "right": [4, 5, 6, 7, 8, 9],
+                       "worker0": [0, 2, 4, 6, 8, 10], "worker1": [1, 3, 5, 7, 9]}
+        assert {name: end.counters() for name, end in ends.items()} == {
+            "left": {"written": 7, "read": 6, "dropped": 1, "pending": 0},
+            "right": {"written": 7, "read": 6, "dropped": 1, "pending": 0},
+            "worker0": {"written": 6, "read": 6, "dropped": 0, "pending": 0},
+            "worker1": {"written": 5, "read": 5, "dropped": 0, "pending": 0}}
+        assert ends["left"].describe() == "Cull(bbox meets 0 0 5 1), routed away 4"
+        assert ends["worker1"].describe() == "Split(out1 of 2, in turn), routed away 6"
+        [monitor] = reader_app.component("monitor").item.connections
+        assert monitor.written == 11  # a plain connection still takes every message
+    finally:
+        os.close(view)
+        arena.close()
 
 
 # --- Gather: a tree of Merges ---------------------------------------------------------------------

@@ -11,7 +11,7 @@ import pytest
 from coco_core.builder import build_application
 from coco_core.dataflow_graph import dataflow_dot
 from coco_core.errors import ConfigErrors
-from coco_core.filters import MaxFrequency
+from coco_core.filters import Cull, MaxFrequency
 from coco_core.hosts.part import host_part, split_address
 from coco_core.policy import BufferPolicy
 from coco_core.xml import load_application
@@ -86,6 +86,19 @@ def test_a_filter_on_a_connection_from_another_host_is_made_on_the_readers_side(
     child = build_application(host_part(spec, "graphics"), "work")
     assert isinstance(child.incoming_filters["generator.sample->filter.sample"], MaxFrequency)
     assert not build_application(host_part(spec, "robot")).incoming_filters
+
+
+def test_a_cull_to_another_host_is_made_on_the_writers_side_too(tmp_path: Path) -> None:
+    """A routing filter decides where the message is written (coco_core.processes.routed): the
+    writer's host makes it for its end, the reader's host for its side (the profile, unroutables)."""
+    text = APP.replace('data="BUFFER" buffersize="16">', 'buffersize="16">')
+    spec = load_application(str(write(tmp_path, text, filter='<filter type="Cull" region="0 0 1 1"/>')))
+    writer = build_application(host_part(spec, "robot"))
+    assert isinstance(writer.outgoing_routers["generator.sample->filter.sample"], Cull)
+    assert not writer.incoming_filters
+    reader = build_application(host_part(spec, "graphics"), "work")
+    assert isinstance(reader.incoming_filters["generator.sample->filter.sample"], Cull)
+    assert not reader.outgoing_routers
 
 
 @pytest.mark.parametrize("text, message", [

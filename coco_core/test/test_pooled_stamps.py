@@ -331,12 +331,12 @@ def test_pooled_frames_stamps_reach_a_frame_reader_and_a_culled_stamps_only_conn
     assert seqs, "the monitor got stamps"
     assert seqs == [seq for seq in range(1, seqs[-1] + 1) if (seq - 1) % 10 <= 5]
     assert all(entry["stamps_only"] and entry["user"]["part"] == entry["seq"] - 1 for entry in monitor)
-    rows = {cells[-6]: cells for line in launched.stdout.splitlines()  # [process,] connection, policy, 4 counters
-            if len(cells := re.split(r"\s{2,}", line.strip())) in (6, 7) and " -> " in cells[-6]}
+    rows = {cells[-7]: cells for line in launched.stdout.splitlines()  # [process,] connection, policy, 4 counters, age
+            if len(cells := re.split(r"\s{2,}", line.strip())) in (7, 8) and " -> " in cells[-7]}
     culled = rows["camera.frames -> monitor.item"]
-    assert culled[-5].startswith("Cull(bbox meets 0 0 5 1), routed away ")
-    assert culled[:-6] == (["launcher"] if apart else []), "the reader's process reports the connection"
-    written, read, dropped, pending = map(int, culled[-4:])
+    assert culled[-6].startswith("Cull(bbox meets 0 0 5 1), routed away ")
+    assert culled[:-7] == (["launcher"] if apart else []), "the reader's process reports the connection"
+    written, read, dropped, pending = map(int, culled[-5:-1])
     assert written == read + dropped + pending and read == len(monitor)
 
 

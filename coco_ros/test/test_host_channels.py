@@ -23,7 +23,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
 from coco_core import Application, Component, InputPort, OutputPort, PeriodicActivity, TriggeredActivity
 from coco_core.errors import ChannelError, ConfigError
-from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup
+from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup, Split
 from coco_core.hosts.channel import HostChannel, topic_of
 from coco_core.policy import NEW_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, SyncPolicy
 from coco_core.pool import Slot, SlotState
@@ -120,7 +120,8 @@ class Link:
 
     def __init__(self, hosts: tuple[HostBridge, HostBridge], name: str, policy: ConnectionPolicy, *,
                  source: Component | None = None, sink: Component | None = None, codec: str = "pickle",
-                 filter: Any = None, stamps_only: bool = False, event: bool | None = None) -> None:
+                 filter: Any = None, router: Any = None, stamps_only: bool = False,
+                 event: bool | None = None) -> None:
         self.channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", policy, event, codec,
                                    topic_of(name, "source.out", "sink.sample"), stamps_only, filter is not None)
         self.writer_app, self.reader_app = Application(name), Application(name)
@@ -128,6 +129,8 @@ class Link:
         self.sink = self.reader_app.add(sink or Sink("sink"))
         if filter is not None:  # as the builder makes it on the reader's side
             self.reader_app.incoming_filters[self.channel.label] = filter
+        if router is not None:  # as the builder makes a Split's or Cull's on the writer's side
+            self.writer_app.outgoing_routers[self.channel.label] = router
         alpha, beta = hosts
         [self.reader] = attach_between_hosts(self.reader_app, beta, [self.channel], "beta", from_app=from_app).readers
         [self.writer] = attach_between_hosts(self.writer_app, alpha, [self.channel], "alpha", to_app=to_app).writers
@@ -433,6 +436,23 @@ def test_a_merge_joins_an_input_from_another_host_and_one_of_its_own(link):
     assert crossing.sink.sample.read() == (NEW_DATA, ("left", "right"))
     stamp = crossing.sink.sample.stamp
     assert (stamp.source, stamp.seq) == ("source.out", 1)
+
+
+def test_a_split_between_hosts_decides_on_the_writers_host_and_publishes_only_its_readers_messages(link):
+    """The writer's end asks the Split before the network: of six messages, output 1 of 2 gets the
+    2nd, 4th and 6th, and only those three are published (the writer's counters), which the writer's
+    host profiles with the routed-away count; the reader's host names the filter and where it routed."""
+    crossing = link("split", buffer(8), filter=Split(buffer(8), 1, 2), router=Split(buffer(8), 1, 2))
+    for count in range(6):
+        crossing.source.out.write(count)
+    crossing.writer.writer_done()
+    assert wait_for(lambda: crossing.reader.writer_finished)
+    assert (crossing.writer.written, crossing.writer.read) == (3, 3)  # not 6: the others never left alpha
+    assert crossing.sink.sample.read_all() == [1, 3, 5]
+    [routing] = crossing.writer_app.connections
+    assert routing.describe() == "Split(out1 of 2, in turn), routed away 3, BUFFER/LOCKED[8], DDS to host beta"
+    assert crossing.front.describe() == "Split(out1 of 2, in turn), routed on host alpha"
+    assert crossing.front.counters() == {"written": 3, "read": 3, "dropped": 0, "pending": 0}
 
 
 def test_a_stamps_only_connection_sends_no_payload(link):

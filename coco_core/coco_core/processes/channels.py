@@ -11,7 +11,8 @@ a pooled output, the pool in shared memory, given to the port through
 :meth:`~coco_core.ports.PooledOutputPort.use_pool`, the port's one way to change its pool), the
 reader's process an :class:`~coco_core.shm.ShmReader` on the input port, behind the connection's
 filter when it has one (:class:`~coco_core.processes.filtered.FedFilter`: the filter stays on the
-reader's side). An activity's ``endit``/``beginit`` is an end like a component's port. Everything
+reader's side; a Split or Cull also decides on the writer's side, before the ring,
+:class:`~coco_core.processes.routed.RoutingEnd`, so that what it routes away never crosses). An activity's ``endit``/``beginit`` is an end like a component's port. Everything
 else about the ports stays as it is: read status, round-robin over several connections, message
 stamps, counters in the profile (reported by the reader's process; by the launcher, from shared
 memory, when that process died).
@@ -29,13 +30,14 @@ from ..errors import ConfigError
 from ..model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec
 from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from ..connections import Connection
-from ..filters import Merge
+from ..filters import Merge, Router
 from ..iteration import port_of
 from ..ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
 from ..pool import DEFAULT_SLOTS
 from ..stamps import Stamp
-from .filtered import FedFilter
+from .filtered import FedFilter, FedRouter, RoutedCount
 from .placement import Placement, ring_policy
+from .routed import RoutingEnd
 
 if TYPE_CHECKING:
     from ..application import Application
@@ -197,15 +199,23 @@ def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) ->
                 writer = ShmFrameNotifier(plan.channel)
             else:
                 writer = ShmWriter(plan.channel)
-            out.add_connection(writer, plan.stamps_only)
+            router = app.outgoing_routers.get(f"{plan.src}->{plan.dest}")
+            if router is not None and isinstance(writer, ShmWriter):  # a Split or Cull decides here
+                out.add_connection(RoutingEnd(router, writer, writer.route_away), plan.stamps_only)
+            else:
+                out.add_connection(writer, plan.stamps_only)
             app.outgoing.append(writer)
             if plan.wakes:
                 writer.trigger = _waker(wakes[plan.wakes], flags, plan.asks)
         if plan.dest_process == process:
             into = input_end(app, plan.dest, plan.dest_activity, plan.stamps_only)
-            reader: Connection = ShmPoolReader(plan.channel) if plan.frames else ShmReader(plan.channel)
-            if plan.filtered:  # the filter on this side, fed from the channel
-                reader = fed_filter(app, f"{plan.src}->{plan.dest}", reader)
+            reader: Connection
+            if plan.frames:
+                reader = ShmPoolReader(plan.channel)
+            else:
+                ring = reader = ShmReader(plan.channel)
+                if plan.filtered:  # the filter on this side, fed from the channel
+                    reader = fed_filter(app, f"{plan.src}->{plan.dest}", ring, ring)
             into.add_connection(reader, plan.event)
             app.connections.append(reader)
             if reader.pending and reader.trigger is not None:
@@ -246,11 +256,16 @@ def input_end(app: Application, name: str, of_activity: bool, stamps_only: bool)
     return into
 
 
-def fed_filter(app: Application, label: str, feed: Connection) -> FedFilter:
+def fed_filter(app: Application, label: str, feed: Connection, routed: RoutedCount | None = None,
+               routed_at: str = "") -> FedFilter:
     """The filter the builder made for the connection ``label`` on the reader's side
     (:attr:`Application.incoming_filters`), fed from ``feed`` (a channel from another process or
-    host), in its place in a Merge's group."""
+    host), in its place in a Merge's group. A Split or Cull was decided by the writer's end
+    (:mod:`.routed`): ``routed`` carries what it routed away where the channel does (a ring's
+    reader end), else ``routed_at`` names where it is shown (:class:`~.filtered.FedRouter`)."""
     made = app.incoming_filters[label]
+    if isinstance(made, Router):
+        return FedRouter(made, feed, routed, routed_at)
     fed = FedFilter(made, feed)
     if isinstance(made, Merge):
         made.group.feeds.append(fed.pull)

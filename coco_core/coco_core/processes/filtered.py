@@ -10,15 +10,20 @@ each time it is asked (:meth:`FedFilter.pull`). So a ``PreSignal``'s tokens are 
 where they are taken, a ``MaxFrequency`` times its messages by the clock of the activity it gates,
 a ``Greedy`` gives the newest message that reached the reader's process, and a ``Merge`` joins its
 inputs whatever process each comes from: the semantics of one process, with no thread of its own.
+
+A routing filter (``Split``, ``Cull``) is the exception: its decision reads the stamp alone, so the
+writer's end makes it (:mod:`coco_core.processes.routed`) and only this reader's messages cross;
+the reader's side holds the filter all the same (:class:`FedRouter`), for the profile and for the
+messages that cannot be routed.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 
 from ..connections import EMPTY, Connection
 from ..errors import CocoError
-from ..filters import Filter
+from ..filters import Filter, Router
 
 
 class FedFilter(Connection):
@@ -95,3 +100,47 @@ class FedFilter(Connection):
 
     def __repr__(self) -> str:
         return f"<{self.describe()} {self.label} (from another process)>"
+
+
+class RoutedCount(Protocol):
+    """What carries the count of messages a writer's end routed away (a ring's reader end)."""
+
+    @property
+    def routed_away(self) -> int: ...
+
+
+class FedRouter(FedFilter):
+    """The reader's end of a connection with a routing filter (``Split``, ``Cull``) from another
+    process or host: the writer's end already routed (:class:`~coco_core.processes.routed.RoutingEnd`),
+    so the channel brings this reader's messages only, and those that cannot be routed, which
+    ``filter`` counts as written and dropped, as in one process (its own decision agrees with the
+    writer's: both read the same stamp).
+
+    The messages routed away are counted where they were routed: ``count`` carries that count where
+    the channel does (a ring's reader end: its header word, :attr:`coco_core.shm.ShmReader.routed_away`),
+    and the policy column shows it as in one process (``Split(out0 of 2, in turn), routed away 50``);
+    where it does not (a DDS topic), ``routed_at`` names the host whose profile shows it."""
+
+    __slots__ = ("_count", "_routed_at")
+
+    filter: Router
+
+    def __init__(self, filter: Router, channel: Connection, count: RoutedCount | None = None,
+                 routed_at: str = "") -> None:
+        super().__init__(filter, channel)
+        self._count = count
+        self._routed_at = routed_at
+
+    @property
+    def routed_away(self) -> int | None:
+        """Messages routed to the other connections before they crossed; None where this side
+        cannot know (see the class's docstring)."""
+        if self._count is None:
+            return None
+        return self.filter.routed_away + self._count.routed_away
+
+    def describe(self) -> str:
+        routed = self.routed_away
+        if routed is None:
+            return f"{self.filter.routes()}, routed on {self._routed_at}"
+        return f"{self.filter.routes()}, routed away {routed}"

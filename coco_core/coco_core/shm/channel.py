@@ -13,7 +13,9 @@ header        ``STORED``      values placed in the ring (the next item's index)
 header        ``READ``        values the reader took and used (the profile's ``read``)
 header        ``CURSOR``      the index of the next item the reader takes
 header        ``FINISHED``    1 once the writer's activity finished
-header        (3 words)       unused; the header is ``HEADER`` bytes
+header        ``ROUTED``      messages the writer's end routed away (a Split or Cull decided on
+                              the writer's side: :mod:`coco_core.processes.routed`); never stored
+header        (2 words)       unused; the header is ``HEADER`` bytes
 slot          ``STAMP``       the item's index + 1; 0 while the slot is being written
 slot          ``LENGTH``      bytes of the value (its table of parts, pickle and arrays)
 slot          ``LARGE``       0: the value follows in the slot; 1: in a segment of its own
@@ -27,8 +29,8 @@ slot          (capacity)      the value, when it fits
 Slot ``i`` starts at byte ``HEADER + i * (SLOT_HEADER + capacity)``. Each counter has one writer,
 so no lock is needed:
 
-- the writer process owns ``offered`` (values offered: the ``written`` counter of the profile) and
-  ``stored`` (values placed in the ring);
+- the writer process owns ``offered`` (values offered: the ``written`` counter of the profile),
+  ``stored`` (values placed in the ring) and ``routed`` (messages routed away before the ring);
 - the reader process owns ``read`` and ``cursor`` (the index of the next item it takes).
 
 The policies keep their in-process meaning:
@@ -91,7 +93,7 @@ from .segment import SHM_DIR, Segment, SegmentLock, rename, shm_open, unlink
 
 HEADER = 64
 """Bytes of the ring's header (its counters, then unused words)."""
-OFFERED, STORED, READ, CURSOR, FINISHED = range(5)
+OFFERED, STORED, READ, CURSOR, FINISHED, ROUTED = range(6)
 """The header's words (see the module's docstring)."""
 SLOT_HEADER = 48
 """Bytes of a slot's header, before its value."""
@@ -222,6 +224,12 @@ class ShmConnection(Connection):
         return min(waiting, self.ring.slots)
 
     @property
+    def routed_away(self) -> int:
+        """Messages the writer's end routed away before the ring (:meth:`ShmWriter.route_away`):
+        the reader's process shows them after its filter, as in one process."""
+        return int(self.ring.counters[ROUTED])
+
+    @property
     def writer_finished(self) -> bool:
         """Whether the writer's activity has finished (the writer process set ``FINISHED``): a natural
         stop lets the reader's activity stop only then, so that the last values are read (on the
@@ -277,6 +285,16 @@ class ShmWriter(ShmConnection):
             return
         with lock:
             self.ring.counters[FINISHED] = 1
+
+    def route_away(self) -> None:
+        """Count a message the writer's end routed to another connection (it never enters the
+        ring, and is not offered to it: see :attr:`routed_away`)."""
+        lock = self.ring.lock
+        if lock is None:
+            self.ring.counters[ROUTED] += 1
+            return
+        with lock:
+            self.ring.counters[ROUTED] += 1
 
     def _store_large(self, index: int, parts: list[Any], size: int) -> None:
         """Item ``index``'s value (``parts``, ``size`` bytes) in a segment of its own; a

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import math
 
+from ..errors import GeometryError
 from ..filters import FILTERS
+from ..frustum import Frustum
 from ..hosts.channel import CODECS
 from ..iteration import BEGIN, END, PORTS
 from ..model import ConnectionSpec, FilterSpec, PortRef
@@ -124,8 +126,15 @@ def _port(
     )
 
 
+CAMERA = ("position", "look_at", "up", "fov_y", "aspect", "near", "far")
+"""A Cull's frustum given as the display's camera (``GLCameraManager``'s attribute names, and the
+window's aspect); ``position`` and ``look_at`` are required, the others default as the camera's."""
+CAMERA_UP = (0.0, 0.0, 1.0)
+CAMERA_DEFAULTS = {"fov_y": 45.0, "aspect": 4 / 3, "near": 0.05, "far": 100.0}
+"""``GLCameraManager``'s defaults (and :data:`CAMERA_UP`), and the aspect of the display's default
+640 x 480 window."""
 FILTER_ATTRIBUTES = {"PreSignal": ("tokens",), "MaxFrequency": ("hz",), "Greedy": (), "Merge": (), "Gather": (),
-                     "Split": ("by",), "Cull": ("region", "stamp")}
+                     "Split": ("by",), "Cull": ("region", "stamp", "view_projection", *CAMERA)}
 """Each filter's own attributes (beside ``type``)."""
 
 
@@ -142,7 +151,7 @@ def _filter(reader: FileReader, element: Element, data: BufferPolicy, size: int)
         if kind:
             reader.error(f'<filter> type="{kind}" is not a filter; expected one of: {", ".join(FILTERS)}', element)
         return None
-    required = {"MaxFrequency": ("type", "hz"), "Cull": ("type", "region")}.get(kind, ("type",))
+    required = {"MaxFrequency": ("type", "hz")}.get(kind, ("type",))
     values = reader.attributes(element, ("type", *FILTER_ATTRIBUTES[kind]), required=required)
     reader.empty(element)
     if data is not BufferPolicy.DATA:
@@ -175,16 +184,77 @@ def _filter(reader: FileReader, element: Element, data: BufferPolicy, size: int)
         if not spec.stamp:
             reader.error('<filter type="Cull"> attribute stamp="": expected the name of the user stamp that '
                          "holds each message's bounding box (default bbox)", element)
-        if "region" not in values:
-            return None  # said: the attribute is required
-        region = _region(values["region"])
-        if region is None:
-            reader.error(f'<filter type="Cull"> attribute region="{values.get("region", "")}": expected 2k numbers, '
-                         "the region's minimum corner then its maximum (x0 y0 x1 y1, or x0 y0 z0 x1 y1 z1), "
-                         "each minimum at most its maximum", element)
+        forms = [form for form, given in (("region=", "region" in values),
+                                          ("a camera (position=, look_at=, ...)", bool(set(CAMERA) & set(values))),
+                                          ("view_projection=", "view_projection" in values)) if given]
+        if len(forms) != 1:
+            reader.error('<filter type="Cull"> needs one region for its receiver: region="x0 y0 x1 y1" (a box), '
+                         'a camera (position="x y z" look_at="x y z", and up=, fov_y=, aspect=, near=, far= as the '
+                         'display\'s camera) or view_projection="16 numbers" (the 4x4 matrix row by row, OpenGL '
+                         f"clip space); got {' and '.join(forms) if forms else 'none'}", element)
             return None
-        spec.region = region
+        if "region" in values:
+            region = _region(values["region"])
+            if region is None:
+                reader.error(f'<filter type="Cull"> attribute region="{values.get("region", "")}": expected 2k '
+                             "numbers, the region's minimum corner then its maximum (x0 y0 x1 y1, or x0 y0 z0 x1 y1 "
+                             "z1), each minimum at most its maximum", element)
+                return None
+            spec.region = region
+        else:
+            spec.frustum = _frustum(reader, element, values)
+            if spec.frustum is None:
+                return None
     return spec
+
+
+def _frustum(reader: FileReader, element: Element, values: dict[str, str]) -> Frustum | None:
+    """A Cull's frustum: ``view_projection=`` (16 numbers, row by row) or the camera's attributes
+    (:data:`CAMERA`); None once a wrong attribute was reported."""
+    try:
+        if "view_projection" in values:
+            matrix = _numbers(reader, element, values, "view_projection", 16, "the 4x4 view-projection matrix, "
+                              "row by row (OpenGL clip space)")
+            return None if matrix is None else Frustum(matrix)
+        missing = [name for name in ("position", "look_at") if name not in values]
+        if missing:
+            reader.error(f'<filter type="Cull"> with a camera needs {" and ".join(f"{name}=" for name in missing)} '
+                         '(x y z, in the frame of the messages\' boxes)', element)
+            return None
+        position = _numbers(reader, element, values, "position", 3, "the camera's position, x y z")
+        look_at = _numbers(reader, element, values, "look_at", 3, "the point the camera looks at, x y z")
+        up = _numbers(reader, element, values, "up", 3, "the world direction shown upwards, x y z")
+        scalars = {name: reader.parsed(element, values, name, lambda text: parse_number(text, expected))
+                   for name, expected in (("fov_y", "a vertical field of view in degrees, between 0 and 180"),
+                                          ("aspect", "the window's width / height, > 0"),
+                                          ("near", "the near clipping distance, > 0"),
+                                          ("far", "the far clipping distance, > near"))}
+        if position is None or look_at is None or (up is None and "up" in values) or any(
+                scalars[name] is None and name in values for name in scalars):
+            return None  # said
+        fov_y, aspect, near, far = (value if (value := scalars[name]) is not None else CAMERA_DEFAULTS[name]
+                                    for name in ("fov_y", "aspect", "near", "far"))
+        return Frustum.of_camera(position, look_at, up or CAMERA_UP, fov_y, aspect, near, far)
+    except GeometryError as error:
+        reader.error(f'<filter type="Cull">: {error}', element)
+        return None
+
+
+def _numbers(reader: FileReader, element: Element, values: dict[str, str], name: str, count: int,
+             expected: str) -> tuple[float, ...] | None:
+    """Attribute ``name``: ``count`` finite numbers (spaces or commas between); None when missing,
+    or once reported as wrong."""
+    if name not in values:
+        return None
+    try:
+        numbers = tuple(float(word) for word in values[name].replace(",", " ").split())
+    except ValueError:
+        numbers = ()
+    if len(numbers) != count or not all(math.isfinite(value) for value in numbers):
+        reader.error(f'<filter type="Cull"> attribute {name}="{values[name]}": expected {count} numbers, {expected}',
+                     element)
+        return None
+    return numbers
 
 
 def _region(text: str) -> tuple[float, ...] | None:

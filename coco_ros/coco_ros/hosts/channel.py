@@ -53,6 +53,7 @@ from coco_core.policy import BufferPolicy, SyncPolicy
 from coco_core.pool import LocalFramePool, PoolReader, frame_stamp
 from coco_core.ports import PooledOutputPort
 from coco_core.processes.channels import fed_filter, input_end, output_end
+from coco_core.processes.routed import RoutingEnd
 from coco_core.stamps import Message
 from coco_interfaces.msg import Sample
 
@@ -336,7 +337,9 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
     ``app.connections`` so that the writer's host profiles it), a :class:`DdsReader` (or
     :class:`DdsFrameReader` for a pooled output's frames, ``policy`` POOL) on each input, behind the
     connection's filter when it has one (made by the builder, ``app.incoming_filters``: the filter
-    stays on the reader's side, fed from the network). An activity's ``endit``/``beginit`` is an end
+    stays on the reader's side, fed from the network; a Split or Cull decides on the writer's side
+    too, ``app.outgoing_routers``, so that a message routed away is never published, and the
+    writer's host profiles the routed-away count, :class:`~coco_core.processes.routed.RoutingEnd`). An activity's ``endit``/``beginit`` is an end
     like a component's port. ``to_app``/``from_app`` convert stamp times to and from the
     application's clock (:mod:`.sample`)."""
     ends = HostEnds()
@@ -360,9 +363,11 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
                                   f"without an image format; the {channel.codec} codec takes RGBDFrame and Image "
                                   "values (write them on a plain output)")
             writer = DdsWriter(bridge, channel, to_app)
-            out.add_connection(writer, channel.stamps_only)
+            router = app.outgoing_routers.get(channel.label)
+            end: Connection = writer if router is None else RoutingEnd(router, writer)  # a Split or Cull decides here
+            out.add_connection(end, channel.stamps_only)
             app.outgoing.append(writer)
-            app.connections.append(writer)
+            app.connections.append(end)
             ends.writers.append(writer)
         if channel.dest_host == host and channel.dest_process == process:
             into = input_end(app, channel.dest, channel.dest_activity, channel.stamps_only)
@@ -374,7 +379,8 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
                 reader = DdsReader(bridge, channel, from_app, app.report_damage)
                 front = reader
                 if channel.filtered:  # the filter on this side, fed from the network
-                    front = reader.front = fed_filter(app, channel.label, reader)
+                    front = reader.front = fed_filter(app, channel.label, reader,
+                                                      routed_at=f"host {channel.src_host}")
             into.add_connection(front, channel.event)
             app.connections.append(front)
             ends.readers.append(reader)
