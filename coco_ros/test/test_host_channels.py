@@ -222,7 +222,7 @@ def test_data_with_a_slow_reader_counts_what_it_missed_on_both_sides(link):
     assert crossing.writer.counters() == {"written": 200, "read": 200, "dropped": 0, "pending": 0}
     [writer_row] = snapshot(crossing.writer_app).connections
     [reader_row] = snapshot(crossing.reader_app).connections
-    assert writer_row == ["source.out -> sink.sample", "DATA/LOCKED, DDS to host beta", "200", "200", "0", "0"]
+    assert writer_row == ["source.out -> sink.sample", "DATA/LOCKED, DDS to host beta", "200", "200", "0", "0", "-"]
     assert reader_row == ["source.out -> sink.sample", "DATA/LOCKED, DDS from host alpha", "200",
                           str(counters["read"]), str(counters["dropped"]), "0"]
 
