@@ -21,8 +21,8 @@ from coco_core.pool import FramePool, LocalFramePool, PoolReader, Slot, SlotStat
 from coco_core.shm import (FORCE_LOCKED, Arena, ChannelError, ChannelStats, FrameStats, Segment, ShmFrameNotifier,
                            ShmFramePool, ShmPoolReader, ShmReader, ShmWriter, leftovers, sweep)
 from coco_core.stamps import Message
-from coco_core.shm.channel import (CURSOR, FINISHED, HEADER, IT, LARGE, LENGTH, NUM, OFFERED, READ, SLOT_HEADER, STAMP,
-                                   STORED, TIME)
+from coco_core.shm.channel import (CURSOR, FINISHED, HEADER, IT, LARGE, LENGTH, NUM, OFFERED, READ, ROUTED,
+                                   SLOT_HEADER, STAMP, STORED, TIME)
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "processes.md"
 
@@ -303,7 +303,7 @@ def test_the_ring_has_the_documented_layout(arena: Arena) -> None:
         if len(cells) == 4 and cells[0] in ("header", "slot") and cells[1].isdigit():
             documented[cells[2]] = (cells[0], int(cells[1]))
     assert documented == {"OFFERED": ("header", OFFERED), "STORED": ("header", STORED), "READ": ("header", READ),
-                          "CURSOR": ("header", CURSOR), "FINISHED": ("header", FINISHED),
+                          "CURSOR": ("header", CURSOR), "FINISHED": ("header", FINISHED), "ROUTED": ("header", ROUTED),
                           "STAMP": ("slot", STAMP), "LENGTH": ("slot", LENGTH), "LARGE": ("slot", LARGE),
                           "NUM": ("slot", NUM), "IT": ("slot", IT), "TIME": ("slot", TIME)}
     spec = arena.channel(ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 2), "a.out->b.in", capacity=1024)
