@@ -68,9 +68,14 @@ class Filter(LockedBufferConnection):
         """A message the filter itself adds: no payload, stamped by the filter."""
         return Message(None, time.perf_counter(), number, f"{self.name}({self.label})", -1)
 
-    def describe(self) -> str:
-        """The filter and its parameters, for ``--check`` and the profile."""
+    def settings(self) -> str:
+        """The filter and its parameters."""
         return self.name
+
+    def describe(self) -> str:
+        """The filter and its parameters, for ``--check`` and the profile; a stamps-only connection
+        says so after them, as an unfiltered one does after its policy."""
+        return f"{self.settings()}, stamps only" if self.stamps_only else self.settings()
 
     def __repr__(self) -> str:
         return f"<{self.describe()} {self.label}>"
@@ -95,7 +100,7 @@ class PreSignal(Filter):
             self.written += 1
             self._queue.append(self._token(number))
 
-    def describe(self) -> str:
+    def settings(self) -> str:
         return f"PreSignal(tokens={self.tokens})"
 
 
@@ -132,7 +137,7 @@ class MaxFrequency(Filter):
             self.read += 1
             return self._queue.popleft()
 
-    def describe(self) -> str:
+    def settings(self) -> str:
         return f"MaxFrequency(hz={self.hz:g})"
 
 
@@ -249,7 +254,7 @@ class Merge(Filter):
     def ready_at(self) -> float | None:
         return 0.0 if self.index == 0 and self.group.ready() else None
 
-    def describe(self) -> str:
+    def settings(self) -> str:
         return f"Merge(in{self.index} of {len(self.group.inputs)})"
 
 
@@ -283,7 +288,7 @@ class Gather(Merge):
     def __init__(self, policy: ConnectionPolicy, group: GatherGroup) -> None:
         super().__init__(policy, group)
 
-    def describe(self) -> str:
+    def settings(self) -> str:
         return f"Gather(leaf {self.index} of {len(self.group.inputs)})"
 
 
@@ -316,10 +321,10 @@ class Router(Filter):
         raise NotImplementedError
 
     def routes(self) -> str:
-        """How it routes, for :meth:`describe`."""
+        """How it routes, for :meth:`settings`."""
         raise NotImplementedError
 
-    def describe(self) -> str:
+    def settings(self) -> str:
         return f"{self.routes()}, routed away {self.routed_away}"
 
 

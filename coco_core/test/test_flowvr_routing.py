@@ -129,6 +129,20 @@ def test_a_stamps_only_connection_gives_the_stamp_without_the_payload(make_app):
     assert only.counters() == {"written": 1, "read": 1, "dropped": 0, "pending": 0}
 
 
+def test_a_filter_on_a_stamps_only_connection_says_both(make_app):
+    """The profile and ``--check`` name the filter and that its connection carries stamps only."""
+    from coco_core.filters import Greedy
+
+    app = make_app()
+    writer, newest = app.add(Writer("writer")), app.add(Reader("newest"))
+    greedy = app.connect("writer.out", "newest.item", stamps_only=True, connection=Greedy(BUFFERED))
+    for value in range(3):
+        writer.out.write(value)
+    [(value, stamp)] = read_all(newest.item)
+    assert isinstance(value, Stamp) and stamp.seq == 3
+    assert greedy.describe() == "Greedy, stamps only"
+
+
 def test_a_stamps_only_connection_needs_a_port_that_takes_stamps(make_app):
     """(From a pooled output too: ``test_pooled_stamps.py``.)"""
     app = make_app()
