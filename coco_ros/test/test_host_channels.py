@@ -439,19 +439,20 @@ def test_a_merge_joins_an_input_from_another_host_and_one_of_its_own(link):
 
 
 def test_a_split_between_hosts_decides_on_the_writers_host_and_publishes_only_its_readers_messages(link):
-    """The writer's end asks the Split before the network: of six messages, output 1 of 2 gets the
-    2nd, 4th and 6th, and only those three are published (the writer's counters), which the writer's
-    host profiles with the routed-away count; the reader's host names the filter and where it routed."""
+    """The writer's end asks the Split before the network: of seven messages, output 1 of 2 gets the
+    2nd, 4th and 6th, and only those three are published (the writer's counters); both hosts profile
+    the routed-away count (the reader's from the samples: the 7th, routed away after the last sample
+    sent, is counted from the writer's last word)."""
     crossing = link("split", buffer(8), filter=Split(buffer(8), 1, 2), router=Split(buffer(8), 1, 2))
-    for count in range(6):
+    for count in range(7):
         crossing.source.out.write(count)
     crossing.writer.writer_done()
     assert wait_for(lambda: crossing.reader.writer_finished)
     assert (crossing.writer.written, crossing.writer.read) == (3, 3)  # not 6: the others never left alpha
     assert crossing.sink.sample.read_all() == [1, 3, 5]
     [routing] = crossing.writer_app.connections
-    assert routing.describe() == "Split(out1 of 2, in turn), routed away 3, BUFFER/LOCKED[8], DDS to host beta"
-    assert crossing.front.describe() == "Split(out1 of 2, in turn), routed on host alpha"
+    assert routing.describe() == "Split(out1 of 2, in turn), routed away 4, BUFFER/LOCKED[8], DDS to host beta"
+    assert crossing.front.describe() == "Split(out1 of 2, in turn), routed away 4"  # the samples carry the count
     assert crossing.front.counters() == {"written": 3, "read": 3, "dropped": 0, "pending": 0}
 
 

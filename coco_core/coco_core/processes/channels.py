@@ -256,16 +256,15 @@ def input_end(app: Application, name: str, of_activity: bool, stamps_only: bool)
     return into
 
 
-def fed_filter(app: Application, label: str, feed: Connection, routed: RoutedCount | None = None,
-               routed_at: str = "") -> FedFilter:
+def fed_filter(app: Application, label: str, feed: Connection, routed: RoutedCount) -> FedFilter:
     """The filter the builder made for the connection ``label`` on the reader's side
     (:attr:`Application.incoming_filters`), fed from ``feed`` (a channel from another process or
     host), in its place in a Merge's group. A Split or Cull was decided by the writer's end
-    (:mod:`.routed`): ``routed`` carries what it routed away where the channel does (a ring's
-    reader end), else ``routed_at`` names where it is shown (:class:`~.filtered.FedRouter`)."""
+    (:mod:`.routed`): ``routed`` carries what it routed away (the channel's reader end,
+    :class:`~.filtered.FedRouter`)."""
     made = app.incoming_filters[label]
     if isinstance(made, Router):
-        return FedRouter(made, feed, routed, routed_at)
+        return FedRouter(made, feed, routed)
     fed = FedFilter(made, feed)
     if isinstance(made, Merge):
         made.group.feeds.append(fed.pull)

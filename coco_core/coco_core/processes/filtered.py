@@ -103,7 +103,8 @@ class FedFilter(Connection):
 
 
 class RoutedCount(Protocol):
-    """What carries the count of messages a writer's end routed away (a ring's reader end)."""
+    """What carries the count of messages a writer's end routed away: a ring's reader end (its
+    header word), a DDS reader's end (every sample carries the writer's count)."""
 
     @property
     def routed_away(self) -> int: ...
@@ -116,31 +117,24 @@ class FedRouter(FedFilter):
     ``filter`` counts as written and dropped, as in one process (its own decision agrees with the
     writer's: both read the same stamp).
 
-    The messages routed away are counted where they were routed: ``count`` carries that count where
-    the channel does (a ring's reader end: its header word, :attr:`coco_core.shm.ShmReader.routed_away`),
-    and the policy column shows it as in one process (``Split(out0 of 2, in turn), routed away 50``);
-    where it does not (a DDS topic), ``routed_at`` names the host whose profile shows it."""
+    The messages routed away are counted where they were routed, and ``count`` carries that count
+    (a ring's reader end: its header word, :attr:`coco_core.shm.ShmReader.routed_away`; a DDS
+    reader's end: the count in the writer's samples): the policy column shows it as in one process
+    (``Split(out0 of 2, in turn), routed away 50``)."""
 
-    __slots__ = ("_count", "_routed_at")
+    __slots__ = ("_count",)
 
     filter: Router
 
-    def __init__(self, filter: Router, channel: Connection, count: RoutedCount | None = None,
-                 routed_at: str = "") -> None:
+    def __init__(self, filter: Router, channel: Connection, count: RoutedCount) -> None:
         super().__init__(filter, channel)
         self._count = count
-        self._routed_at = routed_at
 
     @property
-    def routed_away(self) -> int | None:
-        """Messages routed to the other connections before they crossed; None where this side
-        cannot know (see the class's docstring)."""
-        if self._count is None:
-            return None
+    def routed_away(self) -> int:
+        """Messages routed to the other connections before they crossed."""
         return self.filter.routed_away + self._count.routed_away
 
     def describe(self) -> str:
-        routed = self.routed_away
-        if routed is None:
-            return f"{self.filter.routes()}, routed on {self._routed_at}"
-        return f"{self.filter.routes()}, routed away {routed}"
+        routes = f"{self.filter.routes()}, routed away {self.routed_away}"
+        return f"{routes}, stamps only" if self.stamps_only else routes

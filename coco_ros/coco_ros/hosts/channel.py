@@ -71,12 +71,15 @@ class DdsWriter(CountedConnection):
     """The writer's end of a connection between hosts (see the module's docstring): ``read``
     counts the samples published."""
 
-    __slots__ = ("channel", "_encoder", "_publisher", "_unpublished")
+    __slots__ = ("channel", "routed_away", "_encoder", "_publisher", "_unpublished")
     carries_stamps = True
 
     def __init__(self, bridge: HostBridge, channel: HostChannel, to_app: Clock = same_clock) -> None:
         super().__init__(channel.policy)
         self.channel = channel
+        self.routed_away = 0
+        """Messages the connection's Split or Cull routed to other connections here (never
+        published): every sample carries the count, for the reader's host's profile."""
         self._encoder = SampleEncoder(STAMP_CODEC if channel.stamps_only else channel.codec, to_app)
         self._publisher = bridge.publisher(Sample, channel.topic, qos_of(channel.policy))
         self._unpublished = False
@@ -84,7 +87,7 @@ class DdsWriter(CountedConnection):
     def push(self, value: Any) -> None:
         self.written += 1
         try:
-            sample = self._encoder.encode(value, self.written)
+            sample = self._encoder.encode(value, self.written, self.routed_away)
         except Exception as error:  # counted: the number is skipped, which the reader's side counts too
             payload = value.value if type(value) is Message else value
             raise ChannelError(f"connection {self.label}: a {type(payload).__name__} value cannot be sent to host "
@@ -94,7 +97,11 @@ class DdsWriter(CountedConnection):
 
     def writer_done(self) -> None:
         """Tell the reader's host that nothing more comes, and how many writes there were."""
-        self._publish(self._encoder.done(self.written))
+        self._publish(self._encoder.done(self.written, self.routed_away))
+
+    def route_away(self) -> None:
+        """Count a message the writer's end routed to another connection (it is not published)."""
+        self.routed_away += 1
 
     def _publish(self, sample: Sample) -> bool:
         try:
@@ -138,13 +145,16 @@ class Arrivals:
     """The subscription of a reader's end: decodes each sample and hands it to ``store``; counts
     the highest write number (the reader's ``written``), the writer's end and damaged samples."""
 
-    __slots__ = ("channel", "number", "finished", "damaged", "_decoder", "_store", "_report", "subscription")
+    __slots__ = ("channel", "number", "routed_away", "finished", "damaged", "_decoder", "_store", "_report",
+                 "subscription")
 
     def __init__(self, bridge: HostBridge, channel: HostChannel, from_app: Clock, store: Callable[[Any], None],
                  report: Callable[[str], None] | None) -> None:
         self.channel = channel
         self.number = 0
         """The highest write number that arrived (every write up to it was made)."""
+        self.routed_away = 0
+        """The highest count of messages the writer's Split or Cull routed away that arrived."""
         self.finished = False
         """Whether the writer's ``writer_done`` arrived."""
         self.damaged = 0
@@ -163,6 +173,7 @@ class Arrivals:
             return False
 
     def _arrive(self, sample: Sample) -> None:
+        self.routed_away = max(self.routed_away, sample.routed_away)
         if sample.writer_done:
             self.number = max(self.number, sample.number)
             self.finished = True
@@ -217,6 +228,11 @@ class FromHost:
     @property
     def stamps_only(self) -> bool:
         return self.channel.stamps_only
+
+    @property
+    def routed_away(self) -> int:
+        """Messages the writer's Split or Cull routed to other connections, as the samples tell."""
+        return self.arrivals.routed_away
 
     def push(self, value: Any) -> None:
         raise CocoError(f"connection {self.label}: the reader's end cannot be written")
@@ -338,8 +354,8 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
     :class:`DdsFrameReader` for a pooled output's frames, ``policy`` POOL) on each input, behind the
     connection's filter when it has one (made by the builder, ``app.incoming_filters``: the filter
     stays on the reader's side, fed from the network; a Split or Cull decides on the writer's side
-    too, ``app.outgoing_routers``, so that a message routed away is never published, and the
-    writer's host profiles the routed-away count, :class:`~coco_core.processes.routed.RoutingEnd`). An activity's ``endit``/``beginit`` is an end
+    too, ``app.outgoing_routers``, so that a message routed away is never published; both hosts
+    profile the routed-away count, which the samples carry, :class:`~coco_core.processes.routed.RoutingEnd`). An activity's ``endit``/``beginit`` is an end
     like a component's port. ``to_app``/``from_app`` convert stamp times to and from the
     application's clock (:mod:`.sample`)."""
     ends = HostEnds()
@@ -364,7 +380,7 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
                                   "values (write them on a plain output)")
             writer = DdsWriter(bridge, channel, to_app)
             router = app.outgoing_routers.get(channel.label)
-            end: Connection = writer if router is None else RoutingEnd(router, writer)  # a Split or Cull decides here
+            end: Connection = writer if router is None else RoutingEnd(router, writer, writer.route_away)  # decided here
             out.add_connection(end, channel.stamps_only)
             app.outgoing.append(writer)
             app.connections.append(end)
@@ -379,8 +395,7 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
                 reader = DdsReader(bridge, channel, from_app, app.report_damage)
                 front = reader
                 if channel.filtered:  # the filter on this side, fed from the network
-                    front = reader.front = fed_filter(app, channel.label, reader,
-                                                      routed_at=f"host {channel.src_host}")
+                    front = reader.front = fed_filter(app, channel.label, reader, reader)
             into.add_connection(front, channel.event)
             app.connections.append(front)
             ends.readers.append(reader)

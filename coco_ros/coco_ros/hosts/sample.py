@@ -135,10 +135,11 @@ class SampleEncoder:
         return _app_stamp, (to_app(stamp.time), stamp.seq, stamp.source,
                             tuple((name, to_app(at)) for name, at in stamp.steps), stamp.it, stamp.user)
 
-    def encode(self, item: Any, number: int) -> Sample:
+    def encode(self, item: Any, number: int, routed_away: int = 0) -> Sample:
         """The Sample of ``item`` (a :class:`Message`, a pooled :class:`Slot`, or a bare value pushed
-        without a port, which arrives bare), the ``number``-th write on its connection: this
-        encoder's own Sample, filled again by the next call (publish it before)."""
+        without a port, which arrives bare), the ``number``-th write on its connection, after
+        ``routed_away`` messages its writer's Split or Cull kept from it: this encoder's own Sample,
+        filled again by the next call (publish it before)."""
         to_app = self.to_app
         if type(item) is Message:
             stamp = item.stamp
@@ -153,6 +154,7 @@ class SampleEncoder:
             value, stamp, seq, it, source, user = item, Stamp.now(), 0, -1, "", NO_USER_STAMPS
         sample = self._sample
         sample.number = number
+        sample.routed_away = routed_away
         sample.seq, sample.it, sample.source = seq, it, source
         sample.time = to_app(stamp.time)
         sample.step_names = [name for name, _ in stamp.steps]
@@ -163,10 +165,12 @@ class SampleEncoder:
         sample.sent = to_app(time.perf_counter())
         return sample
 
-    def done(self, number: int) -> Sample:
-        """The sample that tells the reader the writer finished after ``number`` writes."""
+    def done(self, number: int, routed_away: int = 0) -> Sample:
+        """The sample that tells the reader the writer finished after ``number`` writes (and
+        ``routed_away`` messages routed to other connections)."""
         sample = Sample()
         sample.number = number
+        sample.routed_away = routed_away
         sample.writer_done = True
         sample.codec = self.codec
         sample.sent = self.to_app(time.perf_counter())
