@@ -316,7 +316,7 @@ class Application:
         self.started_at = time.perf_counter()
         if self.measure_ages:
             for connection in self.connections:
-                connection.age = MessageAges()
+                connection.measure_ages(MessageAges())
         reserved = self._exclusive_cores()
         self.gate.expect(self.activities)
         for component in self.unscheduled():

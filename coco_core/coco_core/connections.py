@@ -149,6 +149,10 @@ class Connection(abc.ABC):
         sink = self.sink.qualified_name if self.sink else "?"
         return f"{source} -> {sink}"
 
+    def measure_ages(self, ages: MessageAges) -> None:
+        """Record the age of what the reader takes into ``ages`` (a profiled run)."""
+        self.age = ages
+
     @property
     def stamps_only(self) -> bool:
         """Whether the connection carries its messages' stamps only (FlowVR's dashed connection):

@@ -204,6 +204,9 @@ class MergeGroup:
         if not self.ready():
             return EMPTY
         items = [Filter.pop(connection) for connection in self.inputs]
+        for connection, item in zip(self.inputs[1:], items[1:]):  # the reader's port times the first
+            if connection.age is not None:
+                connection.age.took(item)
         values = self.joined(tuple(item.value if type(item) is Message else item for item in items))
         first = items[0]
         if type(first) is Message:

@@ -91,6 +91,10 @@ class Taker(Component):
     values = InputPort(float)
 
 
+class Tuples(Component):
+    values = InputPort(object)
+
+
 def test_a_plain_value_gets_a_latency_from_its_message_stamp(tmp_path: Path) -> None:
     app = Application("plain-latency")
     numbers, recorder = Numbers("numbers"), CsvRecorder("recorder", path=tmp_path / "rows.csv")
@@ -162,3 +166,27 @@ def test_each_connection_shows_the_age_of_what_its_reader_took(measured: bool) -
     assert connection.age is not None and connection.age.count == 3
     assert 0.0 < connection.age.mean <= connection.age.max <= longest
     assert milliseconds(cell) == pytest.approx((connection.age.mean * 1e3, connection.age.max * 1e3), abs=1e-3)
+
+
+def test_every_input_of_a_merge_shows_the_age_of_what_the_merge_took() -> None:
+    """The reader's port reads a merge through its first connection; the merge takes one message
+    of each other input itself, and times them for their rows."""
+    from coco_core.filters import Gather, GatherGroup
+
+    app = Application("merged-ages")
+    left, right, taker = Numbers("left"), Numbers("right"), Tuples("taker")
+    for component in (left, right, taker):
+        app.add(component)
+    group = GatherGroup()
+    policy = ConnectionPolicy(BufferPolicy.BUFFER, size=8)
+    connections = [app.connect(f"{name}.out", "taker.values", policy, connection=Gather(policy, group))
+                   for name in ("left", "right")]
+    app.measure_ages = True
+    app.start()
+    try:
+        left.out.write(1.0)
+        right.out.write(2.0)
+        assert taker.values.read()[1] == (1.0, 2.0)
+    finally:
+        app.stop()
+    assert [connection.age.count for connection in connections] == [1, 1]  # type: ignore[union-attr]

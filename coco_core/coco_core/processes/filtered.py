@@ -19,11 +19,14 @@ messages that cannot be routed.
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from ..connections import EMPTY, Connection
 from ..errors import CocoError
 from ..filters import Filter, Router
+
+if TYPE_CHECKING:
+    from ..profiling import MessageAges
 
 
 class FedFilter(Connection):
@@ -41,6 +44,11 @@ class FedFilter(Connection):
         super().__init__(filter.policy)
         self.filter = filter
         self.channel = channel
+
+    def measure_ages(self, ages: MessageAges) -> None:
+        """The filter records them too: a Merge's other inputs are taken through their filters."""
+        super().measure_ages(ages)
+        self.filter.age = ages
 
     def pull(self) -> None:
         """Move every message waiting in the channel into the filter (the reader's thread only: the
