@@ -87,6 +87,7 @@ def receive_shm_polling(spec_hex: str, count: int) -> dict[str, Any]:
     from coco_core.shm import ShmReader
 
     reader = ShmReader(pickle.loads(bytes.fromhex(spec_hex)))
+    print("ready", flush=True)
     latencies: list[float] = []
     first = last = 0.0
     while len(latencies) < count:
@@ -106,6 +107,7 @@ def receive_shm(spec_hex: str, fd: int, count: int, frames: bool) -> dict[str, A
 
     spec = pickle.loads(bytes.fromhex(spec_hex))
     reader = ShmPoolReader(spec) if frames else ShmReader(spec)
+    print("ready", flush=True)
     latencies: list[float] = []
     first = last = 0.0
     while len(latencies) < count:
@@ -165,6 +167,7 @@ def receive_zmq(address: str, count: int, frames: bool) -> dict[str, Any]:
     context = zmq.Context()
     socket = context.socket(zmq.PULL)
     socket.connect(address)
+    print("ready", flush=True)
     latencies: list[float] = []
     first = last = 0.0
     while len(latencies) < count:
@@ -220,7 +223,8 @@ def receive_rclpy(count: int, frames: bool, seconds: float) -> dict[str, Any]:
     return {**summary(latencies), "received": len(latencies), "seconds": (marks[-1] - marks[0]) if marks else 0.0}
 
 
-def receive_queue(queue: Any, results: Any, count: int) -> None:
+def receive_queue(queue: Any, results: Any, ready: Any, count: int) -> None:
+    ready.set()
     latencies: list[float] = []
     first = last = 0.0
     while len(latencies) < count:
@@ -238,6 +242,15 @@ def spawn(*args: str) -> subprocess.Popen[str]:
                             env=env, pass_fds=tuple(int(a[3:]) for a in args if a.startswith("fd=")))
 
 
+def wait_ready(process: subprocess.Popen[str]) -> None:
+    """Until the receiver says it is attached (a loaded machine may take seconds to start it): a
+    frame published before would be missed, as a pool keeps the newest only."""
+    assert process.stdout is not None
+    line = process.stdout.readline().strip()
+    if line != "ready":
+        raise SystemExit(f"the receiver did not start: {line!r}, exit status {process.wait()}")
+
+
 def result_of(process: subprocess.Popen[str]) -> dict[str, Any]:
     out, _ = process.communicate(timeout=300)
     return json.loads(out.strip().splitlines()[-1])
@@ -253,7 +266,7 @@ def run_shm_polling(count: int, rate: float | None) -> dict[str, Any]:
         writer = ShmWriter(spec)
         numbers = itertools.count(1)
         receiver = spawn("shm-poll", pickle.dumps(spec).hex(), str(count))
-        time.sleep(1.0)
+        wait_ready(receiver)
 
         def send(now: float) -> None:
             while writer.pending >= 1000:
@@ -279,7 +292,7 @@ def run_shm(count: int, rate: float | None, frames: tuple[int, int] | None = Non
             writer.trigger = lambda: os.eventfd_write(fd, 1)
             numbers = itertools.count(1)
             receiver = spawn("shm", pickle.dumps(spec).hex(), f"fd={fd}", str(count), "values")
-            time.sleep(1.0)
+            wait_ready(receiver)
 
             def send(now: float) -> None:
                 while writer.pending >= 1000:  # throughput: wait for room rather than drop
@@ -289,7 +302,7 @@ def run_shm(count: int, rate: float | None, frames: tuple[int, int] | None = Non
             spec = arena.channel(ConnectionPolicy(BufferPolicy.POOL, size=4), "bench.frames->bench.in", frames=True)
             pool = ShmFramePool(spec)
             receiver = spawn("shm", pickle.dumps(spec).hex(), f"fd={fd}", str(count), "frames")
-            time.sleep(1.0)
+            wait_ready(receiver)
             shape = (*frames, 3)
 
             def send(now: float) -> None:
@@ -319,7 +332,7 @@ def run_shm_plain(count: int, rate: float | None, frames: tuple[int, int]) -> di
         writer = ShmWriter(spec)
         writer.trigger = lambda: os.eventfd_write(fd, 1)
         receiver = spawn("shm", pickle.dumps(spec).hex(), f"fd={fd}", str(count), "values")
-        time.sleep(1.0)
+        wait_ready(receiver)
         frame = np.full((*frames, 3), 7, np.uint8)
 
         def send(now: float) -> None:
@@ -347,8 +360,7 @@ def run_iceoryx2(count: int, rate: float | None, blocking: bool = True) -> dict[
                  .backpressure_strategy(iox.BackpressureStrategy.RetryUntilDelivered).create())
     notifier = event.notifier_builder().create()
     receiver = spawn("iceoryx2", name, str(count), "blocking" if blocking else "polling")
-    assert receiver.stdout is not None
-    receiver.stdout.readline()  # "ready": its subscriber and listener exist
+    wait_ready(receiver)  # its subscriber and listener exist
     publisher.update_connections()
 
     def send(now: float) -> None:
@@ -378,10 +390,11 @@ def drive(count: int, rate: float | None, send: Callable[[float], None]) -> None
 
 def run_queue(count: int, rate: float | None) -> dict[str, Any]:
     context = multiprocessing.get_context("spawn")
-    queue, results = context.Queue(), context.Queue()
-    process = context.Process(target=receive_queue, args=(queue, results, count))
+    queue, results, ready = context.Queue(), context.Queue(), context.Event()
+    process = context.Process(target=receive_queue, args=(queue, results, ready, count))
     process.start()
-    time.sleep(1.0)
+    if not ready.wait(60):
+        raise SystemExit("the multiprocessing.Queue receiver did not start in 60 s")
     drive(count, rate, lambda now: queue.put(sample(now)))
     result = results.get(timeout=300)
     process.join()
@@ -396,7 +409,7 @@ def run_zmq(count: int, rate: float | None, frames: tuple[int, int] | None = Non
     socket = context.socket(zmq.PUSH)
     socket.bind(address)
     receiver = spawn("zmq", address, str(count), "frames" if frames else "values")
-    time.sleep(1.0)
+    wait_ready(receiver)
     if frames is None:
         drive(count, rate, lambda now: socket.send_pyobj(sample(now)))
     else:
@@ -417,7 +430,7 @@ def run_rclpy(count: int, rate: float | None, frames: tuple[int, int] | None = N
     from sensor_msgs.msg import Image, JointState
 
     receiver = spawn("rclpy", str(count), "frames" if frames else "values", str(60))
-    assert receiver.stdout is not None and receiver.stdout.readline().strip() == "ready"
+    wait_ready(receiver)
     with RosContext() as context:
         node = rclpy.create_node("coco_bench_ipc_sender", context=context)
         qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
