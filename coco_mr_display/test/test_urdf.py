@@ -191,6 +191,33 @@ def test_preload_reads_the_meshes_while_the_application_is_built(robot):
     assert mask.sum() > 5000, "the first frame after a preload shows the robot"
 
 
+def test_a_mesh_file_is_read_once_per_process_until_it_changes(tmp_path):
+    """Two peers drawing the same robot share the parts read from its mesh files (read-only: neither can
+    change what the other draws); a file changed since is read again."""
+    import os
+    import threading
+
+    from coco_core.transforms.urdf import UrdfModel
+    from coco_mr_display.urdf import load_links, mesh_paths
+
+    (tmp_path / "meshes").mkdir()
+    mesh = tmp_path / "meshes" / "part.stl"
+    import trimesh
+    trimesh.creation.box(extents=(1.0, 1.0, 1.0)).export(mesh)
+    model = UrdfModel.load(broken_robot(tmp_path, "part.stl"))
+
+    def load():
+        return load_links(model.visuals, mesh_paths(model), (0.5, 0.5, 0.5, 1.0), 1.0, threading.Event())
+
+    first, second = load(), load()
+    assert [part for parts in first.values() for part in parts] == [part for parts in second.values() for part in parts]
+    part = next(iter(first.values()))[0]
+    assert len(part.indices) == 12 and not part.positions.flags.writeable
+    trimesh.creation.icosphere(subdivisions=1).export(mesh)
+    os.utime(mesh, ns=(mesh.stat().st_atime_ns, mesh.stat().st_mtime_ns + 1_000_000_000))
+    assert len(next(iter(load().values()))[0].indices) == 80, "a changed file is read again"
+
+
 def test_preload_reports_a_bad_mesh_when_the_application_is_built(tmp_path):
     (tmp_path / "meshes").mkdir()
     (tmp_path / "meshes" / "bad.stl").write_bytes(b"solid nothing but words")
