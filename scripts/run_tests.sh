@@ -27,7 +27,10 @@ declare -A SUITE_OF=() LABEL_OF=()
 start_suite() {  # start_suite NAME LABEL COMMAND...: its output in $LOGS/NAME.log
     local name="$1" label="$2"
     shift 2
-    "$@" >"$LOGS/$name.log" 2>&1 &
+    # Its log ends with the CPU time it used (`times`: the processes it waited for, theirs included):
+    # the run is CPU-bound on a 2-core machine, so that, not each suite's length, says where it goes.
+    ( code=0; "$@" || code=$?; echo "CPU time of this suite (user, system; the second line: its processes)"; times; exit $code ) \
+        >"$LOGS/$name.log" 2>&1 &
     SUITE_OF[$!]="$name"
     LABEL_OF[$name]="$label"
     echo "started: $label"
@@ -85,8 +88,11 @@ while [ "${#SUITE_OF[@]}" -gt 0 ]; do
 done
 echo
 echo "===== workspace tests: alone (test/), ${SECONDS} s after the start ====="
-python -m pytest "${ALONE[@]}" -o cache_dir=build/workspace_alone/.pytest_cache \
-    --junit-xml=build/workspace_alone/pytest.xml --junit-prefix=workspace || status=$?
+( code=0; python -m pytest "${ALONE[@]}" -o cache_dir=build/workspace_alone/.pytest_cache \
+    --junit-xml=build/workspace_alone/pytest.xml --junit-prefix=workspace || code=$?
+    echo "CPU time of this suite (user, system; the second line: its processes)"; times; exit $code ) || status=$?
 colcon test-result --test-result-base build --verbose || status=$?
 python scripts/check_test_results.py build || status=$?
+echo "${SECONDS} s in all; CPU time of the whole run (user, system; the second line: its processes):"
+times
 exit "$status"
