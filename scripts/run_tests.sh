@@ -18,6 +18,10 @@ LOGS="build/test_logs"
 rm -rf build/*/pytest.xml build/workspace_tests build/workspace_apps build/workspace_documented build/workspace_alone \
     build/test_inputs "$LOGS"
 mkdir -p build/workspace_tests build/workspace_apps build/workspace_documented build/workspace_alone "$LOGS"
+# The parts of the robots' mesh files, made by the first process of the run that draws them and read
+# by the others (COCO_MESH_CACHE, docs/display.md): Baxter's take ~2.5 s of CPU to read and simplify,
+# and a dozen launches draw it.
+export COCO_MESH_CACHE="$ROOT/build/test_inputs/meshes"
 
 # The suites are independent (each reads the built workspace, none writes it) and mostly wait: on
 # applications that run for seconds, on DDS discovery, on child processes. Run one after the other

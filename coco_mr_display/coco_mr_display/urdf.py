@@ -45,6 +45,7 @@ from coco_core.transforms.graph import KinematicModel, TransformGraph
 from coco_core.transforms.resources import resolve
 from coco_core.transforms.urdf import UrdfModel, UrdfVisual
 
+from . import mesh_cache
 from .mesh import GpuMesh, MeshPart, color_problem, load_geometry, merge_parts, parts_of, primitive
 from .phong import PhongPeer
 from .shown import ShownInputs
@@ -109,7 +110,8 @@ _LOADED: dict[_VisualKey, list[MeshPart]] = {}
 """The parts of every mesh visual this process loaded, by file (path, size, modification time) and by
 what is baked into them (origin, scale, colour, fraction kept), read-only: a robot shown by several
 GLUrdf peers of one process (two views, a display rebuilt by a reconfiguration, ``--check`` building
-every process's part in the launcher) reads and simplifies its meshes once (Baxter's: ~2.5 s of CPU)."""
+every process's part in the launcher) reads and simplifies its meshes once (Baxter's: ~2.5 s of CPU).
+Between processes, with ``COCO_MESH_CACHE`` set: :mod:`.mesh_cache`."""
 _LOADED_LOCK = threading.Lock()
 
 
@@ -128,9 +130,14 @@ def _mesh_visual_parts(path: Path, visual: UrdfVisual, color: tuple[float, ...],
         cached = _LOADED.get(key)
     if cached is not None:
         return cached
-    if path not in files:
-        files[path] = load_geometry(path)
-    new = parts_of(files[path], visual.origin, visual.scale, color, keep=keep, label=str(path))
+    kept = mesh_cache.entry(key) if stat is not None else None  # COCO_MESH_CACHE: another process's
+    new = mesh_cache.read(kept) if kept is not None and kept.exists() else None
+    if new is None:
+        if path not in files:
+            files[path] = load_geometry(path)
+        new = parts_of(files[path], visual.origin, visual.scale, color, keep=keep, label=str(path))
+        if kept is not None:
+            mesh_cache.write(kept, new)
     for part in new:
         for array in (part.positions, part.indices, part.colors, part.uvs, part.texture):
             if array is not None:
