@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The whole test suite: set up and build the workspace, then, side by side, the packages' tests with
-# colcon, the workspace-level tests in test/ and the type check of the packages with mypy; print each
-# one's output whole as it ends, then `colcon test-result --verbose` and the slowest tests, and fail
-# when any test failed, when no test ran or when mypy reports an error.
+# colcon (three: coco_core, coco_ros, the others), the workspace-level tests in test/ and the type
+# check of the packages with mypy; print each one's output whole as it ends, then `colcon
+# test-result --verbose` and the slowest tests, and fail when any test failed, when no test ran or
+# when mypy reports an error.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=setup.sh
@@ -43,7 +44,9 @@ start_suite() {  # start_suite NAME LABEL COMMAND...: its output in $LOGS/NAME.l
 # held) must fail the run, not outlast the CI's limit: the package tests get 40 minutes (about 5 on a
 # 2-core machine), then timeout ends colcon and every process it started. colcon runs a package's
 # tests after those of the packages it depends on, which nothing here needs (they only read what the
-# build installed): coco_core, the largest, runs beside the others, each colcon with its own log base.
+# build installed): coco_core and coco_ros, the largest, run beside the others, each colcon with its
+# own log base. In one colcon, coco_ros (~190 s) waited for coco_mr_vision, then coco_mr_display and
+# coco_mr_haptics (~140 s): that chain, ~330 s, was the longest of the suites.
 package_tests() {  # package_tests LOG_BASE COLCON_SELECTION...
     local log_base="$1"
     shift
@@ -59,7 +62,9 @@ start_suite mypy "type check (mypy)" python -m mypy
 python scripts/compile_kernels.py >"$LOGS/compile_kernels.log" 2>&1 || true
 tail -n 1 "$LOGS/compile_kernels.log"
 start_suite core "coco_core's tests (colcon test)" package_tests log/test_core --packages-select coco_core
-start_suite packages "the other packages' tests (colcon test)" package_tests log/test_packages --packages-skip coco_core
+start_suite ros "coco_ros's tests (colcon test)" package_tests log/test_ros --packages-select coco_ros
+start_suite packages "the other packages' tests (colcon test)" package_tests log/test_packages \
+    --packages-skip coco_core coco_ros
 # The workspace tests in three pytest processes: the Baxter and camera apps (they replay and render for
 # seconds each), the documented commands (the README's and docs' command lines, run side by side in
 # the test: about a minute, mostly waiting on applications) and the rest; a new test file goes to the
