@@ -66,11 +66,12 @@ start_suite ros "coco_ros's tests (colcon test)" package_tests log/test_ros --pa
 start_suite packages "the other packages' tests (colcon test)" package_tests log/test_packages \
     --packages-skip coco_core coco_ros
 # The workspace tests in three pytest processes: the Baxter and camera apps (they replay and render for
-# seconds each), the documented commands (the README's and docs' command lines, run side by side in
-# the test: about a minute, mostly waiting on applications) and the rest; a new test file goes to the
-# rest. The remote palpation app (six processes that need both cores) runs alone once these are
-# done: ALONE.
-APPS=(test/test_baxter_*.py test/test_camera_registration_app.py)
+# seconds each) with the signal tests (launchers stopped at chosen moments: ~40 s, moved here from the
+# rest, which was the longer of the two), the documented commands (the README's and docs' command
+# lines, run side by side in the test: about a minute, mostly waiting on applications) and the rest; a
+# new test file goes to the rest. The remote palpation app (six processes that need both cores) runs
+# alone once these are done: ALONE.
+APPS=(test/test_baxter_*.py test/test_camera_registration_app.py test/test_signals.py)
 DOCUMENTED=(test/test_documented_commands.py)
 ALONE=(test/test_palpation_app.py test/test_palpation_bad_input.py)
 start_suite apps "workspace tests: the apps (test/)" \
