@@ -11,10 +11,31 @@ from pathlib import Path
 
 import pytest
 
-from conftest import run_launcher
+from conftest import ROOT, run_launcher
+from test_documented_commands import shell_blocks
 
 APP = "config/camera_registration.xml"
 GOAL_M, GOAL_DEG = 0.005, 0.5
+DOCUMENTED = ROOT / "docs" / "vision.md"
+"""Where the application's two command lines are documented: these tests run those very lines (with
+their own outputs), and test_documented_commands.py does not run them again (its NOT_RUN)."""
+
+
+def documented_run(kind: str, outputs: dict[str, Path]) -> list[str]:
+    """The arguments after ``coco-launch`` of the documented line that records the simulation (``sim``)
+    or registers from its bag (``bag``), each ``out/...`` value replaced by the test's own folder."""
+    lines = [command.bare.split() for block in shell_blocks(DOCUMENTED) for command in block.commands
+             if APP in command.bare]
+    assert len(lines) == 2 and all(line[:2] == ["coco-launch", APP] for line in lines), lines
+    line = next(words for words in lines if ("source:=bag" in words) == (kind == "bag"))[1:]
+    args = []
+    for word in line:
+        name, _, value = word.partition(":=")
+        if value.startswith("out/"):
+            assert value in outputs, f"{DOCUMENTED.name} names {value}: give the test a folder for it"
+            word = f"{name}:={outputs[value]}"
+        args.append(word)
+    return args
 
 
 def registration(folder: Path) -> dict:
@@ -26,7 +47,9 @@ def simulated(coco_launch, tmp_path_factory) -> tuple[Path, Path]:
     """One simulated run that also records its bag: (its output folder, the bag)."""
     folder = tmp_path_factory.mktemp("registration")
     bag = folder / "bag"
-    result = run_launcher(coco_launch, APP, f"output:={folder / 'sim'}", f"record:={bag}", timeout=180)
+    args = documented_run("sim", {"out/registration_bag": bag})
+    assert not any(word.startswith("output:=") for word in args), args  # the file's default: out/registration
+    result = run_launcher(coco_launch, *args, f"output:={folder / 'sim'}", timeout=180)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "error against truth_camera" in result.stderr, result.stderr
     return folder / "sim", bag
@@ -46,8 +69,9 @@ def test_the_same_application_registers_from_the_recorded_bag(coco_launch, simul
     topics = (bag / "metadata.yaml").read_text()
     for topic in ("/robot/joint_states", "/cameras/head_camera/image", "/cameras/head_camera/camera_info"):
         assert topic in topics
-    result = run_launcher(coco_launch, APP, "source:=bag", f"bag:={bag}", "truth:=true", f"output:={tmp_path}",
-                          timeout=180)
+    args = documented_run("bag", {"out/registration_bag": bag, "out/registration_from_bag": tmp_path})
+    assert {"source:=bag", f"bag:={bag}", "truth:=true", f"output:={tmp_path}"} <= set(args), args
+    result = run_launcher(coco_launch, *args, timeout=180)
     assert result.returncode == 0, result.stdout + result.stderr
     report = registration(tmp_path)
     assert report["error_m"] < GOAL_M and report["error_deg"] < GOAL_DEG, report

@@ -58,6 +58,15 @@ NOT_RUN: dict[str, str] = {
         "its own outputs) and checks what it prints and writes; that test runs alone after the other suites, since "
         "the application's five processes need both cores (here, with the other suites beside it, the remote camera "
         "delivered 21 of 255 frames and the calibration touch was never seen)",
+    "coco-launch config/camera_registration.xml record:=out/registration_bag":
+        "test/test_camera_registration_app.py runs this very line (read from docs/vision.md, with its own outputs: "
+        "the recording and output:=) and checks the registration against the goal; it runs to its end (20-30 s of "
+        "rendering and marker detection at 1280x960 on both cores), so it is not run a second time here",
+    "coco-launch config/camera_registration.xml source:=bag bag:=out/registration_bag truth:=true "
+    "output:=out/registration_from_bag":
+        "test/test_camera_registration_app.py runs this very line (read from docs/vision.md) on the recording the "
+        "line above made there, with its own output, and checks the registration against the goal and the "
+        "simulated run's",
     "ros2 run coco_ros launcher config/demo_pipeline.xml":
         "needs the ros2 command line (ros2cli), which the PyPI wheels here do not include; the line above runs the "
         "same installed script by its path",

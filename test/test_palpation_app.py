@@ -135,10 +135,18 @@ def behind_the_body(rows: dict[str, np.ndarray]) -> float:
     return max(0.0, max(belly_height(x, y) - z for x, y, z in proxy[over]))
 
 
-def test_palpation_app_end_to_end(palpation_session: Path, tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def documented_run(palpation_session: Path, tmp_path_factory: pytest.TempPathFactory):
+    """``./scripts/run_app.sh palpation`` (on the test's session), run once: (its output folder, the
+    completed run). The end-to-end test checks everything it prints and writes; the one-process
+    comparison takes it as its run with processes (the display it adds only watches)."""
+    output = tmp_path_factory.mktemp("documented") / "palpation"
+    return output, run_app((RUN_APP, "palpation"), palpation_session, output)
+
+
+def test_palpation_app_end_to_end(documented_run) -> None:
     """As the docs show it, ``./scripts/run_app.sh palpation`` (on the test's session)."""
-    output = tmp_path / "palpation"
-    result = run_app((RUN_APP, "palpation"), palpation_session, output)
+    output, result = documented_run
     report = result.stdout
     assert f"Palpation summary ({output}/summary.json" in report and "registration: residual" in report, report
     assert f"Contact sheet:  {output}/contact_sheet.png" in report, report
@@ -193,19 +201,22 @@ def test_palpation_app_end_to_end(palpation_session: Path, tmp_path: Path) -> No
 
 
 def test_palpation_app_without_processes_touches_the_same_places(coco_launch: Path, palpation_session: Path,
-                                                                tmp_path: Path) -> None:
+                                                                documented_run, tmp_path: Path) -> None:
     """The file with its <process> elements removed (every activity in the launcher's process):
-    the same places touched, the proxy never through the body. Both without the display, which
-    only watches."""
+    the same places touched as the documented run with its processes, the proxy never through the
+    body; this one without the display, which only watches (one process draws what it computes)."""
     text = APP.read_text()
     flat = re.sub(r"\s*</?process\b[^>]*>", "", text)
     assert "<process" not in flat and flat.count("<activity ") == text.count("<activity ")
     flat_app = tmp_path / "palpation_one_process.xml"
     flat_app.write_text(flat)
     runs, expected = {}, set(PLACES)
-    for name, app in (("processes", APP), ("one process", flat_app)):
-        output = tmp_path / name.replace(" ", "_")
-        result = run_app((coco_launch, str(app)), palpation_session, output, "display:=false")
+    for name in ("processes", "one process"):
+        if name == "processes":
+            output, result = documented_run
+        else:
+            output = tmp_path / "one_process"
+            result = run_app((coco_launch, str(flat_app)), palpation_session, output, "display:=false")
         runs[name] = haptic_rows(output)
         expected &= places_after_the_registration(output)
         # The process table's row of the haptic process (name, pid): only with the process level.

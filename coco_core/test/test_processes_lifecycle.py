@@ -280,7 +280,8 @@ def test_check_finds_a_log_file_that_cannot_be_opened(tmp_path, outfile):
 GATED = """<package name="gated">
   <components>
     <component><name>ticker</name><task>process_components:Ticker</task>
-      <attributes><attribute name="first_update_file" value="{tmp}/first_update.txt"/></attributes></component>
+      <attributes><attribute name="first_update_file" value="{tmp}/first_update.txt"/>
+        <attribute name="stop_after" value="3"/></attributes></component>
     <component><name>slow</name><task>process_components:SlowConfig</task>
       <attributes><attribute name="delay" value="1.0"/>
         <attribute name="path" value="{tmp}/configured.txt"/></attributes></component>
@@ -305,7 +306,7 @@ def test_no_process_cycles_before_every_process_is_configured(tmp_path: Path, re
         {"in_child": "ticker", "in_launcher": "slow"}
     app = tmp_path / "app.xml"
     app.write_text(GATED.format(tmp=tmp_path, **names))
-    launcher = launch(app, "--duration", "3")
+    launcher = launch(app, "--duration", "60")  # the ticker stops the application after its first updates
     reap(launcher)
     out, _ = launcher.communicate(timeout=60)
     assert launcher.returncode == 0, out

@@ -45,6 +45,7 @@ from coco_core.transforms.graph import KinematicModel, TransformGraph
 from coco_core.transforms.resources import resolve
 from coco_core.transforms.urdf import UrdfModel, UrdfVisual
 
+from . import mesh_cache
 from .mesh import GpuMesh, MeshPart, color_problem, load_geometry, merge_parts, parts_of, primitive
 from .phong import PhongPeer
 from .shown import ShownInputs
@@ -104,6 +105,48 @@ def mesh_paths(model: UrdfModel) -> dict[str, Path]:
     return {visual.filename: resolve(visual.filename, folder) for visual in model.visuals if visual.shape == "mesh"}
 
 
+_VisualKey = tuple[Path, int, int, bytes, tuple[float, ...] | None, tuple[float, ...], float]
+_LOADED: dict[_VisualKey, list[MeshPart]] = {}
+"""The parts of every mesh visual this process loaded, by file (path, size, modification time) and by
+what is baked into them (origin, scale, colour, fraction kept), read-only: a robot shown by several
+GLUrdf peers of one process (two views, a display rebuilt by a reconfiguration, ``--check`` building
+every process's part in the launcher) reads and simplifies its meshes once (Baxter's: ~2.5 s of CPU).
+Between processes, with ``COCO_MESH_CACHE`` set: :mod:`.mesh_cache`."""
+_LOADED_LOCK = threading.Lock()
+
+
+def _mesh_visual_parts(path: Path, visual: UrdfVisual, color: tuple[float, ...], keep: float,
+                       files: dict[Path, Any]) -> list[MeshPart]:
+    """The parts of one mesh visual, from :data:`_LOADED` when this process made them already from the
+    same file as it is now; ``files`` the geometries this load has read (each file read once)."""
+    try:
+        stat = path.stat()
+    except OSError:  # gone since it was resolved: load_geometry names it
+        stat = None
+    scale = None if visual.scale is None else tuple(float(value) for value in visual.scale)
+    key = (path, stat.st_size if stat else -1, stat.st_mtime_ns if stat else -1,
+           np.asarray(visual.origin, dtype=float).tobytes(), scale, tuple(float(value) for value in color), float(keep))
+    with _LOADED_LOCK:
+        cached = _LOADED.get(key)
+    if cached is not None:
+        return cached
+    kept = mesh_cache.entry(key) if stat is not None else None  # COCO_MESH_CACHE: another process's
+    new = mesh_cache.read(kept) if kept is not None and kept.exists() else None
+    if new is None:
+        if path not in files:
+            files[path] = load_geometry(path)
+        new = parts_of(files[path], visual.origin, visual.scale, color, keep=keep, label=str(path))
+        if kept is not None:
+            mesh_cache.write(kept, new)
+    for part in new:
+        for array in (part.positions, part.indices, part.colors, part.uvs, part.texture):
+            if array is not None:
+                array.setflags(write=False)  # shared by every peer that draws this file
+    with _LOADED_LOCK:
+        _LOADED[key] = new
+    return new
+
+
 def load_links(visuals: list[UrdfVisual], paths: dict[str, Path], default_color: tuple[float, ...], keep: float,
                cancelled: threading.Event) -> dict[str, list[MeshPart]]:
     """The merged parts of every link with visuals (the loader thread's work); ``paths`` from
@@ -115,10 +158,7 @@ def load_links(visuals: list[UrdfVisual], paths: dict[str, Path], default_color:
             break
         color = visual.color or default_color
         if visual.shape == "mesh":
-            path = paths[visual.filename]
-            if path not in files:
-                files[path] = load_geometry(path)
-            new = parts_of(files[path], visual.origin, visual.scale, color, keep=keep, label=str(path))
+            new = _mesh_visual_parts(paths[visual.filename], visual, color, keep, files)
         else:
             new = parts_of(primitive(visual.shape, visual.size), visual.origin, color=color, keep=keep,
                            label=visual.shape)

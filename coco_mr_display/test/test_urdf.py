@@ -191,6 +191,77 @@ def test_preload_reads_the_meshes_while_the_application_is_built(robot):
     assert mask.sum() > 5000, "the first frame after a preload shows the robot"
 
 
+def test_a_mesh_file_is_read_once_per_process_until_it_changes(tmp_path):
+    """Two peers drawing the same robot share the parts read from its mesh files (read-only: neither can
+    change what the other draws); a file changed since is read again."""
+    import os
+    import threading
+
+    from coco_core.transforms.urdf import UrdfModel
+    from coco_mr_display.urdf import load_links, mesh_paths
+
+    (tmp_path / "meshes").mkdir()
+    mesh = tmp_path / "meshes" / "part.stl"
+    import trimesh
+    trimesh.creation.box(extents=(1.0, 1.0, 1.0)).export(mesh)
+    model = UrdfModel.load(broken_robot(tmp_path, "part.stl"))
+
+    def load():
+        return load_links(model.visuals, mesh_paths(model), (0.5, 0.5, 0.5, 1.0), 1.0, threading.Event())
+
+    first, second = load(), load()
+    assert [part for parts in first.values() for part in parts] == [part for parts in second.values() for part in parts]
+    part = next(iter(first.values()))[0]
+    assert len(part.indices) == 12 and not part.positions.flags.writeable
+    trimesh.creation.icosphere(subdivisions=1).export(mesh)
+    os.utime(mesh, ns=(mesh.stat().st_atime_ns, mesh.stat().st_mtime_ns + 1_000_000_000))
+    assert len(next(iter(load().values()))[0].indices) == 80, "a changed file is read again"
+
+
+def test_coco_mesh_cache_keeps_the_parts_for_the_next_process(tmp_path, monkeypatch):
+    """With COCO_MESH_CACHE the parts a process made are written there, whole, and another process
+    reads them instead of the file: here an entry replaced by one triangle is what it draws."""
+    import subprocess
+    import sys
+    import threading
+
+    import trimesh
+
+    from coco_core.transforms.urdf import UrdfModel
+    from coco_mr_display import mesh_cache
+    from coco_mr_display.mesh import MeshPart
+    from coco_mr_display.urdf import load_links, mesh_paths
+
+    (tmp_path / "meshes").mkdir()
+    trimesh.creation.box(extents=(1.0, 1.0, 1.0)).export(tmp_path / "meshes" / "part.stl")
+    urdf = broken_robot(tmp_path, "part.stl")
+    cache = tmp_path / "cache"
+    monkeypatch.setenv(mesh_cache.ENVIRONMENT, str(cache))
+    model = UrdfModel.load(urdf)
+    made = next(iter(load_links(model.visuals, mesh_paths(model), (0.5, 0.5, 0.5, 1.0), 1.0,
+                                threading.Event()).values()))[0]
+    entries = list(cache.iterdir())
+    assert len(entries) == 1 and entries[0].suffix == ".npz", entries  # no partial file left
+    kept = mesh_cache.read(entries[0])
+    assert kept is not None and len(kept) == 1
+    assert all(np.array_equal(getattr(kept[0], name), getattr(made, name)) for name in ("positions", "indices", "colors"))
+    triangle = MeshPart(made.positions[:3].copy(), np.array([[0, 1, 2]], dtype="u4"), made.colors[:3].copy())
+    mesh_cache.write(entries[0], [triangle])
+    other = subprocess.run(
+        [sys.executable, "-c",
+         "import sys, threading\n"
+         "from coco_core.transforms.urdf import UrdfModel\n"
+         "from coco_mr_display.urdf import load_links, mesh_paths\n"
+         "model = UrdfModel.load(sys.argv[1])\n"
+         "links = load_links(model.visuals, mesh_paths(model), (0.5, 0.5, 0.5, 1.0), 1.0, threading.Event())\n"
+         "print(sum(len(part.indices) for parts in links.values() for part in parts))\n", urdf],
+        capture_output=True, text=True, timeout=60)
+    assert other.returncode == 0, other.stderr
+    assert other.stdout.split() == ["1"], other.stdout
+    monkeypatch.delenv(mesh_cache.ENVIRONMENT)
+    assert mesh_cache.entry(("anything",)) is None
+
+
 def test_preload_reports_a_bad_mesh_when_the_application_is_built(tmp_path):
     (tmp_path / "meshes").mkdir()
     (tmp_path / "meshes" / "bad.stl").write_bytes(b"solid nothing but words")

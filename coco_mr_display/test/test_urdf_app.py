@@ -114,13 +114,20 @@ class MeshTestFrames(Component):
                 self.before_robot = self.received - 1
 
 
-def test_display_application_from_a_file():
+def test_display_application_from_a_file(monkeypatch):
     pytest.importorskip("collada", reason="Baxter's meshes are DAE files, read through pycollada")
     pytest.importorskip("pinocchio", reason="the graph computes Baxter's kinematics with Pinocchio")
     try:
         resolve(BAXTER)
     except ResourceNotFoundError as error:
         pytest.skip(f"example-robot-data is not installed: {error}")
+    # The display must render while the loader thread reads the meshes: the files themselves, not parts
+    # kept by an earlier peer of this process or by another process (COCO_MESH_CACHE, which the test
+    # command sets), which are there at once.
+    from coco_mr_display import mesh_cache, urdf
+
+    monkeypatch.delenv(mesh_cache.ENVIRONMENT, raising=False)
+    monkeypatch.setattr(urdf, "_LOADED", {})
     app = build_application(parse_application_string(APP, "display_meshes.xml"))
     frames = app.component("frames")
     app.start()
