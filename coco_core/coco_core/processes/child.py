@@ -22,6 +22,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from concurrent.futures import Future
 from typing import Any
 
@@ -125,6 +126,9 @@ class ChildProcess:
         """The collections between cycles of a ``gc="between_cycles"`` process."""
         self.ends: Ends | None = None
         """This process's ends of connections between hosts (over the network), when it has any."""
+        self.orphaned = False
+        """Whether the launcher went away under this process (its link closed, or a SIGTERM, which
+        its death sends): the child then sweeps the launch's segments once the launcher is gone."""
 
     def run(self) -> int:
         config = self.link.receive()
@@ -221,6 +225,7 @@ class ChildProcess:
             SetPeriod: lambda message: self._set_period(app, message),
         })
         self.link.abandon("the launcher is gone")
+        self.orphaned = True
         app.request_stop("launcher: gone", hard=True)
 
     @staticmethod
@@ -239,6 +244,7 @@ def main(argv: list[str] | None = None, kind: type[ChildProcess] = ChildProcess)
     child = kind(ControlLink(fd, "the launcher"), parent)
 
     def terminate(_signum: int, _frame: object) -> None:
+        child.orphaned = True
         if child.app is None:
             sys.exit(1)
         child.app.request_stop("launcher: SIGTERM", hard=True)
@@ -247,21 +253,37 @@ def main(argv: list[str] | None = None, kind: type[ChildProcess] = ChildProcess)
     try:
         return child.run()
     finally:
-        if child.launch and launcher_gone(parent):  # nobody else will unlink the launch's segments
+        # Nobody else will unlink the launch's segments once the launcher is gone.
+        if child.launch and launcher_gone(parent, ORPHAN_WAIT if child.orphaned else 0.0):
             from ..shm import sweep
 
             sweep(child.launch)
 
 
-def launcher_gone(parent: int) -> bool:
-    """Whether the launcher died: no such process, or a zombie (killed, not yet reaped). The
-    parent-death signal does not say it reliably (the child may still see the dead launcher as its
-    parent), so the child looks at the process itself."""
-    try:
-        with open(f"/proc/{parent}/stat") as stat:
-            return stat.read().rsplit(")", 1)[1].split()[0] in ("Z", "X")
-    except OSError:
-        return True
+ORPHAN_WAIT = 1.0
+"""Seconds an orphaned child waits for its launcher's death to complete before it sweeps."""
+
+
+def launcher_gone(parent: int, within: float = 0.0) -> bool:
+    """Whether the launcher died, looking for ``within`` seconds: this child was given to another
+    parent, or the launcher is no such process or a zombie (killed, not yet reaped). A killed
+    launcher closes its end of the link (the child stops) before the kernel makes it a zombie and
+    sends the parent-death signal, so a child that stops because its launcher went away waits a
+    moment for that; the parent-death signal alone does not say it reliably either (the child may
+    still see the dead launcher as its parent), so the child looks at the process itself."""
+    deadline = time.monotonic() + within
+    while True:
+        if os.getppid() != parent:
+            return True
+        try:
+            with open(f"/proc/{parent}/stat") as stat:
+                if stat.read().rsplit(")", 1)[1].split()[0] in ("Z", "X"):
+                    return True
+        except OSError:
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.01)
 
 
 if __name__ == "__main__":
