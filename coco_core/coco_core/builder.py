@@ -20,10 +20,10 @@ from .filters import (FILTERS, Cull, Filter, Gather, GatherGroup, MaxFrequency, 
                       Split)
 from .iteration import IterationPorts, port_of
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
-from .schedule import DEFAULT_SPIN
 from .policy import ConnectionPolicy
 from .ports import InputPort, Port, type_name
 from .processes.placement import LAUNCHER, Placement
+from .schedule import DEFAULT_SPIN
 from .scheduling import SchedulingRequest
 from .xml.composite import context_of, scope_of
 

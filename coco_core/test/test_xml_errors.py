@@ -246,6 +246,41 @@ def test_schedule_defaults_and_legacy_values():
     assert (second.activity, second.realtime, second.main, second.nice) == ("parallel", "none", False, None)
 
 
+def test_spin_is_how_long_a_periodic_thread_spins_before_each_deadline():
+    from coco_core.builder import build_application
+    from coco_core.schedule import DEFAULT_SPIN
+
+    text = """<package>
+  <activities>
+    <activity name="fast"><schedule period="1" spin="0.6"/><components/></activity>
+    <activity name="plain"><schedule period="1"/><components/></activity>
+  </activities>
+</package>"""
+    spec = parse_application_string(text)
+    assert [a.schedule.spin_ms for a in spec.activities] == [0.6, None]
+    app = build_application(spec)
+    assert app.activity("fast").schedule.spin == pytest.approx(0.6e-3)
+    assert app.activity("plain").schedule.spin == DEFAULT_SPIN
+
+
+def test_a_wrong_spin_is_an_error_with_file_and_line():
+    text = """<package>
+  <activities>
+    <activity><schedule period="1" spin="1"/><components/></activity>
+    <activity><schedule period="1" spin="-0.1"/><components/></activity>
+    <activity><schedule type="triggered" spin="0.2"/><components/></activity>
+    <activity><schedule period="1" spin="soon"/><components/></activity>
+  </activities>
+</package>"""
+    assert errors_of(text) == [
+        (3, '<schedule> attribute spin="1": expected milliseconds from 0 to less than the period (1)'),
+        (4, '<schedule> attribute spin="-0.1": expected milliseconds from 0 to less than the period (1)'),
+        (5, '<schedule> attribute spin="0.2": only a periodic activity spins to its deadlines; leave it out of a '
+            "triggered one"),
+        (6, '<schedule> attribute spin="soon": expected a number of milliseconds'),
+    ]
+
+
 def test_activity_structure():
     text = """<package>
   <activities>
