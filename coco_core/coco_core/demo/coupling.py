@@ -25,6 +25,7 @@ from ..attributes import Attribute
 from ..component import Component
 from ..policy import NEW_DATA, NO_DATA
 from ..ports import InputPort, OutputPort
+from .record import save_record
 
 
 class Written(NamedTuple):
@@ -80,7 +81,7 @@ class CostlyProducer(Component):
 
     def on_stop(self) -> None:
         if self.record:
-            _save(self.record, {"produced": self.produced, "writes": list(self.writes)})
+            save_record(self.record, {"produced": self.produced, "writes": list(self.writes)})
 
 
 class CostlyConsumer(Component):
@@ -134,14 +135,7 @@ class CostlyConsumer(Component):
 
     def on_stop(self) -> None:
         if self.record:
-            _save(self.record, {"consumed": self.consumed, "reused": self.reused, "taken": list(self.taken)})
-
-
-def _save(path: str, record: dict[str, object]) -> None:
-    """Write ``record`` as JSON (written whole, then renamed: a reader never sees half of it)."""
-    partial = Path(path).with_suffix(".partial")
-    partial.write_text(json.dumps(record))
-    partial.replace(path)
+            save_record(self.record, {"consumed": self.consumed, "reused": self.reused, "taken": list(self.taken)})
 
 
 def load_record(path: str | Path) -> SimpleNamespace:

@@ -12,7 +12,6 @@ stops, so that a check in another process reads what happened.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +20,7 @@ from ..component import Component
 from ..policy import NEW_DATA
 from ..ports import InputPort, OutputPort
 from ..stamps import Stamp
+from .record import save_record
 
 
 def box_of(count: int, span: int, size: float) -> tuple[float, float, float, float]:
@@ -70,7 +70,4 @@ class StampRecorder(Component):
 
     def on_stop(self) -> None:
         if self.out_dir:
-            record = Path(self.out_dir) / f"{self.name}.json"
-            partial = record.with_suffix(".partial")
-            partial.write_text(json.dumps(self.got))
-            partial.replace(record)
+            save_record(Path(self.out_dir) / f"{self.name}.json", self.got)

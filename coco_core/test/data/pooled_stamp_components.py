@@ -7,7 +7,6 @@ process or spread over several."""
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -15,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from coco_core import NEW_DATA, Attribute, Component, InputPort, PooledOutputPort, Slot, Stamp
+from coco_core.demo.record import save_record
 from coco_core.demo.routing import box_of
 
 AGE = 0.25
@@ -69,7 +69,4 @@ class FrameRecorder(Component):
 
     def on_stop(self) -> None:
         if self.out_dir:
-            record = Path(self.out_dir) / f"{self.name}.json"
-            partial = record.with_suffix(".partial")
-            partial.write_text(json.dumps(self.got))
-            partial.replace(record)
+            save_record(Path(self.out_dir) / f"{self.name}.json", self.got)
