@@ -161,10 +161,14 @@ class Connection(abc.ABC):
         source = self.source
         return source is not None and source.carries_stamps_only(self)
 
+    def settings(self) -> str:
+        """What stores the values: the policy, or a filter's name and parameters."""
+        return str(self.policy)
+
     def describe(self) -> str:
-        """What stores the values, for ``--check`` and the profile: the policy, or a filter's name;
-        a stamps-only connection says so, in the writer's process and in the reader's."""
-        return f"{self.policy}, stamps only" if self.stamps_only else str(self.policy)
+        """:meth:`settings`, for ``--check`` and the profile; a stamps-only connection says so after
+        them, in the writer's process and in the reader's."""
+        return f"{self.settings()}, stamps only" if self.stamps_only else self.settings()
 
     def counters(self) -> dict[str, int]:
         """Snapshot of the flow counters, for the profiler and diagnostics."""

@@ -69,13 +69,8 @@ class Filter(LockedBufferConnection):
         return Message(None, time.perf_counter(), number, f"{self.name}({self.label})", -1)
 
     def settings(self) -> str:
-        """The filter and its parameters."""
+        """The filter and its parameters (in place of a policy)."""
         return self.name
-
-    def describe(self) -> str:
-        """The filter and its parameters, for ``--check`` and the profile; a stamps-only connection
-        says so after them, as an unfiltered one does after its policy."""
-        return f"{self.settings()}, stamps only" if self.stamps_only else self.settings()
 
     def __repr__(self) -> str:
         return f"<{self.describe()} {self.label}>"

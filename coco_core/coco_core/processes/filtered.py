@@ -103,8 +103,8 @@ class FedFilter(Connection):
     def stamps_only(self) -> bool:
         return self.channel.stamps_only
 
-    def describe(self) -> str:
-        return f"{self.filter.describe()}, stamps only" if self.stamps_only else self.filter.describe()
+    def settings(self) -> str:
+        return self.filter.settings()
 
     def __repr__(self) -> str:
         return f"<{self.describe()} {self.label} (from another process)>"
@@ -143,6 +143,5 @@ class FedRouter(FedFilter):
         """Messages routed to the other connections before they crossed."""
         return self.filter.routed_away + self._count.routed_away
 
-    def describe(self) -> str:
-        routes = f"{self.filter.routes()}, routed away {self.routed_away}"
-        return f"{routes}, stamps only" if self.stamps_only else routes
+    def settings(self) -> str:
+        return f"{self.filter.routes()}, routed away {self.routed_away}"
