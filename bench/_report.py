@@ -146,3 +146,11 @@ def save_plot(args: argparse.Namespace, draw: Any) -> None:
     figure.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(figure)
     print(f"wrote {path}")
+
+
+def activity_profile(shots: Iterable[Any], process: str, activity: str) -> dict[str, float]:
+    """The profile's figures of ``activity`` in ``process`` (``ProfileSnapshot`` objects, as the
+    process level gathers them): cycles, overruns, and the period error p50/p99/max in microseconds."""
+    row = next(row for shot in shots if shot.process == process for row in shot.activities if row[0] == activity)
+    p50, p99, largest = (float(word) for word in row[4].split(" / "))
+    return {"cycles": int(row[2]), "overruns": int(row[3]), "p50_us": p50, "p99_us": p99, "max_us": largest}

@@ -425,12 +425,10 @@ def haptic_loop_in_its_own_process(seconds: float) -> dict[str, Any]:
         assert processes is not None
         app.run(seconds + WARMUP_PROCESS)
         shots = processes.snapshots()
-    row = next(row for shot in shots if shot.process == "haptics" for row in shot.activities if row[0] == "haptics")
-    p50, p99, largest = (float(word) for word in row[4].split(" / "))
     collector = app.component("collector")
     times = np.array(collector.times[-int(seconds * 1000):])  # the last seconds, as the other conditions
     intervals = np.diff(times)
-    return {"p50_us": p50, "p99_us": p99, "max_us": largest, "cycles": int(row[2]), "overruns": int(row[3]),
+    return {**_report.activity_profile(shots, "haptics", "haptics"),
             "rate_hz": (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 else 0.0,
             "interval_p99_us": float(np.percentile(intervals, 99) * 1e6) if len(intervals) else float("nan")}
 

@@ -107,10 +107,9 @@ def loaded_run(settings: str, burners: int, seconds: float) -> dict[str, Any]:
             assert processes is not None
             app.run(seconds)
             shots = processes.snapshots()
-    row = next(row for shot in shots if shot.process == "haptic" for row in shot.activities if row[0] == "haptic")
-    p50, p99, largest = (float(word) * 1e3 for word in row[4].split(" / "))  # microseconds in the profile
-    return {"cycles": int(row[2]), "missed": int(row[3]), "p50_ns": p50, "p99_ns": p99, "max_ns": largest,
-            "others": load.others}
+    figures = _report.activity_profile(shots, "haptic", "haptic")
+    return {"cycles": figures["cycles"], "missed": figures["overruns"], "p50_ns": figures["p50_us"] * 1e3,
+            "p99_ns": figures["p99_us"] * 1e3, "max_ns": figures["max_us"] * 1e3, "others": load.others}
 
 
 def under_load(seconds: float) -> tuple[Table, dict[str, Any]]:
