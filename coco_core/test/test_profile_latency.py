@@ -59,22 +59,18 @@ PRODUCE = """<activity name="produce"><schedule type="periodic" period="5"/>
             <components><component name="producer"/></components></activity>"""
 
 
+def last_cell(report: str, row: str, cells_at_least: int = 0) -> str:
+    """The last column (mean / max ms, or -) of the row of a profile report that has the cell
+    ``row``: a component's latency (its table has 12 columns or more), a connection's age."""
+    for line in report.splitlines():
+        cells = re.split(r"\s{2,}", line.strip())
+        if row in cells and len(cells) >= cells_at_least:
+            return cells[-1]
+    raise AssertionError(f"no row of {row} in the profile:\n{report}")
+
+
 def latency_cell(report: str, component: str) -> str:
-    """The latency column (mean / max ms, or -) of ``component``'s row in a profile report."""
-    for line in report.splitlines():
-        cells = re.split(r"\s{2,}", line.strip())
-        if component in cells and len(cells) >= 12:
-            return cells[-1]
-    raise AssertionError(f"no row of {component} in the profile:\n{report}")
-
-
-def age_cell(report: str, connection: str) -> str:
-    """The age column (mean / max ms, or -) of ``connection``'s row in a profile report."""
-    for line in report.splitlines():
-        cells = re.split(r"\s{2,}", line.strip())
-        if connection in cells:
-            return cells[-1]
-    raise AssertionError(f"no row of {connection} in the profile:\n{report}")
+    return last_cell(report, component, 12)
 
 
 def milliseconds(cell: str) -> tuple[float, float]:
@@ -131,7 +127,7 @@ def test_a_plain_value_gets_a_latency_in_the_launched_profile(tmp_path: Path, ap
     mean, biggest = milliseconds(latency_cell(launched.stdout, "recorder"))
     assert 0.0 < mean <= biggest, launched.stdout
     for connection in ("producer.out -> recorder.values", "producer.out -> consumer.item"):
-        mean, biggest = milliseconds(age_cell(launched.stdout, connection))  # measured in the reader's process
+        mean, biggest = milliseconds(last_cell(launched.stdout, connection))  # measured in the reader's process
         assert 0.0 < mean <= biggest, launched.stdout
     with rows.open() as file:
         recorded = list(csv.DictReader(file))
@@ -159,7 +155,7 @@ def test_each_connection_shows_the_age_of_what_its_reader_took(measured: bool) -
         longest = time.perf_counter() - before
     finally:
         app.stop()
-    cell = age_cell(profile_report(app), "numbers.out -> taker.values")
+    cell = last_cell(profile_report(app), "numbers.out -> taker.values")
     if not measured:
         assert connection.age is None and cell == "-"
         return
