@@ -124,6 +124,17 @@ def activity_cycles(report: str, process: str, activity: str) -> int:
     return int(match.group(1))
 
 
+def connection_counters(report: str, connection: str) -> tuple[int, int, int]:
+    """(written, read, dropped) of ``connection`` in the last profile of a launcher's output: its row
+    is the process (when the application has several), the label, the policy, the four counters and
+    the age of what the reader took (mean / max ms, or -)."""
+    found = re.findall(rf"^(?:\S+\s+)?{re.escape(connection)}\s+.*?\s(\d+)\s+(\d+)\s+(\d+)\s+\d+\s+(?:-|\S+ / \S+)\s*$",
+                       report, re.M)
+    assert found, f"no connection {connection} in the profile:\n{report[-3000:]}"
+    written, read, dropped = found[-1]
+    return int(written), int(read), int(dropped)
+
+
 DEMO_APP = "config/demo_pipeline.xml"
 
 

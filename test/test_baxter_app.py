@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from conftest import ROOT, activity_cycles, damaged_copy, run_launcher
+from conftest import ROOT, activity_cycles, connection_counters, damaged_copy, run_launcher
 
 APP = "config/baxter_teleop_replay.xml"
 URDF = "package://example-robot-data/robots/baxter_description/urdf/baxter.urdf"
@@ -165,14 +165,6 @@ def copy_with_malformed_messages(folder: Path, copy: Path, joint_states: set[int
     damaged_copy(folder, copy, damage)
 
 
-def connection_counts(report: str, connection: str) -> tuple[int, int, int]:
-    """(written, read, dropped) of a connection in a profile report."""
-    line = re.search(rf"^{re.escape(connection)}\s.*$", report, re.M)
-    assert line, f"no connection {connection} in:\n{report}"
-    written, read, dropped = re.findall(r"(\d+)\s+(\d+)\s+(\d+)\s+\d+\s+(?:-|\S+ / \S+)$", line.group(0))[0]
-    return int(written), int(read), int(dropped)
-
-
 @pytest.mark.parametrize("rate", ["0", "4"])
 def test_a_malformed_message_in_the_bag_costs_only_itself(coco_launch: Path, session, tmp_path: Path,
                                                           rate: str) -> None:
@@ -191,13 +183,13 @@ def test_a_malformed_message_in_the_bag_costs_only_itself(coco_launch: Path, ses
     assert result.returncode == 1, result.stderr
     report = result.stdout
     joints, poses = info.counts["/robot/joint_states"], info.counts["/bowl/pose"]
-    assert connection_counts(report, "replay.robot_joint_states -> tf.joints") == (joints - 1, joints - 1, 0), report
-    assert connection_counts(report, "replay.bowl_pose -> tf.transform") == (poses - 2, poses - 2, 0), report
+    assert connection_counters(report, "replay.robot_joint_states -> tf.joints") == (joints - 1, joints - 1, 0), report
+    assert connection_counters(report, "replay.bowl_pose -> tf.transform") == (poses - 2, poses - 2, 0), report
     # component, activity, execs, total, compute mean/std, service mean/std, errors, refused, merged, latency
     refused = re.search(r"^replay\s+replay\s.*$", report, re.M).group(0).split()[9]
     assert refused == "3", report
     summary = json.loads((output / "summary.json").read_text())
-    written = connection_counts(report, "distance.distance -> summary.distance")[0]
+    written = connection_counters(report, "distance.distance -> summary.distance")[0]
     assert summary["samples"] == written == len(read_csv(output / "distance.csv"))
     assert summary["input_refused"] == {"replay": 3}, summary
     damage = summary["input_damage"]

@@ -7,13 +7,12 @@ from __future__ import annotations
 
 import csv
 import json
-import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import ROOT, SHARED_DATA, run_launcher
+from conftest import ROOT, SHARED_DATA, connection_counters, run_launcher
 
 APP = "config/baxter_teleop_replay.xml"
 URDF = "package://example-robot-data/robots/baxter_description/urdf/baxter.urdf"
@@ -148,12 +147,8 @@ def check_nothing_dropped(profile: str) -> None:
     """The profile's connection table: nothing dropped between the replay and the summary."""
     for connection in ("replay.robot_joint_states -> tf.joints", "tf.gripper -> distance.gripper",
                        "distance.distance -> summary.distance", "distance.color -> summary.color"):
-        line = next((line for line in profile.splitlines() if connection in line), None)
-        assert line is not None, f"{connection} missing from the profile:\n{profile[-3000:]}"
-        counters = re.search(r"(\d+)\s+(\d+)\s+(\d+)\s+\d+\s+(?:-|\S+ / \S+)$", line.strip())
-        assert counters, line
-        written, read, dropped = (int(cell) for cell in counters.groups())
-        assert dropped == 0 and written == read, line
+        written, read, dropped = connection_counters(profile, connection)
+        assert dropped == 0 and written == read, (connection, written, read, dropped)
 
 
 LAYOUTS = {

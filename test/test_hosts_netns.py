@@ -26,7 +26,7 @@ from typing import IO, Iterator
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, connection_counters
 from netns import Impairment, Network, unavailable
 
 REASON = unavailable()
@@ -92,14 +92,6 @@ def rows(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(handle))
 
 
-def counters(log: str, connection: str) -> tuple[int, int, int]:
-    """(written, read, dropped) of ``connection`` in the last profile of a launcher's output."""
-    found = re.findall(rf"^(?:\S+\s+)?{re.escape(connection)}\s+.*?\s(\d+)\s+(\d+)\s+(\d+)\s+\d+\s+(?:-|\S+ / \S+)\s*$", log, re.M)
-    assert found, f"no {connection} in the profile:\n{log}"
-    written, read, dropped = found[-1]
-    return int(written), int(read), int(dropped)
-
-
 @pytest.fixture
 def two_hosts() -> Iterator[Network]:
     with Network(["robot", "graphics"], domain=180) as network:
@@ -120,8 +112,8 @@ def test_the_demo_runs_over_two_hosts_with_its_operations_and_one_clock(tmp_path
     assert abs(float(offset.group(1))) <= float(offset.group(2)) + 0.05  # one machine: one clock
     assert "supervisor: filter.set_window -> previous value 8" in sensor_log  # an operation on the other host
     assert "stopping application hosts_demo_pipeline: host sensor: duration of 3 s reached" in station_log
-    written, _, _ = counters(sensor_log, "generator.sample -> filter.sample")
-    assert counters(station_log, "generator.sample -> filter.sample") == (written, written, 0) and written > 100
+    written, _, _ = connection_counters(sensor_log, "generator.sample -> filter.sample")
+    assert connection_counters(station_log, "generator.sample -> filter.sample") == (written, written, 0) and written > 100
     assert len(rows(output)) == written  # every sample filtered and recorded on the other host
 
 
@@ -168,8 +160,9 @@ def test_a_lossy_delayed_link_still_delivers_every_sample_of_a_reliable_connecti
         assert graphics.wait(30) == 0, (tmp_path / "graphics.log").read_text()
         dropped_on_link = sum(counts["dropped"] for counts in network.counters().values())
     assert dropped_on_link > 0  # the link did lose packets
-    written, _, _ = counters((tmp_path / "robot.log").read_text(), "generator.sample -> recorder.values")
-    assert counters((tmp_path / "graphics.log").read_text(), "generator.sample -> recorder.values") == (written, written, 0)
+    crossing = "generator.sample -> recorder.values"
+    written, _, _ = connection_counters((tmp_path / "robot.log").read_text(), crossing)
+    assert connection_counters((tmp_path / "graphics.log").read_text(), crossing) == (written, written, 0)
     assert len(rows(output)) == written > 100
 
 
