@@ -245,6 +245,48 @@ def test_operations_are_called_by_name_across_processes(tmp_path: Path, reap, ca
     assert errors and set(errors) == {"error RemoteError ValueError"}, lines
 
 
+EARLY = """<package name="early_call">
+  <components>
+    <component><name>gen</name><task>SignalGenerator</task></component>
+    <component><name>avg</name><task>MovingAverage</task>
+      <attributes><attribute name="window" value="4"/></attributes></component>
+  </components>
+  <connections>
+    <connection data="BUFFER" policy="LOCKED" buffersize="64">
+      <src task="gen" port="sample"/><dest task="avg" port="sample"/></connection>
+  </connections>
+  <activities>
+    <activity name="sampling"><schedule type="periodic" period="10"/>
+      <components><component name="gen"/></components></activity>
+    <process name="worker">
+      <activity name="averaging"><schedule type="triggered"/>
+        <components><component name="avg"/></components></activity>
+    </process>
+  </activities>
+</package>
+"""
+
+
+def test_an_operation_called_before_the_start_is_answered() -> None:
+    # The ROS launcher serves operations from before the application starts; a call that reached a
+    # child still waiting for the word to start was dropped ("unexpected Call"), and the service
+    # answered "did not answer within 10 s" (CI, on a loaded machine).
+    from coco_core.builder import build_application
+    from coco_core.deployment import plan_deployment
+    from coco_core.processes.level import process_level
+    from coco_core.xml import parse_application_string
+
+    spec = parse_application_string(EARLY, "early_call.xml")
+    app = build_application(spec)
+    with process_level(spec, app, plan_deployment(spec)) as processes:
+        assert app.operation("avg", "set_window")(3).result(10) == 4
+        app.start()  # the running activity has the new window
+        assert app.operation("avg", "get_attribute")("window").result(10) == 3
+        app.request_stop("the test is done")
+        assert app.stop()
+    assert processes is not None and not processes.failed
+
+
 def test_check_finds_a_buffer_between_processes_larger_than_the_shared_memory(tmp_path, reap):
     # buffersize=1000000 passed --check and failed at run time with ENOMEM and a traceback.
     from coco_core.shm.segment import free_bytes

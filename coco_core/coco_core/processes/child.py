@@ -38,7 +38,7 @@ from ..launcher import stopped_by_a_failure
 from ..memory_lock import lock_memory
 from ..report import snapshot
 from .channels import attach
-from .control import ControlLink
+from .control import ControlLink, Handlers
 from .messages import (
     BuildFailed,
     Built,
@@ -162,9 +162,12 @@ class ChildProcess:
         app.gate.hold(self._configured)  # the launcher's word (Run) opens it
         app.router = self
         self.link.send(Built())
-        # Every process builds, then all start: wait for the word (damage found while building comes too).
-        word = self.link.serve({Damage: lambda message: app.report_damage(message.what, here=False)},
-                               until=(Start, Stop))
+        # Every process builds, then all start: wait for the word. What comes meanwhile is served as
+        # while the application runs: damage found while building, and an operation called as soon as
+        # the launcher is up (its ROS services exist before the application starts), which runs at
+        # once, as an operation of an application not started yet does in one process. It was
+        # dropped here, and its caller waited for an answer that never came.
+        word = self.link.serve(self._handlers(app), until=(Start, Stop))
         if not isinstance(word, Start):
             return 0 if isinstance(word, Stop) else 1  # told to stop, or the launcher is gone
         listener = threading.Thread(target=self._serve, args=(app,), name="coco:control", daemon=True)
@@ -214,15 +217,22 @@ class ChildProcess:
         other processes, whose summaries report it too."""
         self.link.send(Damage(what))
 
-    def _serve(self, app: Application) -> None:
-        """The launcher's messages while the application runs; when the launcher is gone, stop."""
-        self.link.serve({
-            Run: lambda _: app.gate.open(),
-            Stop: lambda message: app.request_stop(f"launcher: {message.reason}", hard=message.hard),
+    def _handlers(self, app: Application) -> Handlers:
+        """What the launcher may send from the moment this process is built: before the word to
+        start as after it."""
+        return {
             Damage: lambda message: app.report_damage(message.what, here=False),
             ProfileRequest: lambda message: self.link.answer(message, Outcome(True, snapshot(app, app.process))),
             Call: lambda message: serve_call(app, message, lambda outcome: self.link.answer(message, outcome)),
             SetPeriod: lambda message: self._set_period(app, message),
+        }
+
+    def _serve(self, app: Application) -> None:
+        """The launcher's messages while the application runs; when the launcher is gone, stop."""
+        self.link.serve({
+            **self._handlers(app),
+            Run: lambda _: app.gate.open(),
+            Stop: lambda message: app.request_stop(f"launcher: {message.reason}", hard=message.hard),
         })
         self.link.abandon("the launcher is gone")
         self.orphaned = True
