@@ -54,7 +54,7 @@ NOT_RUN: dict[str, str] = {
     "./scripts/run_tests.sh":
         "runs the whole test suite, this test included (it would run itself); the suite run is how it is exercised",
     "./scripts/run_app.sh palpation":
-        "test/test_palpation_app.py runs this very line (with the test's shorter session, the hand at half speed and "
+        "test/test_palpation_app.py runs this very line (with the test's shorter session and "
         "its own outputs) and checks what it prints and writes; that test runs alone after the other suites, since "
         "the application's five processes need both cores (here, with the other suites beside it, the remote camera "
         "delivered 21 of 255 frames and the calibration touch was never seen)",
