@@ -256,21 +256,34 @@ def render_scene(folder: Path) -> tuple[np.ndarray, np.ndarray, tuple[float, flo
     return color, depth, (k.fx, k.fy, k.cx, k.cy)
 
 
-def sensor_depth(depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """What a structured-light sensor makes of the true ``depth`` (metres): millimetres (uint16, 0:
-    unknown), quantised in disparity with per-frame noise, no depth at jumps and a few random holes."""
-    valid = np.isfinite(depth) & (depth > 0)
-    z = np.where(valid, depth, 1.0)
-    disparity = 1.0 / z / DEPTH_STEP + rng.normal(0.0, DEPTH_NOISE, z.shape)
-    quantised = 1.0 / (np.round(disparity) * DEPTH_STEP)
-    padded = np.pad(np.where(valid, depth, 0.0), 1, mode="edge")
-    jump = np.zeros(z.shape, bool)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            neighbour = padded[1 + dy:1 + dy + z.shape[0], 1 + dx:1 + dx + z.shape[1]]
-            jump |= np.abs(neighbour - np.where(valid, depth, 0.0)) > EDGE_JUMP
-    keep = valid & ~jump & (rng.random(z.shape) >= DROPOUT)
-    return np.where(keep, np.round(quantised * 1000.0), 0).astype(np.uint16)
+class StructuredLightSensor:
+    """What a structured-light sensor makes of a static scene's true ``depth`` (metres), frame after
+    frame: millimetres (uint16, 0: unknown), quantised in disparity with per-frame noise, no depth at
+    jumps and a few random holes.
+
+    What does not change from frame to frame (the disparity of the true depth, where it jumps) is
+    computed once: it was two thirds of each frame's cost, and a session has hundreds of frames."""
+
+    def __init__(self, depth: np.ndarray) -> None:
+        valid = np.isfinite(depth) & (depth > 0)
+        z = np.where(valid, depth, 1.0)
+        self.disparity = 1.0 / z / DEPTH_STEP
+        known = np.where(valid, depth, 0.0)
+        padded = np.pad(known, 1, mode="edge")
+        jump = np.zeros(z.shape, bool)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                neighbour = padded[1 + dy:1 + dy + z.shape[0], 1 + dx:1 + dx + z.shape[1]]
+                jump |= np.abs(neighbour - known) > EDGE_JUMP
+        self.seen = valid & ~jump
+        """Where the sensor can give a depth at all (a frame's random holes aside)."""
+
+    def frame(self, rng: np.random.Generator) -> np.ndarray:
+        """One frame, its noise and holes drawn from ``rng``."""
+        disparity = self.disparity + rng.normal(0.0, DEPTH_NOISE, self.disparity.shape)
+        quantised = 1.0 / (np.round(disparity) * DEPTH_STEP)
+        keep = self.seen & (rng.random(self.disparity.shape) >= DROPOUT)
+        return np.where(keep, np.round(quantised * 1000.0), 0).astype(np.uint16)
 
 
 def _stamp(message: Any, stamp_ns: int, frame_id: str) -> None:
@@ -352,12 +365,15 @@ def generate_session(folder: str | Path, seed: int = 0, duration: float = 8.5, *
     def ns(t: float) -> int:
         return start_stamp + int(round(t * 1e9))
 
+    sensor = StructuredLightSensor(depth)
+
     def color_image(stamp: int) -> Any:
-        return _image(stamp, np.clip(color + noise.normal(0.0, COLOR_NOISE, color.shape), 0, 255).astype(np.uint8),
-                      "rgb8")
+        pixels = noise.normal(0.0, COLOR_NOISE, color.shape)
+        pixels += color
+        return _image(stamp, np.clip(pixels, 0, 255, out=pixels).astype(np.uint8), "rgb8")
 
     def depth_image(stamp: int) -> Any:
-        return _image(stamp, sensor_depth(depth, noise), "16UC1")
+        return _image(stamp, sensor.frame(noise), "16UC1")
 
     def hand(stamp: int, t: float) -> Any:
         position = table_to_tracker[:3, :3] @ hand_at(plan, t) + table_to_tracker[:3, 3]
