@@ -52,11 +52,11 @@ def free_port() -> int:
 
 
 HAND_RATE = 1.0
-"""The hand replayed as recorded. These tests run alone, once the other suites have ended
-(scripts/run_tests.sh), so the five processes have both cores. They replayed the hand at half speed
-while they ran beside the other suites, where the hand's replay stalled for over a second at times
-and a press went by untouched; alone, at full speed, the six runs take a third less time and CPU
-(~60 s and ~100 s, against ~90 s and ~140 s)."""
+"""The hand replayed as recorded. These tests start once at most one other suite is left
+(scripts/run_tests.sh), so the five processes have most of both cores. They replayed the hand at
+half speed when they ran beside all the other suites, where the hand's replay stalled for over a
+second at times and a press went by untouched; at full speed the six runs take a third less time
+and CPU (~60 s and ~100 s on their own, against ~90 s and ~140 s)."""
 
 
 RUN_APP = ROOT / "scripts" / "run_app.sh"
