@@ -23,7 +23,6 @@ from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterS
 from .policy import ConnectionPolicy
 from .ports import InputPort, Port, type_name
 from .processes.placement import LAUNCHER, Placement
-from .schedule import DEFAULT_SPIN
 from .scheduling import SchedulingRequest
 from .xml.composite import context_of, scope_of
 
@@ -99,9 +98,8 @@ class _Builder:
         request = SchedulingRequest.of(schedule)
         if schedule.type == "periodic":
             assert schedule.period_ms is not None  # the loader guarantees it
-            spin = DEFAULT_SPIN if schedule.spin_ms is None else schedule.spin_ms / 1e3
             return PeriodicActivity(spec.name, schedule.period_ms / 1e3, main=schedule.main, scheduling=request,
-                                    spin=spin)
+                                    spin=schedule.spin)
         return TriggeredActivity(spec.name, main=schedule.main, scheduling=request)
 
     def install_transforms(self, app: Application) -> None:

@@ -36,7 +36,7 @@ from .errors import CocoError, DeploymentError, did_you_mean
 from .model import ActivitySpec, AppSpec, ComponentSpec, ProcessSpec
 from .processes.channels import woken_by_other_processes
 from .processes.placement import LAUNCHER, Placement
-from .schedule import Schedule
+from .schedule import DEFAULT_SPIN, Schedule
 from .scheduling import SchedulingRequest
 
 if TYPE_CHECKING:
@@ -97,9 +97,16 @@ class ActivityFacts:
     scheduling: SchedulingRequest
     thread_bound: tuple[str, ...]
     """Its components (peers included) that must run in the thread that configured them."""
+    spin: float = DEFAULT_SPIN
+    """Seconds before each periodic deadline at which its thread stops sleeping and spins."""
 
     def describe(self) -> str:
-        return Schedule(self.period).describe()
+        """The schedule, then what the file asks beyond it (a spin, the thread's real-time class,
+        priority, nice value and cores): ``periodic 1 ms, spin 0.6 ms, SCHED_FIFO priority 80``."""
+        words = [Schedule(self.period).describe()]
+        if self.period is not None and self.spin != DEFAULT_SPIN:
+            words.append(f"spin {self.spin * 1e3:g} ms")
+        return ", ".join([*words, *self.scheduling.describe()])
 
     @classmethod
     def of_spec(cls, spec: ActivitySpec, components: Mapping[str, ComponentSpec]) -> ActivityFacts:
@@ -115,13 +122,14 @@ class ActivityFacts:
             if _thread_bound(component):
                 bound.append(component.name)
             stack.extend(reversed(component.peers))
-        return cls(spec.name, spec.process, period, schedule.main, SchedulingRequest.of(schedule), tuple(bound))
+        return cls(spec.name, spec.process, period, schedule.main, SchedulingRequest.of(schedule), tuple(bound),
+                   schedule.spin)
 
     @classmethod
     def of_activity(cls, activity: Activity) -> ActivityFacts:
         bound = tuple(c.name for top in activity.components for c in top.walk() if c.thread_bound)
         return cls(activity.name, activity.process, activity.period, activity.main, activity.scheduling,
-                   bound)
+                   bound, activity.schedule.spin)
 
 
 def _thread_bound(component: ComponentSpec) -> bool:

@@ -14,6 +14,7 @@ from .errors import Location
 from .frustum import Frustum
 from .hosts.channel import HostChannel
 from .policy import BufferPolicy, SyncPolicy
+from .schedule import DEFAULT_SPIN
 
 
 @dataclass
@@ -135,6 +136,12 @@ class ScheduleSpec:
     affinity: list[int] = field(default_factory=list)
     exclusive_affinity: list[int] = field(default_factory=list)
     location: Location | None = None
+
+    @property
+    def spin(self) -> float:
+        """Seconds of :attr:`spin_ms`, the runtime's default when the file gives none: what the
+        builder gives the activity and what the deployment plan prints."""
+        return DEFAULT_SPIN if self.spin_ms is None else self.spin_ms / 1e3
 
 
 @dataclass

@@ -38,6 +38,18 @@ class SchedulingRequest:
                    exclusive=bool(schedule.exclusive_affinity), realtime=schedule.realtime or "none",
                    priority=schedule.priority, nice=schedule.nice)
 
+    def describe(self) -> list[str]:
+        """What it asks, in the words ``--check`` and each process's log print beside the schedule
+        (nothing when it asks nothing): a real-time loop's settings are what its user checks first."""
+        words = []
+        if self.realtime != "none":
+            words.append(f"SCHED_{self.realtime}" + (f" priority {self.priority}" if self.priority is not None else ""))
+        if self.nice is not None:
+            words.append(f"nice {self.nice}")
+        if self.affinity:
+            words.append(("exclusive " if self.exclusive else "") + f"cores {','.join(map(str, self.affinity))}")
+        return words
+
 
 def available_cores() -> set[int]:
     """Cores this process may use."""

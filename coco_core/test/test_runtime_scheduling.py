@@ -113,3 +113,23 @@ def test_schedule_attributes_of_a_file_reach_the_activity() -> None:
     request = activity.scheduling
     assert (request.affinity, request.exclusive, request.realtime, request.priority, request.nice) == (
         [0], True, "RR", 20, -2)
+
+
+def test_check_prints_what_each_activity_asks_of_the_os() -> None:
+    """``--check``'s line of an activity (and the line each process logs) names its spin and its
+    thread's settings beside the schedule: a real-time loop's settings are what its user checks."""
+    from coco_core.deployment import plan_deployment
+
+    spec = parse_application_string("""<package>
+      <activities>
+        <activity name="haptics"><schedule period="1" spin="0.6" realtime="FIFO" priority="80"/><components/></activity>
+        <activity name="pinned"><schedule period="10" exclusive_affinity="1" nice="5"/><components/></activity>
+        <activity name="shared"><schedule type="triggered" affinity="0,1"/><components/></activity>
+        <activity name="plain"><schedule period="10"/><components/></activity>
+      </activities>
+    </package>""", filename="asks.xml")
+    lines = [activity.line() for activity in plan_deployment(spec).activities.values()]
+    assert lines == ["activity haptics: periodic 1 ms, spin 0.6 ms, SCHED_FIFO priority 80 -> own thread",
+                     "activity pinned: periodic 10 ms, nice 5, exclusive cores 1 -> own thread",
+                     "activity shared: triggered, cores 0,1 -> own thread",
+                     "activity plain: periodic 10 ms -> own thread"]
