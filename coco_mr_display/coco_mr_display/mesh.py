@@ -55,6 +55,15 @@ class MeshPart:
     def triangles(self) -> int:
         return len(self.indices)
 
+    def arrays(self) -> list[np.ndarray]:
+        """The arrays it holds (those that are not None)."""
+        return [a for a in (self.positions, self.indices, self.colors, self.uvs, self.texture) if a is not None]
+
+    @property
+    def nbytes(self) -> int:
+        """The memory its arrays hold."""
+        return sum(array.nbytes for array in self.arrays())
+
 
 def primitive(kind: str, size: Sequence[float] = ()) -> trimesh.Trimesh:
     """A box (``size`` = x y z extents, default 1 1 1), sphere (radius, default 0.5) or cylinder

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections import OrderedDict
 from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
@@ -106,13 +107,49 @@ def mesh_paths(model: UrdfModel) -> dict[str, Path]:
 
 
 _VisualKey = tuple[Path, int, int, bytes, tuple[float, ...] | None, tuple[float, ...], float]
-_LOADED: dict[_VisualKey, list[MeshPart]] = {}
-"""The parts of every mesh visual this process loaded, by file (path, size, modification time) and by
-what is baked into them (origin, scale, colour, fraction kept), read-only: a robot shown by several
-GLUrdf peers of one process (two views, a display rebuilt by a reconfiguration, ``--check`` building
-every process's part in the launcher) reads and simplifies its meshes once (Baxter's: ~2.5 s of CPU).
-Between processes, with ``COCO_MESH_CACHE`` set: :mod:`.mesh_cache`."""
-_LOADED_LOCK = threading.Lock()
+
+LOADED_BYTES = 256 * 2**20
+"""The most memory :data:`_LOADED` holds (Baxter's parts: ~5 MB unsimplified); beyond it, the parts
+used least recently are let go (a mesh file changed since, a robot no longer shown)."""
+
+
+class LoadedParts:
+    """The parts of the mesh visuals this process loaded, by file (path, size, modification time) and
+    by what is baked into them (origin, scale, colour, fraction kept), read-only: a robot shown by
+    several GLUrdf peers of one process (two views, a display rebuilt by a reconfiguration, ``--check``
+    building every process's part in the launcher) reads and simplifies its meshes once (Baxter's:
+    ~2.5 s of CPU). At most ``limit`` bytes, the least recently used let go first, so that a long run
+    that loads many models (or one whose files change) does not grow without end. Between
+    processes, with ``COCO_MESH_CACHE`` set: :mod:`.mesh_cache`."""
+
+    def __init__(self, limit: int = LOADED_BYTES) -> None:
+        self.limit = limit
+        self._parts: OrderedDict[_VisualKey, list[MeshPart]] = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    def get(self, key: _VisualKey) -> list[MeshPart] | None:
+        with self._lock:
+            parts = self._parts.get(key)
+            if parts is not None:
+                self._parts.move_to_end(key)
+            return parts
+
+    def put(self, key: _VisualKey, parts: list[MeshPart]) -> None:
+        with self._lock:
+            if key in self._parts:
+                return
+            self._parts[key] = parts
+            self._bytes += sum(part.nbytes for part in parts)
+            while self._bytes > self.limit and len(self._parts) > 1:
+                _, old = self._parts.popitem(last=False)
+                self._bytes -= sum(part.nbytes for part in old)
+
+    def __len__(self) -> int:
+        return len(self._parts)
+
+
+_LOADED = LoadedParts()
 
 
 def _mesh_visual_parts(path: Path, visual: UrdfVisual, color: tuple[float, ...], keep: float,
@@ -126,8 +163,7 @@ def _mesh_visual_parts(path: Path, visual: UrdfVisual, color: tuple[float, ...],
     scale = None if visual.scale is None else tuple(float(value) for value in visual.scale)
     key = (path, stat.st_size if stat else -1, stat.st_mtime_ns if stat else -1,
            np.asarray(visual.origin, dtype=float).tobytes(), scale, tuple(float(value) for value in color), float(keep))
-    with _LOADED_LOCK:
-        cached = _LOADED.get(key)
+    cached = _LOADED.get(key)
     if cached is not None:
         return cached
     kept = mesh_cache.entry(key) if stat is not None else None  # COCO_MESH_CACHE: another process's
@@ -139,11 +175,9 @@ def _mesh_visual_parts(path: Path, visual: UrdfVisual, color: tuple[float, ...],
         if kept is not None:
             mesh_cache.write(kept, new)
     for part in new:
-        for array in (part.positions, part.indices, part.colors, part.uvs, part.texture):
-            if array is not None:
-                array.setflags(write=False)  # shared by every peer that draws this file
-    with _LOADED_LOCK:
-        _LOADED[key] = new
+        for array in part.arrays():
+            array.setflags(write=False)  # shared by every peer that draws this file
+    _LOADED.put(key, new)
     return new
 
 

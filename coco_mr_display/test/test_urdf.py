@@ -218,6 +218,31 @@ def test_a_mesh_file_is_read_once_per_process_until_it_changes(tmp_path):
     assert len(next(iter(load().values()))[0].indices) == 80, "a changed file is read again"
 
 
+def test_the_parts_kept_in_a_process_stay_within_their_bound():
+    """A long run that loads many models (or one whose files change) let the parts kept in the
+    process grow without end; the least recently used now go first beyond the bound."""
+    from pathlib import Path
+
+    from coco_mr_display.mesh import MeshPart
+    from coco_mr_display.urdf import LoadedParts
+
+    def parts(vertices: int) -> list[MeshPart]:
+        return [MeshPart(np.zeros((vertices, 3), np.float32), np.zeros((0, 3), np.uint32))]
+
+    def key(name: str):
+        return (Path(name), 1, 1, b"", None, (1.0, 1.0, 1.0, 1.0), 1.0)
+
+    kept = LoadedParts(limit=3 * 1200)  # three parts of 100 vertices (1,200 bytes each)
+    for name in "abc":
+        kept.put(key(name), parts(100))
+    assert kept.get(key("a")) is not None  # used again: "b" is now the least recently used
+    kept.put(key("d"), parts(100))
+    assert kept.get(key("b")) is None and len(kept) == 3
+    assert all(kept.get(key(name)) is not None for name in "acd")
+    kept.put(key("e"), parts(1000))  # larger than the bound alone: kept, everything else let go
+    assert len(kept) == 1 and kept.get(key("e")) is not None
+
+
 def test_coco_mesh_cache_keeps_the_parts_for_the_next_process(tmp_path, monkeypatch):
     """With COCO_MESH_CACHE the parts a process made are written there, whole, and another process
     reads them instead of the file: here an entry replaced by one triangle is what it draws."""

@@ -127,7 +127,7 @@ def test_display_application_from_a_file(monkeypatch):
     from coco_mr_display import mesh_cache, urdf
 
     monkeypatch.delenv(mesh_cache.ENVIRONMENT, raising=False)
-    monkeypatch.setattr(urdf, "_LOADED", {})
+    monkeypatch.setattr(urdf, "_LOADED", urdf.LoadedParts())
     app = build_application(parse_application_string(APP, "display_meshes.xml"))
     frames = app.component("frames")
     app.start()
