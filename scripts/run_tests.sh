@@ -69,10 +69,8 @@ start_suite packages "the other packages' tests (colcon test)" package_tests log
 # seconds each) with the signal tests (launchers stopped at chosen moments: ~40 s, moved here from the
 # rest, which was the longer of the two), the documented commands (the README's and docs' command
 # lines, run side by side in the test: about a minute, mostly waiting on applications) and the rest; a
-# new test file goes to the rest. The remote palpation app's tests (six processes that need both
-# cores: beside all the other suites its remote camera delivered a tenth of its frames) start once at
-# most one other suite is still running (ALONE): the last suite's tail keeps about one core busy,
-# where they passed, and the run no longer waits for it to end first.
+# new test file goes to the rest. The remote palpation app (six processes that need both cores) runs
+# alone once these are done: ALONE.
 APPS=(test/test_baxter_*.py test/test_camera_registration_app.py test/test_signals.py)
 DOCUMENTED=(test/test_documented_commands.py)
 ALONE=(test/test_palpation_app.py test/test_palpation_bad_input.py)
@@ -86,14 +84,7 @@ start_suite workspace "workspace tests: the rest (test/)" \
     python -m pytest test "${APPS[@]/#/--ignore=}" "${DOCUMENTED[@]/#/--ignore=}" "${ALONE[@]/#/--ignore=}" \
     -o cache_dir=build/workspace_tests/.pytest_cache --junit-xml=build/workspace_tests/pytest.xml --junit-prefix=workspace
 
-start_alone() {
-    start_suite alone "workspace tests: the palpation app (test/), with at most one other suite" \
-        python -m pytest "${ALONE[@]}" -o cache_dir=build/workspace_alone/.pytest_cache \
-        --junit-xml=build/workspace_alone/pytest.xml --junit-prefix=workspace
-}
-
 status=0
-alone_started=""
 while [ "${#SUITE_OF[@]}" -gt 0 ]; do
     finished=""
     suite_status=0
@@ -104,12 +95,12 @@ while [ "${#SUITE_OF[@]}" -gt 0 ]; do
     echo "===== ${LABEL_OF[$name]}: exit status $suite_status, ${SECONDS} s after the start ====="
     cat "$LOGS/$name.log"
     [ "$suite_status" -eq 0 ] || status=$suite_status
-    if [ -z "$alone_started" ] && [ "${#SUITE_OF[@]}" -le 1 ]; then
-        alone_started=1
-        echo
-        start_alone
-    fi
 done
+echo
+echo "===== workspace tests: alone (test/), ${SECONDS} s after the start ====="
+( code=0; python -m pytest "${ALONE[@]}" -o cache_dir=build/workspace_alone/.pytest_cache \
+    --junit-xml=build/workspace_alone/pytest.xml --junit-prefix=workspace || code=$?
+    echo "CPU time of this suite (user, system; the second line: its processes)"; times; exit $code ) || status=$?
 colcon test-result --test-result-base build --verbose || status=$?
 python scripts/check_test_results.py build || status=$?
 echo "${SECONDS} s in all; CPU time of the whole run (user, system; the second line: its processes):"

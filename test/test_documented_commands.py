@@ -54,9 +54,9 @@ NOT_RUN: dict[str, str] = {
     "./scripts/run_tests.sh":
         "runs the whole test suite, this test included (it would run itself); the suite run is how it is exercised",
     "./scripts/run_app.sh palpation":
-        "test/test_palpation_app.py runs this very line (with the test's shorter session and "
-        "its own outputs) and checks what it prints and writes; that test runs once at most one other suite is left, "
-        "since the application's five processes need both cores (here, with the other suites beside it, the remote camera "
+        "test/test_palpation_app.py runs this very line (with the test's shorter session, the hand at half speed and "
+        "its own outputs) and checks what it prints and writes; that test runs alone after the other suites, since "
+        "the application's five processes need both cores (here, with the other suites beside it, the remote camera "
         "delivered 21 of 255 frames and the calibration touch was never seen)",
     "coco-launch config/camera_registration.xml record:=out/registration_bag":
         "test/test_camera_registration_app.py runs this very line (read from docs/vision.md, with its own outputs: "
