@@ -103,7 +103,7 @@ def test_teleop_app_in_the_ros_launcher(session, tmp_path: Path, monkeypatch: py
     assert "activity frames: triggered -> wait set on its own thread" in result.stderr, result.stderr
     # The view runs in a process of its own (display_process:=true), with a node of its own; there
     # too the display keeps its EGL context on one thread: GLManager is thread-bound.
-    assert "coco[view]: process view: activity display: periodic 50 ms -> own thread" in result.stderr, result.stderr
+    assert "coco[view]: process view: activity display: periodic 50 ms, nice 5 -> own thread" in result.stderr, result.stderr
     assert "view" in result.stdout and "display    periodic 50 ms" in result.stdout, result.stdout
     latency(result.stdout, "summary")
     summary = json.loads((output / "summary.json").read_text())
