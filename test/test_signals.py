@@ -35,7 +35,7 @@ def handling_in_force(process: subprocess.Popen[str], within: float = 30.0) -> N
     0.3 s, before its handling, failed this test)."""
     status = Path(f"/proc/{process.pid}/status")
     deadline = time.monotonic() + within
-    while time.monotonic() < deadline:
+    while time.monotonic() < deadline and process.poll() is None:
         try:
             caught = next(line for line in status.read_text().splitlines() if line.startswith("SigCgt:"))
         except OSError:
