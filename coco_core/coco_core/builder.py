@@ -178,19 +178,6 @@ class _Builder:
                 and connection.filter.type in ROUTERS and _here(placement, connection.src)
                 and placement.process_of_ref(connection.src) == process]
 
-    def route_out(self, app: Application, connection: ConnectionSpec, splits: dict[int, tuple[int, int]]) -> None:
-        """Make the Split or Cull of ``connection``, which leaves this process, for its writer's end
-        (:attr:`Application.outgoing_routers`); the reader's process makes its own, for its side."""
-        if not connection.src.activity and connection.src.component in self.missing:
-            return
-        try:
-            policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
-            made = _filter(connection.filter, policy, None, splits.get(id(connection), (0, 1)))
-            assert isinstance(made, Router)
-            app.outgoing_routers[f"{connection.src}->{connection.dest}"] = made
-        except (CocoError, ValueError, KeyError) as error:
-            self.fail(error, connection, self.inside(connection))
-
     def build(self, process: str = LAUNCHER) -> Application:
         spec = self.spec
         placement = Placement.of(spec)
@@ -237,10 +224,11 @@ class _Builder:
             crosses = placement.crosses(connection_spec) or connection_spec in remote or connection_spec in onward
             incoming = crosses and connection_spec not in onward and placement.process_of_ref(connection_spec.dest) == process
             outgoing = crosses and not incoming and placement.process_of_ref(connection_spec.src) == process
-            if outgoing and connection_spec.filter is not None and connection_spec.filter.type in ROUTERS:
-                self.route_out(app, connection_spec, splits)  # decided on the writer's side
-                continue
-            if (crosses and not incoming) or (not crosses and placement.process_of_ref(connection_spec.src) != process):
+            # A Split or Cull leaving this process is decided on the writer's side: made here for the
+            # writer's end of the channel (the reader's process makes its own, for its side).
+            routes_out = outgoing and connection_spec.filter is not None and connection_spec.filter.type in ROUTERS
+            if (crosses and not incoming and not routes_out) or (
+                    not crosses and placement.process_of_ref(connection_spec.src) != process):
                 continue  # another process's, or a shared-memory channel made by the process level
             if incoming and connection_spec.filter is None:
                 continue  # a plain channel: the process level makes its reader's end
@@ -250,6 +238,10 @@ class _Builder:
                 policy = ConnectionPolicy(connection_spec.data, connection_spec.policy, max(1, connection_spec.buffersize))
                 group = _merge_group(merges, connection_spec)
                 made = _filter(connection_spec.filter, policy, group, splits.get(id(connection_spec), (0, 1)))
+                if routes_out:
+                    assert isinstance(made, Router)
+                    app.outgoing_routers[f"{connection_spec.src}->{connection_spec.dest}"] = made
+                    continue
                 if incoming:  # its filter on the reader's side, in its place in a merge (file order)
                     assert made is not None
                     app.incoming_filters[f"{connection_spec.src}->{connection_spec.dest}"] = made
