@@ -37,7 +37,7 @@ class RoutingEnd(Connection):
     __slots__ = ("router", "end", "_routed")
     carries_stamps = True
 
-    def __init__(self, router: Router, end: Connection, routed: Callable[[], None] | None = None) -> None:
+    def __init__(self, router: Router, end: Connection, routed: Callable[[], None]) -> None:
         super().__init__(end.policy)
         self.router = router
         self.end = end
@@ -46,8 +46,7 @@ class RoutingEnd(Connection):
     def push(self, value: Any) -> None:
         if self.router.keeps(value) is False:
             self.router.routed_away += 1
-            if self._routed is not None:
-                self._routed()
+            self._routed()
             return
         self.end.push(value)
 
