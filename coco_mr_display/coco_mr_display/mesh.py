@@ -55,14 +55,16 @@ class MeshPart:
     def triangles(self) -> int:
         return len(self.indices)
 
-    def arrays(self) -> list[np.ndarray]:
-        """The arrays it holds (those that are not None)."""
-        return [a for a in (self.positions, self.indices, self.colors, self.uvs, self.texture) if a is not None]
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The arrays it holds (those that are not None), by field name."""
+        return {name: array for name, array in (("positions", self.positions), ("indices", self.indices),
+                                                ("colors", self.colors), ("uvs", self.uvs),
+                                                ("texture", self.texture)) if array is not None}
 
     @property
     def nbytes(self) -> int:
         """The memory its arrays hold."""
-        return sum(array.nbytes for array in self.arrays())
+        return sum(array.nbytes for array in self.arrays().values())
 
 
 def primitive(kind: str, size: Sequence[float] = ()) -> trimesh.Trimesh:

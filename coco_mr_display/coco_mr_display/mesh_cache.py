@@ -30,7 +30,6 @@ log = logging.getLogger("coco.display")
 
 ENVIRONMENT = "COCO_MESH_CACHE"
 """The environment variable that names the folder (unset or empty: no folder)."""
-FIELDS = ("positions", "indices", "colors", "uvs", "texture")
 
 
 def _code_version() -> bytes:
@@ -66,7 +65,7 @@ def write(path: Path, parts: list[MeshPart]) -> None:
     and the next process makes the parts again."""
     arrays: dict[str, np.ndarray] = {"count": np.array(len(parts))}
     for index, part in enumerate(parts):
-        arrays.update({f"{name}_{index}": getattr(part, name) for name in FIELDS if getattr(part, name) is not None})
+        arrays.update({f"{name}_{index}": array for name, array in part.arrays().items()})
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".partial")

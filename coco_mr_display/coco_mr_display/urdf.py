@@ -175,7 +175,7 @@ def _mesh_visual_parts(path: Path, visual: UrdfVisual, color: tuple[float, ...],
         if kept is not None:
             mesh_cache.write(kept, new)
     for part in new:
-        for array in part.arrays():
+        for array in part.arrays().values():
             array.setflags(write=False)  # shared by every peer that draws this file
     _LOADED.put(key, new)
     return new
