@@ -66,27 +66,16 @@ class Frustum:
             raise GeometryError(f"aspect={aspect:g}: expected the window's width / height, > 0")
         if not (0.0 < near < far < math.inf):
             raise GeometryError(f"near={near:g} far={far:g}: expected 0 < near < far")
-        eye, target, upward = (np.asarray(vector, float) for vector in (position, look_at, up))
-        forward = target - eye
-        distance = float(np.linalg.norm(forward))
-        if distance == 0.0:
+        forward = np.asarray(look_at, float) - np.asarray(position, float)
+        if not np.any(forward):
             raise GeometryError(f"the camera's position {_words(position)} is its look_at point: it looks nowhere")
-        forward /= distance
-        right = np.cross(forward, upward)
-        if np.linalg.norm(right) < 1e-9:
+        if np.linalg.norm(np.cross(forward / np.linalg.norm(forward), np.asarray(up, float))) < 1e-9:
             raise GeometryError(f"up={_words(up)} is parallel to the viewing direction (from {_words(position)} "
                                 f"to {_words(look_at)}): give another up")
-        right /= np.linalg.norm(right)
-        view = np.eye(4)
-        view[:3, :3] = np.vstack([right, np.cross(right, forward), -forward])  # world -> camera (-z forward)
-        view[:3, 3] = -view[:3, :3] @ eye
-        top = near * math.tan(math.radians(fov_y) / 2)
-        projection = np.array([  # gluPerspective
-            [near / (top * aspect), 0.0, 0.0, 0.0],
-            [0.0, near / top, 0.0, 0.0],
-            [0.0, 0.0, -(far + near) / (far - near), -2 * far * near / (far - near)],
-            [0.0, 0.0, -1.0, 0.0],
-        ])
+        from .transforms import opengl, se3  # here: the model imports this module, not the graph's package
+
+        view = se3.inverse(opengl.look_at(position, look_at, up))  # world -> camera (-z forward)
+        projection = opengl.perspective(fov_y, aspect, near, far)
         given = (f"frustum from {_words(position)} to {_words(look_at)}, fov_y {fov_y:g}, aspect {aspect:g}, "
                  f"near {near:g}, far {far:g}")
         return cls((projection @ view).ravel().tolist(), given)

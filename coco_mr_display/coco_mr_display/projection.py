@@ -1,51 +1,22 @@
 """View and projection matrices (OpenGL conventions, float64), including Kooima's off-axis projection.
 
 The formulas are those of the fixed-function GL (``gluLookAt``, ``gluPerspective``, ``glFrustum``,
-``glOrtho``), so a matrix here can be checked against any OpenGL text. The off-axis projection is
-Robert Kooima's "Generalized Perspective Projection" (2008): for a tracked eye in front of a physical
-screen whose corners are known in world coordinates, the frustum passes exactly through the screen's
-edges, which is what makes rendered objects co-located with real ones (head-tracked displays).
+``glOrtho``), so a matrix here can be checked against any OpenGL text. ``look_at``, ``perspective``
+and ``frustum`` are coco_core's (:mod:`coco_core.transforms.opengl`), which a ``Cull``'s view
+frustum is made with too. The off-axis projection is Robert Kooima's "Generalized Perspective
+Projection" (2008): for a tracked eye in front of a physical screen whose corners are known in world
+coordinates, the frustum passes exactly through the screen's edges, which is what makes rendered
+objects co-located with real ones (head-tracked displays).
 """
 
 from __future__ import annotations
 
-import math
 from typing import Sequence
 
 import numpy as np
 
 from coco_core.errors import GeometryError
-from coco_core.transforms import se3
-
-
-def look_at(eye: Sequence[float], target: Sequence[float], up: Sequence[float]) -> np.ndarray:
-    """Pose (camera -> world) of a camera at ``eye`` looking at ``target``: -Z forward, +Y up."""
-    eye_, forward = np.asarray(eye, float), np.asarray(target, float) - np.asarray(eye, float)
-    distance = np.linalg.norm(forward)
-    if distance == 0.0:
-        raise GeometryError(f"look_at: the camera position {list(eye_)} equals the target")
-    forward /= distance
-    right = np.cross(forward, np.asarray(up, float))
-    if np.linalg.norm(right) < 1e-9:
-        raise GeometryError(f"look_at: the up vector {list(up)} is parallel to the viewing direction {list(forward)}")
-    right /= np.linalg.norm(right)
-    return se3.make(np.column_stack([right, np.cross(right, forward), -forward]), eye_)
-
-
-def frustum(left: float, right: float, bottom: float, top: float, near: float, far: float) -> np.ndarray:
-    """``glFrustum``: the perspective projection of a view volume bounded on the near plane."""
-    return np.array([
-        [2 * near / (right - left), 0.0, (right + left) / (right - left), 0.0],
-        [0.0, 2 * near / (top - bottom), (top + bottom) / (top - bottom), 0.0],
-        [0.0, 0.0, -(far + near) / (far - near), -2 * far * near / (far - near)],
-        [0.0, 0.0, -1.0, 0.0],
-    ])
-
-
-def perspective(fov_y_degrees: float, aspect: float, near: float, far: float) -> np.ndarray:
-    """``gluPerspective``: symmetric frustum of vertical field of view ``fov_y_degrees``."""
-    top = near * math.tan(math.radians(fov_y_degrees) / 2)
-    return frustum(-top * aspect, top * aspect, -top, top, near, far)
+from coco_core.transforms.opengl import frustum, look_at, perspective
 
 
 def orthographic(left: float, right: float, bottom: float, top: float, near: float, far: float) -> np.ndarray:
