@@ -49,7 +49,7 @@ def publish(node: Any, kind: str, latency: int, burst: int, period: float) -> No
         from coco_ros.hosts.sample import SampleEncoder
 
         publishers = [node.create_publisher(Sample, "bench_sample", qos)]
-        encoder = SampleEncoder("pickle")
+        encoder = SampleEncoder("plain")
     else:
         publishers = [node.create_publisher(Image, "bench_color", qos), node.create_publisher(Image, "bench_depth", qos)]
         frame = redwood_frame()

@@ -23,6 +23,9 @@ setup(
     license="MIT",
     tests_require=["pytest"],
     entry_points={
+        'console_scripts': [
+            'coco-keygen = coco_core.hosts.key:keygen',
+        ],
         'coco.components': [
             'SignalGenerator = coco_core.demo.signal_generator:SignalGenerator',
             'MovingAverage = coco_core.demo.moving_average:MovingAverage',

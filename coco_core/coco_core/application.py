@@ -17,6 +17,7 @@ from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, make_connection
 from .filters import Filter
 from .filters import Router as RoutingFilter
+from .hosts.auth import Refusals
 from .errors import CocoError, WiringError, did_you_mean
 from .lifecycle import STOP_TIMEOUT, Progress, StartGate
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -130,6 +131,10 @@ class Application:
         exit non-zero and summaries report it, although the application ran on what was readable.
         With processes, each process's list also holds what the others found (the process level
         passes it on), so that a summary sees the damage of the whole application."""
+        self.network_refusals = Refusals()
+        """Messages from other hosts this process refused (not authenticated, replayed, from a host
+        the file does not declare): counted by topic and sender for the profile, never damage and
+        never a stop, so that a packet from outside changes nothing (:mod:`coco_core.hosts.auth`)."""
 
     # --- host ------------------------------------------------------------------------------------
     @property

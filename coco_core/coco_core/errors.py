@@ -289,6 +289,10 @@ class ConversionError(CocoError, ValueError):
     """A conversion that has no meaning (colour to depth and back)."""
 
 
+class KeyFileError(CocoError, ValueError):
+    """The application's key cannot be had: no such file, a file others can read, not a key."""
+
+
 class PacketError(CocoError, ValueError):
     """A packet that cannot be decoded; ``kind`` is ``garbage`` or ``truncated``."""
 

@@ -25,6 +25,8 @@ from .connections import Connection
 from .dataflow_graph import check_graph_file, write_graph
 from .deployment import Deployment, LaunchOptions, deployed, plan_deployment
 from .errors import CocoError, ConfigError, ConfigErrors, Interrupted
+from .hosts.channel import crossing_problems
+from .hosts.key import launch_key
 from .hosts.level import host_level
 from .hosts.part import host_part
 from .hosts.session import START_TIMEOUT
@@ -77,6 +79,12 @@ def make_parser(prog: str = "coco-launch") -> argparse.ArgumentParser:
     parser.add_argument("--host-timeout", type=float, default=START_TIMEOUT, metavar="S",
                         help=f"with --host: seconds to wait for the other hosts at each stage of the start "
                              f"(default {START_TIMEOUT:g})")
+    parser.add_argument("--key", metavar="FILE",
+                        help="with --host: the application's key, which authenticates every message between its "
+                             "hosts (coco-keygen FILE makes one; the same file on every host, mode 0600)")
+    parser.add_argument("--key-env", metavar="NAME",
+                        help="with --host: the environment variable that holds the application's key (64 "
+                             "hexadecimal digits), instead of --key")
     parser.add_argument("--list", action="store_true", help="list the installed components and exit")
     parser.add_argument("--transforms-server", type=int, metavar="PORT",
                         help="serve the transformation graph (REST, WebSocket, web page) on 127.0.0.1:PORT "
@@ -308,6 +316,9 @@ def select_host(spec: AppSpec, options: argparse.Namespace) -> AppSpec:
         if options.host is not None:
             raise CocoError(f"--host {options.host}: application {spec.name} declares no <host>; it runs on one "
                             "machine (docs/hosts.md)")
+        if options.key is not None or options.key_env is not None:
+            raise CocoError(f"--key and --key-env authenticate the hosts of an application; {spec.name} declares no "
+                            "<host>")
         return spec
     if options.host is None:
         raise CocoError(f"application {spec.name} runs on several hosts ({', '.join(h.name for h in spec.hosts)}): "
@@ -388,6 +399,9 @@ def check(options: argparse.Namespace, signals: LaunchSignals, host: LaunchHost,
         trees = []
         for part in parts:
             app = build_application(part, allow_unknown=options.allow_unknown)
+            crossing = crossing_problems(part) if not options.allow_unknown else []
+            if crossing:
+                raise ConfigErrors([ConfigError(problem) for problem in crossing])
             trees.append(describe(part, app, plan_deployment(part, host.launch_options(options)),
                                   options.allow_unknown))
         log_warnings(spec)  # the parts share the file's list of warnings
@@ -412,10 +426,11 @@ def launch(spec: AppSpec, app: Application, options: argparse.Namespace, signals
     app.measure_ages = bool(options.profile)  # the profile's age column, in every process
     level = logging.getLevelName(options.log_level)
     configure_logging(spec.log, level)  # may open the file's log
-    with host_level(spec, app, options.host_timeout, signals.check) as hosts:
+    key = launch_key(options) if spec.part_of else None
+    with host_level(spec, app, options.host_timeout, key, signals.check) as hosts:
         with process_level(spec, app, deployment, level, child_module=host.child_module,
                            child_config=host.child_config(), clock=hosts.clock if hosts else None,
-                           host_timeout=options.host_timeout) as processes:
+                           key=key, host_timeout=options.host_timeout) as processes:
             if hosts is not None:
                 hosts.built(processes)
             clean = host.run(spec, app, deployment, options, processes, signals)

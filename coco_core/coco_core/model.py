@@ -101,7 +101,7 @@ class ConnectionSpec:
     stamps_only: bool = False
     """``stamps_only="true"``: the connection carries each message's stamp, not its payload
     (FlowVR's dashed connections); its reader reads :class:`~coco_core.stamps.Stamp` values."""
-    codec: str = "pickle"
+    codec: str = "plain"
     """How the payload crosses the network when the two ends are on two hosts
     (:data:`coco_core.hosts.channel.CODECS`)."""
 

@@ -7,6 +7,8 @@ stamp-to-output latency when the component records it (from its inputs' origins:
 value's acquisition, a plain value's message stamp, its write in this process or another). Per connection: flow counters. Per pooled
 output (a frame pool): frames published, and the writer's stalls, frames it could not publish
 because readers held every slot (they never reach a connection, so no connection counts them).
+Messages from other hosts refused (not authenticated, replayed, from an unknown host), by topic,
+claimed sender and reason.
 Per connection, in a profiled run, the age of what its reader took (the read time - the message's
 stamp time), so that the latency of every link shows without a component recording it.
 
@@ -43,6 +45,9 @@ class ProfileSnapshot:
     components: list[list[str]] = field(default_factory=list)
     connections: list[list[str]] = field(default_factory=list)
     pools: list[list[str]] = field(default_factory=list)
+    refused: list[list[str]] = field(default_factory=list)
+    """Messages from other hosts refused: topic, claimed sender, why, count
+    (:class:`~coco_core.hosts.auth.Refusals`)."""
 
 
 def _us(seconds: float) -> str:
@@ -96,6 +101,7 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
                         shot.pools.append([port.qualified_name, str(pool.count), str(pool.published),
                                            str(pool.stalls)])
     shot.connections = connection_rows(app.connections)
+    shot.refused = app.network_refusals.rows()
     return shot
 
 
@@ -149,6 +155,10 @@ def render(name: str, snapshots: list[ProfileSnapshot]) -> str:
     pools = rows("pools")
     if pools:
         parts.append(_table([*where, "pooled output", "slots", "published", "stalls (no free slot)"], pools))
+    refused = rows("refused")
+    if refused:
+        parts.append("Refused from the network (never read, never a stop):\n"
+                     + _table([*where, "topic", "claimed sender", "why", "count"], refused))
     return "\n\n".join(parts)
 
 

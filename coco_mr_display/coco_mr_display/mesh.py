@@ -23,6 +23,7 @@ import numpy as np
 from coco_core.errors import GeometryError, MeshLoadError
 from coco_core.files import MESH_LIMIT, FileReadError, read_regular_file
 from coco_core.transforms.resources import resolve
+from coco_core.wire import value_type
 
 if TYPE_CHECKING:
     import moderngl
@@ -32,6 +33,7 @@ PRIMITIVES = ("box", "sphere", "cylinder", "arrow")
 """Shapes that need no file: ``mesh="box"`` etc., sized by a component's ``size`` attribute."""
 
 
+@value_type
 @dataclass(frozen=True, eq=False)
 class MeshPart:
     """One drawable piece: what a single draw call needs (compared by identity: arrays are large).

@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import NamedTuple
+from coco_core.wire import value_type
 
 Vector = tuple[float, float, float]
 
 
+@value_type
 @dataclass(frozen=True, slots=True)
 class HapticDeviceState:
     """A device's handle: position (m) and velocity (m/s) in the device's workspace frame, buttons as
@@ -26,6 +28,7 @@ class HapticDeviceState:
         return bool(self.buttons >> button & 1)
 
 
+@value_type
 @dataclass(frozen=True, slots=True)
 class HapticForce:
     """The force (N) to apply to the handle, in the device's workspace frame."""
@@ -34,6 +37,7 @@ class HapticForce:
     stamp: float = 0.0
 
 
+@value_type
 class HapticSample(NamedTuple):
     """One haptic cycle as the renderer saw it, in the renderer's frame (the CSV's row)."""
 

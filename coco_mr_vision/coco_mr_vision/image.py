@@ -27,8 +27,10 @@ from typing import Any, Mapping
 import numpy as np
 from coco_core.errors import ImageError, UnknownNameError, WrongTypeError
 from coco_core.files import DATA_FILE_LIMIT, read_regular_file
+from coco_core.wire import value_type
 
 
+@value_type
 class ImageFormat(enum.Enum):
     """Pixel layouts; each fixes the dtype and the shape of :attr:`Image.data`."""
 
@@ -105,6 +107,7 @@ def _optional_seconds(stamp: Any) -> float | None:
     raise WrongTypeError(f"stamp must be float seconds or None, got {type(stamp).__name__}")
 
 
+@value_type
 @dataclass(frozen=True, eq=False)
 class CameraIntrinsics:
     """A camera calibration, as in ``sensor_msgs/CameraInfo``.
@@ -224,6 +227,7 @@ class CameraIntrinsics:
                                document.get("distortion_model", "plumb_bob"), **kwargs)
 
 
+@value_type
 @dataclass(frozen=True, eq=False)
 class Image:
     """An image: ``data`` in the layout of ``format``, with time, frame and optionally intrinsics.

@@ -27,6 +27,7 @@ from coco_core.stamps import Stamped, unstamped
 
 from .image import CameraIntrinsics, Image, ImageFormat
 from .rgbd import RGBDFrame
+from coco_core.wire import value_type
 
 log = logging.getLogger("coco.vision")
 
@@ -40,6 +41,7 @@ def _check_dictionary(name: str) -> str | None:
     return None
 
 
+@value_type
 @dataclass(frozen=True, eq=False)
 class MarkerDetections:
     """The markers found in one image: ``ids`` (N), ``corners`` (Nx4x2 px), ``poses`` (Nx4x4

@@ -16,8 +16,10 @@ import numpy as np
 
 from coco_core.errors import WrongTypeError
 from coco_core.stamps import Stamp
+from coco_core.wire import value_type
 
 
+@value_type
 @dataclass(frozen=True)
 class MeshLayout:
     """Offsets in the slot buffer for a ``rows`` x ``cols`` vertex grid."""
@@ -44,6 +46,7 @@ class MeshLayout:
         return vertices, normals, colors, triangles, colors + 3 * n
 
 
+@value_type
 @dataclass(frozen=True)
 class MeshInfo:
     """What a mesh slot holds: counts, grid, the source frame's stamps and camera frame."""

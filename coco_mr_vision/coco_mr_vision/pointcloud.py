@@ -13,8 +13,10 @@ import numpy as np
 from coco_core.errors import ImageError
 
 from .image import CameraIntrinsics, Image, ImageFormat, _optional_seconds
+from coco_core.wire import value_type
 
 
+@value_type
 @dataclass(frozen=True, eq=False)
 class PointCloud:
     """``points`` (Nx3 float32, metres, in ``frame_id``) and optionally ``colors`` (Nx3 uint8 RGB).

@@ -17,8 +17,10 @@ import numpy as np
 from coco_core.errors import ImageError, ResourceNotFoundError
 
 from .image import CameraIntrinsics, Image, ImageFormat
+from coco_core.wire import value_type
 
 
+@value_type
 @dataclass(frozen=True, eq=False)
 class RGBDFrame:
     """``color`` (any non-depth format) and ``depth`` (DEPTH16 or DEPTH32F) of the same size.

@@ -24,7 +24,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 from coco_core import Application, Component, InputPort, OutputPort, PeriodicActivity, TriggeredActivity
 from coco_core.errors import ChannelError, ConfigError
 from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup, Split
+from coco_core.hosts.auth import Sealer
 from coco_core.hosts.channel import HostChannel, topic_of
+from coco_core.hosts.key import AppKey
 from coco_core.policy import NEW_DATA, OLD_DATA, BufferPolicy, ConnectionPolicy, SyncPolicy
 from coco_core.pool import Slot, SlotState
 from coco_core.ports import PooledOutputPort
@@ -34,11 +36,13 @@ from coco_interfaces.msg import Sample
 from coco_ros.hosts.bridge import THREAD_NAME, HostBridge
 from coco_ros.hosts.channel import DdsFrameReader, DdsReader, DdsWriter, attach_between_hosts
 from coco_ros.hosts.qos import qos_of
-from coco_ros.hosts.sample import SampleEncoder
+from coco_ros.hosts.sample import SampleEncoder, sample_parts
 
 DOMAIN = "164"  # its own: no other test uses it
 REDWOOD = Path(__file__).resolve().parents[3] / "shared" / "data" / "rgbd" / "redwood"
 DATA = ConnectionPolicy(BufferPolicy.DATA, SyncPolicy.LOCKED, 1)
+KEY = AppKey(bytes(range(32)), "the tests' key")
+HOSTS = ("alpha", "beta")
 
 
 def buffer(size: int) -> ConnectionPolicy:
@@ -111,6 +115,12 @@ class Stamps(Component):
     sample = InputPort(Stamp)
 
 
+class Typed(Component):
+    """A reader of numbers only: a value of another type is refused by the connection."""
+
+    sample = InputPort(int | float, event=True)
+
+
 class Frames(Component):
     out = PooledOutputPort(slots=3)
 
@@ -119,7 +129,7 @@ class Link:
     """A connection ``source.out -> sink.sample`` from host alpha's process to host beta's."""
 
     def __init__(self, hosts: tuple[HostBridge, HostBridge], name: str, policy: ConnectionPolicy, *,
-                 source: Component | None = None, sink: Component | None = None, codec: str = "pickle",
+                 source: Component | None = None, sink: Component | None = None, codec: str = "plain",
                  filter: Any = None, router: Any = None, stamps_only: bool = False,
                  event: bool | None = None) -> None:
         self.channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", policy, event, codec,
@@ -132,8 +142,10 @@ class Link:
         if router is not None:  # as the builder makes a Split's or Cull's on the writer's side
             self.writer_app.outgoing_routers[self.channel.label] = router
         alpha, beta = hosts
-        [self.reader] = attach_between_hosts(self.reader_app, beta, [self.channel], "beta", from_app=from_app).readers
-        [self.writer] = attach_between_hosts(self.writer_app, alpha, [self.channel], "alpha", to_app=to_app).writers
+        [self.reader] = attach_between_hosts(self.reader_app, beta, [self.channel], "beta", KEY, HOSTS,
+                                             from_app=from_app).readers
+        [self.writer] = attach_between_hosts(self.writer_app, alpha, [self.channel], "alpha", KEY, HOSTS,
+                                             to_app=to_app).writers
         assert wait_for(lambda: self.writer.matched and self.reader.matched)
 
     @property
@@ -249,15 +261,15 @@ class Counter(Component):
 def test_an_activitys_endit_on_one_host_paces_an_activitys_beginit_on_another(hosts):
     """FlowVR's data-driven coupling across hosts: each cycle of ``ticks`` (host alpha) sends its
     ``endit``, and ``loop`` (host beta) cycles once per message on its ``beginit``."""
-    channel = HostChannel("ticks.endit", "loop.beginit", "alpha", "beta", "", "", buffer(100), None, "pickle",
+    channel = HostChannel("ticks.endit", "loop.beginit", "alpha", "beta", "", "", buffer(100), None, "plain",
                           topic_of("paced", "ticks.endit", "loop.beginit"), src_activity=True, dest_activity=True)
     writer_app, reader_app = Application("paced"), Application("paced")
     source = writer_app.add(Source("source"))
     counter = reader_app.add(Counter("counter"))
     ticks = writer_app.add_activity(PeriodicActivity("ticks", 0.005, [source]))
     loop = reader_app.add_activity(TriggeredActivity("loop", [counter]))
-    readers = attach_between_hosts(reader_app, hosts[1], [channel], "beta")
-    writers = attach_between_hosts(writer_app, hosts[0], [channel], "alpha")
+    readers = attach_between_hosts(reader_app, hosts[1], [channel], "beta", KEY, HOSTS)
+    writers = attach_between_hosts(writer_app, hosts[0], [channel], "alpha", KEY, HOSTS)
     assert wait_for(lambda: readers.matched and writers.matched)
     [reader] = readers.readers
     reader_app.start()
@@ -277,12 +289,13 @@ def test_a_writer_in_another_process(hosts, tmp_path):
     its writer_done; the reader here gets all of them, in order, with their user stamps."""
     script = tmp_path / "writer.py"
     script.write_text(WRITER_PROCESS)
-    crossing_channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", buffer(50), None, "pickle",
+    crossing_channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", buffer(50), None, "plain",
                                    topic_of("process", "source.out", "sink.sample"))
     app = Application("process")
     sink = app.add(Sink("sink"))
-    [reader] = attach_between_hosts(app, hosts[1], [crossing_channel], "beta").readers
-    writer = subprocess.Popen([sys.executable, str(script)], env=dict(os.environ), stdout=subprocess.PIPE,
+    [reader] = attach_between_hosts(app, hosts[1], [crossing_channel], "beta", KEY, HOSTS).readers
+    writer = subprocess.Popen([sys.executable, str(script)], env={**os.environ, "COCO_TEST_KEY": KEY.secret.hex()},
+                              stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True)
     try:
         output = writer.communicate(timeout=60)[0]
@@ -301,6 +314,7 @@ WRITER_PROCESS = """
 import time
 from coco_core import Application, Component, OutputPort
 from coco_core.hosts.channel import HostChannel, topic_of
+from coco_core.hosts.key import AppKey
 from coco_core.policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from coco_ros.hosts.bridge import HostBridge
 from coco_ros.hosts.channel import attach_between_hosts
@@ -309,12 +323,13 @@ class Source(Component):
     out = OutputPort(object)
 
 channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "",
-                      ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 50), None, "pickle",
+                      ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 50), None, "plain",
                       topic_of("process", "source.out", "sink.sample"))
 app = Application("process")
 source = app.add(Source("source"))
 with HostBridge("coco_test_writer_process") as bridge:
-    ends = attach_between_hosts(app, bridge, [channel], "alpha")
+    ends = attach_between_hosts(app, bridge, [channel], "alpha", AppKey.from_environment("COCO_TEST_KEY"),
+                                ("alpha", "beta"))
     deadline = time.monotonic() + 30
     while not ends.matched:
         assert time.monotonic() < deadline, "the reader never subscribed"
@@ -354,31 +369,97 @@ def test_the_rgbd_codec_carries_a_redwood_frame(link):
     assert (arrived.depth.stamp, arrived.depth.frame_id) == (17.5, "camera")
     assert image.format is ImageFormat.RGB8 and np.abs(image.data.astype(int) - rgb.data).mean() < 3
     raw = frame.color.data.nbytes + frame.depth.data.nbytes
-    coded = len(SampleEncoder("rgbd").encode(written, 1).payload)
+    coded = len(SampleEncoder("rgbd", Sealer(KEY, "/t", "alpha")).encode(written, 1).payload)
     assert coded < raw / 4, (coded, raw)
 
 
+def sealed(sample: Sample, sealer: Sealer) -> Sample:
+    """``sample`` sealed as a writer's end with the key would seal it."""
+    seal = sealer.seal(sample_parts(sample))
+    sample.sender, sample.session, sample.counter, sample.wall, sample.mac = (seal.host, seal.session, seal.counter,
+                                                                             seal.wall, seal.mac)
+    return sample
+
+
 def test_a_damaged_sample_is_counted_reported_and_skipped(link, hosts):
-    """Samples that do not decode (garbage, an unknown codec, user stamps that are not) are counted
+    """Samples with the key that do not decode (garbage, an unknown codec, user stamps that are
+    not, a pickle, numbers out of range, a value of another type than the port takes) are counted
     and reported as damaged input, the first ten of the connection (a flood is only counted); the
     next good sample is read as usual."""
-    crossing = link("damaged", buffer(20))
+    crossing = link("damaged", buffer(20), sink=Typed("sink"))
     garbage = hosts[0].node.create_publisher(Sample, crossing.channel.topic, qos_of(crossing.channel.policy))
     assert wait_for(lambda: garbage.get_subscription_count() == 1)
-    bad = [Sample(number=1, seq=1, codec="pickle", payload=b"garbage, not a pickle"),
+    sealer = Sealer(KEY, crossing.channel.topic, "alpha")
+    bad = [Sample(number=1, seq=1, codec="plain", payload=b"garbage, not a value"),
            Sample(number=2, seq=2, codec="morse", payload=b"..."),
-           Sample(number=3, seq=3, codec="pickle", user=b"\x00\x01")]
-    bad += [Sample(number=number, seq=number, codec="pickle", payload=bytes(number)) for number in range(4, 13)]
+           Sample(number=3, seq=3, codec="plain", user=b"\x00\x01"),
+           Sample(number=4, seq=4, codec="plain", payload=__import__("pickle").dumps(4)),
+           Sample(number=2 ** 64 - 1, seq=5, codec="plain", payload=SampleEncoder("plain", sealer).encode(5, 1).payload),
+           Sample(number=6, seq=6, codec="plain", time=float("nan"),
+                  payload=SampleEncoder("plain", sealer).encode(6, 1).payload),
+           Sample(number=7, seq=7, codec="plain", payload=SampleEncoder("plain", sealer).encode("a str", 1).payload)]
+    bad += [Sample(number=number, seq=number, codec="plain", payload=bytes(number)) for number in range(8, 13)]
     for sample in bad:
-        garbage.publish(sample)
+        garbage.publish(sealed(sample, sealer))
     assert wait_for(lambda: crossing.reader.damaged == 12)
     damage = crossing.reader_app.damage
     assert len(damage) == 10 and all("source.out->sink.sample from host alpha" in what for what in damage)
     assert "unknown codec 'morse'" in damage[1] and "further damaged samples are only counted" in damage[-1]
-    crossing.source.out.write("intact")
+    assert "write number 18446744073709551615 out of range" in damage[4] and "not a finite number" in damage[5]
+    assert "holds a str, which sink.sample does not take" in damage[6]
+    assert crossing.reader.written == 0  # the damaged 2^64 - 1 did not become the highest write number
+    garbage.publish(SampleEncoder("plain", sealer).encode(13, 13))
     assert wait_for(lambda: crossing.reader.pending == 1)
-    assert crossing.sink.sample.read() == (NEW_DATA, "intact")
+    assert crossing.sink.sample.read() == (NEW_DATA, 13) and crossing.reader_app.network_refusals.total == 0
     hosts[0].node.destroy_publisher(garbage)
+
+
+class Bomb:
+    """What a pickle-bomb's author sends: unpickled, it runs a command."""
+
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return os.system, (f"touch {self.marker}",)
+
+
+def test_a_sample_without_the_key_is_refused_counted_and_never_decoded(link, hosts, tmp_path):
+    """What any participant of the DDS domain can publish on a connection's topic, refused before
+    it is decoded, counted by sender and reason, never damage and never a stop: a pickle-bomb
+    claiming to be the writer's host, a sample sealed with another key, one sealed with the key by
+    a host the application does not declare and by one that does not write there, a replay of an
+    authentic sample, one whose counter was changed; the writer's own samples go on arriving."""
+    crossing = link("forged", buffer(20))
+    forger = hosts[0].node.create_publisher(Sample, crossing.channel.topic, qos_of(crossing.channel.policy))
+    assert wait_for(lambda: forger.get_subscription_count() == 1)
+    crossing.source.out.write("first")
+    assert wait_for(lambda: crossing.reader.pending == 1)
+    marker = tmp_path / "pwned"
+    topic = crossing.channel.topic
+    bomb = Sample(number=2, seq=2, codec="pickle", sender="alpha", counter=2, wall=time.time(), mac=bytes(32),
+                  payload=__import__("pickle").dumps(Bomb(marker)))
+    other_key = SampleEncoder("plain", Sealer(AppKey(bytes(32), "another key"), topic, "alpha")).encode("other", 3)
+    ghost = SampleEncoder("plain", Sealer(KEY, topic, "ghost")).encode("ghost", 4)
+    beta = SampleEncoder("plain", Sealer(KEY, topic, "beta")).encode("beta", 5)
+    for forged in (bomb, other_key, ghost, beta):
+        forger.publish(forged)
+    replayed = SampleEncoder("plain", Sealer(KEY, topic, "alpha")).encode("replayed", 6)
+    forger.publish(replayed)  # with the key, from the writer's host: a second launch claims it
+    assert wait_for(lambda: crossing.reader_app.network_refusals.total == 5)
+    crossing.source.out.write("second")
+    assert wait_for(lambda: crossing.reader.pending == 2)
+    assert crossing.sink.sample.read_all() == ["first", "second"]
+    assert not marker.exists() and crossing.reader_app.damage == [] and not crossing.reader_app.stop_requested
+    rows = {(sender, why.split(" (")[0].split(":")[0]): int(count)
+            for _, sender, why, count in crossing.reader_app.network_refusals.rows()}
+    assert rows == {("'alpha'", "not authenticated"): 2, ("'ghost'", "a host this application does not declare"): 1,
+                    ("'beta'", "a host that does not write on this topic"): 1,
+                    ("'alpha'", "a second launch claiming this host name"): 1}
+    assert crossing.reader.counters() == {"written": 2, "read": 2, "dropped": 0, "pending": 0}
+    shot = snapshot(crossing.reader_app)
+    assert any(row[1] == "'ghost'" for row in shot.refused)
+    hosts[0].node.destroy_publisher(forger)
 
 
 def test_a_value_that_cannot_be_sent_is_an_error_and_counted_on_both_sides(link):
@@ -465,7 +546,7 @@ def test_a_stamps_only_connection_sends_no_payload(link):
     sent = crossing.source.out.stamp
     assert stamp.time == pytest.approx(sent.time + 0.5, abs=1e-9) and dict(stamp.user) == {"box": (1, 2)}
     assert crossing.reader.describe() == "BUFFER/LOCKED[4], stamps only, DDS from host alpha"
-    assert len(SampleEncoder("stamp").encode(crossing.source.out.last, 1).payload) == 0
+    assert len(SampleEncoder("stamp", Sealer(KEY, "/t", "alpha")).encode(crossing.source.out.last, 1).payload) == 0
 
 
 def test_a_pooled_outputs_frames_cross_into_a_pool_of_the_readers(link):
@@ -531,33 +612,33 @@ def test_a_stamps_only_connection_from_a_pooled_output_sends_the_frames_stamps(l
 
 def test_a_stamps_only_connection_between_hosts_carries_no_frames(hosts):
     channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", ConnectionPolicy(BufferPolicy.POOL),
-                          None, "pickle", topic_of("dashed_pool", "source.out", "sink.sample"), True)
+                          None, "plain", topic_of("dashed_pool", "source.out", "sink.sample"), True)
     app = Application("dashed_pool")
     app.add(Frames("source"))
     with pytest.raises(ConfigError, match="a stamps-only connection carries the messages' stamps, not frames: .* "
                                           "not POOL"):
-        attach_between_hosts(app, hosts[0], [channel], "alpha")
+        attach_between_hosts(app, hosts[0], [channel], "alpha", KEY, HOSTS)
     assert app.connections == []
 
 
 def test_a_pooled_output_needs_a_pool_connection(hosts):
-    channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", DATA, None, "pickle",
+    channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", DATA, None, "plain",
                           topic_of("wrong", "source.out", "sink.sample"))
     app = Application("wrong")
     app.add(Frames("source"))
     with pytest.raises(ConfigError, match="a pooled output's frames cross with data=POOL only"):
-        attach_between_hosts(app, hosts[0], [channel], "alpha")
+        attach_between_hosts(app, hosts[0], [channel], "alpha", KEY, HOSTS)
     assert app.connections == []
 
 
 def test_unsync_cannot_join_two_hosts(hosts):
     unsync = ConnectionPolicy(BufferPolicy.DATA, SyncPolicy.UNSYNC, 1)
-    channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", unsync, None, "pickle",
+    channel = HostChannel("source.out", "sink.sample", "alpha", "beta", "", "", unsync, None, "plain",
                           topic_of("unsync", "source.out", "sink.sample"))
     app = Application("unsync")
     app.add(Source("source"))
     with pytest.raises(ConfigError, match="UNSYNC is only valid inside one activity"):
-        attach_between_hosts(app, hosts[0], [channel], "alpha")
+        attach_between_hosts(app, hosts[0], [channel], "alpha", KEY, HOSTS)
 
 
 def test_a_bridge_stops_its_thread_within_a_second_and_leaves_the_launchers_ros_alone():

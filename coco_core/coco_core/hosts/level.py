@@ -3,33 +3,49 @@
 from __future__ import annotations
 
 import contextlib
+import logging
 from collections.abc import Callable, Iterator
 
 from ..application import Application
 from ..model import AppSpec
 from .clock import ClockOffset
+from .key import AppKey
+from ..errors import ConfigError, ConfigErrors, KeyFileError
+from .channel import crossing_problems
 from .session import HostSession
 from .transport import Ends, host_transport
 
+log = logging.getLogger("coco")
+
 
 @contextlib.contextmanager
-def host_level(spec: AppSpec, app: Application, timeout: float,
+def host_level(spec: AppSpec, app: Application, timeout: float, key: AppKey | None,
                interrupted: Callable[[], None] = lambda: None) -> Iterator[HostSession | None]:
     """Join the other hosts of ``spec`` (one host's part) around a run of ``app``: wait for them and
     measure the clock (:meth:`HostSession.join`), attach the launcher's process's ends of the
     connections between hosts; None when the application has one host. ``interrupted`` raises when
     a signal ends the launch while it waits. At the end, the other hosts are told that this one
-    stops and the network is released."""
+    stops and the network is released. ``key`` (needed when it has several) authenticates every
+    message between the hosts (:mod:`.auth`)."""
     if not spec.part_of:
         yield None
         return
+    if key is None:
+        raise KeyFileError(f"application {spec.name} runs on several hosts, which authenticate each other with "
+                           "the application's key: give --key FILE or --key-env NAME (coco-keygen FILE makes one; "
+                           "copy it to every host)")
+    crossing = crossing_problems(spec)
+    if crossing:
+        raise ConfigErrors([ConfigError(problem) for problem in crossing])
+    log.info("host %s: the application's key is %s (fingerprint %s: the same on every host)", spec.part_of,
+             key.origin, key.fingerprint)
     transport = host_transport()
     session = HostSession(spec, app, timeout, interrupted)
     ends = None
     try:
-        session.join(transport.bus(spec, session.receive))
+        session.join(transport.bus(spec, session.receive, key, app.network_refusals))
         app.router = session  # the process level's supervisor takes over, passing other hosts' calls on
-        ends = session.ends = ends_between_hosts(app, spec, session.clock)
+        ends = session.ends = ends_between_hosts(app, spec, session.clock, key)
         yield session
     finally:
         if not app.stop_requested:  # the launcher ends early (an error): the other hosts too
@@ -39,10 +55,10 @@ def host_level(spec: AppSpec, app: Application, timeout: float,
         session.close()
 
 
-def ends_between_hosts(app: Application, spec: AppSpec, clock: ClockOffset) -> Ends | None:
+def ends_between_hosts(app: Application, spec: AppSpec, clock: ClockOffset, key: AppKey) -> Ends | None:
     """Attach the ends of ``spec``'s connections between hosts that this process of ``app`` holds
     (the launcher's process, or a child's); None, and no network, when it holds none."""
     here = [channel for channel in spec.between_hosts
             if (channel.src_host, channel.src_process) == (spec.part_of, app.process)
             or (channel.dest_host, channel.dest_process) == (spec.part_of, app.process)]
-    return host_transport().attach(app, spec, clock) if here else None
+    return host_transport().attach(app, spec, clock, key) if here else None

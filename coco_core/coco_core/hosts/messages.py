@@ -16,8 +16,10 @@ import enum
 from dataclasses import dataclass
 
 from ..processes.messages import Message, Request
+from ..wire import value_type
 
 
+@value_type
 class Stage(enum.IntEnum):
     """How far a host is in the launch; the stages are ordered."""
 
@@ -32,6 +34,7 @@ class Stage(enum.IntEnum):
     """It stops: :attr:`Heartbeat.reason` says why; every other host stops too."""
 
 
+@value_type
 @dataclass(frozen=True)
 class Heartbeat(Message):
     """A host's state, sent several times a second (:data:`coco_core.hosts.session.BEAT`)."""
@@ -45,6 +48,7 @@ class Heartbeat(Message):
     """It stops because something failed (a component's error policy, damaged input, a lost host)."""
 
 
+@value_type
 @dataclass(frozen=True)
 class ClockRequest(Request):
     """What time is it on the first host's clock: answered with (receive time, send time) there."""

@@ -18,7 +18,9 @@ if TYPE_CHECKING:
     from ..application import Application
     from ..model import AppSpec
     from ..processes.messages import Message
+    from .auth import Refusals
     from .clock import ClockOffset
+    from .key import AppKey
     from .session import Bus
 
 GROUP = "coco.host_transports"
@@ -38,13 +40,15 @@ class Ends(Protocol):
 class HostTransport(Protocol):
     """The network between the hosts of an application."""
 
-    def bus(self, spec: AppSpec, receive: Callable[[str, Message], None]) -> Bus:
-        """The launch's messages between the hosts of ``spec`` (one host's part); ``receive(sender,
-        message)`` gets those for this host."""
+    def bus(self, spec: AppSpec, receive: Callable[[str, Message], None], key: AppKey, refusals: Refusals) -> Bus:
+        """The launch's messages between the hosts of ``spec`` (one host's part), sealed and checked
+        with ``key`` (those that fail are counted in ``refusals``); ``receive(sender, message)`` gets
+        those for this host."""
 
-    def attach(self, app: Application, spec: AppSpec, clock: ClockOffset) -> Ends:
+    def attach(self, app: Application, spec: AppSpec, clock: ClockOffset, key: AppKey) -> Ends:
         """Attach this process's ends of ``spec``'s connections between hosts to ``app``'s ports;
-        ``clock`` puts the stamps on the application's clock and back."""
+        ``clock`` puts the stamps on the application's clock and back, ``key`` seals and checks
+        every sample."""
 
 
 @functools.cache

@@ -149,7 +149,7 @@ class ChildProcess:
             drive(app, config.deployment, config.wakes)
             attach(app, config.plans, config.wakes)
             if config.clock is not None:
-                self.ends = ends_between_hosts(app, spec, config.clock)
+                self.ends = ends_between_hosts(app, spec, config.clock, config.key)
                 if self.ends is not None:
                     matched(self.ends, config.host_timeout, lambda: None, app)
         except CocoError as error:

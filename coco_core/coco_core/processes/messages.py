@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any
+from ..wire import value_type
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,7 @@ class Request(Message):
     id: int = 0
 
 
+@value_type
 @dataclass(frozen=True)
 class Outcome:
     """What a request came to: its value, or the exception's type name, text and traceback."""
@@ -51,6 +53,7 @@ class Outcome:
         return cls(False, type=type_name, message=message)
 
 
+@value_type
 @dataclass(frozen=True)
 class Result(Message):
     """The answer to the request with this ``id``."""
@@ -81,6 +84,10 @@ class Config(Message):
     clock: Any = None
     """This host's clock against the application's (:class:`~coco_core.hosts.clock.ClockOffset`),
     when the application has several hosts; None otherwise."""
+    key: Any = None
+    """The application's key (:class:`~coco_core.hosts.key.AppKey`), when it has several hosts:
+    the child's ends of connections between hosts seal and check their samples with it (this
+    pipe is inside one host: one trust domain)."""
     host_timeout: float = 60.0
     """Seconds a child waits for the readers of its connections to other hosts (``--host-timeout``)."""
     measure_ages: bool = False
@@ -150,6 +157,7 @@ class Stopped(Message):
 
 
 # --- both ways --------------------------------------------------------------------------------
+@value_type
 @dataclass(frozen=True)
 class Damage(Message):
     """Damaged input found by one process, for every process's summary and exit status."""
@@ -157,6 +165,7 @@ class Damage(Message):
     what: str
 
 
+@value_type
 @dataclass(frozen=True)
 class Call(Request):
     """An operation of ``component`` in ``process`` (a child asks the launcher, which runs it or

@@ -61,6 +61,7 @@ from .remote import call_over, serve_call
 
 if TYPE_CHECKING:
     from ..hosts.clock import ClockOffset
+    from ..hosts.key import AppKey
     from ..hosts.session import HostSession
     from ..shm import Arena
 
@@ -162,7 +163,7 @@ class ProcessSupervisor:
 
     def __init__(self, spec: AppSpec, app: Application, deployment: Deployment, log_level: int = logging.INFO,
                  child_module: str = "coco_core.processes.child", child_config: dict[str, Any] | None = None,
-                 clock: ClockOffset | None = None, host_timeout: float = 60.0) -> None:
+                 clock: ClockOffset | None = None, key: AppKey | None = None, host_timeout: float = 60.0) -> None:
         self.child_module = child_module
         """The module a child runs (``python -m``): the ROS launcher's children host an rclpy node."""
         self.child_config = child_config or {}
@@ -170,6 +171,8 @@ class ProcessSupervisor:
         self.clock = clock
         """This host's clock against the application's, when the application has several hosts: a
         child with ends of connections between hosts puts its stamps on the application's clock."""
+        self.key = key
+        """The application's key, when it has several hosts (:mod:`coco_core.hosts.key`)."""
         self.host_timeout = host_timeout
         """Seconds a child waits for the readers of its connections to other hosts."""
         self.spec = spec
@@ -239,7 +242,7 @@ class ProcessSupervisor:
         finally:
             os.close(theirs)
         link.send(Config(self.spec, name, self.launch_id, self._wakes, self.plans, self.deployment, self.log_level,
-                         self.child_config, self.clock, self.host_timeout, self.app.measure_ages))
+                         self.child_config, self.clock, self.key, self.host_timeout, self.app.measure_ages))
         return Child(name, link, popen, activities)
 
     def _wait_built(self, child: Child) -> None:

@@ -11,8 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import EdgeError
+from ..wire import value_type
 
 
+@value_type
 @dataclass(frozen=True, slots=True)
 class TransformSample:
     """``T_parent_child`` measured at ``stamp`` (seconds; the graph's time base, e.g. ROS time).
@@ -28,6 +30,7 @@ class TransformSample:
     static: bool = False
 
 
+@value_type
 @dataclass(frozen=True, slots=True)
 class JointSample:
     """Joint values by name, as in a sensor_msgs/JointState."""
@@ -49,6 +52,7 @@ class JointSample:
             raise EdgeError(f"joint sample with {len(self.names)} names but {count} positions: refused")
 
 
+@value_type
 @dataclass(frozen=True, slots=True)
 class FramePose:
     """The result of a lookup: ``T_target_source`` (the pose of ``source`` in ``target``)."""

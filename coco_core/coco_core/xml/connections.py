@@ -44,7 +44,7 @@ def read_connection(reader: FileReader, element: Element) -> ConnectionSpec | No
     size = _buffer_size(reader, element, values, data)
     event = reader.parsed(element, values, "event", parse_bool)
     stamps_only = reader.parsed(element, values, "stamps_only", parse_bool)
-    codec = reader.choice(element, values, "codec", CODECS, "pickle")
+    codec = reader.choice(element, values, "codec", CODECS, "plain")
     children = reader.children(element, ("dest", "filter", "src"))
     src = _port(reader, element, children, "src")
     dest = _port(reader, element, children, "dest")

@@ -2,10 +2,12 @@
 
 Every host publishes on ``/coco/<application>/hosts`` and listens to it; a message names its
 sender and its recipient (empty: every host). Its body is one of the typed messages of the launch
-(:mod:`coco_core.hosts.messages`, :mod:`coco_core.processes.messages`), pickled: the hosts of one
-application trust each other as the processes of one launch do (use a DDS domain of the
-application's own, or SROS 2, where the network is shared with others). A body that does not
-unpickle is reported and dropped, never a crash.
+(:mod:`coco_core.hosts.messages`, :mod:`coco_core.processes.messages`) in the typed encoding of
+:mod:`coco_core.wire` (never a pickle: any participant of the DDS domain may publish here). Every
+message is sealed with the application's key (:mod:`coco_core.hosts.auth`); one whose seal fails
+(no key, another application's, a replay, a host the file does not declare) is refused and counted
+in the profile before its body is read, so that no packet from outside stops or calls anything. A
+body that does not decode, or is not a launch message, is reported and dropped, never a crash.
 
 The heartbeats go on a topic of their own, ``/coco/<application>/hosts/heartbeat``, best effort: a
 heartbeat says a host's whole state and comes again a fifth of a second later, so a lost one costs
@@ -18,14 +20,17 @@ results, the clock exchange) must arrive: reliable, volatile, keeping the last :
 from __future__ import annotations
 
 import logging
-import pickle
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from coco_core.errors import PacketError
+from coco_core.hosts.auth import Refusals, Seal, Sealer, Verifier
 from coco_core.hosts.channel import ros_name
+from coco_core.hosts.key import AppKey
 from coco_core.hosts.messages import Heartbeat
 from coco_core.processes.messages import Message
+from coco_core.wire import Decoder, Encoder
 from coco_interfaces.msg import HostMessage
 
 from .bridge import HostBridge
@@ -43,39 +48,64 @@ def bus_topic(application: str) -> str:
     return f"/coco/{ros_name(application)}/hosts"
 
 
+def message_parts(message: HostMessage) -> Iterator[object]:
+    """What a HostMessage's seal covers besides the topic and the seal's own fields."""
+    yield message.recipient
+    yield message.body
+
+
 class DdsBus:
     """The :class:`coco_core.hosts.session.Bus` of one host, on ``bridge`` (whose thread runs
-    ``receive(sender, message)`` for each message to this host)."""
+    ``receive(sender, message)`` for each authentic message to this host from another host of
+    ``hosts``)."""
 
-    def __init__(self, bridge: HostBridge, application: str, host: str,
-                 receive: Callable[[str, Message], None], release: Callable[[], None]) -> None:
+    def __init__(self, bridge: HostBridge, application: str, host: str, hosts: list[str],
+                 receive: Callable[[str, Message], None], release: Callable[[], None], key: AppKey,
+                 refusals: Refusals) -> None:
         self.host = host
         self.receive = receive
         self.release = release
         self.damaged = 0
-        """Messages whose body did not unpickle (reported, dropped)."""
+        """Authentic messages whose body did not decode (reported, dropped)."""
         topic = bus_topic(application)
+        others = [name for name in hosts if name != host]
+        self._encoder = Encoder()
+        self._decoder = Decoder()
         # Not among the bridge's flushed publishers: at the end the other hosts may be gone already,
         # and a stop was said as soon as it began, then by every heartbeat.
         self.publisher = bridge.node.create_publisher(HostMessage, topic, QOS)
         self.beats = bridge.node.create_publisher(HostMessage, f"{topic}/heartbeat", BEATS)
-        self.subscriptions = [bridge.subscribe(HostMessage, topic, self._heard, QOS),
-                              bridge.subscribe(HostMessage, f"{topic}/heartbeat", self._heard, BEATS)]
+        self._sealers = {self.publisher: Sealer(key, topic, host), self.beats: Sealer(key, f"{topic}/heartbeat", host)}
+        checks = {name: Verifier(key, name, others, hosts, refusals) for name in (topic, f"{topic}/heartbeat")}
+        self._own = {sealer.session for sealer in self._sealers.values()}
+        self.subscriptions = [bridge.subscribe(HostMessage, topic, lambda message: self._heard(message, checks[topic]),
+                                               QOS),
+                              bridge.subscribe(HostMessage, f"{topic}/heartbeat",
+                                               lambda message: self._heard(message, checks[f"{topic}/heartbeat"]),
+                                               BEATS)]
 
     def send(self, recipient: str, message: Message) -> None:
         out = HostMessage()
-        out.sender, out.recipient, out.body = self.host, recipient, pickle.dumps(message)
-        (self.beats if isinstance(message, Heartbeat) else self.publisher).publish(out)
+        out.sender, out.recipient, out.body = self.host, recipient, self._encoder.encode(message)
+        publisher = self.beats if isinstance(message, Heartbeat) else self.publisher
+        seal = self._sealers[publisher].seal(message_parts(out))
+        out.session, out.counter, out.wall, out.mac = seal.session, seal.counter, seal.wall, seal.mac
+        publisher.publish(out)
 
-    def _heard(self, message: HostMessage) -> None:
-        if message.sender == self.host or message.recipient not in ("", self.host):
+    def _heard(self, message: HostMessage, verifier: Verifier) -> None:
+        if message.recipient not in ("", self.host):
+            return
+        if message.sender == self.host and message.session in self._own:
+            return  # its own, heard back
+        if not verifier.accept(Seal(message.sender, message.session, message.counter, message.wall, message.mac),
+                               message_parts(message)):
             return
         try:
-            body = pickle.loads(message.body.tobytes())
-        except Exception as error:  # damaged on the way, or sent by an incompatible version
+            body = self._decoder.decode(message.body)
+        except PacketError as error:  # a bug of a host with the key, or another version of CoCo
             self.damaged += 1
-            log.error("host %s: a message from host %s could not be read (%s: %s); dropped", self.host,
-                      message.sender, type(error).__name__, error)
+            log.error("host %s: a message from host %s could not be read (%s); dropped", self.host, message.sender,
+                      error)
             return
         if not isinstance(body, Message):
             self.damaged += 1

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
@@ -48,18 +49,22 @@ from rclpy.exceptions import InvalidHandle
 from coco_core.component import DAMAGE_LISTED
 from coco_core.connections import Connection, CountedConnection, make_connection
 from coco_core.errors import ChannelError, CocoError, ConfigError, PacketError
+from coco_core.hosts.auth import Seal, Sealer, Verifier
 from coco_core.hosts.channel import HostChannel
+from coco_core.hosts.key import AppKey
 from coco_core.policy import BufferPolicy, SyncPolicy
 from coco_core.pool import LocalFramePool, PoolReader, frame_stamp
 from coco_core.ports import PooledOutputPort
 from coco_core.processes.channels import fed_filter, input_end, output_end
 from coco_core.processes.routed import RoutingEnd
-from coco_core.stamps import Message
+from coco_core.stamps import Message, Stamp
+from coco_core.wire import conforms
 from coco_interfaces.msg import Sample
 
 from .bridge import HostBridge
 from .qos import qos_of
-from .sample import STAMP_CODEC, Clock, Frame, SampleDecoder, SampleEncoder, same_clock
+from .sample import (STAMP_CODEC, Clock, Frame, SampleDecoder, SampleEncoder, check_numbers, same_clock,
+                     sample_parts)
 
 if TYPE_CHECKING:
     from coco_core.application import Application
@@ -74,13 +79,14 @@ class DdsWriter(CountedConnection):
     __slots__ = ("channel", "routed_away", "_encoder", "_publisher", "_unpublished")
     carries_stamps = True
 
-    def __init__(self, bridge: HostBridge, channel: HostChannel, to_app: Clock = same_clock) -> None:
+    def __init__(self, bridge: HostBridge, channel: HostChannel, key: AppKey, to_app: Clock = same_clock) -> None:
         super().__init__(channel.policy)
         self.channel = channel
         self.routed_away = 0
         """Messages the connection's Split or Cull routed to other connections here (never
         published): every sample carries the count, for the reader's host's profile."""
-        self._encoder = SampleEncoder(STAMP_CODEC if channel.stamps_only else channel.codec, to_app)
+        self._encoder = SampleEncoder(STAMP_CODEC if channel.stamps_only else channel.codec,
+                                      Sealer(key, channel.topic, channel.src_host), to_app)
         self._publisher = bridge.publisher(Sample, channel.topic, qos_of(channel.policy))
         self._unpublished = False
 
@@ -138,18 +144,20 @@ class DdsWriter(CountedConnection):
 
 
 def _codec(channel: HostChannel) -> str:
-    return "" if channel.codec == "pickle" or channel.stamps_only else f", {channel.codec} codec"
+    return "" if channel.codec == "plain" or channel.stamps_only else f", {channel.codec} codec"
 
 
 class Arrivals:
-    """The subscription of a reader's end: decodes each sample and hands it to ``store``; counts
-    the highest write number (the reader's ``written``), the writer's end and damaged samples."""
+    """The subscription of a reader's end: checks each sample's seal (``verifier``: a sample that
+    fails is refused and counted there, never decoded), decodes it, checks its value against the
+    input port's declared type (``accepts``) and hands it to ``store``; counts the highest write
+    number (the reader's ``written``), the writer's end and damaged samples."""
 
     __slots__ = ("channel", "number", "routed_away", "finished", "damaged", "_decoder", "_store", "_report",
-                 "subscription")
+                 "_verifier", "_accepts", "subscription")
 
-    def __init__(self, bridge: HostBridge, channel: HostChannel, from_app: Clock, store: Callable[[Any], None],
-                 report: Callable[[str], None] | None) -> None:
+    def __init__(self, bridge: HostBridge, channel: HostChannel, verifier: Verifier, from_app: Clock,
+                 store: Callable[[Any], None], report: Callable[[str], None] | None, accepts: Any = object) -> None:
         self.channel = channel
         self.number = 0
         """The highest write number that arrived (every write up to it was made)."""
@@ -162,6 +170,10 @@ class Arrivals:
         self._decoder = SampleDecoder(from_app)
         self._store = store
         self._report = report
+        self._verifier = verifier
+        self._accepts = accepts
+        """The reader's declared type (:attr:`coco_core.ports.Port.type`): a value of another type
+        is refused here, not in the component."""
         self.subscription = bridge.subscribe(Sample, channel.topic, self._arrive, qos_of(channel.policy))
 
     @property
@@ -173,13 +185,22 @@ class Arrivals:
             return False
 
     def _arrive(self, sample: Sample) -> None:
-        self.routed_away = max(self.routed_away, sample.routed_away)
-        if sample.writer_done:
-            self.number = max(self.number, sample.number)
-            self.finished = True
+        if not self._verifier.accept(Seal(sample.sender, sample.session, sample.counter, sample.wall, sample.mac),
+                                     sample_parts(sample)):
             return
         try:
+            if sample.writer_done:
+                check_numbers(sample)
+                self.routed_away = max(self.routed_away, sample.routed_away)
+                self.number = max(self.number, sample.number)
+                self.finished = True
+                return
             item = self._decoder.decode(sample)
+            self.routed_away = max(self.routed_away, sample.routed_away)
+            value = item.value if type(item) is Message else item
+            if not conforms(value, self._accepts) and not isinstance(value, (Frame, Stamp)):
+                raise PacketError("garbage", f"sample {sample.number} holds a {type(value).__name__}, which "
+                                             f"{self.channel.dest} does not take")
             number = sample.number
             if number > self.number:  # first: a reader must never see read > written
                 self.number = number
@@ -246,15 +267,15 @@ class DdsReader(FromHost, Connection):
 
     __slots__ = ("channel", "store", "front", "arrivals")
 
-    def __init__(self, bridge: HostBridge, channel: HostChannel, from_app: Clock = same_clock,
-                 report: Callable[[str], None] | None = None) -> None:
+    def __init__(self, bridge: HostBridge, channel: HostChannel, verifier: Verifier, from_app: Clock = same_clock,
+                 report: Callable[[str], None] | None = None, accepts: Any = object) -> None:
         super().__init__(channel.policy)
         self.channel = channel
         self.store = make_connection(channel.policy)
         """What arrived and was not read yet, kept with the connection's own policy."""
         self.store.trigger = self._wake
         self.front: Connection = self
-        self.arrivals = Arrivals(bridge, channel, from_app, self.store.push, report)
+        self.arrivals = Arrivals(bridge, channel, verifier, from_app, self.store.push, report, accepts)
 
     def _wake(self) -> None:
         trigger = self.front.trigger
@@ -295,12 +316,12 @@ class DdsFrameReader(FromHost, PoolReader):
 
     read: int  # a field here, where PoolReader only asks for a value
 
-    def __init__(self, bridge: HostBridge, channel: HostChannel, from_app: Clock = same_clock,
+    def __init__(self, bridge: HostBridge, channel: HostChannel, verifier: Verifier, from_app: Clock = same_clock,
                  report: Callable[[str], None] | None = None) -> None:
         super().__init__(LocalFramePool(max(2, channel.policy.size)), channel.policy)
         self.read = 0
         self.channel = channel
-        self.arrivals = Arrivals(bridge, channel, from_app, self._store, report)
+        self.arrivals = Arrivals(bridge, channel, verifier, from_app, self._store, report)
 
     def _store(self, item: Any) -> None:
         frame = item.value if type(item) is Message else item
@@ -345,8 +366,8 @@ class HostEnds:
                    for reader in self.readers if not reader.matched])
 
 
-def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[HostChannel], host: str,
-                         to_app: Clock = same_clock, from_app: Clock = same_clock) -> HostEnds:
+def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[HostChannel], host: str, key: AppKey,
+                         hosts: Sequence[str], to_app: Clock = same_clock, from_app: Clock = same_clock) -> HostEnds:
     """Attach the ends of ``channels`` that run in this process (``host``, ``app.process``) to
     ``app``'s ports, as :func:`coco_core.processes.channels.attach` attaches the ends of channels
     between processes: a :class:`DdsWriter` on each output (in ``app.outgoing``, and in
@@ -357,7 +378,9 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
     too, ``app.outgoing_routers``, so that a message routed away is never published; both hosts
     profile the routed-away count, which the samples carry, :class:`~coco_core.processes.routed.RoutingEnd`). An activity's ``endit``/``beginit`` is an end
     like a component's port. ``to_app``/``from_app`` convert stamp times to and from the
-    application's clock (:mod:`.sample`)."""
+    application's clock (:mod:`.sample`). Every sample is sealed with ``key`` on the writer's side
+    and checked on the reader's (:mod:`coco_core.hosts.auth`: only the connection's writer's host,
+    one of ``hosts``, may write on its topic; a refusal is counted in ``app.network_refusals``)."""
     ends = HostEnds()
     process = app.process
     for channel in channels:
@@ -374,11 +397,11 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
                 raise ConfigError(f"connection {channel.label} between hosts: {channel.src} is "
                                   f"{'a pooled' if isinstance(out, PooledOutputPort) else 'not a pooled'} output, its "
                                   f"policy {channel.policy}: a pooled output's frames cross with data=POOL only")
-            if frames and channel.codec != "pickle":
+            if frames and channel.codec != "plain":
                 raise ConfigError(f"connection {channel.label} between hosts: a pooled output's frames are arrays "
                                   f"without an image format; the {channel.codec} codec takes RGBDFrame and Image "
                                   "values (write them on a plain output)")
-            writer = DdsWriter(bridge, channel, to_app)
+            writer = DdsWriter(bridge, channel, key, to_app)
             router = app.outgoing_routers.get(channel.label)
             end: Connection = writer if router is None else RoutingEnd(router, writer, writer.route_away)  # decided here
             out.add_connection(end, channel.stamps_only)
@@ -388,11 +411,13 @@ def attach_between_hosts(app: Application, bridge: HostBridge, channels: list[Ho
         if channel.dest_host == host and channel.dest_process == process:
             into = input_end(app, channel.dest, channel.dest_activity, channel.stamps_only)
             reader: DdsReader | DdsFrameReader
+            verifier = Verifier(key, channel.topic, [channel.src_host], hosts, app.network_refusals)
             if frames:
-                reader = DdsFrameReader(bridge, channel, from_app, app.report_damage)
+                reader = DdsFrameReader(bridge, channel, verifier, from_app, app.report_damage)
                 front: Connection = reader
-            else:
-                reader = DdsReader(bridge, channel, from_app, app.report_damage)
+            else:  # a filter may make values of other types of what comes: then its input is not checked
+                reader = DdsReader(bridge, channel, verifier, from_app, app.report_damage,
+                                   object if channel.filtered else into.type)
                 front = reader
                 if channel.filtered:  # the filter on this side, fed from the network
                     front = reader.front = fed_filter(app, channel.label, reader, reader)

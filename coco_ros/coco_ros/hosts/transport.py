@@ -13,8 +13,10 @@ import threading
 from typing import Callable
 
 from coco_core import Application
+from coco_core.hosts.auth import Refusals
 from coco_core.hosts.clock import ClockOffset
 from coco_core.hosts.channel import ros_name
+from coco_core.hosts.key import AppKey
 from coco_core.model import AppSpec
 from coco_core.processes.messages import Message
 
@@ -50,13 +52,16 @@ class DdsTransport:
         if bridge is not None:
             bridge.close()
 
-    def bus(self, spec: AppSpec, receive: Callable[[str, Message], None]) -> DdsBus:
-        return DdsBus(self._use(spec, ""), spec.name, spec.part_of, receive, self._release)
+    def bus(self, spec: AppSpec, receive: Callable[[str, Message], None], key: AppKey,
+            refusals: Refusals) -> DdsBus:
+        return DdsBus(self._use(spec, ""), spec.name, spec.part_of, [host.name for host in spec.hosts], receive,
+                      self._release, key, refusals)
 
-    def attach(self, app: Application, spec: AppSpec, clock: ClockOffset) -> ProcessEnds:
+    def attach(self, app: Application, spec: AppSpec, clock: ClockOffset, key: AppKey) -> ProcessEnds:
         bridge = self._use(spec, app.process)
         try:
-            ends = attach_between_hosts(app, bridge, spec.between_hosts, spec.part_of, clock.to_app, clock.from_app)
+            ends = attach_between_hosts(app, bridge, spec.between_hosts, spec.part_of, key,
+                                        [host.name for host in spec.hosts], clock.to_app, clock.from_app)
         except BaseException:
             self._release()
             raise

@@ -1,0 +1,204 @@
+"""Authenticated messages between hosts: who sent it, that nobody changed it, that it is new.
+
+Any participant of a DDS domain can publish on any topic of it. So every message between the hosts
+of an application (the launch's heartbeats and calls, every sample of a connection) carries a
+:class:`Seal`: the sending host's name, a random ``session`` number of the sending end's launch, a
+``counter`` that the end increments for every message, its wall-clock time, and an HMAC-SHA256
+over all of these, the topic and the message's own fields, keyed with the application's key
+(:mod:`.key`). The receiving end (:class:`Verifier`, one per topic) refuses:
+
+- a message whose MAC is wrong (sent without the key, or changed on the way);
+- one from a host that the application file does not declare, or that should not write on that
+  topic (a connection's samples come from its writer's host alone);
+- a replay: a counter already seen, or older than the last :data:`WINDOW` (a best-effort topic may
+  reorder a few), or a wall time more than :data:`FRESH` seconds from the receiver's (a message
+  recorded during an earlier run of the application);
+- a second session for the same host and topic: two launches claim the same host name (both with
+  the key: a host started twice), which is reported once and refused from then on.
+
+Refused messages never reach the application and never stop anything: each is counted by topic,
+claimed sender and reason (:class:`Refusals`, in the profile's "refused from the network" table),
+the first of each kind logged with a warning.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import logging
+import math
+import secrets
+import struct
+import threading
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from .key import AppKey
+
+log = logging.getLogger("coco.hosts")
+
+FRESH = 30.0
+"""Seconds a message's wall-clock time may differ from its receiver's: the hosts' clocks must agree
+within this (NTP does to milliseconds); a message recorded and sent again later is refused."""
+WINDOW = 64
+"""How many counters before the highest seen are still accepted once each (reordering)."""
+MAX_NAME = 64
+"""Characters of a claimed host name quoted in a log or a profile (the rest is cut)."""
+
+_HEADER = struct.Struct("<QQd")
+_LENGTH = struct.Struct("<Q")
+
+
+@dataclass(frozen=True, slots=True)
+class Seal:
+    """What authenticates one message (the fields of ``coco_interfaces`` Sample and HostMessage)."""
+
+    host: str
+    session: int
+    counter: int
+    wall: float
+    mac: bytes
+
+
+def mac(key: AppKey, topic: str, host: str, session: int, counter: int, wall: float, parts: Iterable[Any]) -> bytes:
+    """The HMAC-SHA256 of a message: its topic, sender, session, counter and time, then each of
+    ``parts`` (buffers or ``str``), each led by its length so that no two messages share an input."""
+    digest = hmac.new(key.secret, digestmod=hashlib.sha256)
+    update = digest.update
+    for text in (topic, host):
+        encoded = text.encode()
+        update(_LENGTH.pack(len(encoded)))
+        update(encoded)
+    update(_HEADER.pack(session, counter, wall))
+    for part in parts:
+        data = part.encode() if type(part) is str else part
+        update(_LENGTH.pack(memoryview(data).nbytes))
+        update(data)
+    return digest.digest()
+
+
+class Sealer:
+    """The sending side of one end (a publisher): seals each message it sends on ``topic`` as
+    ``host``. One thread at a time (the end's)."""
+
+    def __init__(self, key: AppKey, topic: str, host: str) -> None:
+        self.key = key
+        self.topic = topic
+        self.host = host
+        self.session = secrets.randbits(63) | 1
+        self.counter = 0
+
+    def seal(self, parts: Iterable[Any]) -> Seal:
+        self.counter += 1
+        wall = time.time()
+        return Seal(self.host, self.session, self.counter, wall,
+                    mac(self.key, self.topic, self.host, self.session, self.counter, wall, parts))
+
+
+@dataclass
+class _Window:
+    """What one sender's messages on one topic said so far: its session, its highest counter and
+    which of the :data:`WINDOW` before it came."""
+
+    session: int
+    highest: int = 0
+    seen: int = 0
+    """Bit ``i``: counter ``highest - i`` came."""
+
+
+class Refusals:
+    """Messages from the network refused, by topic, claimed sender and reason (the profile's
+    "refused from the network" table). Thread-safe: each bridge's thread counts its own."""
+
+    def __init__(self) -> None:
+        self._counts: dict[tuple[str, str, str], int] = {}
+        self._lock = threading.Lock()
+
+    def count(self, topic: str, sender: str, why: str) -> None:
+        key = (topic, quoted(sender), why)
+        with self._lock:
+            count = self._counts.get(key, 0) + 1
+            self._counts[key] = count
+        if count == 1:
+            log.warning("refused a message on %s claiming to come from host %s: %s (further ones are counted in the "
+                        "profile)", topic, key[1], why)
+
+    @property
+    def total(self) -> int:
+        with self._lock:
+            return sum(self._counts.values())
+
+    def rows(self) -> list[list[str]]:
+        with self._lock:
+            return [[topic, sender, why, str(count)] for (topic, sender, why), count in sorted(self._counts.items())]
+
+
+def quoted(name: str) -> str:
+    """A claimed host name as a log may show it: printable, at most :data:`MAX_NAME` characters."""
+    shown = name[:MAX_NAME].encode("unicode_escape").decode("ascii")
+    return repr(shown) if len(name) <= MAX_NAME else repr(shown) + f" (+{len(name) - MAX_NAME} characters)"
+
+
+class Verifier:
+    """The receiving side of one topic: checks each message's :class:`Seal` (see the module's
+    docstring). ``senders`` are the hosts that may write on the topic; ``hosts`` every host of the
+    application (a sender outside it is named as such)."""
+
+    def __init__(self, key: AppKey, topic: str, senders: Sequence[str], hosts: Sequence[str],
+                 refusals: Refusals) -> None:
+        self.key = key
+        self.topic = topic
+        self.senders = frozenset(senders)
+        self.hosts = frozenset(hosts)
+        self.refusals = refusals
+        self._windows: dict[str, _Window] = {}
+        self._claimed: set[str] = set()
+
+    def accept(self, seal: Seal, parts: Iterable[Any]) -> bool:
+        """Whether the message is authentic, new and from a host that may send it; a refusal is
+        counted (:class:`Refusals`)."""
+        why = self._problem(seal, parts)
+        if why:
+            self.refusals.count(self.topic, seal.host, why)
+            return False
+        return True
+
+    def _problem(self, seal: Seal, parts: Iterable[Any]) -> str:
+        expected = mac(self.key, self.topic, seal.host, seal.session, seal.counter, seal.wall, parts)
+        if not hmac.compare_digest(expected, bytes(seal.mac)):
+            return "not authenticated (no key, another key, or changed on the way)"
+        if seal.host not in self.senders:
+            return ("a host this application does not declare" if seal.host not in self.hosts
+                    else "a host that does not write on this topic")
+        if not math.isfinite(seal.wall) or abs(time.time() - seal.wall) > FRESH:
+            return f"stale: sent {seal.wall - time.time():+.1f} s from now (a replay, or clocks more than {FRESH:g} s apart)"
+        window = self._windows.get(seal.host)
+        if window is None:
+            window = self._windows[seal.host] = _Window(seal.session)
+        elif window.session != seal.session:
+            if seal.host not in self._claimed:
+                self._claimed.add(seal.host)
+                log.error("host %s is claimed by two launches on %s (sessions %x and %x): is it started twice? The "
+                          "second one's messages are refused", seal.host, self.topic, window.session, seal.session)
+            return "a second launch claiming this host name"
+        return _replayed(window, seal.counter)
+
+
+def _replayed(window: _Window, counter: int) -> str:
+    """"" and ``counter`` recorded as seen, or why it is a replay."""
+    if counter < 1:
+        return "counter 0: counters start at 1"
+    if counter > window.highest:
+        shift = counter - window.highest
+        window.seen = ((window.seen << shift) | 1) & ((1 << WINDOW) - 1) if shift < WINDOW else 1
+        window.highest = counter
+        return ""
+    back = window.highest - counter
+    if back >= WINDOW:
+        return f"a replay (counter {counter}, {back} behind the newest)"
+    if window.seen >> back & 1:
+        return f"a replay (counter {counter} came already)"
+    window.seen |= 1 << back
+    return ""
