@@ -27,10 +27,16 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, JointState
 
+from coco_core.hosts.key import AppKey
+
 from _hosts_components import BURST, LATENCY, SMALL, redwood_frame
 
 IDLE_TIMEOUT_S = 10.0
 """The subscriber gives up this long after the last message (a lost last sample ends the run)."""
+
+
+BENCH_KEY = AppKey(bytes(range(32)), "the benchmark's key")
+"""The key of the encoded variant's samples, sealed and checked as between CoCo's hosts."""
 
 
 def stamp(message: Any, now: float, tag: str) -> None:
@@ -45,11 +51,12 @@ def publish(node: Any, kind: str, latency: int, burst: int, period: float) -> No
         publishers = [node.create_publisher(JointState, "bench_small", qos)]
         joints = [f"joint_{i}" for i in range(SMALL)]
     elif kind == "sample":
+        from coco_core.hosts.auth import Sealer
         from coco_interfaces.msg import Sample
         from coco_ros.hosts.sample import SampleEncoder
 
         publishers = [node.create_publisher(Sample, "bench_sample", qos)]
-        encoder = SampleEncoder("plain")
+        encoder = SampleEncoder("plain", Sealer(BENCH_KEY, "bench_sample", "robot"))
     else:
         publishers = [node.create_publisher(Image, "bench_color", qos), node.create_publisher(Image, "bench_depth", qos)]
         frame = redwood_frame()
@@ -112,7 +119,10 @@ def subscribe(node: Any, kind: str, latency: int, burst: int, path: str) -> None
         written = message.header.stamp.sec + message.header.stamp.nanosec * 1e-9
         record(number, phase, written, received)
 
-    def decoded(message: Any) -> None:
+    def decoded(message: Any) -> None:  # as a reader's end takes a sample: its seal checked, then decoded
+        seal = Seal(message.sender, message.session, message.counter, message.wall, message.mac)
+        if not verifier.accept(seal, sample_parts(message)):
+            raise SystemExit("a sample of the benchmark failed its seal")
         value = decoder.decode(message)
         record(int(value[1]), int(value[2]), float(value[0]), time.perf_counter())  # received: decoded
 
@@ -124,10 +134,12 @@ def subscribe(node: Any, kind: str, latency: int, burst: int, path: str) -> None
     if kind == "small":
         node.create_subscription(JointState, "bench_small", arrived, qos)
     elif kind == "sample":
+        from coco_core.hosts.auth import Refusals, Seal, Verifier
         from coco_interfaces.msg import Sample
-        from coco_ros.hosts.sample import SampleDecoder
+        from coco_ros.hosts.sample import SampleDecoder, sample_parts
 
         decoder = SampleDecoder()
+        verifier = Verifier(BENCH_KEY, "bench_sample", ["robot"], ["robot", "graphics"], Refusals())
         node.create_subscription(Sample, "bench_sample", decoded, qos)
     else:
         node.create_subscription(Image, "bench_color", arrived, qos)

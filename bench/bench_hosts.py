@@ -45,6 +45,8 @@ from _table import Table, fmt_ratio, fmt_time_ns, verdict
 
 import numpy as np
 
+from coco_core.hosts.key import write_key
+
 BENCH = Path(__file__).resolve().parent
 sys.path.insert(0, str(_report.REPO / "test"))
 from netns import Network, unavailable  # noqa: E402  (test/ is on the path only now)
@@ -176,8 +178,11 @@ def run(net: Network, variant: str, payload: dict[str, Any], folder: Path) -> li
         path.write_text(application(variant, payload, record))
         launch = [sys.executable, "-m", "coco_core.launcher", str(path)]
         if variant == HOSTS:
+            key = folder / "app.key"
+            if not key.exists():
+                write_key(str(key))
             for host in ("graphics", "robot"):
-                start(host, host, [*launch, "--host", host])
+                start(host, host, [*launch, "--host", host, "--key", str(key)])
         else:
             start("launcher", "robot", launch)
     finish(processes, logs, deadline)

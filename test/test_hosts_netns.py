@@ -8,9 +8,10 @@ one more argument (``--host NAME``).
   the other) writes the same distance CSV as on one host;
 - a host killed mid-run is reported by name and the other stops cleanly (``on_error="stop_app"``);
 - Ctrl-C on either host stops both;
-- a link that delays and loses packets still delivers every sample of a reliable connection.
+- a link that delays and loses packets still delivers every sample of a reliable connection;
+- a third participant without the application's key neither feeds nor stops the hosts.
 
-DDS domains 180-186. Skipped only where unprivileged user namespaces are missing.
+DDS domains 180-187. Skipped only where unprivileged user namespaces are missing.
 """
 
 from __future__ import annotations
@@ -20,12 +21,14 @@ import os
 import re
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import IO, Iterator
 
 import pytest
 
+from coco_core.hosts.channel import topic_of
 from conftest import ROOT, connection_counters
 from netns import Impairment, Network, unavailable
 
@@ -34,6 +37,7 @@ pytestmark = pytest.mark.skipif(REASON is not None, reason=f"no simulated networ
 
 LAUNCH = ROOT / "install" / "coco_core" / "lib" / "coco_core" / "coco-launch"
 ROS_LAUNCHER = ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
+KEYGEN = ROOT / "install" / "coco_core" / "lib" / "coco_core" / "coco-keygen"
 DEMO = ROOT / "config" / "hosts_demo_pipeline.xml"
 
 PAIR = """<package name="pair" on_error="stop_app">
@@ -70,9 +74,14 @@ PAIR = """<package name="pair" on_error="stop_app">
 from the robot to a component in that child process."""
 
 def start(network: Network, host: str, log: Path, *args: str, launcher: Path = LAUNCH) -> subprocess.Popen[str]:
-    """A launcher in ``host`` writing its output to ``log`` (a file: nothing blocks on a full pipe)."""
+    """A launcher in ``host`` writing its output to ``log`` (a file: nothing blocks on a full pipe),
+    with the application's key in the log's folder (made there by ``coco-keygen`` for the first
+    host: every host of a test shares it)."""
+    key = log.parent / "app.key"
+    if not key.exists():
+        subprocess.run([str(KEYGEN), str(key)], check=True, capture_output=True)
     handle: IO[str] = log.open("w")
-    return network[host].popen([str(launcher), *args, "--host", host], cwd=ROOT, stdout=handle,
+    return network[host].popen([str(launcher), *args, "--host", host, "--key", str(key)], cwd=ROOT, stdout=handle,
                                stderr=subprocess.STDOUT, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
 
 
@@ -211,3 +220,99 @@ def test_the_baxter_replay_split_over_two_hosts_writes_the_same_distances(sessio
     assert len(values(one / "distance.csv")) > 500  # a 12 s session
     assert values(two / "distance.csv") == values(one / "distance.csv")
     assert (two / "frames.mp4").stat().st_size > 0  # the view on the other host rendered and recorded
+
+
+ATTACKER = r'''
+"""A participant of the application's DDS domain without its key (the third namespace): it
+publishes what the probe of issue 36 did, for ``seconds``, on the demo's bus, heartbeat and data
+topics, then says how many it sent."""
+import os, pickle, sys, time
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from coco_core.hosts.channel import topic_of
+from coco_core.hosts.messages import Heartbeat, Stage
+from coco_core.processes.messages import Call
+from coco_core.stamps import Stamp, Stamped
+from coco_core.wire import Encoder
+from coco_interfaces.msg import HostMessage, Sample
+
+marker, seconds = sys.argv[1], float(sys.argv[2])
+
+
+class Bomb:
+    def __reduce__(self):
+        return os.system, (f"touch {marker}",)
+
+
+rclpy.init()
+node = rclpy.create_node("coco_intruder")
+qos = QoSProfile(depth=64, reliability=ReliabilityPolicy.RELIABLE)
+bus = node.create_publisher(HostMessage, "/coco/hosts_demo_pipeline/hosts", qos)
+beats = node.create_publisher(HostMessage, "/coco/hosts_demo_pipeline/hosts/heartbeat", qos)
+data = node.create_publisher(Sample, topic_of("hosts_demo_pipeline", "generator.sample", "filter.sample"), qos)
+encoder = Encoder()
+
+
+def message(sender, body, recipient=""):
+    return HostMessage(sender=sender, recipient=recipient, body=body, session=7, counter=int(time.time() * 1e3),
+                       wall=time.time(), mac=bytes(32))
+
+
+sent = 0
+deadline = time.monotonic() + seconds
+while time.monotonic() < deadline:
+    number = int(time.monotonic() * 100)
+    for publisher, forged in (
+            (beats, message("station", pickle.dumps(Bomb()))),
+            (beats, message("station", encoder.encode(Heartbeat(Stage.STOPPING, "forged", True, True)))),
+            (beats, message("sensor", encoder.encode(Heartbeat(Stage.STOPPING, "forged", True, True)))),
+            (beats, message("ghost", encoder.encode(Heartbeat(Stage.RUNNING)))),
+            (bus, message("sensor", encoder.encode(Call(id=1, process="", component="filter", operation="set_window",
+                                                        args=(10 ** 9,))), "station")),
+            (data, Sample(number=number, seq=number, source="generator.sample", codec="pickle",
+                          payload=pickle.dumps(Bomb()), sender="sensor", counter=number, wall=time.time(),
+                          mac=bytes(32))),
+            (data, Sample(number=number + 1, seq=number + 1, source="generator.sample", codec="plain",
+                          payload=encoder.encode(Stamped(float("nan"), Stamp(1.0))), sender="sensor",
+                          counter=number + 1, wall=time.time(), mac=bytes(32)))):
+        publisher.publish(forged)
+        sent += 1
+    time.sleep(0.02)
+print(f"sent {sent}", flush=True)
+'''
+
+
+def test_a_participant_without_the_key_neither_feeds_nor_stops_the_hosts(tmp_path: Path) -> None:
+    """Three namespaces: the demo over two hosts, and a third participant of the same DDS domain
+    without the key that publishes pickle-bombs, forged heartbeats saying a host stops, a forged
+    operation call, forged samples and heartbeats of an unknown host. Nothing runs, nothing stops:
+    both hosts run to their end with exit status 0, the station records exactly what the sensor's
+    generator wrote, the window is never set to 10^9, and each host's profile counts what it
+    refused by topic and sender."""
+    output, marker = tmp_path / "signal.csv", tmp_path / "pwned"
+    attacker_script = tmp_path / "attacker.py"
+    attacker_script.write_text(ATTACKER)
+    with Network(["sensor", "station", "intruder"], domain=187) as network:
+        station = start(network, "station", tmp_path / "station.log", str(DEMO), f"output:={output}", "--profile", "100")
+        sensor = start(network, "sensor", tmp_path / "sensor.log", str(DEMO), "--duration", "4", "--profile", "100")
+        assert wait_for(lambda: "host sensor is there" in (tmp_path / "station.log").read_text())
+        intruder = network["intruder"].popen([sys.executable, str(attacker_script), str(marker), "4"],
+                                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        assert sensor.wait(90) == 0, (tmp_path / "sensor.log").read_text()
+        assert station.wait(30) == 0, (tmp_path / "station.log").read_text()
+        said = intruder.communicate(timeout=30)[0]
+    assert intruder.returncode == 0 and "sent " in said, said
+    sensor_log, station_log = (tmp_path / "sensor.log").read_text(), (tmp_path / "station.log").read_text()
+    assert not marker.exists()
+    assert "stopping application hosts_demo_pipeline: host sensor: duration of 4 s reached" in station_log
+    assert "1000000000" not in station_log and "forged" not in station_log + sensor_log
+    written, _, _ = connection_counters(sensor_log, "generator.sample -> filter.sample")
+    assert connection_counters(station_log, "generator.sample -> filter.sample") == (written, written, 0)
+    assert len(rows(output)) == written and all(row["value"] != "nan" for row in rows(output))
+    refused = re.compile(r"^(/coco/hosts_demo_pipeline\S*)\s+'(\w+)'\s+(.+?)\s+(\d+)$", re.MULTILINE)
+    station_refused = {(topic, sender): int(count) for topic, sender, _, count in refused.findall(station_log)}
+    assert station_refused[(topic_of("hosts_demo_pipeline", "generator.sample", "filter.sample"), "sensor")] > 10
+    assert station_refused[("/coco/hosts_demo_pipeline/hosts/heartbeat", "ghost")] > 5
+    assert station_refused[("/coco/hosts_demo_pipeline/hosts", "sensor")] > 5
+    sensor_refused = {(topic, sender) for topic, sender, _, _ in refused.findall(sensor_log)}
+    assert ("/coco/hosts_demo_pipeline/hosts/heartbeat", "station") in sensor_refused
