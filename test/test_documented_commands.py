@@ -70,13 +70,13 @@ NOT_RUN: dict[str, str] = {
     "ros2 run coco_ros launcher config/demo_pipeline.xml":
         "needs the ros2 command line (ros2cli), which the PyPI wheels here do not include; the line above runs the "
         "same installed script by its path",
-    "coco-launch config/hosts_demo_pipeline.xml --host sensor":
+    "coco-launch config/hosts_demo_pipeline.xml --host sensor --key out/app.key":
         "one host of an application over two: it waits for the other host, started at the same time on another "
         "machine; test/test_hosts_netns.py runs this file with --host sensor and --host station side by side, each "
-        "in a network namespace of its own, and checks both",
-    "coco-launch config/hosts_demo_pipeline.xml --host station":
+        "in a network namespace of its own, with a key coco-keygen made, and checks both",
+    "coco-launch config/hosts_demo_pipeline.xml --host station --key out/app.key":
         "the other host of the line above (test/test_hosts_netns.py runs both at once)",
-    "ros2 run coco_ros launcher config/hosts_demo_pipeline.xml --host station":
+    "ros2 run coco_ros launcher config/hosts_demo_pipeline.xml --host station --key out/app.key":
         "needs the ros2 command line (ros2cli), which the PyPI wheels here do not include, and the other host; "
         "test/test_hosts_netns.py runs the installed ROS launcher as one of two hosts",
 }

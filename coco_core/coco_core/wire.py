@@ -233,7 +233,7 @@ class Encoder:
             raise WrongTypeError(f"a numpy array of dtype {array.dtype} cannot cross between hosts: only arrays of "
                                  "numbers and booleans can")
         scalar = not isinstance(value, np.ndarray)
-        self._buffers.append(memoryview(array).cast("B") if array.nbytes else memoryview(b""))
+        self._buffers.append(array.data.cast("B") if array.nbytes else memoryview(b""))
         return msgpack.ExtType(ARRAY, self._pack([array.dtype.str, list(array.shape), len(self._buffers) - 1,
                                                   scalar]))
 

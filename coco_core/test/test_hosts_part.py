@@ -134,7 +134,7 @@ def test_check_prints_every_hosts_part_and_the_connections_between_them(tmp_path
     out = done.stdout
     assert "application spread, host robot of robot, graphics (the application's clock)" in out
     assert "application spread, host graphics of robot, graphics (on robot's clock)" in out
-    assert "generator.sample -> filter.sample  BUFFER/LOCKED[16], pickle  (robot/launcher -> graphics/work" in out
+    assert "generator.sample -> filter.sample  BUFFER/LOCKED[16], plain  (robot/launcher -> graphics/work" in out
     one = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--check", "--host", "graphics"],
                          capture_output=True, text=True, timeout=120)
     assert one.returncode == 0 and "host robot of" not in one.stdout and "process work" in one.stdout
@@ -149,3 +149,48 @@ def test_the_data_flow_graph_draws_each_host_around_its_processes(tmp_path: Path
     assert robot < dot.index('"activity acquisition') < graphics < dot.index('label="process work"')
     assert dot.index('"activity outside') < graphics  # outside any <host>: the first host's
     assert "between hosts (DDS)" in dot and dot.count("between hosts (DDS)") == 1
+
+
+WEIRD = """
+from coco_core import Component, InputPort, OutputPort
+
+
+class Opaque:
+    \"\"\"A class nobody registered as a value type: its values cannot cross between hosts.\"\"\"
+
+
+class Weird(Component):
+    out = OutputPort(Opaque | float)
+    anything = OutputPort(object)
+    into = InputPort(object)
+"""
+
+
+def test_a_launch_over_hosts_needs_the_key_and_only_values_that_can_cross(tmp_path: Path) -> None:
+    """Without --key an application over several hosts refuses to start (and a one-host one refuses a
+    key it would ignore); --check names a connection between hosts whose writer's declared type is
+    no registered value type, before anything runs; a port declared ``object`` is checked as its
+    values are sent."""
+    path = write(tmp_path)
+    launcher = [sys.executable, "-m", "coco_core.launcher"]
+    done = subprocess.run([*launcher, str(path), "--host", "robot", "--duration", "1"], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 1 and "give --key FILE or --key-env NAME (coco-keygen FILE makes one" in done.stderr
+    one_host = tmp_path / "one.xml"
+    one_host.write_text(APP.format(tmp=tmp_path, filter="").split("<activities>")[0] + "</package>")
+    done = subprocess.run([*launcher, str(one_host), "--key", str(path), "--duration", "1"], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 1 and "one.xml" not in done.stdout and "declares no <host>" in done.stderr
+    (tmp_path / "weird.py").write_text(WEIRD)
+    weird = tmp_path / "weird.xml"
+    weird.write_text(APP.format(tmp=tmp_path, filter="").replace("<task>SignalGenerator</task>", "<task>weird:Weird</task>")
+                     .replace('port="sample"/><dest task="filter"', 'port="out"/><dest task="filter"')
+                     .replace('<connection data="BUFFER" buffersize="64">', '<connection data="BUFFER" buffersize="64">'
+                              '<src task="generator" port="anything"/><dest task="recorder" port="values"/></connection>'
+                              '<connection data="BUFFER" buffersize="64">'))
+    done = subprocess.run([*launcher, str(weird), "--check"], capture_output=True, text=True, timeout=120,
+                          env={**__import__("os").environ, "PYTHONPATH": f"{tmp_path}:{__import__('os').environ['PYTHONPATH']}"})
+    assert done.returncode == 1, done.stdout
+    assert ("connection generator.out->filter.sample between hosts robot and graphics: weird.Opaque is not a registered "
+            "value type (coco_core.wire.value_type)") in done.stderr
+    assert "generator.anything" not in done.stderr

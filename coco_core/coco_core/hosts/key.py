@@ -65,10 +65,11 @@ class AppKey:
             descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
         except OSError as error:
             raise KeyFileError(f"{origin}: cannot be opened ({error.strerror})") from None
+        status = os.fstat(descriptor)
+        if not stat.S_ISREG(status.st_mode):
+            os.close(descriptor)
+            raise KeyFileError(f"{origin}: not a regular file")
         with os.fdopen(descriptor, "rb") as file:
-            status = os.fstat(file.fileno())
-            if not stat.S_ISREG(status.st_mode):
-                raise KeyFileError(f"{origin}: not a regular file")
             if status.st_mode & 0o077:
                 raise KeyFileError(f"{origin}: readable or writable by others (mode {stat.S_IMODE(status.st_mode):04o}); "
                                    f"only its owner may: chmod 600 {path}")
