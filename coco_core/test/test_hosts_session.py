@@ -23,7 +23,8 @@ from coco_core.errors import HostError, RemoteError
 from coco_core.hosts.clock import ClockOffset, best, exchange
 from coco_core.hosts.part import host_part
 from coco_core.hosts.session import HostSession
-from coco_core.processes.messages import Message
+from coco_core.processes.messages import Call, Message, Outcome
+from coco_core.wire import Decoder, Encoder
 from coco_core.xml import load_application
 
 APP = """<package name="pair" on_error="{on_error}">
@@ -82,6 +83,9 @@ class Endpoint:
         self.network, self.host = network, host
 
     def send(self, recipient: str, message: Message) -> None:
+        """As the DDS bus does, in the typed encoding between hosts: a message or a value in it
+        that cannot cross raises here, in the sender's thread."""
+        message = Decoder().decode(Encoder().encode(message))
         if self.host in self.network.cut:
             return
         for name, inbox in self.network.inboxes.items():
@@ -185,6 +189,20 @@ def test_an_operation_of_another_host_is_called_by_name(hosts: Hosts) -> None:
     assert hosts.apps["graphics"].component("filter").window == 3
     with pytest.raises(RemoteError, match="no_such"):
         hosts.apps["robot"].operation("filter", "no_such")().result(10)
+
+
+def test_a_call_or_a_result_that_cannot_cross_is_answered_with_why(hosts: Hosts) -> None:
+    """An argument or a result that the typed encoding between hosts cannot carry fails the call
+    with the reason, instead of leaving its caller waiting for an answer that never comes."""
+    hosts.start()
+    with pytest.raises(RemoteError, match="the call cannot be sent to host graphics: a builtins.object cannot cross"):
+        hosts.apps["robot"].operation("filter", "set_window")(object()).result(10)
+    answers: list[Outcome] = []
+    robot, graphics = hosts.sessions["robot"], hosts.sessions["graphics"]
+    robot._waiting[999] = ("graphics", answers.append)  # a call robot made, and graphics' answer to it
+    graphics._answer("robot", Call(id=999), Outcome(True, object()))
+    assert wait_until(lambda: bool(answers))
+    assert not answers[0].ok and "the result cannot be sent to host robot" in answers[0].message
 
 
 def test_a_host_without_the_transformation_interface_looks_up_through_its_operation(hosts: Hosts) -> None:

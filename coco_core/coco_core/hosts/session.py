@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 from ..component import ErrorPolicy
-from ..errors import HostError
+from ..errors import HostError, WrongTypeError
 from ..processes.messages import Call, Damage, Message, Outcome, Result
 from ..processes.remote import serve_call, settle
 from .clock import EXCHANGES, ClockOffset, best, exchange
@@ -345,11 +345,21 @@ class HostSession:
         with self._lock:
             self._waiting[number] = (host, deliver)
         assert self.bus is not None
-        self.bus.send(host, dataclasses.replace(request, id=number))
+        try:
+            self.bus.send(host, dataclasses.replace(request, id=number))
+        except WrongTypeError as error:  # an argument that cannot cross between hosts
+            with self._lock:
+                self._waiting.pop(number, None)
+            deliver(Outcome.failure("WrongTypeError", f"the call cannot be sent to host {host}: {error}"))
 
     def _answer(self, host: str, request: Call | ClockRequest, outcome: Outcome) -> None:
-        if self.bus is not None:
+        if self.bus is None:
+            return
+        try:
             self.bus.send(host, Result(request.id, outcome))
+        except WrongTypeError as error:  # a result that cannot cross between hosts: its caller must hear so
+            self.bus.send(host, Result(request.id, Outcome.failure("WrongTypeError", f"the result cannot be sent to "
+                                                                                     f"host {host}: {error}")))
 
     # --- end ------------------------------------------------------------------------------------
     def close(self) -> None:
