@@ -23,6 +23,22 @@ setup(
     license="MIT",
     tests_require=["pytest"],
     entry_points={
+        'coco.value_types': [
+            # What may cross between hosts (coco_core.wire): the decoder of another process
+            # loads a type by its name from here, and from nowhere else.
+            'coco_core.hosts.messages.ClockRequest = coco_core.hosts.messages:ClockRequest',
+            'coco_core.hosts.messages.Heartbeat = coco_core.hosts.messages:Heartbeat',
+            'coco_core.hosts.messages.Stage = coco_core.hosts.messages:Stage',
+            'coco_core.processes.messages.Call = coco_core.processes.messages:Call',
+            'coco_core.processes.messages.Damage = coco_core.processes.messages:Damage',
+            'coco_core.processes.messages.Outcome = coco_core.processes.messages:Outcome',
+            'coco_core.processes.messages.Result = coco_core.processes.messages:Result',
+            'coco_core.stamps.Stamped = coco_core.stamps:Stamped',
+            'coco_core.stamps.UserStamps = coco_core.stamps:UserStamps',
+            'coco_core.transforms.samples.FramePose = coco_core.transforms.samples:FramePose',
+            'coco_core.transforms.samples.JointSample = coco_core.transforms.samples:JointSample',
+            'coco_core.transforms.samples.TransformSample = coco_core.transforms.samples:TransformSample',
+        ],
         'console_scripts': [
             'coco-keygen = coco_core.hosts.key:keygen',
         ],

@@ -12,6 +12,11 @@ setup(
     ],
     install_requires=["setuptools"],
     entry_points={
+        "coco.value_types": [
+            # What may cross between hosts (coco_core.wire): the decoder of another process
+            # loads a type by its name from here, and from nowhere else.
+            "coco_mr_display.mesh.MeshPart = coco_mr_display.mesh:MeshPart",
+        ],
         "coco.components": [
             "GLManager = coco_mr_display.manager:GLManager",
             "GLCameraManager = coco_mr_display.camera:GLCameraManager",

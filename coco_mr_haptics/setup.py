@@ -12,6 +12,13 @@ setup(
     ],
     install_requires=["setuptools"],
     entry_points={
+        "coco.value_types": [
+            # What may cross between hosts (coco_core.wire): the decoder of another process
+            # loads a type by its name from here, and from nowhere else.
+            "coco_mr_haptics.types.HapticDeviceState = coco_mr_haptics.types:HapticDeviceState",
+            "coco_mr_haptics.types.HapticForce = coco_mr_haptics.types:HapticForce",
+            "coco_mr_haptics.types.HapticSample = coco_mr_haptics.types:HapticSample",
+        ],
         "console_scripts": ["haptic-plot = coco_mr_haptics.plot:main"],
         "coco.components": [
             "HapticRenderer = coco_mr_haptics.renderer:HapticRenderer",

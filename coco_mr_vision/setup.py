@@ -12,6 +12,18 @@ setup(
     ],
     install_requires=["setuptools"],
     entry_points={
+        "coco.value_types": [
+            # What may cross between hosts (coco_core.wire): the decoder of another process
+            # loads a type by its name from here, and from nowhere else.
+            "coco_mr_vision.image.CameraIntrinsics = coco_mr_vision.image:CameraIntrinsics",
+            "coco_mr_vision.image.Image = coco_mr_vision.image:Image",
+            "coco_mr_vision.image.ImageFormat = coco_mr_vision.image:ImageFormat",
+            "coco_mr_vision.marker_tracker.MarkerDetections = coco_mr_vision.marker_tracker:MarkerDetections",
+            "coco_mr_vision.mesh.MeshInfo = coco_mr_vision.mesh:MeshInfo",
+            "coco_mr_vision.mesh.MeshLayout = coco_mr_vision.mesh:MeshLayout",
+            "coco_mr_vision.pointcloud.PointCloud = coco_mr_vision.pointcloud:PointCloud",
+            "coco_mr_vision.rgbd.RGBDFrame = coco_mr_vision.rgbd:RGBDFrame",
+        ],
         "coco.components": [
             "ImageConverter = coco_mr_vision.converter:ImageConverter",
             "CameraReader = coco_mr_vision.camera_reader:CameraReader",

@@ -43,6 +43,13 @@ setup(
     license="MIT",
     tests_require=["pytest"],
     entry_points={
+        "coco.value_types": [
+            # What may cross between hosts (coco_core.wire): the decoder of another process
+            # loads a type by its name from here, and from nowhere else.
+            "coco_ros.convert.joints.JointStateSample = coco_ros.convert.joints:JointStateSample",
+            "coco_ros.convert.stamps.RosTime = coco_ros.convert.stamps:RosTime",
+            "coco_ros.hosts.sample.Frame = coco_ros.hosts.sample:Frame",
+        ],
         "console_scripts": [
             "baxter-import = coco_ros.baxter.importer:main",
             "baxter-session = coco_ros.baxter.session:main",

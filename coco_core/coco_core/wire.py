@@ -15,7 +15,9 @@ few extension types:
 - the project's own value types, by the name they were registered under (:func:`value_type`): a
   dataclass, a named tuple or an enum, rebuilt by calling the class with its fields, each field
   checked against the class's annotations first (a ``JointSample`` whose positions are a string is
-  refused, not handed to a component);
+  refused, not handed to a component). A name that this process has not registered yet (the module
+  that defines it was not imported here) is looked up among the installed packages' entry points
+  of the group :data:`GROUP`, and only there: a name from the network never imports anything else;
 - whatever a codec adds (:class:`Encoder`'s ``extensions``: the RGB-D stream codec's JPEG and
   Zstandard images).
 
@@ -41,8 +43,13 @@ from typing import Any
 import msgpack
 import numpy as np
 
+from importlib.metadata import EntryPoint, entry_points
+
 from .errors import DeclarationError, PacketError, WrongTypeError
 from .stamps import NO_USER_STAMPS, Stamp, Stamped, UserStamps
+
+GROUP = "coco.value_types"
+"""The entry point group that lists every value type of a package (name = ``module:Class``)."""
 
 Clock = Callable[[float], float]
 """Converts a time in seconds from one clock to another (this process's ``perf_counter`` to the
@@ -96,7 +103,9 @@ def value_type(cls: type | None = None, *, name: str = "", reduce: Callable[[Any
     """Register ``cls`` as a value type that may cross between hosts (a class decorator; put it
     above ``@dataclass``). A dataclass crosses as its ``init`` fields, a named tuple as its fields,
     an enum as its value; any other class needs ``reduce`` (the values) and ``build`` (the class
-    from them). ``name`` defaults to the module and qualified name of the class."""
+    from them). ``name`` defaults to the module and qualified name of the class. List it in its
+    package's entry points too (group :data:`GROUP`, ``module.Class = module:Class``), so that a
+    process that has not imported its module yet can read it."""
 
     def register(registered: type) -> type:
         fields: tuple[str, ...] = ()
@@ -336,10 +345,27 @@ class _Reading:
                      UserStamps(user) if user else NO_USER_STAMPS)
 
 
-def _build(name: str, values: list[Any]) -> Any:
+@functools.cache
+def installed_value_types() -> dict[str, EntryPoint]:
+    """The value types the installed packages declare (:data:`GROUP`), by name."""
+    return {point.name: point for point in entry_points(group=GROUP)}
+
+
+def _registration(name: str) -> ValueType | None:
+    """The value type registered as ``name``, its module imported first when only an installed
+    package's entry point names it."""
     entry = _BY_NAME.get(name)
+    if entry is None and (point := installed_value_types().get(name)) is not None:
+        point.load()  # its module registers it (@value_type)
+        entry = _BY_NAME.get(name)
+    return entry
+
+
+def _build(name: str, values: list[Any]) -> Any:
+    entry = _registration(name)
     if entry is None:
-        raise PacketError("garbage", f"a value of type {name!r}, which is not a registered value type here")
+        raise PacketError("garbage", f"a value of type {name[:100]!r}, which is not a registered value type here "
+                                     f"(entry points {GROUP})")
     hints = entry.hints
     if hints:
         if len(values) != len(entry.fields):
@@ -364,7 +390,7 @@ def conforms(value: Any, hint: Any) -> bool:
     if hint is Any or hint is object or isinstance(hint, typing.TypeVar):
         return True
     if hint is float:
-        return type(value) in (float, int) or isinstance(value, np.floating)
+        return isinstance(value, (float, int, np.floating))
     if hint is None or hint is type(None):
         return value is None
     origin = typing.get_origin(hint)

@@ -157,3 +157,43 @@ def test_conforms_and_crossing_problem_read_annotations_and_port_types() -> None
     assert crossing_problem(Stamped | FramePose) == "" and crossing_problem(object) == ""
     assert crossing_problem(float | int | np.ndarray) == ""
     assert "test_wire.Unregistered is not a registered value type" in crossing_problem(Unregistered | float)
+
+
+def test_every_value_type_of_the_installed_packages_is_in_their_entry_points() -> None:
+    """A reader's process finds a type it has not imported through the entry points alone: every
+    type the packages register must be listed there, under its registered name."""
+    import importlib
+    import pkgutil
+
+    from coco_core import wire
+
+    for package in ("coco_core", "coco_ros", "coco_mr_vision", "coco_mr_haptics", "coco_mr_display"):
+        try:
+            root = importlib.import_module(package)
+        except ImportError:  # a package this test's environment does not have
+            continue
+        for module in pkgutil.walk_packages(root.__path__, f"{package}."):
+            if ".test" not in module.name:
+                try:
+                    importlib.import_module(module.name)
+                except ImportError:  # a module that needs what this environment lacks (a display...)
+                    pass
+    installed = wire.installed_value_types()
+    missing = [name for name, entry in wire._BY_NAME.items()
+               if entry.cls.__module__ != __name__ and (name not in installed or installed[name].load() is not entry.cls)]
+    assert missing == []
+
+
+def test_a_type_whose_module_was_not_imported_is_found_by_its_entry_point() -> None:
+    """A reader's process that never imported coco_core.transforms.samples still reads a
+    JointSample: the decoder loads its module through the package's entry point."""
+    import subprocess
+    import sys
+
+    data = Encoder().encode(JointSample(("a",), np.array([0.5]), 1.0))
+    reader = ("import sys\nfrom coco_core.wire import Decoder\n"
+              "assert 'coco_core.transforms.samples' not in sys.modules\n"
+              "print(repr(Decoder().decode(sys.stdin.buffer.read())))")
+    done = subprocess.run([sys.executable, "-c", reader], input=data, capture_output=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert b"JointSample(names=('a',), positions=array([0.5]), stamp=1.0)" in done.stdout

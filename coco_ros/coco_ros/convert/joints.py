@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from coco_core.errors import MessageError
 from coco_core.transforms.samples import JointSample
+from coco_core.wire import value_type
 from sensor_msgs.msg import JointState
 
 from .base import Converter, header_stamp, make_header, typed_array
@@ -25,6 +26,7 @@ _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
 
 
+@value_type
 @dataclass(frozen=True, slots=True)
 class JointStateSample(JointSample):
     """A :class:`JointSample` with the optional velocities and efforts of a JointState, in the order

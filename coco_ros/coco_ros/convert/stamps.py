@@ -28,6 +28,7 @@ from typing import Any
 
 from builtin_interfaces.msg import Time
 from coco_core.errors import MessageError
+from coco_core.wire import value_type
 
 _NS = 1_000_000_000
 _INT32 = 2**31
@@ -60,6 +61,9 @@ class RosTime(float):
 
     def __repr__(self) -> str:
         return f"RosTime(sec={self.sec}, nanosec={self.nanosec})"
+
+
+value_type(RosTime, reduce=lambda time: (time.sec, time.nanosec), build=RosTime)
 
 
 def time_to_seconds(stamp: Time) -> RosTime | None:
