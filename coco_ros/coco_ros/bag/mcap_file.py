@@ -16,6 +16,12 @@ with its log-time range and channels:
   not MCAP data and is not read, so a file that is mostly not MCAP is refused in a moment however
   large it is. A chunk that is complete but does not decompress is skipped and the scan goes on
   after it, since its length still says where the next record starts.
+  A chunk cut by the end of the file still gives its complete records when it is uncompressed (its
+  records are plain bytes up to the cut). A chunk that repeats an earlier one byte for byte (a
+  duplicated copy) is skipped and reported, so that no message is delivered twice. A data section
+  that ends without its DataEnd record (cut exactly at a record boundary, or a writer killed) is
+  recorded in :attr:`McapFile.unfinished_at`: only the bag's ``metadata.yaml`` can tell whether
+  anything is missing, so :class:`~.reader.BagReader` reports that damage, saying which.
 - A chunk whose CRC does not match its records (a damaged byte) is read record by record
   (:func:`_resynchronised`): the records are length-prefixed, so a record whose framing or message
   header is damaged costs itself only and reading resumes at the next record that checks; the chunk
@@ -23,12 +29,6 @@ with its log-time range and channels:
 - A file whose data section is whole but whose summary is damaged (no footer, a summary that does
   not match its CRC or does not parse) is read by scanning, and the damage is reported: nothing is
   lost, but the file is not what its writer wrote.
-  A chunk cut by the end of the file still gives its complete records when it is uncompressed (its
-  records are plain bytes up to the cut). A chunk that repeats an earlier one byte for byte (a
-  duplicated copy) is skipped and reported, so that no message is delivered twice. A data section
-  that ends without its DataEnd record (cut exactly at a record boundary, or a writer killed) is
-  recorded in :attr:`McapFile.unfinished_at`: only the bag's ``metadata.yaml`` can tell whether
-  anything is missing, so :class:`~.reader.BagReader` decides whether it is damage.
 
 Messages are then merged across blocks in log-time order (blocks are loaded lazily, when the next
 message could come from them), so a replay holds one or two chunks in memory, not the file.
@@ -339,9 +339,10 @@ class McapFile:
         self.metadata: dict[str, dict[str, str]] = {}
         self.blocks: list[Block] = []
         self.errors: list[BagError] = []
-        """Damage found while opening: data that is lost (reported after the readable messages)."""
+        """Damage found while opening: data that is lost, or a file that is not what its writer wrote
+        (a damaged summary); reported after the readable messages."""
         self.notes: list[str] = []
-        """What was recovered without loss, e.g. a summary rebuilt by scanning."""
+        """What a writer may leave that costs nothing, e.g. a file without a summary section, scanned."""
         self.indexed_by = ""
         """'summary' or 'scan': where the block table came from."""
         self.unfinished_at: int | None = None

@@ -361,7 +361,7 @@ class BagReader:
 
     @property
     def notes(self) -> list[str]:
-        """Recoveries that lost nothing, e.g. a missing summary rebuilt by scanning."""
+        """What a writer may leave that costs nothing, e.g. a file without a summary section, scanned."""
         return [f"{f.path}: {note}" for f in self._files for note in f.notes]
 
     def latched_topics(self) -> list[str]:
