@@ -71,6 +71,12 @@ SKIPPED_RUN = 4096
 """Records in a row that the scan skips (private opcodes, message indexes, attachments) after which the
 rest of the file is taken for what is not MCAP data: a bag has a few per chunk, zeros or noise framed
 as tiny records would otherwise be walked nine bytes at a time, for minutes."""
+RECORD_LIMIT = 64 << 20
+"""The largest Schema, Channel or Metadata record the scan reads (a message definition is kilobytes):
+a larger one is taken for what is not MCAP data rather than read into memory."""
+_CHUNK_SLACK = 4096
+"""Bytes a Chunk record may hold after its records (fields of a later MCAP version) before the scan
+takes it for what is not MCAP data."""
 _USED = frozenset({Opcode.MESSAGE, Opcode.CHUNK, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.METADATA})
 """Data-section records the scan takes something from."""
 _IN_CHUNK = frozenset({Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE})
@@ -593,6 +599,10 @@ class McapFile:
                     run.channels = (run.channels or frozenset()) | {message.channel_id}
                 if run is not None:
                     run.length = next_position - run.offset
+            elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.METADATA) and length > RECORD_LIMIT:
+                self._damage(position, self._not_mcap(position, f"a {opcode_name(opcode)} record declares {length} "
+                                                                f"bytes, more than the {RECORD_LIMIT} any bag needs"))
+                break
             elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
                 try:
                     self._register(opcode, self._read(length, body_start))
@@ -602,6 +612,10 @@ class McapFile:
                     run.length = next_position - run.offset
             elif opcode == Opcode.CHUNK:
                 close_run()
+                unframed = self._chunk_unframed(body_start, length)
+                if unframed:
+                    self._damage(position, self._not_mcap(position, unframed))
+                    break
                 self._scan_chunk(position, length, body_start)
             elif opcode == Opcode.METADATA:
                 try:
@@ -615,6 +629,20 @@ class McapFile:
             position = next_position
         close_run()
         return False
+
+    def _chunk_unframed(self, body_start: int, length: int) -> str:
+        """Why the Chunk record of ``length`` bytes at ``body_start`` is not one, from its fields alone
+        (read before its body, which may be gigabytes of what is not MCAP data); '' when it is."""
+        if length < _CHUNK_HEAD.size:
+            return f"a Chunk record of {length} bytes, too short for its fields"
+        name_length = _CHUNK_HEAD.unpack(self._read(_CHUNK_HEAD.size, body_start))[4]
+        records_at = _CHUNK_HEAD.size + name_length + 8
+        if records_at > length:
+            return f"a Chunk record of {length} bytes, too short for its fields ({records_at} bytes)"
+        (records,) = struct.unpack("<Q", self._read(8, body_start + records_at - 8))
+        if records_at + records > length or length - records_at - records > _CHUNK_SLACK:
+            return f"a Chunk record of {length} bytes whose fields account for {records_at + records} of them"
+        return ""
 
     def _not_mcap(self, position: int, what: str) -> str:
         return (f"{what}: the data section breaks off and the remaining {self.size - position} bytes of the file "
