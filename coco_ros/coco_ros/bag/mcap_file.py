@@ -73,10 +73,10 @@ rest of the file is taken for what is not MCAP data: a bag has a few per chunk, 
 as tiny records would otherwise be walked nine bytes at a time, for minutes."""
 RECORD_LIMIT = 64 << 20
 """The largest Schema, Channel or Metadata record the scan reads (a message definition is kilobytes):
-a larger one is taken for what is not MCAP data rather than read into memory."""
+a larger one is damage, skipped unread rather than read into memory."""
 _CHUNK_SLACK = 4096
 """Bytes a Chunk record may hold after its records (fields of a later MCAP version) before the scan
-takes it for what is not MCAP data."""
+takes it for damage and skips it unread: a chunk's fields are read before its body."""
 _USED = frozenset({Opcode.MESSAGE, Opcode.CHUNK, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.METADATA})
 """Data-section records the scan takes something from."""
 _IN_CHUNK = frozenset({Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE})
@@ -543,8 +543,7 @@ class McapFile:
         whether it ended at its DataEnd record (or a Footer) rather than at damage or the file's end."""
         self.indexed_by = "scan"
         run: Block | None = None
-        skipped, skipped_from = 0, position
-        """Records in a row that gave nothing (see SKIPPED_RUN), since byte ``skipped_from``."""
+        skipped, skipped_from = 0, position  # records in a row that gave nothing (SKIPPED_RUN), since byte skipped_from
 
         def close_run() -> None:
             nonlocal run
@@ -600,9 +599,8 @@ class McapFile:
                 if run is not None:
                     run.length = next_position - run.offset
             elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.METADATA) and length > RECORD_LIMIT:
-                self._damage(position, self._not_mcap(position, f"a {opcode_name(opcode)} record declares {length} "
-                                                                f"bytes, more than the {RECORD_LIMIT} any bag needs"))
-                break
+                self._damage(position, f"this {opcode_name(opcode)} record declares {length} bytes, more than the "
+                                       f"{RECORD_LIMIT} any bag needs; skipped it unread")
             elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
                 try:
                     self._register(opcode, self._read(length, body_start))
@@ -614,9 +612,9 @@ class McapFile:
                 close_run()
                 unframed = self._chunk_unframed(body_start, length)
                 if unframed:
-                    self._damage(position, self._not_mcap(position, unframed))
-                    break
-                self._scan_chunk(position, length, body_start)
+                    self._damage(position, f"{unframed}; skipped it unread, the messages it held are lost")
+                else:
+                    self._scan_chunk(position, length, body_start)
             elif opcode == Opcode.METADATA:
                 try:
                     record = _parse(Metadata, self._read(length, body_start))
@@ -634,14 +632,14 @@ class McapFile:
         """Why the Chunk record of ``length`` bytes at ``body_start`` is not one, from its fields alone
         (read before its body, which may be gigabytes of what is not MCAP data); '' when it is."""
         if length < _CHUNK_HEAD.size:
-            return f"a Chunk record of {length} bytes, too short for its fields"
+            return f"this Chunk record of {length} bytes is too short for its fields"
         name_length = _CHUNK_HEAD.unpack(self._read(_CHUNK_HEAD.size, body_start))[4]
         records_at = _CHUNK_HEAD.size + name_length + 8
         if records_at > length:
-            return f"a Chunk record of {length} bytes, too short for its fields ({records_at} bytes)"
+            return f"this Chunk record of {length} bytes is too short for its fields ({records_at} bytes)"
         (records,) = struct.unpack("<Q", self._read(8, body_start + records_at - 8))
         if records_at + records > length or length - records_at - records > _CHUNK_SLACK:
-            return f"a Chunk record of {length} bytes whose fields account for {records_at + records} of them"
+            return f"the fields of this Chunk record of {length} bytes account for {records_at + records} of them"
         return ""
 
     def _not_mcap(self, position: int, what: str) -> str:
