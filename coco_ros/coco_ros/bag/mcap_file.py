@@ -543,7 +543,7 @@ class McapFile:
         whether it ended at its DataEnd record (or a Footer) rather than at damage or the file's end."""
         self.indexed_by = "scan"
         run: Block | None = None
-        skipped, skipped_from = 0, position  # records in a row that gave nothing (SKIPPED_RUN), since byte skipped_from
+        skipped, skipped_from = 0, position  # records in a row that gave nothing (SKIPPED_RUN), from where
 
         def close_run() -> None:
             nonlocal run

@@ -157,8 +157,9 @@ class BagReader:
             # The storage files carry the messages: they are read, and the bag is damaged.
             if not any(path.glob("*.mcap")):
                 raise
-            self._found.append(BagError(error.path, f"{error.detail}: the folder's .mcap files are read, but nothing says "
-                                              "how many messages were recorded, so a loss would not show"))
+            self._found.append(BagError(error.path, f"{error.detail}: the folder's .mcap files are read, but "
+                                                    "nothing says how many messages were recorded, so a loss would "
+                                                    "not show"))
         if self.metadata is None:
             files = sorted(path.glob("*.mcap"), key=_file_index)
             if not files:
@@ -166,10 +167,10 @@ class BagReader:
                     path, "not a bag folder: expected metadata.yaml or at least one .mcap file in it"
                 )
             if not self._found:
-                self._found.append(BagError(path / "metadata.yaml", "missing: a rosbag2 bag folder has one, written by its "
-                                      f"recorder; the folder's {len(files)} .mcap file(s) are read, but nothing says "
-                                      "how many messages were recorded, so a loss would not show (name an .mcap file "
-                                      "itself to read a file without its folder)"))
+                self._found.append(BagError(
+                    path / "metadata.yaml", "missing: a rosbag2 bag folder has one, written by its recorder; the "
+                    f"folder's {len(files)} .mcap file(s) are read, but nothing says how many messages were recorded, "
+                    "so a loss would not show (name an .mcap file itself to read a file without its folder)"))
             return files
         meta = self.metadata
         if meta.storage_identifier and meta.storage_identifier != "mcap":
