@@ -266,9 +266,13 @@ def failure(prog: str, error: CocoError) -> int:
 
 def stopped_by_a_failure(app: Application) -> bool:
     """Whether a component's error stopped the application (its ``on_error`` policy), damaged input
-    was found (:attr:`Application.damage`, e.g. a truncated bag), or an activity failed
-    (:attr:`Activity.failure`): the launcher then exits with 1, so that scripts notice."""
+    was found (:attr:`Application.damage`, e.g. a truncated bag), a component refused input samples
+    (the profile's ``refused`` column: a NaN joint value, a malformed message) or an activity failed
+    (:attr:`Activity.failure`): the launcher then exits with 1, so that scripts notice. A child
+    process decides its own status with this function, and a child's 1 fails the launch too."""
     if app.damage or any(activity.failure for activity in app.activities.values()):
+        return True
+    if any(component.stats.refused for component in app.components.values()):
         return True
     return any(c.stats.errors for c in app.components.values()) and app.stop_reason.startswith("component")
 

@@ -400,6 +400,21 @@ def test_a_refused_sample_does_not_discard_the_rest_of_its_cycle(make_app, wait_
     assert connection.counters()["read"] == 10 and connection.counters()["dropped"] == 0
 
 
+def test_a_refused_joint_sample_makes_the_launch_fail(make_app, wait_until):
+    """A NaN joint value refused by the interface (the Baxter replay's ``tf``) is damaged input: the
+    launcher's exit status is 1, as the README says of refused input (it was counted, and exited 0)."""
+    from coco_core.launcher import stopped_by_a_failure
+
+    app, source, interface, _ = build(make_app, outputs=["hand=base:hand"])
+    app.transforms.add_axis("base", "hand", "shoulder", "revolute")
+    app.start()
+    send(source, "js", JointSample(("shoulder",), np.array([math.nan])))
+    assert wait_until(lambda: interface.stats.refused == 1)
+    app.request_stop("test")
+    assert app.stop()
+    assert not app.damage and stopped_by_a_failure(app)
+
+
 def test_non_finite_transform_samples_are_refused_and_counted(make_app, wait_until):
     app, source, interface, sink = build(make_app, outputs=["obj=world:obj"])
     app.start()

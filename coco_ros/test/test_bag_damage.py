@@ -117,17 +117,38 @@ def test_truncated_files_yield_everything_before_the_cut_then_name_file_and_byte
         reader.close()
 
 
-def test_a_cut_in_the_summary_loses_no_message(intact, tmp_path):
+def test_a_cut_in_the_summary_loses_no_message_and_is_damage(intact, tmp_path):
+    """Every message is read by scanning, then an error names the missing footer at the file's end:
+    a file whose end is gone is not what its writer wrote (``truncate -s -100`` exited 0)."""
     path, messages, chunks = intact
     data = path.read_bytes()
     last = chunks[-1]
-    for cut in (last.chunk_start_offset + last.chunk_length + last.message_index_length + 20, len(data) - 10):
+    for cut in (last.chunk_start_offset + last.chunk_length + last.message_index_length + 20, len(data) - 10,
+                len(data) - 100):
         damaged = tmp_path / f"summary_cut_{cut}.mcap"
         damaged.write_bytes(data[:cut])
         got, error, reader = read_all(damaged)
-        assert got == messages and error is None
-        assert reader.notes and "no MCAP footer" in reader.notes[0]
+        assert got == messages and error is not None, cut
+        assert error.path == str(damaged) and error.offset == cut and "no MCAP footer" in str(error), error
+        assert f"its {COUNT} messages are readable" in str(error)
         reader.close()
+
+
+def test_a_summary_that_does_not_match_its_crc_is_damage(intact, tmp_path):
+    """One byte of the summary section flipped: every message is read by scanning, and an error names
+    the summary (it was a note)."""
+    import struct
+
+    path, messages, _ = intact
+    data = bytearray(path.read_bytes())
+    (summary_start,) = struct.unpack_from("<Q", data, len(data) - 8 - 20)  # the Footer's first field
+    data[summary_start + 12] ^= 0x01
+    damaged = tmp_path / "summary_crc.mcap"
+    damaged.write_bytes(bytes(data))
+    got, error, reader = read_all(damaged)
+    reader.close()
+    assert got == messages and error is not None and error.path == str(damaged)
+    assert f"the summary section (from byte {summary_start}) does not match its CRC" in str(error), error
 
 
 def test_on_error_callback_reports_instead_of_raising(intact, tmp_path):
@@ -141,20 +162,76 @@ def test_on_error_callback_reports_instead_of_raising(intact, tmp_path):
     assert len(reported) == 1 and reported[0].offset == chunks[3].chunk_start_offset
 
 
-def test_a_corrupt_chunk_in_a_complete_file_costs_only_its_messages(intact, tmp_path):
+def read_raw(path: Path) -> tuple[list[tuple[str, int, bytes]], list[BagError]]:
+    """Every message as (topic, log time, CDR bytes), nothing decoded, and the errors reported."""
+    reported: list[BagError] = []
+    with BagReader(path, on_error=reported.append) as reader:
+        return [(m.topic, m.log_time, m.data) for m in reader.messages()], reported
+
+
+def test_a_corrupt_chunk_in_a_complete_file_costs_only_the_damaged_message(intact, tmp_path):
+    """A byte flipped in a message's data: the chunk's CRC no longer matches. A compressed chunk no
+    longer decompresses and its messages are lost; the records of an uncompressed one are read one by
+    one and each is delivered (the damaged value is its converter's to refuse), and the chunk is
+    reported (the whole chunk was dropped: 1,035 of 1,044 samples)."""
     path, messages, chunks = intact
     data = bytearray(path.read_bytes())
     bad = chunks[2]
-    position = bad.chunk_start_offset + bad.chunk_length - 20  # inside the chunk's data
+    position = bad.chunk_start_offset + bad.chunk_length - 20  # inside the chunk's last message's data
+    intact_raw, _ = read_raw(path)
     data[position] ^= 0xFF
     damaged = tmp_path / "corrupt.mcap"
     damaged.write_bytes(bytes(data))
-    got, error, reader = read_all(damaged)
-    lost = [m for m in messages if bad.message_start_time <= m[1] <= bad.message_end_time]
-    assert lost and got == [m for m in messages if m not in lost]
-    assert error is not None and error.offset == bad.chunk_start_offset
-    assert "Chunk" in str(error) and "lost" in str(error)
-    reader.close()
+    got, reported = read_raw(damaged)
+    in_chunk = [m for m in intact_raw if bad.message_start_time <= m[1] <= bad.message_end_time]
+    assert len(reported) == 1 and reported[0].offset == bad.chunk_start_offset and reported[0].path == str(damaged)
+    if bad.compression:
+        assert got == [m for m in intact_raw if m not in in_chunk]
+        assert "Chunk" in str(reported[0]) and "lost" in str(reported[0])
+        return
+    assert [m[:2] for m in got] == [m[:2] for m in intact_raw]
+    assert [i for i, (a, b) in enumerate(zip(got, intact_raw)) if a != b] == [intact_raw.index(in_chunk[-1])]
+    assert "CRC does not match" in str(reported[0]) and f"0 of the {len(in_chunk)} messages" in str(reported[0])
+    assert "the damage is inside a message's data" in str(reported[0])
+
+
+def message_records(data: bytes, chunk) -> list[int]:
+    """File offsets of the Message records inside an uncompressed chunk."""
+    import struct
+
+    name_length = struct.unpack_from("<I", data, chunk.chunk_start_offset + 9 + 28)[0]
+    position = chunk.chunk_start_offset + 9 + 32 + name_length + 8
+    end = chunk.chunk_start_offset + chunk.chunk_length
+    found = []
+    while position < end:
+        opcode, length = struct.unpack_from("<BQ", data, position)
+        if opcode == 0x05:
+            found.append(position)
+        position += 9 + length
+    return found
+
+
+@pytest.mark.parametrize("field, at", [("opcode", 0), ("length", 1), ("channel id", 9), ("log time", 9 + 2 + 4 + 7)])
+def test_a_damaged_record_in_a_chunk_costs_that_message_only(intact, tmp_path, field, at):
+    """A byte of one message record's framing or header damaged (the chunk's CRC then fails): the
+    records are length-prefixed, so reading resumes at the next record that checks; that message is
+    lost, and the error counts it against the chunk's message index."""
+    path, messages, chunks = intact
+    chunk = chunks[2]
+    if chunk.compression:
+        pytest.skip("a compressed chunk whose data changed does not decompress: its records cannot be reached")
+    data = bytearray(path.read_bytes())
+    victim = message_records(bytes(data), chunk)[3]
+    data[victim + at] ^= 0x40
+    damaged = tmp_path / "record.mcap"
+    damaged.write_bytes(bytes(data))
+    intact_raw, _ = read_raw(path)
+    got, reported = read_raw(damaged)
+    in_chunk = [m for m in intact_raw if chunk.message_start_time <= m[1] <= chunk.message_end_time]
+    assert got == [m for m in intact_raw if m != in_chunk[3]], field
+    assert len(reported) == 1 and reported[0].offset == chunk.chunk_start_offset, reported
+    assert f"1 of the {len(in_chunk)} messages its index lists are lost" in str(reported[0]), reported[0]
+    assert "records skipped at bytes" in str(reported[0])
 
 
 def test_not_mcap_files_are_refused_at_once(tmp_path):
@@ -191,7 +268,9 @@ def test_metadata_yaml_problems_name_the_file(tmp_path):
         BagReader(folder)
 
 
-def test_a_broken_metadata_yaml_beside_good_files_costs_nothing(tmp_path):
+def test_a_broken_or_missing_metadata_yaml_beside_good_files_is_damage(tmp_path):
+    """The .mcap files are read, then an error names metadata.yaml: without its counts a loss would not
+    show (a deleted metadata.yaml exited 0)."""
     from std_msgs.msg import String
 
     folder = tmp_path / "bag"
@@ -199,9 +278,92 @@ def test_a_broken_metadata_yaml_beside_good_files_costs_nothing(tmp_path):
         writer.write("/a", String(data="a"), T0)
     text = (folder / "metadata.yaml").read_text()
     (folder / "metadata.yaml").write_text(text[: len(text) // 2] + "\n  - [unbalanced")
-    with BagReader(folder) as reader:
+    reported: list[BagError] = []
+    with BagReader(folder, on_error=reported.append) as reader:
         assert [m.message.data for m in reader.messages()] == ["a"]
-        assert reader.metadata is None and "metadata.yaml: cannot read it as YAML" in reader.notes[0]
+        assert reader.metadata is None and reader.damaged
+    assert [e.path for e in reported] == [str(folder / "metadata.yaml")]
+    assert "cannot read it as YAML" in str(reported[0]) and "a loss would not show" in str(reported[0])
+    (folder / "metadata.yaml").unlink()
+    got, error, reader = read_all(folder)
+    reader.close()
+    assert [m[2] for m in got] == ["a"] and error is not None and error.path == str(folder / "metadata.yaml")
+    assert "missing: a rosbag2 bag folder has one" in str(error) and "1 .mcap file(s) are read" in str(error)
+    with BagReader(folder / "bag_0.mcap") as reader:  # the file alone: a file, not a folder, is asked for
+        assert [m.message.data for m in reader.messages()] == ["a"] and not reader.damaged
+
+
+def sparse_bag(path: Path, size: int, tail: bytes = b"") -> Path:
+    """An MCAP magic and Header record, ``tail`` after them, then zeros up to ``size`` bytes, stored
+    sparse (``truncate``): no disk, no time."""
+    import struct
+
+    header = struct.pack("<I", 4) + b"ros2" + struct.pack("<I", 4) + b"test"
+    with open(path, "wb") as stream:
+        stream.write(b"\x89MCAP0\r\n" + struct.pack("<BQ", 0x01, len(header)) + header + tail)
+    os.truncate(path, max(size, path.stat().st_size))
+    return path
+
+
+def open_within(path: Path, seconds: float) -> tuple[BagReader, float]:
+    """Open ``path``; a real SIGALRM ends the opening if it takes longer than ``seconds``."""
+    import time
+
+    def expired(_signum, _frame):
+        raise TimeoutError(f"opening {path} took more than {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    started = time.monotonic()
+    try:
+        return BagReader(path), time.monotonic() - started
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def test_a_large_file_that_is_mostly_not_mcap_is_refused_at_once(tmp_path):
+    """A valid Header, then 2 GB of zeros: the scan walked them nine bytes at a time (over 10 minutes at
+    100 % CPU). A reserved opcode ends the data section: the error names the byte and the bytes not read."""
+    path = sparse_bag(tmp_path / "zeros.mcap", 2 << 30)
+    reader, took = open_within(path, 5.0)
+    with reader:
+        assert took < 2.0 and reader.message_count == 0
+        assert [e.offset for e in reader.errors] == [33]
+        assert "opcode 0x00 is reserved" in str(reader.errors[0])
+        assert f"the remaining {(2 << 30) - 33} bytes of the file are not MCAP data" in str(reader.errors[0])
+        with pytest.raises(BagError, match="not MCAP data"):
+            list(reader.messages())
+
+
+@pytest.mark.parametrize("opcode", [0x06, 0x03, 0x0C])
+def test_a_record_that_declares_the_whole_file_is_refused_before_it_is_read(tmp_path, opcode):
+    """A Chunk, Schema or Metadata record declaring 2 GB of zeros: the Chunk's own fields account for
+    none of them, and no schema or metadata is that large, so it is skipped unread, named as damage
+    (15 s and 2 GB of memory for the chunk, which then passed as an empty one)."""
+    import struct
+
+    size = 2 << 30
+    path = sparse_bag(tmp_path / "declared.mcap", size, struct.pack("<BQ", opcode, size - 33 - 9))
+    reader, took = open_within(path, 5.0)
+    with reader:
+        assert took < 2.0 and [e.offset for e in reader.errors][:1] == [33], reader.errors
+        assert "skipped it unread" in str(reader.errors[0]) and str(size - 33 - 9) in str(reader.errors[0])
+        assert reader.damaged and reader.message_count == 0
+
+
+def test_a_run_of_records_that_hold_no_message_is_refused_at_once(tmp_path):
+    """Noise framed as tiny private records (opcode 0x80, 0 bytes each) for 50 MB: refused after
+    SKIPPED_RUN of them, at the byte where the run began."""
+    import struct
+
+    from coco_ros.bag.mcap_file import SKIPPED_RUN
+
+    path = sparse_bag(tmp_path / "private.mcap", 50 << 20, struct.pack("<BQ", 0x80, 0) * (SKIPPED_RUN + 10))
+    reader, took = open_within(path, 5.0)
+    with reader:
+        assert took < 2.0 and [e.offset for e in reader.errors] == [33], reader.errors
+        assert f"{SKIPPED_RUN + 1} records in a row from here" in str(reader.errors[0])
 
 
 def test_an_empty_or_tiny_file_reads_as_nothing_with_an_error(tmp_path):
@@ -264,8 +426,8 @@ def stop(child: subprocess.Popen, signal_number: int) -> None:
 
 
 def test_a_killed_writer_leaves_a_bag_that_reads_up_to_its_last_flush(tmp_path):
-    """Everything flushed is read; that the data section ends without its DataEnd record is damage
-    (the messages written after the last flush are lost, and no metadata.yaml says how many)."""
+    """Everything flushed is read; that metadata.yaml is missing and that the data section ends without
+    its DataEnd record is damage (the messages written after the last flush are lost)."""
     folder = tmp_path / "killed"
     child, flushed, _ = start_writer(folder)
     stop(child, signal.SIGKILL)
@@ -273,11 +435,11 @@ def test_a_killed_writer_leaves_a_bag_that_reads_up_to_its_last_flush(tmp_path):
     reported: list[BagError] = []
     with BagReader(folder, on_error=reported.append) as reader:  # no metadata.yaml: the folder's .mcap is found
         values = [int(m.message.data) for m in reader.messages()]
-        assert any("no MCAP footer" in note for note in reader.notes)
     assert values == list(range(flushed))
     size = (folder / "killed_0.mcap").stat().st_size
-    assert len(reported) == 1 and reported[0].offset == size, reported
-    assert "without its DataEnd record" in str(reported[0]) and f"the {flushed} messages before" in str(reported[0])
+    assert [(e.path, e.offset) for e in reported] == [(str(folder / "metadata.yaml"), None),
+                                                      (str(folder / "killed_0.mcap"), size)], reported
+    assert "without its DataEnd record" in str(reported[1]) and f"the {flushed} messages before" in str(reported[1])
 
 
 def test_ctrl_c_closes_the_bag_completely(tmp_path):
@@ -331,8 +493,9 @@ def test_damaged_bag_matrix_every_loss_is_an_error_naming_what_is_lost(intact, t
             got, error, reader = read_all(target)
             reader.close()
             assert got == readable, (cut, target)
-            if len(readable) == COUNT:
-                assert error is None, (cut, error)
+            if len(readable) == COUNT:  # the end of the file is gone all the same: damage that says so
+                assert error is not None and ("no message is missing" in str(error)
+                                              or f"its {COUNT} messages are readable" in str(error)), (cut, error)
                 continue
             assert error is not None, f"cut at byte {cut} loses {COUNT - len(readable)} messages without an error"
             assert str(folder) in str(error)
@@ -376,25 +539,28 @@ def test_a_folder_cut_at_a_chunk_boundary_without_metadata_is_damage(intact, tmp
     data = path.read_bytes()
     cut = chunks[2].chunk_start_offset
     folder = bag_folder(tmp_path, "cut", data[:cut], None)
-    got, error, reader = read_all(folder)
-    reader.close()
+    reported: list[BagError] = []
+    with BagReader(folder, on_error=reported.append) as reader:
+        got = [(m.topic, m.log_time, m.message.data) for m in reader.messages()]
     assert got == messages[:readable_before(data, messages, chunks, cut)] and got
-    assert error is not None and error.path == str(folder / "bag_0.mcap") and error.offset == cut, error
-    assert f"at byte {cut}" in str(error) and "without its DataEnd record" in str(error)
-    assert f"the {len(got)} messages before this point are readable" in str(error)
+    assert [(e.path, e.offset) for e in reported] == [(str(folder / "metadata.yaml"), None),
+                                                      (str(folder / "bag_0.mcap"), cut)], reported
+    assert f"at byte {cut}" in str(reported[1]) and "without its DataEnd record" in str(reported[1])
+    assert f"the {len(got)} messages before this point are readable" in str(reported[1])
 
 
-def test_a_file_that_ends_before_its_data_end_loses_nothing_when_metadata_counts_say_so(intact, tmp_path):
+def test_a_file_cut_right_after_its_last_chunk_is_damage_that_says_nothing_is_lost(intact, tmp_path):
     """The same end of the data (every chunk there, DataEnd and summary gone) with metadata.yaml's counts
-    all readable: nothing is missing, so it is a note."""
+    all readable: every message is read, then an error names the byte where the data ends and says that
+    metadata.yaml's counts show no message missing (it was a note, and a replay exited 0)."""
     path, messages, chunks = intact
     data = path.read_bytes()
     data_end = next(offset for offset, opcode in top_level_records(data) if opcode == 0x0F)
     folder = bag_folder(tmp_path, "complete", data[:data_end], (path.parent / "metadata.yaml").read_text())
     got, error, reader = read_all(folder)
-    assert got == messages and error is None
-    assert any("no message is missing" in note for note in reader.notes), reader.notes
     reader.close()
+    assert got == messages and error is not None and error.offset == data_end
+    assert "without its DataEnd record" in str(error) and "no message is missing" in str(error), error
 
 
 def test_a_duplicated_chunk_is_read_once_and_reported(intact, tmp_path):

@@ -169,6 +169,37 @@ def test_damaged_bags_that_exited_0_exit_1_naming_file_and_byte(chatter_bag, tmp
             assert published > before, result.stderr
 
 
+def test_damage_that_loses_no_message_exits_1_naming_what_is_missing(chatter_bag, tmp_path):
+    """Issue 36's silent exits 0: the footer cut (``truncate -s -100``), the file cut right after its
+    last chunk, metadata.yaml deleted. Every message is published, then the exit status is 1 and the
+    error names the footer, the byte where the data ends, or metadata.yaml."""
+    import shutil
+
+    from mcap.reader import make_reader
+
+    mcap = chatter_bag / "chatter_0.mcap"
+    data = mcap.read_bytes()
+    with mcap.open("rb") as stream:
+        last = max(make_reader(stream).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    after_last = last.chunk_start_offset + last.chunk_length + last.message_index_length
+    kinds = {  # name: (the .mcap file's bytes, with metadata.yaml, what the error names)
+        "footer cut": (data[:-100], True, f"{mcap.name} at byte {len(data) - 100}: the file has no MCAP footer"),
+        "cut right after the last chunk": (data[:after_last], True, f"{mcap.name} at byte {after_last}: the data "
+                                           "section ends here without its DataEnd record"),
+        "metadata.yaml deleted": (data, False, "metadata.yaml: missing"),
+    }
+    for index, (name, (content, with_metadata, named)) in enumerate(kinds.items()):
+        folder = tmp_path / f"kind{index}"
+        shutil.copytree(chatter_bag, folder)
+        (folder / mcap.name).write_bytes(content)
+        if not with_metadata:
+            (folder / "metadata.yaml").unlink()
+        result = cli(str(folder), "--fast", "--delay", "0")
+        assert result.returncode == 1, (name, result.stderr)
+        assert f"{COUNT + 1} messages published" in result.stderr, (name, result.stderr)
+        assert named in result.stderr, (name, result.stderr)
+
+
 SUBSCRIBER = """
 import os, signal, sys, time
 import rclpy

@@ -11,14 +11,24 @@ with its log-time range and channels:
   nothing else is read, so opening a large bag costs only its summary;
 - otherwise by scanning the data section from the start, record by record, the way rosbag2 falls
   back when a recording was interrupted. The scan stops at the first record that is cut or whose
-  framing is broken; a chunk that is complete but cannot be decoded (bad compression or CRC) is
-  skipped and the scan goes on after it, since its length still says where the next record starts.
+  framing is broken: a reserved opcode (0x00, zeros where records should be, or 0x10-0x7f), or
+  :data:`SKIPPED_RUN` records in a row that carry nothing a bag holds; the rest of the file is then
+  not MCAP data and is not read, so a file that is mostly not MCAP is refused in a moment however
+  large it is. A chunk that is complete but does not decompress is skipped and the scan goes on
+  after it, since its length still says where the next record starts.
   A chunk cut by the end of the file still gives its complete records when it is uncompressed (its
   records are plain bytes up to the cut). A chunk that repeats an earlier one byte for byte (a
   duplicated copy) is skipped and reported, so that no message is delivered twice. A data section
   that ends without its DataEnd record (cut exactly at a record boundary, or a writer killed) is
   recorded in :attr:`McapFile.unfinished_at`: only the bag's ``metadata.yaml`` can tell whether
-  anything is missing, so :class:`~.reader.BagReader` decides whether it is damage.
+  anything is missing, so :class:`~.reader.BagReader` reports that damage, saying which.
+- A chunk whose CRC does not match its records (a damaged byte) is read record by record
+  (:func:`_resynchronised`): the records are length-prefixed, so a record whose framing or message
+  header is damaged costs itself only and reading resumes at the next record that checks; the chunk
+  is reported as damage naming how many messages it lost.
+- A file whose data section is whole but whose summary is damaged (no footer, a summary that does
+  not match its CRC or does not parse) is read by scanning, and the damage is reported: nothing is
+  lost, but the file is not what its writer wrote.
 
 Messages are then merged across blocks in log-time order (blocks are loaded lazily, when the next
 message could come from them), so a replay holds one or two chunks in memory, not the file.
@@ -28,12 +38,13 @@ from __future__ import annotations
 
 import heapq
 import os
+import re
 import struct
 import zlib
 from dataclasses import dataclass
 from io import BytesIO
 from pathlib import Path
-from typing import Any, Callable, Iterator, NamedTuple
+from typing import Any, Callable, Iterable, Iterator, NamedTuple
 
 from coco_core.errors import BagError, BagFormatError, CocoError
 from mcap.data_stream import ReadDataStream
@@ -56,12 +67,32 @@ _MESSAGE_HEAD = struct.Struct("<HIQQ")
 _FOOTER_LENGTH = 9 + 20
 _RUN_BYTES = 1 << 20
 """Loose messages are grouped into blocks of about this many bytes (a chunk's usual size)."""
+SKIPPED_RUN = 4096
+"""Records in a row that the scan skips (private opcodes, message indexes, attachments) after which the
+rest of the file is taken for what is not MCAP data: a bag has a few per chunk, zeros or noise framed
+as tiny records would otherwise be walked nine bytes at a time, for minutes."""
+RECORD_LIMIT = 64 << 20
+"""The largest Schema, Channel or Metadata record the scan reads (a message definition is kilobytes):
+a larger one is damage, skipped unread rather than read into memory."""
+_CHUNK_SLACK = 4096
+"""Bytes a Chunk record may hold after its records (fields of a later MCAP version) before the scan
+takes it for damage and skips it unread: a chunk's fields are read before its body."""
+_USED = frozenset({Opcode.MESSAGE, Opcode.CHUNK, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.METADATA})
+"""Data-section records the scan takes something from."""
+_IN_CHUNK = frozenset({Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE})
+"""The records a chunk may hold."""
 
 _OPCODE_NAMES = {int(op): op.name.replace("_", " ").title().replace(" ", "") for op in Opcode}
 
 
 def opcode_name(opcode: int) -> str:
     return _OPCODE_NAMES.get(opcode, f"unknown (opcode 0x{opcode:02x})")
+
+
+def reserved(opcode: int) -> bool:
+    """Whether no MCAP record has this opcode: 0x00 and 0x10-0x7f are reserved by the format (0x80 and
+    up are private records, which a reader skips), so finding one means the framing is lost."""
+    return opcode == 0 or 0x10 <= opcode < 0x80
 
 
 @dataclass(frozen=True)
@@ -173,8 +204,9 @@ def _chunk(body: bytes | memoryview) -> _ChunkView:
     return _ChunkView(start, end, size, crc, compression, data)
 
 
-def _chunk_payload(chunk: _ChunkView) -> bytes | memoryview:
-    """The decompressed records of a chunk, checked against its size and CRC."""
+def _chunk_payload(chunk: _ChunkView) -> tuple[bytes | memoryview, bool]:
+    """The decompressed records of a chunk, checked against its size, and whether they match its CRC:
+    records that do not are still read, one by one (:func:`_resynchronised`)."""
     data: bytes | memoryview
     if chunk.compression == "":
         data = chunk.data
@@ -199,9 +231,102 @@ def _chunk_payload(chunk: _ChunkView) -> bytes | memoryview:
         )
     if len(data) != chunk.uncompressed_size:
         raise BagFormatError(f"chunk holds {len(data)} bytes, its header says {chunk.uncompressed_size}")
-    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
-        raise BagFormatError("chunk CRC does not match its data")
-    return data
+    return data, not chunk.uncompressed_crc or zlib.crc32(data) == chunk.uncompressed_crc
+
+
+_RECORD_START = re.compile(b"[\x03\x04\x05]")
+"""A byte that may start a record inside a chunk (Schema, Channel, Message): where to try again."""
+
+
+@dataclass
+class Resynchronised:
+    """The records of a chunk whose CRC does not match, read one by one (:func:`_resynchronised`)."""
+
+    records: list[tuple[int, int, memoryview]]
+    """(offset in the records, opcode, body) of each record that checks, in order."""
+    skipped: list[tuple[int, int]]
+    """Byte ranges (start, end) of the records skipped: framing or message header damaged."""
+
+
+def _resynchronised(payload: bytes | memoryview, channels: Iterable[int], start: int, end: int) -> Resynchronised:
+    """Read a chunk's records whose CRC does not match one by one, keeping those that check.
+
+    Records are length-prefixed, so one damaged byte costs the record it is in: a record checks when
+    its opcode is one a chunk holds, its length fits, the length of the record after it fits too (a
+    damaged length points into data, whose bytes read as a length do not), and a message's channel is
+    known (``channels``, or a Channel record before it) and its log time within the chunk's
+    ``start``-``end``. Where a record does not check, reading resumes at the next byte where one does.
+    A damaged value inside a message's data passes: its converter refuses it when it does not decode
+    or is not finite.
+    """
+    buffer = memoryview(payload)
+    raw = bytes(payload)
+    known = set(channels)
+    size = len(buffer)
+
+    def fits(position: int) -> int | None:
+        """The length of the record at ``position`` when the records hold it, or None."""
+        if size - position < _RECORD_HEAD.size:
+            return None
+        length: int = _RECORD_HEAD.unpack_from(buffer, position)[1]
+        return length if length <= size - position - _RECORD_HEAD.size else None
+
+    def checks(position: int) -> int | None:
+        length = fits(position)
+        if length is None or buffer[position] not in _IN_CHUNK:
+            return None
+        following = position + _RECORD_HEAD.size + length
+        if following != size and fits(following) is None:
+            return None
+        if buffer[position] == Opcode.MESSAGE:
+            if length < _MESSAGE_HEAD.size:
+                return None
+            channel_id, _, log_time, _ = _MESSAGE_HEAD.unpack_from(buffer, position + _RECORD_HEAD.size)
+            if channel_id not in known or not start <= log_time <= end:
+                return None
+        return length
+
+    found = Resynchronised([], [])
+    position = 0
+    while position < size:
+        length = checks(position)
+        if length is not None:
+            body = buffer[position + _RECORD_HEAD.size:position + _RECORD_HEAD.size + length]
+            if buffer[position] == Opcode.CHANNEL and length >= 2:
+                known.add(int.from_bytes(body[:2], "little"))
+            found.records.append((position, buffer[position], body))
+            position += _RECORD_HEAD.size + length
+            continue
+        resume = position + 1
+        while resume < size and checks(resume) is None:
+            match = _RECORD_START.search(raw, resume + 1)
+            resume = match.start() if match else size
+        found.skipped.append((position, resume))
+        position = resume
+    return found
+
+
+def _indexed_messages(data: bytes) -> int | None:
+    """Messages listed by the MessageIndex records at the start of ``data`` (those after a chunk:
+    what it held), or None when there is none."""
+    count, position = None, 0
+    while len(data) - position >= _RECORD_HEAD.size + 6:
+        opcode, length = _RECORD_HEAD.unpack_from(data, position)
+        if opcode != Opcode.MESSAGE_INDEX or length > len(data) - position - _RECORD_HEAD.size:
+            break
+        (entries,) = struct.unpack_from("<I", data, position + _RECORD_HEAD.size + 2)
+        count = (count or 0) + entries // 16
+        position += _RECORD_HEAD.size + length
+    return count
+
+
+class _Unindexed(NamedTuple):
+    """Why the summary section could not index the file: a ``reason``, and whether the summary is
+    damaged (a file whose writer finished it has one that checks) or merely absent or partial, as a
+    writer may leave it."""
+
+    reason: str
+    damage: bool
 
 
 class McapFile:
@@ -220,9 +345,10 @@ class McapFile:
         self.metadata: dict[str, dict[str, str]] = {}
         self.blocks: list[Block] = []
         self.errors: list[BagError] = []
-        """Damage found while opening: data that is lost (reported after the readable messages)."""
+        """Damage found while opening: data that is lost, or a file that is not what its writer wrote
+        (a damaged summary); reported after the readable messages."""
         self.notes: list[str] = []
-        """What was recovered without loss, e.g. a summary rebuilt by scanning."""
+        """What a writer may leave that costs nothing, e.g. a file without a summary section, scanned."""
         self.indexed_by = ""
         """'summary' or 'scan': where the block table came from."""
         self.unfinished_at: int | None = None
@@ -231,6 +357,8 @@ class McapFile:
         self._header_length = 0
         self._chunks_seen: dict[tuple[int, int, int, str, int], int] = {}
         """Scanned chunks by (times, size, compression, CRC of the stored bytes) -> their offset."""
+        self._resynchronised: set[int] = set()
+        """Chunks whose CRC does not match, by offset: reported once, when first read."""
         try:
             self._fd = os.open(self.path, os.O_RDONLY)
         except OSError as error:
@@ -290,30 +418,39 @@ class McapFile:
             self.indexed_by = "scan"
             return
         self.profile, self.library = header.profile, header.library
-        if not self._read_summary():
-            self._scan(len(MAGIC) + self._header_length)
+        unindexed = self._read_summary()
+        if unindexed is None:
+            return
+        complete = self._scan(len(MAGIC) + self._header_length)
+        if not unindexed.damage:
+            self.notes.append(f"{unindexed.reason}; scanned the data")
+        elif complete:  # else the cut or the break the scan reported explains the end of the file
+            self._damage(self.size, f"{unindexed.reason}; its data section is whole and was read by scanning: its "
+                                    f"{self.message_count} messages are readable")
 
-    def _read_summary(self) -> bool:
-        """Index from the summary section; False (nothing changed) when it is missing or unusable."""
+    def _read_summary(self) -> _Unindexed | None:
+        """Index from the summary section; why not (nothing changed) when it is missing or unusable."""
         footer_offset = self.size - len(MAGIC) - _FOOTER_LENGTH
         if footer_offset < len(MAGIC) or self._read(len(MAGIC), self.size - len(MAGIC)) != MAGIC:
-            self.notes.append("the file has no MCAP footer (the writer did not finish it); scanned the data")
-            return False
+            return _Unindexed("the file has no MCAP footer: what follows its data section (summary and footer) is "
+                              "missing, the file is cut there or its writer did not finish it", True)
         raw_footer = self._read(_FOOTER_LENGTH, footer_offset)
         opcode, length = _RECORD_HEAD.unpack_from(raw_footer)
         if opcode != Opcode.FOOTER or length != 20:
-            self.notes.append("the MCAP footer is malformed; scanned the data")
-            return False
+            return _Unindexed(f"the MCAP footer is malformed (a {opcode_name(opcode)} record of {length} bytes where "
+                              "the 20-byte Footer should be)", True)
         footer: Footer = _parse(Footer, raw_footer[9:])
-        if footer.summary_start == 0 or not (len(MAGIC) < footer.summary_start <= footer_offset):
-            self.notes.append("the file has no summary section; scanned the data")
-            return False
+        if footer.summary_start == 0:
+            return _Unindexed("the file has no summary section", False)
+        if not len(MAGIC) < footer.summary_start <= footer_offset:
+            return _Unindexed(f"the MCAP footer places the summary section at byte {footer.summary_start}, outside "
+                              f"the file's {footer_offset} bytes before the footer", True)
         summary = self._read(footer_offset - footer.summary_start, footer.summary_start)
         if footer.summary_crc:
             crc = zlib.crc32(raw_footer[: 9 + 16], zlib.crc32(summary))
             if crc != footer.summary_crc:
-                self.notes.append("the summary CRC does not match; scanned the data")
-                return False
+                return _Unindexed(f"the summary section (from byte {footer.summary_start}) does not match its CRC",
+                                  True)
         schemas, channels, chunk_indexes, metadata_indexes = {}, {}, [], []
         statistics: Statistics | None = None
         try:
@@ -331,17 +468,13 @@ class McapFile:
                 elif op == Opcode.METADATA_INDEX:
                     metadata_indexes.append(_parse(MetadataIndex, body))
         except (_Damage, ValueError) as error:
-            self.notes.append(f"the summary section is malformed ({error}); scanned the data")
-            return False
+            return _Unindexed(f"the summary section (from byte {footer.summary_start}) is malformed ({error})", True)
         if statistics is None or statistics.chunk_count != len(chunk_indexes):
-            self.notes.append("the summary has no statistics or not every chunk index; scanned the data")
-            return False
+            return _Unindexed("the summary has no statistics or not every chunk index", False)
         if len(channels) < statistics.channel_count or len(schemas) < statistics.schema_count:
-            self.notes.append("the summary does not repeat every channel and schema; scanned the data")
-            return False
+            return _Unindexed("the summary does not repeat every channel and schema", False)
         if statistics.message_count and not chunk_indexes:
-            self.notes.append("the file is not chunked: loose messages have no index; scanned the data")
-            return False
+            return _Unindexed("the file is not chunked: loose messages have no index", False)
         self.schemas, self.channels = schemas, channels
         self.counts = dict(statistics.channel_message_counts)
         self.message_count = statistics.message_count
@@ -369,7 +502,7 @@ class McapFile:
             except (_Damage, ValueError):
                 continue  # metadata is informative only
         self.indexed_by = "summary"
-        return True
+        return None
 
     def _header(self) -> Header | None:
         """The Header record after the magic (its size goes to ``_header_length``); None if damaged."""
@@ -405,10 +538,12 @@ class McapFile:
         if self.end_time is None or message.log_time > self.end_time:
             self.end_time = message.log_time
 
-    def _scan(self, position: int) -> None:
-        """Index by reading the data section record by record from ``position`` (after the Header)."""
+    def _scan(self, position: int) -> bool:
+        """Index by reading the data section record by record from ``position`` (after the Header);
+        whether it ended at its DataEnd record (or a Footer) rather than at damage or the file's end."""
         self.indexed_by = "scan"
         run: Block | None = None
+        skipped, skipped_from = 0, position  # records in a row that gave nothing (SKIPPED_RUN), from where
 
         def close_run() -> None:
             nonlocal run
@@ -427,6 +562,15 @@ class McapFile:
                 self._damage(position, self._cut(position, cut))
                 break
             opcode, length = _RECORD_HEAD.unpack(raw)
+            if reserved(opcode):
+                self._damage(position, self._not_mcap(position, f"opcode 0x{opcode:02x} is reserved, no MCAP record "
+                                                                "starts with it"))
+                break
+            skipped, skipped_from = (0, position) if opcode in _USED else (skipped + 1, skipped_from)
+            if skipped > SKIPPED_RUN:
+                self._damage(skipped_from, self._not_mcap(skipped_from, f"{skipped} records in a row from here "
+                                                                        "(private opcodes, indexes) hold no message"))
+                break
             body_start = position + _RECORD_HEAD.size
             available = self.size - body_start
             if length > available:
@@ -454,6 +598,9 @@ class McapFile:
                     run.channels = (run.channels or frozenset()) | {message.channel_id}
                 if run is not None:
                     run.length = next_position - run.offset
+            elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.METADATA) and length > RECORD_LIMIT:
+                self._damage(position, f"this {opcode_name(opcode)} record declares {length} bytes, more than the "
+                                       f"{RECORD_LIMIT} any bag needs; skipped it unread")
             elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
                 try:
                     self._register(opcode, self._read(length, body_start))
@@ -463,7 +610,11 @@ class McapFile:
                     run.length = next_position - run.offset
             elif opcode == Opcode.CHUNK:
                 close_run()
-                self._scan_chunk(position, length, body_start)
+                unframed = self._chunk_unframed(body_start, length)
+                if unframed:
+                    self._damage(position, f"{unframed}; skipped it unread, the messages it held are lost")
+                else:
+                    self._scan_chunk(position, length, body_start)
             elif opcode == Opcode.METADATA:
                 try:
                     record = _parse(Metadata, self._read(length, body_start))
@@ -471,9 +622,30 @@ class McapFile:
                 except ValueError:
                     pass  # metadata is informative only
             elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
-                break
+                close_run()
+                return True
             position = next_position
         close_run()
+        return False
+
+    def _chunk_unframed(self, body_start: int, length: int) -> str:
+        """Why the Chunk record of ``length`` bytes at ``body_start`` is not one, from its fields alone
+        (read before its body, which may be gigabytes of what is not MCAP data); '' when it is."""
+        if length < _CHUNK_HEAD.size:
+            return f"this Chunk record of {length} bytes is too short for its fields"
+        name_length = _CHUNK_HEAD.unpack(self._read(_CHUNK_HEAD.size, body_start))[4]
+        records_at = _CHUNK_HEAD.size + name_length + 8
+        if records_at > length:
+            return f"this Chunk record of {length} bytes is too short for its fields ({records_at} bytes)"
+        (records,) = struct.unpack("<Q", self._read(8, body_start + records_at - 8))
+        if records_at + records > length or length - records_at - records > _CHUNK_SLACK:
+            return f"the fields of this Chunk record of {length} bytes account for {records_at + records} of them"
+        return ""
+
+    def _not_mcap(self, position: int, what: str) -> str:
+        return (f"{what}: the data section breaks off and the remaining {self.size - position} bytes of the file "
+                f"are not MCAP data, so they are not read; the {self.message_count} messages before this point "
+                "are readable")
 
     def _cut(self, position: int, what: str) -> str:
         return (
@@ -502,9 +674,8 @@ class McapFile:
                     "(a duplicated copy); skipped it, so that its messages are delivered once",
                 )
                 return
-            payload = _chunk_payload(chunk)
             messages = []
-            for _, op, body in _records(memoryview(payload), 0):
+            for _, op, body in self._chunk_records(position, body_start + length, chunk, self._damage):
                 if op in (Opcode.SCHEMA, Opcode.CHANNEL):
                     self._register(op, body)
                 elif op == Opcode.MESSAGE:
@@ -531,6 +702,37 @@ class McapFile:
                 len(self.blocks),
             )
         )
+
+    def _chunk_records(self, offset: int, end: int, chunk: _ChunkView,
+                       report: Callable[[int, str], None]) -> Iterable[tuple[int, int, memoryview]]:
+        """(offset, opcode, body) of the records of the Chunk record at bytes ``offset``-``end``: all of
+        them when they match its CRC; else those that check (:func:`_resynchronised`), and the chunk
+        is reported, once, through ``report(offset, detail)``."""
+        payload, intact = _chunk_payload(chunk)
+        if intact:
+            return _records(memoryview(payload), 0)
+        found = _resynchronised(payload, self.channels, chunk.message_start_time, chunk.message_end_time)
+        if offset not in self._resynchronised:
+            self._resynchronised.add(offset)
+            report(offset, self._resynchronised_damage(end, found))
+        return found.records
+
+    def _resynchronised_damage(self, end: int, found: Resynchronised) -> str:
+        """What a chunk whose CRC does not match lost: counted against the MessageIndex records after it
+        (at byte ``end``), which list every message it held, when they are there."""
+        delivered = sum(1 for _, opcode, _ in found.records if opcode == Opcode.MESSAGE)
+        expected = _indexed_messages(self._read(min(4 * _RUN_BYTES, self.size - end), end))
+        if expected is not None:
+            lost = f"{max(expected - delivered, 0)} of the {expected} messages its index lists are lost"
+        else:
+            lost = f"{len(found.skipped)} damaged stretch(es) of records, a message or more each, are lost"
+        detail = (f"the Chunk record's CRC does not match its records (damaged bytes): read them one by one, "
+                  f"{delivered} messages delivered, {lost}")
+        if found.skipped:
+            shown = ", ".join(f"{start}-{stop}" for start, stop in found.skipped[:5])
+            return f"{detail} (records skipped at bytes {shown} of its records, where framing or header is damaged)"
+        return (f"{detail}; no record's framing or message header is damaged, so the damage is inside a message's "
+                "data: a value that does not decode or is not finite is refused by its converter, another passes")
 
     def _salvage_cut_chunk(self, body_start: int, available: int) -> tuple[int, int]:
         """Index the complete records of an uncompressed chunk that the end of the file cuts, as a
@@ -577,7 +779,8 @@ class McapFile:
     # -- messages --------------------------------------------------------------------------------
 
     def _load(
-        self, block: Block, channel_ids: frozenset[int] | None, start: int, end: int | None
+        self, block: Block, channel_ids: frozenset[int] | None, start: int, end: int | None,
+        on_error: Callable[[BagError], None] | None,
     ) -> list[RawMessage]:
         buffer = memoryview(self._read(block.length, block.offset))
         if len(buffer) < block.length:
@@ -591,11 +794,15 @@ class McapFile:
                 return
             wanted.append(message)
 
+        def report(offset: int, detail: str) -> None:
+            if on_error is not None:
+                on_error(BagError(self.path, detail, offset))
+
         for offset, op, body in _records(buffer, block.offset):
             try:
                 if op == Opcode.CHUNK:
-                    payload = _chunk_payload(_chunk(body))
-                    for _, inner, inner_body in _records(memoryview(payload), 0):
+                    chunk_end = offset + _RECORD_HEAD.size + len(body)
+                    for _, inner, inner_body in self._chunk_records(offset, chunk_end, _chunk(body), report):
                         if inner == Opcode.MESSAGE:
                             keep(_message(inner_body))
                 elif op == Opcode.MESSAGE:
@@ -632,7 +839,7 @@ class McapFile:
                 block = blocks[next_block]
                 next_block += 1
                 try:
-                    loaded = self._load(block, channel_ids, start, end)
+                    loaded = self._load(block, channel_ids, start, end, on_error)
                 except _Damage as damage:
                     if on_error is not None:
                         detail = f"{damage.detail}; skipped it, the messages it held are lost"

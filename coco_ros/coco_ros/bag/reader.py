@@ -12,9 +12,12 @@ handed to the ``on_error`` callback given to the reader (then nothing is raised)
 MCAP at all fails at once, when the reader is made. Fewer readable messages than the recorder's
 ``metadata.yaml`` declares (a file cut exactly at a record boundary leaves no other trace) is damage
 too, reported the same way, per topic, and so are more (data copied twice that is not a byte-for-byte
-copy of a chunk, which the file reader skips itself). A data section that ends without its DataEnd
-record (a file cut at a record boundary, a recorder killed) is damage unless ``metadata.yaml``'s
-counts show that nothing is missing: without them nothing says how much was written.
+copy of a chunk, which the file reader skips itself). So is whatever a finished recording has and
+this one lacks, even where every message is readable: a data section that ends without its DataEnd
+record (a file cut at a record boundary, a recorder killed; the error says whether metadata.yaml's
+counts show that nothing is missing), a footer or summary that is gone or damaged, a bag folder
+without a readable ``metadata.yaml`` (its .mcap files are read, but nothing says how much was
+recorded). A bag that is not what its recorder wrote must not pass for a sound one.
 """
 
 from __future__ import annotations
@@ -115,7 +118,9 @@ class BagReader:
         self.errors: list[BagError] = []
         """Every problem found so far: damage found on opening, then blocks that failed to load."""
         self.metadata: BagMetadata | None = None
-        self._notes: list[str] = []
+        self._found: list[BagError] = []
+        """Damage found on opening that no file reports itself: metadata.yaml missing or unreadable, a
+        data section that ends without its DataEnd record (reported after each pass of :meth:`messages`)."""
         self._files: list[McapFile] = []
         try:
             for file_path in self._resolve_files():
@@ -123,9 +128,8 @@ class BagReader:
         except BaseException:
             self.close()
             raise
-        for file in self._files:
-            for error in file.errors:
-                self._record(error)
+        for error in [e for file in self._files for e in file.errors] + self._found:
+            self._record(error)
         self.topics: dict[str, TopicInfo] = {}
         """Topic name -> :class:`TopicInfo`, in the order the bag declares them."""
         self._channels: list[dict[int, str]] = []  # per file: channel id -> topic
@@ -135,8 +139,6 @@ class BagReader:
         """Topic -> (declared, readable) where metadata.yaml declares more messages than are readable."""
         self._excess: dict[str, tuple[int, int]] = {}
         """Topic -> (declared, readable) where more messages are readable than metadata.yaml declares."""
-        self._unfinished: list[BagError] = []
-        """Files whose data section ends without a DataEnd record while something may be missing."""
         self._check_unfinished(self._check_declared_counts())
 
     # -- opening ---------------------------------------------------------------------------------
@@ -152,16 +154,23 @@ class BagReader:
         try:
             self.metadata = read_metadata(path)
         except BagError as error:
-            # The storage files carry everything needed: a broken metadata.yaml costs nothing.
+            # The storage files carry the messages: they are read, and the bag is damaged.
             if not any(path.glob("*.mcap")):
                 raise
-            self._notes.append(f"{error}; read the .mcap files of the folder instead")
+            self._found.append(BagError(error.path, f"{error.detail}: the folder's .mcap files are read, but "
+                                                    "nothing says how many messages were recorded, so a loss would "
+                                                    "not show"))
         if self.metadata is None:
             files = sorted(path.glob("*.mcap"), key=_file_index)
             if not files:
                 raise BagError(
                     path, "not a bag folder: expected metadata.yaml or at least one .mcap file in it"
                 )
+            if not self._found:
+                self._found.append(BagError(
+                    path / "metadata.yaml", "missing: a rosbag2 bag folder has one, written by its recorder; the "
+                    f"folder's {len(files)} .mcap file(s) are read, but nothing says how many messages were recorded, "
+                    "so a loss would not show (name an .mcap file itself to read a file without its folder)"))
             return files
         meta = self.metadata
         if meta.storage_identifier and meta.storage_identifier != "mcap":
@@ -282,22 +291,22 @@ class BagReader:
 
     def _check_unfinished(self, declared: bool) -> None:
         """A file whose data section ends without its DataEnd record was cut at a record boundary or
-        not closed by its writer: a note when metadata.yaml's counts (``declared``) show that nothing
-        is missing, else damage named at the byte where the data ends."""
+        not closed by its writer: damage named at the byte where the data ends, which says whether
+        metadata.yaml's counts (``declared``) show that no message is missing."""
         for file in self._files:
             at = file.unfinished_at
             if at is None:
                 continue
             if declared and not self._lost:
-                self._notes.append(f"{file.path}: the data section ends at byte {at} without a DataEnd record; "
-                                   "metadata.yaml's counts show that no message is missing")
-                continue
-            unknown = "" if declared else " (no metadata.yaml beside it says how many were written)"
+                lost = "metadata.yaml's counts show that no message is missing"
+            else:
+                unknown = "" if declared else " (no metadata.yaml beside it says how many were written)"
+                lost = f"whatever followed is lost{unknown}"
             error = BagError(file.path, "the data section ends here without its DataEnd record and the file has no "
                                         "MCAP footer: the file is cut at a record boundary or its writer was killed; "
-                                        f"the {file.message_count} messages before this point are readable, whatever "
-                                        f"followed is lost{unknown}", at)
-            self._unfinished.append(error)
+                                        f"the {file.message_count} messages before this point are readable, {lost}",
+                             at)
+            self._found.append(error)
             self._record(error)
 
     @property
@@ -353,8 +362,8 @@ class BagReader:
 
     @property
     def notes(self) -> list[str]:
-        """Recoveries that lost nothing, e.g. a missing summary rebuilt by scanning."""
-        return self._notes + [f"{f.path}: {note}" for f in self._files for note in f.notes]
+        """What a writer may leave that costs nothing, e.g. a file without a summary section, scanned."""
+        return [f"{f.path}: {note}" for f in self._files for note in f.notes]
 
     def latched_topics(self) -> list[str]:
         """Topics whose messages a late subscriber would get (transient local, e.g. /tf_static)."""
@@ -454,7 +463,7 @@ class BagReader:
             problems.append(self._shortfall(self._metadata_path, asked))
         if any(topic == "" or asked is None or topic in asked for topic in self._excess):
             problems.append(self._surplus(self._metadata_path, asked))
-        problems.extend(self._unfinished)
+        problems.extend(self._found)
         if not problems:
             return
         if self._on_error is not None:

@@ -47,8 +47,8 @@ Operations: ``pause()``, ``resume()``, ``step(n=1)`` (deliver the next n message
 ``progress()`` -> ``(time, end)`` in seconds after the bag start.
 
 An ``clock`` output port carries the replayed (simulated) time in seconds after each update that
-delivered messages. A damaged bag (cut, corrupt, or holding fewer messages than its metadata.yaml
-declares) is replayed as far as it is readable, then its error (file and byte offset, or what is
+delivered messages. A damaged bag (cut, corrupt, without its footer or metadata.yaml, or holding fewer
+messages than its metadata.yaml declares: :mod:`coco_ros.bag.reader`) is replayed as far as it is readable, then its error (file and byte offset, or what is
 lost) is logged once and reported to the application (:meth:`Application.report_damage`): the
 launcher exits with 1 and a summary that reads ``app.damage`` shows it.
 
