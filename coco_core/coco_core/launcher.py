@@ -25,7 +25,7 @@ from .connections import Connection
 from .dataflow_graph import check_graph_file, write_graph
 from .deployment import Deployment, LaunchOptions, deployed, plan_deployment
 from .errors import CocoError, ConfigError, ConfigErrors, Interrupted
-from .hosts.channel import crossing_problems
+from .hosts.crossing import crossing_problems
 from .hosts.key import launch_key
 from .hosts.level import host_level
 from .hosts.part import host_part

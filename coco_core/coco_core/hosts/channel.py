@@ -10,12 +10,8 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from ..policy import ConnectionPolicy
-
-if TYPE_CHECKING:
-    from ..model import AppSpec
 
 CODECS = ("plain", "rgbd")
 """How a payload crosses the network: ``plain`` (any value of plain data and registered value types, :mod:`coco_core.wire`; the default), ``rgbd`` (an RGB-D frame
@@ -67,31 +63,3 @@ def topic_of(application: str, src: str, dest: str) -> str:
     """The topic of the connection ``src -> dest`` of ``application``: ``/coco/APP/SRC/to/DEST``."""
     return f"/coco/{ros_name(application)}/{ros_name(src)}/to/{ros_name(dest)}"
 
-
-def crossing_problems(spec: AppSpec) -> list[str]:
-    """The connections between hosts that ``spec`` (one host's part) writes whose values cannot
-    cross, from the writer's declared port type (:func:`coco_core.wire.crossing_problem`), each
-    with the connection: what ``--check`` reports and a launch refuses, before any value is sent.
-    Pooled frames and stamps-only connections always can; a port declared ``object`` is checked as
-    its values are sent."""
-    from .. import registry
-    from ..ports import OutputPort, PooledOutputPort
-    from ..wire import crossing_problem
-
-    components = {component.name: component for component in spec.all_components()}
-    problems = []
-    for channel in spec.between_hosts:
-        if channel.src_host != spec.part_of or channel.stamps_only or channel.src_activity:
-            continue
-        name, _, port_name = channel.src.rpartition(".")
-        component = components.get(name)
-        if component is None:
-            continue
-        port = getattr(registry.load(component.task, component.library), port_name, None)
-        if not isinstance(port, OutputPort) or isinstance(port, PooledOutputPort):
-            continue
-        problem = crossing_problem(port.type)
-        if problem:
-            problems.append(f"connection {channel.label} between hosts {channel.src_host} and {channel.dest_host}: "
-                            f"{problem}")
-    return problems

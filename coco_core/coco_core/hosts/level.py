@@ -11,7 +11,7 @@ from ..model import AppSpec
 from .clock import ClockOffset
 from .key import AppKey
 from ..errors import ConfigError, ConfigErrors, KeyFileError
-from .channel import crossing_problems
+from .crossing import crossing_problems
 from .session import HostSession
 from .transport import Ends, host_transport
 
