@@ -62,4 +62,3 @@ def ros_name(name: str) -> str:
 def topic_of(application: str, src: str, dest: str) -> str:
     """The topic of the connection ``src -> dest`` of ``application``: ``/coco/APP/SRC/to/DEST``."""
     return f"/coco/{ros_name(application)}/{ros_name(src)}/to/{ros_name(dest)}"
-
