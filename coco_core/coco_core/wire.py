@@ -387,36 +387,51 @@ def conforms(value: Any, hint: Any) -> bool:
     (an ``int`` will do for a ``float``), ``X | Y``, ``Optional``, ``tuple[...]``, ``list[X]``,
     ``dict[K, V]`` and generic classes by their origin; anything else (``Any``, a type variable)
     accepts every value."""
-    if hint is Any or hint is object or isinstance(hint, typing.TypeVar):
-        return True
-    if hint is float:
-        return isinstance(value, (float, int, np.floating))
-    if hint is None or hint is type(None):
-        return value is None
-    origin = typing.get_origin(hint)
-    if origin is None:
-        if isinstance(hint, type):
-            return isinstance(value, hint)
-        return True
-    arguments = typing.get_args(hint)
-    if origin is typing.Union or origin is types.UnionType:
-        return any(conforms(value, argument) for argument in arguments)
-    if origin is typing.Literal:
-        return value in arguments
-    if origin is tuple:
-        if type(value) is not tuple:
-            return False
-        if len(arguments) == 2 and arguments[1] is Ellipsis:
-            return all(conforms(item, arguments[0]) for item in value)
-        return len(arguments) == len(value) and all(map(conforms, value, arguments))
-    if origin is list:
-        return type(value) is list and (not arguments or all(conforms(item, arguments[0]) for item in value))
-    if origin is dict:
-        return type(value) is dict and (not arguments or all(conforms(key, arguments[0]) and conforms(item, arguments[1])
-                                                             for key, item in value.items()))
-    if isinstance(origin, type):
-        return isinstance(value, origin)
+    return _checker(hint)(value)
+
+
+Check = Callable[[Any], bool]
+
+
+def _anything(value: Any) -> bool:
     return True
+
+
+@functools.lru_cache(maxsize=512)
+def _checker(hint: Any) -> Check:
+    """The check of ``hint`` (:func:`conforms`), made once per annotation: walking an annotation for
+    every value was most of a small value's decoding."""
+    if hint is Any or hint is object or isinstance(hint, typing.TypeVar):
+        return _anything
+    if hint is float:
+        return lambda value: isinstance(value, (float, int, np.floating))
+    if hint is None or hint is type(None):
+        return lambda value: value is None
+    origin = typing.get_origin(hint)
+    arguments = typing.get_args(hint)
+    if origin is None:
+        return (lambda value: isinstance(value, hint)) if isinstance(hint, type) else _anything
+    if origin is typing.Union or origin is types.UnionType:
+        options = tuple(map(_checker, arguments))
+        return lambda value: any(check(value) for check in options)
+    if origin is typing.Literal:
+        return lambda value: value in arguments
+    if origin is tuple:
+        if len(arguments) == 2 and arguments[1] is Ellipsis:
+            item = _checker(arguments[0])
+            return lambda value: type(value) is tuple and all(map(item, value))
+        items = tuple(map(_checker, arguments))
+        return lambda value: (type(value) is tuple and len(value) == len(items)
+                              and all(check(part) for check, part in zip(items, value)))
+    if origin is list:
+        item = _checker(arguments[0]) if arguments else _anything
+        return lambda value: type(value) is list and all(map(item, value))
+    if origin is dict:
+        key, entry = (_checker(arguments[0]), _checker(arguments[1])) if arguments else (_anything, _anything)
+        return lambda value: type(value) is dict and all(key(k) and entry(v) for k, v in value.items())
+    if isinstance(origin, type):
+        return lambda value: isinstance(value, origin)
+    return _anything
 
 
 def _name(hint: Any) -> str:
