@@ -276,6 +276,45 @@ def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_p
     assert behind_the_body(rows) <= BEHIND_BOUND
 
 
+CAMERA_DOMAIN = "159"
+
+
+def test_ros_launcher_takes_the_camera_from_a_drivers_topics(palpation_session: Path, tmp_path: Path) -> None:
+    """``scene:=topic``: the remote camera is a ROS 2 driver's colour, depth and camera_info topics
+    (here the session's, played again and again by ``coco-replay`` as a driver streams them; the
+    bag's topic names given as the camera_*_topic args), paired by stamp by the TopicRgbdPeer. The
+    touch registers the tracker, and the places the hand reaches after it are touched, as with the
+    bag's camera."""
+    installed = ROOT / "install" / "coco_ros" / "lib" / "coco_ros"
+    env = {**os.environ, "ROS_DOMAIN_ID": CAMERA_DOMAIN, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+           "PYTHONUNBUFFERED": "1"}
+    output = tmp_path / "camera_topics"
+    camera = subprocess.Popen([str(installed / "coco-replay"), str(palpation_session), "--loop", "--no-progress",
+                               "--topics", "/camera/color/image_raw", "/camera/depth/image_raw",
+                               "/camera/color/camera_info", "--wait-subscribers", "3"],
+                              cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        result = subprocess.run(
+            [str(installed / "launcher"), str(APP), "scene:=topic", f"bag:={palpation_session}", f"output:={output}",
+             "camera_color_topic:=/camera/color/image_raw", "camera_depth_topic:=/camera/depth/image_raw",
+             "camera_info_topic:=/camera/color/camera_info", f"rate:={HAND_RATE}",
+             f"stream:=tcp://127.0.0.1:{free_port()}", "display:=false", "--profile", "100", "--duration", "60"],
+            cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
+    finally:
+        camera.send_signal(signal.SIGINT)
+        camera.wait(30)
+    log = result.stdout + result.stderr
+    assert result.returncode == 0, log[-6000:]
+    assert "registered from" in log, log[-6000:]
+    paired = re.search(r"camera_topics: (\d+) colour, (\d+) depth, (\d+) camera_info messages; (\d+) frames paired", log)
+    assert paired and int(paired.group(4)) >= 30, log[-3000:]
+    rows = haptic_rows(output)
+    expected = places_after_the_registration(output)
+    assert {"press_3", "stroke"} <= expected, f"the registration came late: only {expected} after it"
+    assert expected <= places_touched(rows)
+    assert behind_the_body(rows) <= BEHIND_BOUND
+
+
 REDWOOD = ROOT.parent / "shared" / "data" / "rgbd" / "redwood"
 REDWOOD_TRACKER = ("0.047 0.943 1.5696", "1.6413 -1.1994 -0.058")
 """The hand tracker's pose in the Redwood camera's frame (xyz, rpy) that puts the session's body

@@ -251,10 +251,11 @@ class RealSenseRgbdPeer(RgbdPeer):
 
 BACKENDS: dict[str, str] = {
     "tum": "TumRgbdPeer", "redwood": "RedwoodRgbdPeer", "bag": "BagRgbdPeer", "realsense": "RealSenseRgbdPeer",
+    "topic": "TopicRgbdPeer",
 }
 """The peers RgbdCameraReader makes from its ``backend`` attribute, by registered component name:
-the bag peer is coco_ros's (:mod:`coco_ros.vision.rgbd_bag`), which depends on this package, not
-the other way round."""
+the bag and topic peers are coco_ros's (:mod:`coco_ros.vision.rgbd_bag`,
+:mod:`coco_ros.vision.rgbd_topics`), which depends on this package, not the other way round."""
 
 __all__ = ["BACKENDS", "PRIMESENSE", "RealSenseRgbdPeer", "RedwoodRgbdPeer", "RgbdPeer",
            "TumRgbdPeer", "associate"]
