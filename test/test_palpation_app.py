@@ -226,22 +226,20 @@ def test_palpation_app_without_processes_touches_the_same_places(coco_launch: Pa
     assert places_touched(runs["processes"]) & expected == places_touched(runs["one process"]) & expected == expected
 
 
-HAND_DOMAIN = "151"
-"""The DDS domain of the ROS variant's test (unique among the suite's)."""
+HAND_DOMAIN, CAMERA_DOMAIN = "151", "159"
 
 
-def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_path: Path) -> None:
-    """``ros2 run coco_ros launcher config/palpation_replay.xml hand:=topic``: the hand's poses come
-    from DDS, here the session's ``/hand/pose`` played by ``coco-replay`` (as a live tracker or a
-    played recording publishes them) once the application runs; the touch registers the tracker
-    and the places the hand reaches after it are touched, as with the bag's hand. The launcher is
-    stopped by Ctrl-C once the hand's recording has been played (a topic has no end)."""
+def fed_by_replay(session: Path, output: Path, domain: str, app_args: tuple[str, ...],
+                  topics: tuple[str, ...]) -> str:
+    """Run the application with the ROS launcher (``app_args`` choose its sources) and, once it runs,
+    ``coco-replay`` of the session's ``topics`` at the hand's pace, as live sources publish them;
+    Ctrl-C once they have been played (a topic has no end). The launcher's output; its exit status
+    must be 0."""
     installed = ROOT / "install" / "coco_ros" / "lib" / "coco_ros"
-    env = {**os.environ, "ROS_DOMAIN_ID": HAND_DOMAIN, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+    env = {**os.environ, "ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
            "PYTHONUNBUFFERED": "1"}
-    output = tmp_path / "topic"
     launcher = subprocess.Popen(
-        [str(installed / "launcher"), str(APP), "hand:=topic", f"bag:={palpation_session}", f"output:={output}",
+        [str(installed / "launcher"), str(APP), *app_args, f"bag:={session}", f"output:={output}",
          f"stream:=tcp://127.0.0.1:{free_port()}", "display:=false", "--profile", "100", "--duration", "120"],
         cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines: list[str] = []
@@ -258,8 +256,8 @@ def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_p
     reader.start()
     try:
         assert running.wait(120), "".join(lines)[-6000:]
-        replay = subprocess.run([str(installed / "coco-replay"), str(palpation_session), "--topics", "/hand/pose",
-                                 "--rate", str(HAND_RATE), "--wait-subscribers", "1", "--no-progress"],
+        replay = subprocess.run([str(installed / "coco-replay"), str(session), "--topics", *topics,
+                                 "--rate", str(HAND_RATE), "--wait-subscribers", str(len(topics)), "--no-progress"],
                                 cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
         assert replay.returncode == 0 and "subscriptions after" not in replay.stdout + replay.stderr, replay.stdout + replay.stderr
     finally:
@@ -268,6 +266,16 @@ def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_p
         reader.join(5)
     log = "".join(lines)
     assert code == 0, log[-6000:]
+    return log
+
+
+def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_path: Path) -> None:
+    """``ros2 run coco_ros launcher config/palpation_replay.xml hand:=topic``: the hand's poses come
+    from DDS, here the session's ``/hand/pose`` played by ``coco-replay`` (as a live tracker or a
+    played recording publishes them) once the application runs; the touch registers the tracker
+    and the places the hand reaches after it are touched, as with the bag's hand."""
+    output = tmp_path / "topic"
+    log = fed_by_replay(palpation_session, output, HAND_DOMAIN, ("hand:=topic",), ("/hand/pose",))
     assert "registered from" in log, log[-6000:]
     rows = haptic_rows(output)
     expected = places_after_the_registration(output)
@@ -276,35 +284,20 @@ def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_p
     assert behind_the_body(rows) <= BEHIND_BOUND
 
 
-CAMERA_DOMAIN = "159"
-
-
 def test_ros_launcher_takes_the_camera_from_a_drivers_topics(palpation_session: Path, tmp_path: Path) -> None:
-    """``scene:=topic``: the remote camera is a ROS 2 driver's colour, depth and camera_info topics
-    (here the session's, played again and again by ``coco-replay`` as a driver streams them; the
-    bag's topic names given as the camera_*_topic args), paired by stamp by the TopicRgbdPeer. The
-    touch registers the tracker, and the places the hand reaches after it are touched, as with the
-    bag's camera."""
-    installed = ROOT / "install" / "coco_ros" / "lib" / "coco_ros"
-    env = {**os.environ, "ROS_DOMAIN_ID": CAMERA_DOMAIN, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-           "PYTHONUNBUFFERED": "1"}
+    """``scene:=topic hand:=topic``: the remote camera is a ROS 2 driver's colour, depth and
+    camera_info topics (the bag's topic names given as the camera_*_topic args), paired by stamp by
+    the TopicRgbdPeer, and the hand a tracker's topic: the session's, played by one ``coco-replay``
+    as the live camera and tracker publish them together (reliable: a lost fragment of a frame is
+    sent again, where a busy machine loses most frames of a best-effort subscription). The touch registers the tracker, and the
+    places the hand reaches after it are touched, as with the bag's camera."""
     output = tmp_path / "camera_topics"
-    camera = subprocess.Popen([str(installed / "coco-replay"), str(palpation_session), "--loop", "--no-progress",
-                               "--topics", "/camera/color/image_raw", "/camera/depth/image_raw",
-                               "/camera/color/camera_info", "--wait-subscribers", "3"],
-                              cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        result = subprocess.run(
-            [str(installed / "launcher"), str(APP), "scene:=topic", f"bag:={palpation_session}", f"output:={output}",
-             "camera_color_topic:=/camera/color/image_raw", "camera_depth_topic:=/camera/depth/image_raw",
-             "camera_info_topic:=/camera/color/camera_info", f"rate:={HAND_RATE}",
-             f"stream:=tcp://127.0.0.1:{free_port()}", "display:=false", "--profile", "100", "--duration", "60"],
-            cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
-    finally:
-        camera.send_signal(signal.SIGINT)
-        camera.wait(30)
-    log = result.stdout + result.stderr
-    assert result.returncode == 0, log[-6000:]
+    camera = ("/camera/color/image_raw", "/camera/depth/image_raw", "/camera/color/camera_info")
+    log = fed_by_replay(palpation_session, output, CAMERA_DOMAIN,
+                        ("scene:=topic", "hand:=topic", "camera_reliability:=reliable",
+                         *(f"camera_{kind}_topic:={topic}"
+                                                          for kind, topic in zip(("color", "depth", "info"), camera))),
+                        (*camera, "/hand/pose"))
     assert "registered from" in log, log[-6000:]
     paired = re.search(r"camera_topics: (\d+) colour, (\d+) depth, (\d+) camera_info messages; (\d+) frames paired", log)
     assert paired and int(paired.group(4)) >= 30, log[-3000:]

@@ -12,8 +12,10 @@ colour and depth of different sizes) is refused and counted in the ``refused`` c
 
 The defaults are realsense2_camera's topic names (its node ``camera`` in the namespace ``camera``,
 depth aligned to colour: ``align_depth.enable:=true``); docs/vision.md lists those of other drivers.
-The subscriptions are best effort, which matches both a sensor-data publisher (best effort, what
-camera drivers use) and a reliable one.
+The subscriptions are best effort by default, which matches both a sensor-data publisher (best
+effort, what camera drivers use) and a reliable one; ``reliability="reliable"`` asks a reliable
+publisher (a recording played with ``coco-replay``) to repair what a loaded machine lost (a frame is
+hundreds of kilobytes: one lost fragment loses it), and matches reliable publishers only.
 """
 
 from __future__ import annotations
@@ -51,6 +53,9 @@ class TopicRgbdPeer(RgbdPeer):
     queue_size = Attribute(int, 10, "images of each topic kept while waiting for their partner", min=1)
     slop = Attribute(float, 0.02, "largest colour/depth stamp difference paired, s", min=0.0)
     depth_scale = Attribute(float, 1000.0, "units per metre of 16UC1 depth (ROS: millimetres)", min=1e-9)
+    reliability = Attribute(str, "best_effort", "the subscriptions' QoS reliability: best_effort (matches any "
+                            "publisher) or reliable (lost fragments repaired; reliable publishers only)",
+                            choices=("best_effort", "reliable"))
 
     def on_config(self) -> None:
         node, group = launcher_node(self)
@@ -67,7 +72,8 @@ class TopicRgbdPeer(RgbdPeer):
         """Pairs dropped because no CameraInfo had come yet."""
         self._unpaired_counted = 0
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=self.queue_size,
-                         reliability=ReliabilityPolicy.BEST_EFFORT)
+                         reliability=ReliabilityPolicy.RELIABLE if self.reliability == "reliable"
+                         else ReliabilityPolicy.BEST_EFFORT)
         message = self._images.message_type
         # The CameraInfo first: a wait set takes what is ready in this order, so a frame's intrinsics
         # that came with it are known when its images pair.
