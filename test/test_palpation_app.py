@@ -336,3 +336,58 @@ def test_a_real_rgbd_scene_with_a_fixed_registration(coco_launch: Path, palpatio
     assert summary["kdtree"]["updates"] >= 2 and summary["stream"]["frames"] >= 10, summary
     rows = haptic_rows(output)
     assert rows["contact"].any()
+
+
+def two_host_palpation() -> Path:
+    """config/palpation_replay.xml over two hosts, nothing else changed: the remote process (the
+    camera and its stream server) on host ``remote``, the first (its clock is the application's, so
+    the camera's stamps are), everything else on host ``local``."""
+    text = APP.read_text()
+    opened = text.index("    <activities>\n") + len("    <activities>\n")
+    closed = text.index("    </activities>")
+    remote = text.index('        <process name="remote">')
+    end = text.index("        </process>\n", remote) + len("        </process>\n")
+    placed = (text[:opened] + '        <host name="remote">\n' + text[remote:end] + "        </host>\n"
+              + '        <host name="local">\n' + text[opened:remote] + text[end:closed] + "        </host>\n"
+              + text[closed:])
+    path = ROOT / "config" / f".test_palpation_two_hosts_{os.getpid()}.xml"  # beside the original: paths resolve alike
+    path.write_text(placed)
+    return path
+
+
+def test_remote_palpation_over_two_hosts_on_a_delaying_lossy_link(palpation_session: Path, tmp_path: Path) -> None:
+    """The paper's two sites as two hosts: the camera and its stream on ``remote``, the hand, the
+    haptic loop, the meshing and the view on ``local``, each a network namespace, joined by a link
+    that delays every packet by 5 ms and loses 1 % of them. The stream crosses the link; the touch
+    registers the tracker, the places the hand reaches after it are touched, and the summary gives
+    the sensor-to-pixel latency on the first host's clock with the local host's measured offset."""
+    from netns import Impairment, Network, unavailable
+    from test_hosts_netns import start
+
+    if unavailable() is not None:
+        pytest.skip(f"no simulated network here: {unavailable()}")
+    app = two_host_palpation()
+    output = tmp_path / "two_hosts"
+    try:
+        args = (str(app), f"bag:={palpation_session}", f"output:={output}", f"rate:={HAND_RATE}",
+                "stream:=tcp://10.77.0.1:5611", "--profile", "100", "--duration", "90")
+        with Network(["remote", "local"], domain=188, impairment=Impairment(delay_s=0.005, loss=0.01, seed=5)) as net:
+            remote = start(net, "remote", tmp_path / "remote.log", *args)
+            local = start(net, "local", tmp_path / "local.log", *args)
+            assert local.wait(200) == 0, (tmp_path / "local.log").read_text()[-6000:]
+            assert remote.wait(30) == 0, (tmp_path / "remote.log").read_text()[-6000:]
+            dropped_on_link = sum(counts["dropped"] for counts in net.counters().values())
+    finally:
+        app.unlink()
+    local_log = (tmp_path / "local.log").read_text()
+    assert dropped_on_link > 0 and "registered from" in local_log, local_log[-6000:]
+    rows = haptic_rows(output)
+    expected = places_after_the_registration(output)
+    assert {"press_3", "stroke"} <= expected, f"the registration came late: only {expected} after it"
+    assert expected <= places_touched(rows)
+    assert behind_the_body(rows) <= BEHIND_BOUND
+    summary = json.loads((output / "summary.json").read_text())
+    clock = summary["clock"]
+    assert clock["exchanges"] > 0 and abs(clock["offset_ms"]) <= clock["uncertainty_ms"] + 0.05  # one machine
+    camera = summary["display_latency_ms"]["camera"]
+    assert camera["frames"] > 30 and 5.0 < camera["median"] < 2000.0  # the link's 5 ms are in it

@@ -18,6 +18,7 @@ from .connections import Connection, make_connection
 from .filters import Filter
 from .filters import Router as RoutingFilter
 from .hosts.auth import Refusals
+from .hosts.clock import ClockOffset
 from .errors import CocoError, WiringError, did_you_mean
 from .lifecycle import STOP_TIMEOUT, Progress, StartGate
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -131,6 +132,11 @@ class Application:
         exit non-zero and summaries report it, although the application ran on what was readable.
         With processes, each process's list also holds what the others found (the process level
         passes it on), so that a summary sees the damage of the whole application."""
+        self.clock = ClockOffset()
+        """This host's clock against the application's (the first host's), measured when the hosts
+        joined (:mod:`coco_core.hosts.clock`); the identity on one host. A component that sends its
+        stamps to another host by a way of its own (a stream) puts them on the application's clock
+        with it, and its reader back on its own, as connections between hosts do."""
         self.network_refusals = Refusals()
         """Messages from other hosts this process refused (not authenticated, replayed, from a host
         the file does not declare): counted by topic and sender for the profile, never damage and

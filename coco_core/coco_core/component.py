@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, Callable, ClassVar, Iterator
 
 from .attributes import Attribute
 from .errors import CocoError, DeclarationError, FileReadError, UnknownNameError, did_you_mean
+from .hosts.clock import ClockOffset
 from . import operations as ops
 from .operations import Operation
 from .ports import InputPort, OutputPort, Port
@@ -227,6 +228,13 @@ class Component:
             raise CocoError(f"component {self.name} is not part of an application, so it has no "
                             "transformation graph")
         return self.app.transforms
+
+    @property
+    def host_clock(self) -> ClockOffset:
+        """This host's clock against the application's (:attr:`Application.clock
+        <coco_core.application.Application.clock>`): what stamps sent to another host by a way of
+        the component's own are converted with; the identity outside an application."""
+        return self.app.clock if self.app is not None else ClockOffset()
 
     # --- attributes -----------------------------------------------------------------------------
     def set_attribute_now(self, name: str, value: Any) -> None:

@@ -149,6 +149,7 @@ class ChildProcess:
             drive(app, config.deployment, config.wakes)
             attach(app, config.plans, config.wakes)
             if config.clock is not None:
+                app.clock = config.clock
                 self.ends = ends_between_hosts(app, spec, config.clock, config.key)
                 if self.ends is not None:
                     matched(self.ends, config.host_timeout, lambda: None, app)
