@@ -10,7 +10,8 @@ from __future__ import annotations
 import enum
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Generic, Sequence, TypeVar, get_args, get_origin
-from .errors import AttributeValueError
+from .errors import AttributeValueError, FileReadError
+from .files import DATA_FILE_LIMIT, check_regular_file
 
 if TYPE_CHECKING:
     from .component import Component
@@ -165,3 +166,35 @@ class Attribute(Generic[T]):
     def describe(self) -> dict[str, Any]:
         """Declaration summary for docs and ``coco-launch --list``."""
         return {"name": self.name, "type": self.type_name, "default": self.default, "doc": self.doc}
+
+
+class FileAttribute(Attribute[str]):
+    """An attribute naming a file that the component reads whole (a hand trajectory, camera
+    intrinsics); empty: no file.
+
+    Why a kind of its own: the name may point anywhere (``/dev/zero``, a FIFO, a folder, a 2 GB
+    file), and the run must never be the first to find out. The declaration carries the file's
+    limit and what it should be, so that setting the value (from an application file, hence under
+    ``--check``, or from code) makes the same checks as the component's read, which goes through
+    :func:`~coco_core.files.read_regular_file` with the same limit inside
+    :meth:`Component.reading_attribute_file <coco_core.component.Component.reading_attribute_file>`:
+    a regular file, at most ``limit`` bytes, that can be opened for reading.
+    """
+
+    def __init__(self, default: str, doc: str, *, expected: str, limit: int = DATA_FILE_LIMIT) -> None:
+        super().__init__(str, default, doc)
+        self.expected = expected
+        """What the file should be ("a CSV file time,x,y,z"), for the errors."""
+        self.limit = limit
+
+    @property
+    def type_name(self) -> str:
+        return "file"
+
+    def _check_constraints(self, value: Any) -> None:
+        super()._check_constraints(value)
+        if value:
+            try:
+                check_regular_file(value, self.limit)
+            except FileReadError as error:
+                raise AttributeValueError(f"{error}; expected {self.expected}") from None

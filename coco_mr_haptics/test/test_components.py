@@ -294,12 +294,16 @@ def test_a_trajectory_that_is_no_regular_file_is_refused_naming_the_attribute(tm
 
     from coco_core.errors import FileReadError
 
-    path = special
+    # Setting the attribute refuses such a name (test_haptic_app); here the file is swapped after it.
+    path = tmp_path / "hand.csv"
+    path.write_text("time,x,y,z\n0,0,0,0\n1,0,0,0\n")
+    device = SimulatedDevice("device", trajectory=str(path))
+    path.unlink()
     if special == "fifo":
-        path = str(tmp_path / "hand.csv")
         os.mkfifo(path)
+    else:
+        path.symlink_to(special)
     kind = "a FIFO" if special == "fifo" else "a character device"
-    device = SimulatedDevice("device", trajectory=path)
     signal.signal(signal.SIGALRM, lambda *_: pytest.fail("reading the trajectory did not end"))
     signal.setitimer(signal.ITIMER_REAL, 10)
     try:
