@@ -119,3 +119,18 @@ def test_check_refuses_dev_zero_as_the_trajectory(coco_launch: Path) -> None:
     result = run_launcher(coco_launch, APP, "--check", "trajectory:=/dev/zero")
     assert result.returncode == 1, result.stdout + result.stderr
     assert "/dev/zero is a character device, not a regular file" in result.stderr
+
+
+@pytest.mark.parametrize("arg,value,attribute", [
+    ("stiffness", "nan", "scene.stiffness"),  # 40 % of cycles faulted to zero force, exit 0
+    ("stiffness", "1e999", "scene.stiffness"),
+    ("friction", "nan", "scene.static_friction"),  # a ZeroDivisionError in the renderer, exit 0
+])
+def test_a_non_finite_material_is_refused_at_its_line(arg: str, value: str, attribute: str) -> None:
+    text = Path(APP).read_text()
+    name = attribute.split(".")[1]
+    line = next(i for i, row in enumerate(text.splitlines(), 1) if f'name="{name}" value="$(arg {arg})"' in row)
+    with pytest.raises(ConfigErrors) as caught:
+        build_application(parse_application_string(text, "haptic.xml", {arg: value}), "haptics")
+    message = str(caught.value)
+    assert f"haptic.xml:{line}: attribute {attribute} (float): expected a finite number" in message, message

@@ -8,6 +8,7 @@ documents the component. Errors name the component, the attribute and what was e
 from __future__ import annotations
 
 import enum
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Generic, Sequence, TypeVar, get_args, get_origin
 from .errors import AttributeValueError, FileReadError
@@ -42,6 +43,11 @@ class Attribute(Generic[T]):
     ``type_`` is ``int``, ``float``, ``bool``, ``str``, ``Path``, an ``enum.Enum`` subclass, or
     ``list[X]`` / ``tuple[X, ...]`` of one of those. ``choices``, ``min`` and ``max`` constrain the
     value; ``check`` is any further validation that returns an error text or None.
+
+    A float is finite unless ``finite=False`` (then the doc should say what NaN or an infinity
+    means): NaN passes every ``min``/``max`` comparison, so ``stiffness:=nan`` or ``1e999`` (which
+    parses as an infinity) would reach the component and fault it at run time; refusing them here,
+    once, covers every component.
     """
 
     def __init__(
@@ -54,6 +60,7 @@ class Attribute(Generic[T]):
         min: float | None = None,
         max: float | None = None,
         check: Callable[[T], str | None] | None = None,
+        finite: bool = True,
     ) -> None:
         self.type = type_
         self.doc = doc
@@ -61,6 +68,7 @@ class Attribute(Generic[T]):
         self.min = min
         self.max = max
         self.check = check
+        self.finite = finite
         self.name = ""
         self.default = default
 
@@ -152,6 +160,8 @@ class Attribute(Generic[T]):
     def _check_constraints(self, value: Any) -> None:
         scalars = value if isinstance(value, (list, tuple)) else [value]
         for scalar in scalars:
+            if self.finite and isinstance(scalar, float) and not math.isfinite(scalar):
+                raise AttributeValueError(f"expected a finite number, got {scalar!r}")
             if self.choices is not None and scalar not in self.choices:
                 raise AttributeValueError(f"expected one of {', '.join(map(str, self.choices))}, got {scalar!r}")
             if self.min is not None and scalar < self.min:
