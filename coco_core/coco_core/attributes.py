@@ -11,7 +11,7 @@ import enum
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Generic, Sequence, TypeVar, get_args, get_origin
-from .errors import AttributeValueError, FileReadError
+from .errors import AttributeValueError, FileReadError, bounded, excerpt
 from .files import DATA_FILE_LIMIT, check_regular_file
 
 if TYPE_CHECKING:
@@ -23,13 +23,19 @@ _TRUE = {"true", "1", "yes", "on"}
 _FALSE = {"false", "0", "no", "off"}
 
 
+def _shown(value: Any) -> str:
+    """``value`` as an error quotes it, cut short: a value may come from a service call or a file,
+    and is never echoed whole into a log or a reply."""
+    return excerpt(value) if isinstance(value, str) else bounded(repr(value), 120)
+
+
 def _parse_bool(text: str) -> bool:
     word = text.strip().lower()
     if word in _TRUE:
         return True
     if word in _FALSE:
         return False
-    raise AttributeValueError(f"expected a boolean (true/false/1/0/yes/no/on/off), got {text!r}")
+    raise AttributeValueError(f"expected a boolean (true/false/1/0/yes/no/on/off), got {_shown(text)}")
 
 
 def _split_list(text: str) -> list[str]:
@@ -108,13 +114,13 @@ class Attribute(Generic[T]):
                 return tp[text.strip()]
             except KeyError:
                 raise AttributeValueError(
-                    f"expected one of {', '.join(m.name for m in tp)}, got {text!r}"
+                    f"expected one of {', '.join(m.name for m in tp)}, got {_shown(text)}"
                 ) from None
         if tp in (int, float):
             try:
                 return tp(text.strip())
             except ValueError:
-                raise AttributeValueError(f"expected {'an integer' if tp is int else 'a number'}, got {text!r}") from None
+                raise AttributeValueError(f"expected {'an integer' if tp is int else 'a number'}, got {_shown(text)}") from None
         if tp is str:
             return text
         if tp is Path:
@@ -138,7 +144,7 @@ class Attribute(Generic[T]):
         if origin in (list, tuple):
             inner = get_args(self.type)[0]
             if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
-                raise AttributeValueError(f"expected a {self.type_name}, got {value!r}")
+                raise AttributeValueError(f"expected a {self.type_name}, got {_shown(value)}")
             return origin(self._coerce_scalar(inner, item) for item in value)
         return self._coerce_scalar(self.type, value)
 
@@ -150,24 +156,24 @@ class Attribute(Generic[T]):
         if tp is Path and isinstance(value, str):
             return Path(value)
         if tp is int and isinstance(value, bool):
-            raise AttributeValueError(f"expected an integer, got {value!r}")
+            raise AttributeValueError(f"expected an integer, got {_shown(value)}")
         if isinstance(value, tp):
             return value
         if tp is int and isinstance(value, float) and value.is_integer():
             return int(value)
-        raise AttributeValueError(f"expected {getattr(tp, '__name__', tp)}, got {value!r}")
+        raise AttributeValueError(f"expected {getattr(tp, '__name__', tp)}, got {_shown(value)}")
 
     def _check_constraints(self, value: Any) -> None:
         scalars = value if isinstance(value, (list, tuple)) else [value]
         for scalar in scalars:
             if self.finite and isinstance(scalar, float) and not math.isfinite(scalar):
-                raise AttributeValueError(f"expected a finite number, got {scalar!r}")
+                raise AttributeValueError(f"expected a finite number, got {_shown(scalar)}")
             if self.choices is not None and scalar not in self.choices:
-                raise AttributeValueError(f"expected one of {', '.join(map(str, self.choices))}, got {scalar!r}")
+                raise AttributeValueError(f"expected one of {', '.join(map(str, self.choices))}, got {_shown(scalar)}")
             if self.min is not None and scalar < self.min:
-                raise AttributeValueError(f"expected >= {self.min}, got {scalar!r}")
+                raise AttributeValueError(f"expected >= {self.min}, got {_shown(scalar)}")
             if self.max is not None and scalar > self.max:
-                raise AttributeValueError(f"expected <= {self.max}, got {scalar!r}")
+                raise AttributeValueError(f"expected <= {self.max}, got {_shown(scalar)}")
         if self.check is not None:
             problem = self.check(value)
             if problem:
