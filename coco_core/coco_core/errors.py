@@ -304,7 +304,8 @@ class ConversionError(CocoError, ValueError):
 
 
 class PacketError(CocoError, ValueError):
-    """A packet that cannot be decoded; ``kind`` is ``garbage`` or ``truncated``."""
+    """A packet that cannot be decoded or taken; ``kind`` is ``garbage``, ``truncated`` or
+    ``out_of_order`` (a sequence number at or before the last one taken)."""
 
     def __init__(self, kind: str, message: str) -> None:
         super().__init__(message)
