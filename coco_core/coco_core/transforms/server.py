@@ -111,6 +111,10 @@ kernel's listen queue (:data:`BACKLOG`). Why: 500 threads started at once, each 
 took the GIL from the application's activities in turns. A client that connects and says nothing
 keeps its place until the read timeout (10 s)."""
 
+TURN_READ_TIMEOUT = 1.0
+"""Seconds each read of a request may wait while the request holds the turn: a client that sends
+part of a request and stops keeps the others waiting this long, not the 10 s read timeout."""
+
 REQUEST_PAUSE = 1.0
 """After answering a request, the server pauses this many times the time the request took before it
 answers the next one. Requests are read and answered one at a time (each connection still has a
@@ -528,7 +532,7 @@ class _Handler(BaseHTTPRequestHandler):
     timeout = 10.0  # for reading a request; lifted once a WebSocket is open
     server_version = "CoCoTransforms/1.0"
     _turn = False
-    """Whether this request holds a turn of :attr:`_HTTPServer.turns`."""
+    """Whether this request holds :attr:`_HTTPServer.turn`."""
 
     @property
     def owner(self) -> TransformServer:
@@ -539,8 +543,8 @@ class _Handler(BaseHTTPRequestHandler):
 
     def handle(self) -> None:
         """Wait for the request's first bytes (blocked, no GIL held), then for the turn, and only
-        then read and answer it, and pause (:data:`REQUEST_PAUSE`): a client that connects and sends
-        nothing holds no turn. A WebSocket gives the turn back once open, without a pause
+        then read and answer it (:data:`TURN_READ_TIMEOUT`), and pause (:data:`REQUEST_PAUSE`): a
+        client that connects and sends nothing holds no turn. A WebSocket gives the turn back once open, without a pause
         (:meth:`_give_turn_back`)."""
         try:
             if not self.connection.recv(1, socket.MSG_PEEK):
@@ -549,6 +553,7 @@ class _Handler(BaseHTTPRequestHandler):
             return
         self.server.turn.acquire()
         self._turn = True
+        self.connection.settimeout(TURN_READ_TIMEOUT)
         began = _time.perf_counter()
         try:
             super().handle()
