@@ -78,9 +78,15 @@ class ApplicationHost(Protocol):
 class Application:
     """A set of components, connections and activities that start and stop together."""
 
-    def __init__(self, name: str = "coco", on_error: ErrorPolicy = ErrorPolicy.CONTINUE) -> None:
+    def __init__(self, name: str = "coco", on_error: ErrorPolicy | None = None) -> None:
         self.name = name
-        self.on_error = on_error
+        self.on_error = on_error or ErrorPolicy.CONTINUE
+        """What a component's error does, unless the component has a policy of its own."""
+        self.stops_on_refused_config = on_error is None
+        """Whether a component that refuses its configuration (raises in ``on_config``) stops the
+        application: yes unless a policy was given. Why: such a component never runs (a haptic
+        device without its trajectory), and an application running on without it only looks
+        healthy; ``continue`` or ``stop_component``, given, say that it may."""
         self.process = ""
         """Which ``<process>`` of the application this object runs; empty: the launcher's own. The
         launcher's application also holds stand-ins of the activities its child processes run."""

@@ -5,8 +5,8 @@ The server binds a PUB socket and sends one packet per frame; a slow or absent r
 blocks it (ZeroMQ drops beyond the high-water mark). The receiver connects a SUB socket and, each
 activation, drains every packet that arrived and delivers only the newest ("newest frame only",
 what live use wants); the older ones are counted as dropped, as are gaps in the sequence numbers.
-Garbage, truncated and out-of-order packets are counted by kind and skipped: a bad packet is never
-a crash. Each server run names itself in its packets, so a server that starts again (its sequence
+Garbage, truncated and out-of-order packets are counted by kind, and together in the profile's
+refused column, and skipped: a bad packet is never a crash. Each server run names itself in its packets, so a server that starts again (its sequence
 numbers from 1) is counted once as a restart and its frames delivered, not taken for stale ones.
 Latency is measured from the frame's acquisition stamp on the server side; the receiver's stamps
 carry the time the server took the frame (its packet's ``sent``, taken before the encoding) and the
@@ -208,10 +208,13 @@ class StreamingReceiver(Component):
             self._socket.connect(self.address)
 
     def _refuse(self, error: PacketError) -> None:
-        """Count a bad packet; the first of each kind is logged as a warning (a server configured for
-        larger frames than ``max_frame`` shows up at once), the others at debug level."""
+        """Count a bad packet by its kind and in the profile's refused column (with the launcher's
+        summary, the one place a flood shows); the first of each kind is logged as a warning (a
+        server configured for larger frames than ``max_frame`` shows up at once), the others at
+        debug level."""
         count = getattr(self, error.kind) + 1
         setattr(self, error.kind, count)
+        self.stats.refused += 1
         log.log(logging.WARNING if count == 1 else logging.DEBUG, "%s: %s packet: %s%s", self.name, error.kind,
                 error, " (further ones are counted)" if count == 1 else "")
 
@@ -224,7 +227,7 @@ class StreamingReceiver(Component):
             self._stream, self._last_seq = header.stream, 0  # numbered from 1: a gap before is a drop
         gap = header.seq - self._last_seq
         if gap <= 0:
-            self.out_of_order += 1
+            self._refuse(PacketError("out_of_order", f"sequence number {header.seq} after {self._last_seq}"))
             return False
         if gap > MAX_JUMP:
             if self._last_seq and self._jump != (header.stream, header.seq - 1):
