@@ -23,6 +23,12 @@ IN_PROCESSES = APP.replace('<activity name="recording">', '<process name="worker
     '<components><component name="rec"/></components></activity></process>')
 
 
+def cycles(array: Any) -> dict[str, int]:
+    """The cycles of each activity in one /diagnostics array of the launcher's profile."""
+    return {status.name.split("activity ")[1]: int(next(kv.value for kv in status.values if kv.key == "cycles"))
+            for status in array.status if ": activity " in status.name}
+
+
 @pytest.fixture
 def peer(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Any, Any]]:
     yield from rclpy_peer(monkeypatch, DOMAIN, "lifecycle_peer")
@@ -51,10 +57,6 @@ def test_configure_then_activate_then_deactivate(tmp_path: Path, peer: tuple[Any
 
     def transition(id: int) -> bool:
         return answer(change, ChangeState.Request(transition=Transition(id=id))).success
-
-    def cycles(array: Any) -> dict[str, int]:
-        return {status.name.split("activity ")[1]: int(next(kv.value for kv in status.values if kv.key == "cycles"))
-                for status in array.status if ": activity " in status.name}
 
     try:
         spin_until(executor, lambda: get_state.service_is_ready() and change.service_is_ready(),
@@ -88,3 +90,75 @@ def test_managed_needs_the_default_hosting(tmp_path: Path) -> None:
     refused = subprocess.run(launcher_command(str(app), "output:=x.csv", "--managed", "--executor-threads", "1"),
                              capture_output=True, text=True, timeout=60, env=ros_env(DOMAIN))
     assert refused.returncode == 2 and "--managed needs the default hosting" in refused.stderr
+
+
+REFUSING = "63"
+
+
+@pytest.fixture
+def refusing_peer(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Any, Any]]:
+    yield from rclpy_peer(monkeypatch, REFUSING, "lifecycle_refusing_peer")
+
+
+def test_an_invalid_transition_is_refused_and_the_application_runs_on(tmp_path: Path,
+                                                                      refusing_peer: tuple[Any, Any]) -> None:
+    """What ``ros2 lifecycle set`` does, through the node's lifecycle services: activate before
+    configure, configure twice and configure while active are refused with the valid transitions
+    named, and the application runs on. With rclpy 7.1.6 alone the service never answered, the
+    launcher logged "the ROS executor failed", stopped the application and exited 0."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState, GetAvailableTransitions, GetState
+
+    node, executor = refusing_peer
+    arrays: list[Any] = []
+    node.create_subscription(DiagnosticArray, "/diagnostics", arrays.append, 10)
+    process = start_launcher(tmp_path / "managed.xml", APP, f"output:={tmp_path / 'rows.csv'}", "--managed",
+                             "--ros-args", "-p", "diagnostics.period:=0.2", "-r", "__node:=refusing_under_test",
+                             domain=REFUSING)
+    get_state = node.create_client(GetState, "/refusing_under_test/get_state")
+    change = node.create_client(ChangeState, "/refusing_under_test/change_state")
+    available = node.create_client(GetAvailableTransitions, "/refusing_under_test/get_available_transitions")
+
+    def state() -> str:
+        return call_service(executor, get_state, GetState.Request()).current_state.label
+
+    def transition(id: int = 0, label: str = "") -> bool:
+        request = ChangeState.Request(transition=Transition(id=id, label=label))
+        return call_service(executor, change, request).success
+
+    def valid() -> list[str]:
+        answer = call_service(executor, available, GetAvailableTransitions.Request())
+        return [each.transition.label for each in answer.available_transitions]
+
+    def sampled() -> int:
+        return max((cycles(a).get("sampling", 0) for a in arrays), default=0)
+
+    try:
+        spin_until(executor, lambda: all(c.service_is_ready() for c in (get_state, change, available)),
+                   "the launcher's lifecycle services")
+        assert valid() == ["configure", "shutdown"]
+        assert not transition(Transition.TRANSITION_ACTIVATE), "activate before configure"
+        assert state() == "unconfigured"
+        assert transition(Transition.TRANSITION_CONFIGURE)
+        assert not transition(Transition.TRANSITION_CONFIGURE), "configure twice"
+        assert state() == "inactive"
+        assert transition(Transition.TRANSITION_ACTIVATE)
+        spin_until(executor, lambda: sampled() > 0, "cycles after activate")
+        assert not transition(Transition.TRANSITION_CONFIGURE), "configure while active"
+        assert not transition(label="cleanup"), "cleanup while active, by label"
+        assert state() == "active" and process.poll() is None, "the application runs on"
+        before = sampled()
+        spin_until(executor, lambda: sampled() > before, "cycles after the refused transitions")
+        assert transition(Transition.TRANSITION_DEACTIVATE)
+    finally:
+        try:
+            out, _ = process.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            out, _ = process.communicate()
+    assert process.returncode == 0, out
+    assert "the ROS executor failed" not in out, out
+    assert "lifecycle transition 3 refused: not valid from state unconfigured; valid: configure (1), shutdown (5)" in out
+    assert "lifecycle transition 1 refused: not valid from state inactive; valid:" in out
+    assert "lifecycle transition cleanup refused: not valid from state active; valid: deactivate (4), shutdown (7)" in out
