@@ -38,7 +38,7 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING
 
 from .errors import Interrupted
@@ -123,9 +123,15 @@ class LaunchSignals:
         """Every signal delivered, in order, as the watcher read them (its thread only)."""
         self._acted = 0
         """How many of :attr:`_delivered` the watcher acted on (it acts once an application is attached)."""
+        self._early = 0
+        """How many of :attr:`received` came before :meth:`install` (no watcher saw them)."""
         self._watcher = signal_watcher()
 
-    def install(self) -> LaunchSignals:
+    def install(self, early: Iterable[int] = ()) -> LaunchSignals:
+        """Handle SIGINT and SIGTERM from now on; ``early``: signals the installed script recorded
+        before (they count as received, first)."""
+        self.received.extend(early)
+        self._early = len(self.received)
         signal.signal(signal.SIGINT, self._handle)
         signal.signal(signal.SIGTERM, self._handle)
         self._watcher.watch(self._act)
@@ -138,7 +144,7 @@ class LaunchSignals:
         self.received.append(signum)
         if self.interrupting:
             self.interrupting = False  # one exception: a second signal must not interrupt its handling
-            raise Interrupted(signum)
+            raise Interrupted(self._first())
 
     def _act(self, signum: int) -> None:
         """The watcher's thread: a signal was delivered (or :data:`LOOK_AGAIN`). After the launch
@@ -162,10 +168,18 @@ class LaunchSignals:
             print("coco: stopping (at most 1 s), then leaving at once", file=sys.stderr, flush=True)
         app.request_stop(f"received {signal.Signals(signum).name}", hard=True)
 
+    def _first(self) -> int:
+        """The launch's first signal (one was received). Python runs the handlers of signals that
+        came while the main thread was in one native call in the order of their numbers (SIGINT
+        before an earlier SIGTERM): the watcher's order of delivery says which came first."""
+        if self._early:
+            return self.received[0]
+        return self._delivered[0] if self._delivered else self.received[0]
+
     def check(self) -> None:
         """Raise :class:`Interrupted` when a signal came before the application runs."""
         if self.received and self.app is None:
-            raise Interrupted(self.received[0])
+            raise Interrupted(self._first())
 
     def attach(self, app: Application) -> None:
         """From now on a signal stops ``app`` (after a last :meth:`check`); one delivered since that
