@@ -159,10 +159,14 @@ def delivered(process: subprocess.Popen[str], signum: int, within: float = 5.0) 
         time.sleep(0.001)
 
 
-def burst(process: subprocess.Popen[str], *signals: int) -> None:
-    """Send ``signals`` to ``process`` as fast as each is taken."""
+def burst(process: subprocess.Popen[str], *signals: int, group: bool = False) -> None:
+    """Send ``signals`` to ``process`` (``group``: to its process group, children included, as a
+    service manager does) as fast as each is taken."""
     for signum in signals:
-        process.send_signal(signum)
+        if group:
+            os.killpg(process.pid, signum)
+        else:
+            process.send_signal(signum)
         delivered(process, signum)
 
 
@@ -196,23 +200,26 @@ INT, TERM = signal.SIGINT, signal.SIGTERM
 
 
 @pytest.mark.parametrize("launcher", launchers(), ids=["coco-launch", "ros-launcher"])
-@pytest.mark.parametrize("stage, first, second, status", [
-    ("building", TERM, INT, 143),  # before the application ran: the first signal's status, nothing started
-    ("configuring", INT, TERM, 0),  # ros2 launch's order: a clean stop (before any cycle ran)
-    ("running", INT, TERM, 0),  # a second SIGTERM changes nothing
-    ("running", INT, INT, 130),  # a second Ctrl-C: the stop finishes, then the launcher leaves
-    ("stopping", INT, INT, 130),  # the second while on_stop lingers
-    ("stopping", TERM, TERM, 0),
-], ids=["building-TERM+INT", "configuring-INT+TERM", "running-INT+TERM", "running-INT+INT", "stopping-INT+INT",
-        "stopping-TERM+TERM"])
-def test_a_burst_of_signals_at_each_stage(launcher: Path, stage: str, first: int, second: int, status: int) -> None:
+@pytest.mark.parametrize("stage, first, second, status, group", [
+    ("building", TERM, INT, 143, False),  # before the application ran: the first signal's status, nothing started
+    ("configuring", INT, TERM, 0, False),  # ros2 launch's order: a clean stop (before any cycle ran)
+    ("running", INT, TERM, 0, False),  # a second SIGTERM changes nothing
+    ("running", INT, INT, 130, False),  # a second Ctrl-C: the stop finishes, then the launcher leaves
+    ("running", TERM, TERM, 0, True),  # the child gets both too: it stops with the launcher's word
+    ("stopping", INT, INT, 130, False),  # the second while on_stop lingers
+    ("stopping", TERM, TERM, 0, False),
+], ids=["building-TERM+INT", "configuring-INT+TERM", "running-INT+TERM", "running-INT+INT", "running-group-TERM+TERM",
+        "stopping-INT+INT", "stopping-TERM+TERM"])
+def test_a_burst_of_signals_at_each_stage(launcher: Path, stage: str, first: int, second: int, status: int,
+                                          group: bool) -> None:
     """Two signals in quick succession, at the stage the application's component says it is at
     (the launcher's configures while the child's waits configured; "stopping": the first signal
     began the stop): the documented status, within the second a stop takes, and nothing left."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1",
            "PYTHONPATH": f"{STAGES_APP.parent}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
     process = subprocess.Popen([str(launcher), str(STAGES_APP), f"linger:={stage}", "--duration", "30"], cwd=ROOT,
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                               start_new_session=group)
     watchdog = threading.Timer(60, process.kill)  # a hang fails the test instead of holding the suite
     watchdog.start()
     try:
@@ -235,7 +242,7 @@ def test_a_burst_of_signals_at_each_stage(launcher: Path, stage: str, first: int
                     break
             burst(process, second)
         else:
-            burst(process, first, second)
+            burst(process, first, second, group=group)
         out, _ = process.communicate(timeout=30)
         took = time.monotonic() - sent
     finally:
