@@ -545,6 +545,16 @@ class Application:
                  time.monotonic() - self._stop_requested_at, "clean" if clean else "some activities did not stop")
         return clean
 
+    def pause(self, paused: bool) -> None:
+        """Hold every activity's cycles, in every process, or let them run again
+        (:meth:`StartGate.pause`); resumed, this process's triggered activities look at what was
+        written to them meanwhile."""
+        self.gate.pause(paused)
+        if not paused:
+            for activity in self.activities.values():
+                if activity.process == self.process:
+                    activity.wake()
+
     def set_period(self, activity: str, period: float) -> None:
         """Change a periodic activity's period (seconds) while it runs."""
         target = self.activity(activity)

@@ -79,7 +79,8 @@ def make_ros_parser() -> argparse.ArgumentParser:
                         help="run every activity on its own thread (as coco-launch does)")
     parser.add_argument("--managed", action="store_true",
                         help="a managed (lifecycle) node: the application configures on the configure transition and "
-                             "runs on activate; deactivate, cleanup or shutdown stop it (coco_ros.managed)")
+                             "runs on activate; deactivate holds it until the next activate; cleanup or shutdown stop "
+                             "it (coco_ros.managed)")
     parser.add_argument("--executor-threads", type=_positive_int, metavar="N",
                         help="host the activities as callback groups of one executor with N threads (1: a "
                         "SingleThreadedExecutor) instead of a wait set on a thread of its own for each")

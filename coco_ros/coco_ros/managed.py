@@ -10,10 +10,14 @@ transition     what the application does
 =============  ==================================================================================
 configure      every activity of every process starts and configures its components (``on_config``,
                in its own thread); the transition ends once all have, and nothing cycles yet
-activate       the start gate opens: every activity runs (``--duration`` counts from here)
-deactivate,    a natural stop: every activity finishes its work and flushes, then the launcher ends
-cleanup,       (an application runs once: a stopped one cannot be activated again; start the
-shutdown       launcher again for that)
+activate       the start gate opens: every activity runs (``--duration`` counts from the first);
+               after a deactivate, the activities run again where they were held
+deactivate     every activity of every process holds its cycles (``Application.pause``): threads,
+               timers and configuration stay, what is written meanwhile waits in the connections
+               (a buffer keeps its ``buffersize`` newest), operations are still served
+cleanup,       a natural stop: every activity finishes its work and flushes, then the launcher ends
+shutdown       (an application runs once: a stopped one cannot be configured again; start the
+               launcher again for that)
 =============  ==================================================================================
 
 Without ``--managed`` the launcher configures and activates at once, as before. The built
@@ -82,16 +86,27 @@ class ManagedApplication:
         return True
 
     def activate(self) -> bool:
+        """Run every activity: the first time, open the start gate; after a deactivate, resume."""
         if not self._configured.is_set() or self.app.stop_requested:
             log.error("activate: application %s %s", self.app.name,
                       "is stopping or stopped (it runs once: start the launcher again)" if self.app.stop_requested
                       else "is not configured")
             return False
-        self.app.gate.open()
+        if self.app.gate.is_open:
+            self.app.pause(False)
+            log.info("application %s active again", self.app.name)
+        else:
+            self.app.gate.open()
+        return True
+
+    def deactivate(self) -> bool:
+        """Hold every activity's cycles until the next activate (see the module)."""
+        self.app.pause(True)
+        log.info("application %s inactive: every activity holds its cycles until activate", self.app.name)
         return True
 
     def end(self, transition: str) -> bool:
-        """deactivate, cleanup, shutdown: a natural stop (every activity flushes), then the launcher ends."""
+        """cleanup, shutdown: a natural stop (every activity flushes), then the launcher ends."""
         self.app.request_stop(f"lifecycle transition {transition}")
         return True
 
@@ -141,7 +156,7 @@ class ManagedLauncherNode(LifecycleNode):
         return self._answer(self.managed is not None and self.managed.activate())
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        return self._answer(self.managed is not None and self.managed.end("deactivate"))
+        return self._answer(self.managed is not None and self.managed.deactivate())
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
         return self._answer(self.managed is not None and self.managed.end("cleanup"))

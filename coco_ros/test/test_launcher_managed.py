@@ -1,6 +1,7 @@
 """The launcher as a managed (lifecycle) node (coco_ros.managed): nothing runs before configure,
 configure configures every activity of every process and cycles none, activate runs them,
-deactivate stops the application naturally and ends the launcher. The launcher runs as the
+deactivate holds them until activate runs them again, cleanup and shutdown stop the application
+naturally and end the launcher; a transition not valid from the current state is refused. The launcher runs as the
 installed script; this test is a real lifecycle client (lifecycle_msgs services) and reads the
 activities' cycles on /diagnostics, on its own DDS domain."""
 
@@ -73,6 +74,8 @@ def test_configure_then_activate_then_deactivate(tmp_path: Path, peer: tuple[Any
         spin_until(executor, lambda: any(cycles(a).get("recording", 0) > 0 and cycles(a).get("sampling", 0) > 0
                                          for a in arrays), "cycles of the launcher's and the child's activities")
         assert transition(Transition.TRANSITION_DEACTIVATE)
+        assert state() == "inactive"
+        assert transition(Transition.TRANSITION_CLEANUP)
     finally:
         try:
             out, _ = process.communicate(timeout=30)
@@ -80,7 +83,7 @@ def test_configure_then_activate_then_deactivate(tmp_path: Path, peer: tuple[Any
             process.kill()
             out, _ = process.communicate()
     assert process.returncode == 0, out
-    assert "lifecycle transition deactivate" in out and "(clean)" in out, out
+    assert "lifecycle transition cleanup" in out and "(clean)" in out, out
     assert len(list(csv.reader(output.open()))) > 2, "the recorder flushed its rows"
 
 
@@ -100,12 +103,14 @@ def refusing_peer(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Any, Any]]:
     yield from rclpy_peer(monkeypatch, REFUSING, "lifecycle_refusing_peer")
 
 
-def test_an_invalid_transition_is_refused_and_the_application_runs_on(tmp_path: Path,
-                                                                      refusing_peer: tuple[Any, Any]) -> None:
+def test_an_invalid_transition_is_refused_and_a_deactivated_application_activates_again(
+        tmp_path: Path, refusing_peer: tuple[Any, Any]) -> None:
     """What ``ros2 lifecycle set`` does, through the node's lifecycle services: activate before
     configure, configure twice and configure while active are refused with the valid transitions
-    named, and the application runs on. With rclpy 7.1.6 alone the service never answered, the
-    launcher logged "the ROS executor failed", stopped the application and exited 0."""
+    named, and the application runs on (with rclpy 7.1.6 alone the service never answered, the
+    launcher logged "the ROS executor failed", stopped the application and exited 0); deactivate
+    holds every activity, the child process's too, and activate runs them again (deactivate used to
+    end the launcher)."""
     from diagnostic_msgs.msg import DiagnosticArray
     from lifecycle_msgs.msg import Transition
     from lifecycle_msgs.srv import ChangeState, GetAvailableTransitions, GetState
@@ -113,7 +118,7 @@ def test_an_invalid_transition_is_refused_and_the_application_runs_on(tmp_path: 
     node, executor = refusing_peer
     arrays: list[Any] = []
     node.create_subscription(DiagnosticArray, "/diagnostics", arrays.append, 10)
-    process = start_launcher(tmp_path / "managed.xml", APP, f"output:={tmp_path / 'rows.csv'}", "--managed",
+    process = start_launcher(tmp_path / "managed.xml", IN_PROCESSES, f"output:={tmp_path / 'rows.csv'}", "--managed",
                              "--ros-args", "-p", "diagnostics.period:=0.2", "-r", "__node:=refusing_under_test",
                              domain=REFUSING)
     get_state = node.create_client(GetState, "/refusing_under_test/get_state")
@@ -131,8 +136,13 @@ def test_an_invalid_transition_is_refused_and_the_application_runs_on(tmp_path: 
         answer = call_service(executor, available, GetAvailableTransitions.Request())
         return [each.transition.label for each in answer.available_transitions]
 
-    def sampled() -> int:
-        return max((cycles(a).get("sampling", 0) for a in arrays), default=0)
+    def sampled(activity: str = "sampling") -> int:
+        return max((cycles(a).get(activity, 0) for a in arrays), default=0)
+
+    def profiles_after(seen: int, count: int) -> list[Any]:
+        """``count`` profiles of the three activities published after the first ``seen``."""
+        complete = lambda: [a for a in arrays[seen:] if len(cycles(a)) == 3]  # noqa: E731
+        return spin_until(executor, lambda: complete()[count - 1:] and complete(), f"{count} profiles")
 
     try:
         spin_until(executor, lambda: all(c.service_is_ready() for c in (get_state, change, available)),
@@ -151,6 +161,13 @@ def test_an_invalid_transition_is_refused_and_the_application_runs_on(tmp_path: 
         before = sampled()
         spin_until(executor, lambda: sampled() > before, "cycles after the refused transitions")
         assert transition(Transition.TRANSITION_DEACTIVATE)
+        assert state() == "inactive" and valid() == ["cleanup", "activate", "shutdown"]
+        held = profiles_after(len(arrays), 3)  # the first may have been taken before the child held
+        assert cycles(held[1]) == cycles(held[2]), "no activity cycles while inactive, in either process"
+        assert transition(Transition.TRANSITION_ACTIVATE), "a deactivated node activates again"
+        spin_until(executor, lambda: sampled() > cycles(held[2])["sampling"]
+                   and sampled("recording") > cycles(held[2])["recording"], "cycles in both processes again")
+        assert transition(label="shutdown")
     finally:
         try:
             out, _ = process.communicate(timeout=30)
@@ -162,3 +179,4 @@ def test_an_invalid_transition_is_refused_and_the_application_runs_on(tmp_path: 
     assert "lifecycle transition 3 refused: not valid from state unconfigured; valid: configure (1), shutdown (5)" in out
     assert "lifecycle transition 1 refused: not valid from state inactive; valid:" in out
     assert "lifecycle transition cleanup refused: not valid from state active; valid: deactivate (4), shutdown (7)" in out
+    assert "application param_app active again" in out and "(clean)" in out, out

@@ -49,6 +49,7 @@ from .messages import (
     Damage,
     Outcome,
     ProfileRequest,
+    Pause,
     Run,
     SetPeriod,
     Start,
@@ -233,6 +234,7 @@ class ChildProcess:
         self.link.serve({
             **self._handlers(app),
             Run: lambda _: app.gate.open(),
+            Pause: lambda message: app.pause(message.paused),
             Stop: lambda message: app.request_stop(f"launcher: {message.reason}", hard=message.hard),
         })
         self.link.abandon("the launcher is gone")
