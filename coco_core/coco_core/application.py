@@ -381,7 +381,9 @@ class Application:
         self._damage_listeners.append(listener)
 
     def request_stop(self, reason: str = "stop requested", hard: bool = False) -> None:
-        """Ask every activity to stop; returns at once (safe from signal handlers and components).
+        """Ask every activity to stop; returns at once (from any thread or component; not from a
+        signal handler, which may interrupt a thread that holds a lock this takes: the launchers'
+        handlers only record, :mod:`coco_core.signals`).
 
         ``hard``: a signal or a fault, after which :meth:`stop` waits :data:`STOP_TIMEOUT` seconds at
         most; otherwise the application asks itself (its work is done) and the activities get what
