@@ -140,7 +140,7 @@ def test_check_prints_every_hosts_part_and_the_connections_between_them(tmp_path
     assert one.returncode == 0 and "host robot of" not in one.stdout and "process work" in one.stdout
     run = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--duration", "1"],
                          capture_output=True, text=True, timeout=120)
-    assert run.returncode == 1 and "say which one this machine is with --host NAME" in run.stderr
+    assert run.returncode == 2 and "say which one this machine is with --host NAME" in run.stderr  # a wrong command line
 
 
 def test_the_data_flow_graph_draws_each_host_around_its_processes(tmp_path: Path) -> None:
