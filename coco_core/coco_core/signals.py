@@ -80,7 +80,7 @@ class SignalWatcher:
             self._thread.start()
 
     def wake(self) -> None:
-        """Have ``act(LOOK_AGAIN)`` called; a handler may call it (one write, no lock)."""
+        """Have ``act(LOOK_AGAIN)`` called (from any thread: one write, no lock)."""
         try:
             os.write(self._write, bytes([LOOK_AGAIN]))
         except BlockingIOError:  # full: the watcher has bytes to read, and looks again anyway
