@@ -29,6 +29,23 @@ runtime is imported, while the file is read and components are built, and while 
 starts in about 1-2 s here). Each stage is also signalled on purpose, in bursts, below."""
 
 
+def wait_for_mask(process: subprocess.Popen[str], field: str, signum: int, present: bool, within: float) -> bool:
+    """Wait until ``signum``'s bit in ``process``'s /proc ``field`` mask (``SigCgt``: caught,
+    ``ShdPnd``: pending) is ``present``; False when it did not come to that within ``within`` s or
+    the process ended."""
+    status = Path(f"/proc/{process.pid}/status")
+    deadline = time.monotonic() + within
+    while time.monotonic() < deadline and process.poll() is None:
+        try:
+            mask = next(line for line in status.read_text().splitlines() if line.startswith(f"{field}:"))
+        except OSError:
+            return False  # it ended
+        if bool(int(mask.split()[1], 16) >> (signum - 1) & 1) == present:
+            return True
+        time.sleep(0.001)
+    return False
+
+
 def handling_in_force(process: subprocess.Popen[str], within: float = 30.0) -> None:
     """Wait until ``process`` catches SIGTERM (/proc's ``SigCgt`` mask): the first lines of the
     installed script, which take SIGINT and then SIGTERM over, have run. Before them the interpreter
@@ -36,16 +53,8 @@ def handling_in_force(process: subprocess.Popen[str], within: float = 30.0) -> N
     it by the kernel's default action (status -15), a SIGINT with Python's KeyboardInterrupt. That
     window is ~0.1 s on a quiet machine and was over 0.3 s on a loaded one (a launcher killed at
     0.3 s, before its handling, failed this test)."""
-    status = Path(f"/proc/{process.pid}/status")
-    deadline = time.monotonic() + within
-    while time.monotonic() < deadline and process.poll() is None:
-        try:
-            caught = next(line for line in status.read_text().splitlines() if line.startswith("SigCgt:"))
-        except OSError:
-            break  # it ended
-        if int(caught.split()[1], 16) >> (signal.SIGTERM - 1) & 1:
-            return
-        time.sleep(0.005)
+    if wait_for_mask(process, "SigCgt", signal.SIGTERM, True, within):
+        return
     raise AssertionError(f"the launcher's signal handling was not in force within {within:g} s "
                          f"(status {process.poll()})")
 
@@ -147,16 +156,7 @@ def test_a_burst_of_signals_ends_a_slow_load_at_once(launcher: Path, signum: int
 def delivered(process: subprocess.Popen[str], signum: int, within: float = 5.0) -> None:
     """Wait until ``signum`` is no longer pending for ``process`` (/proc's ``ShdPnd``): a second one
     sent before would merge with it in the kernel, and the launcher could not tell that two came."""
-    status = Path(f"/proc/{process.pid}/status")
-    deadline = time.monotonic() + within
-    while time.monotonic() < deadline and process.poll() is None:
-        try:
-            pending = next(line for line in status.read_text().splitlines() if line.startswith("ShdPnd:"))
-        except OSError:
-            return  # it ended
-        if not int(pending.split()[1], 16) >> (signum - 1) & 1:
-            return
-        time.sleep(0.001)
+    wait_for_mask(process, "ShdPnd", signum, False, within)
 
 
 def burst(process: subprocess.Popen[str], *signals: int, group: bool = False) -> None:

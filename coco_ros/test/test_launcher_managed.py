@@ -30,6 +30,16 @@ def cycles(array: Any) -> dict[str, int]:
             for status in array.status if ": activity " in status.name}
 
 
+def ended(process: subprocess.Popen[str]) -> str:
+    """The launcher's output once it ended (killed after 30 s: a test that failed half-way)."""
+    try:
+        out, _ = process.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        out, _ = process.communicate()
+    return out
+
+
 @pytest.fixture
 def peer(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Any, Any]]:
     yield from rclpy_peer(monkeypatch, DOMAIN, "lifecycle_peer")
@@ -77,11 +87,7 @@ def test_configure_then_activate_then_deactivate(tmp_path: Path, peer: tuple[Any
         assert state() == "inactive"
         assert transition(Transition.TRANSITION_CLEANUP)
     finally:
-        try:
-            out, _ = process.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            out, _ = process.communicate()
+        out = ended(process)
     assert process.returncode == 0, out
     assert "lifecycle transition cleanup" in out and "(clean)" in out, out
     assert len(list(csv.reader(output.open()))) > 2, "the recorder flushed its rows"
@@ -169,11 +175,7 @@ def test_an_invalid_transition_is_refused_and_a_deactivated_application_activate
                    and sampled("recording") > cycles(held[2])["recording"], "cycles in both processes again")
         assert transition(label="shutdown")
     finally:
-        try:
-            out, _ = process.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            out, _ = process.communicate()
+        out = ended(process)
     assert process.returncode == 0, out
     assert "the ROS executor failed" not in out, out
     assert "lifecycle transition 3 refused: not valid from state unconfigured; valid: configure (1), shutdown (5)" in out
