@@ -8,7 +8,9 @@ activities' cycles on /diagnostics, on its own DDS domain."""
 from __future__ import annotations
 
 import csv
+import signal
 import subprocess
+import time
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -182,3 +184,30 @@ def test_an_invalid_transition_is_refused_and_a_deactivated_application_activate
     assert "lifecycle transition 1 refused: not valid from state inactive; valid:" in out
     assert "lifecycle transition cleanup refused: not valid from state active; valid: deactivate (4), shutdown (7)" in out
     assert "application param_app active again" in out and "(clean)" in out, out
+
+
+def test_sigint_then_sigterm_while_configured_and_not_running_is_one_clean_stop(
+        tmp_path: Path, refusing_peer: tuple[Any, Any]) -> None:
+    """ros2 launch's burst (SIGINT, then SIGTERM) at a managed launcher that is configured, every
+    activity of both processes waiting for activate: one clean stop, exit 0, within the second a
+    stop takes (a second signal used to wait in its handler for a lock the first one's held)."""
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+
+    node, executor = refusing_peer
+    process = start_launcher(tmp_path / "managed.xml", IN_PROCESSES, f"output:={tmp_path / 'rows.csv'}", "--managed",
+                             "--ros-args", "-r", "__node:=burst_under_test", domain=REFUSING)
+    change = node.create_client(ChangeState, "/burst_under_test/change_state")
+    try:
+        spin_until(executor, change.service_is_ready, "the launcher's lifecycle services")
+        configure = ChangeState.Request(transition=Transition(id=Transition.TRANSITION_CONFIGURE))
+        assert call_service(executor, change, configure).success
+        sent = time.monotonic()
+        process.send_signal(signal.SIGINT)
+        process.send_signal(signal.SIGTERM)
+    finally:
+        out = ended(process)
+    assert process.returncode == 0, out
+    assert time.monotonic() - sent < 4.0, out  # a stop's second and the interpreters' exits
+    assert "stopping application param_app: received SIGINT" in out and "(clean)" in out, out
+    assert "Traceback" not in out, out
