@@ -398,7 +398,9 @@ class Application:
         self._damage_listeners.append(listener)
 
     def request_stop(self, reason: str = "stop requested", hard: bool = False) -> None:
-        """Ask every activity to stop; returns at once (safe from signal handlers and components).
+        """Ask every activity to stop; returns at once (from any thread or component; not from a
+        signal handler, which may interrupt a thread that holds a lock this takes: the launchers'
+        handlers only record, :mod:`coco_core.signals`).
 
         ``hard``: a signal or a fault, after which :meth:`stop` waits :data:`STOP_TIMEOUT` seconds at
         most; otherwise the application asks itself (its work is done) and the activities get what
@@ -561,6 +563,16 @@ class Application:
         log.info("application %s stopped %.3f s after the request (%s)", self.name,
                  time.monotonic() - self._stop_requested_at, "clean" if clean else "some activities did not stop")
         return clean
+
+    def pause(self, paused: bool) -> None:
+        """Hold every activity's cycles, in every process, or let them run again
+        (:meth:`StartGate.pause`); resumed, this process's triggered activities look at what was
+        written to them meanwhile."""
+        self.gate.pause(paused)
+        if not paused:
+            for activity in self.activities.values():
+                if activity.process == self.process:
+                    activity.wake()
 
     def set_period(self, activity: str, period: float) -> None:
         """Change a periodic activity's period (seconds) while it runs."""

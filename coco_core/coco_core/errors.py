@@ -32,6 +32,13 @@ class ConfigError(CocoError):
         super().__init__(f"{location}: {message}" if location else message)
 
 
+class CommandLineError(ConfigError):
+    """A wrong command line rather than a wrong file: a word that is not ``name:=value``, a given
+    arg that no file declares, an option the application cannot take (``--host``, ``--threads``
+    naming what it does not have). The launchers exit with 2 for it, as for an option argparse
+    refuses (the README's exit statuses), and with 1 when the file is wrong too."""
+
+
 class ConfigErrors(CocoError):
     """Several configuration errors found in one pass, reported together so one run shows them all."""
 

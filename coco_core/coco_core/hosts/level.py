@@ -31,9 +31,7 @@ def host_level(spec: AppSpec, app: Application, timeout: float, key: AppKey | No
         yield None
         return
     if key is None:
-        raise KeyFileError(f"application {spec.name} runs on several hosts, which authenticate each other with "
-                           "the application's key: give --key FILE or --key-env NAME (coco-keygen FILE makes one; "
-                           "copy it to every host)")
+        raise KeyFileError(f"host {spec.part_of}: the hosts of application {spec.name} need its key")
     crossing = crossing_problems(spec)
     if crossing:
         raise ConfigErrors([ConfigError(problem) for problem in crossing])
