@@ -21,6 +21,8 @@ import itertools
 from collections.abc import Sequence
 from typing import Any
 
+from coco_core.errors import SetupError
+
 JUMP = 1.0
 """Seconds back in time after which the queues start again."""
 
@@ -31,7 +33,7 @@ class ApproximateTime:
 
     def __init__(self, topics: int, queue_size: int, slop: float) -> None:
         if topics < 2 or queue_size < 1 or not slop >= 0.0:
-            raise ValueError(f"ApproximateTime needs 2 topics or more, a queue of 1 or more and a slop >= 0; got "
+            raise SetupError(f"ApproximateTime needs 2 topics or more, a queue of 1 or more and a slop >= 0; got "
                              f"{topics}, {queue_size}, {slop}")
         self.queues: list[dict[int, Any]] = [{} for _ in range(topics)]
         self.queue_size = queue_size
