@@ -406,11 +406,10 @@ class McapFile:
                 )
                 self.indexed_by = "scan"
                 return
-            found = "an SQLite database (a rosbag2 .db3 bag?)" if head.startswith(b"SQLite f") else repr(head)
             raise BagError(
                 self.path,
                 "not an MCAP file: expected the MCAP magic bytes 89 4d 43 41 50 30 0d 0a "
-                f"('\\x89MCAP0\\r\\n') at the start, found {found}; only MCAP bags can be read",
+                f"('\\x89MCAP0\\r\\n') at the start, found {head!r}",
                 0,
             )
         header = self._header()
