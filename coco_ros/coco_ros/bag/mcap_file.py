@@ -95,9 +95,9 @@ def reserved(opcode: int) -> bool:
     return opcode == 0 or 0x10 <= opcode < 0x80
 
 
-@dataclass(frozen=True)
-class RawMessage:
-    """A message as stored: channel id, sequence, times (ns) and the CDR bytes."""
+class RawMessage(NamedTuple):
+    """A message as stored: channel id, sequence, times (ns) and the CDR bytes. A named tuple: one is
+    made per message read, and a tuple is made several times faster than a frozen dataclass."""
 
     channel_id: int
     sequence: int

@@ -33,8 +33,6 @@ MESSAGE_LIMIT = 1 << 30
 """The largest message read (1 GiB: a 4K depth image is 16 MB); a larger one is skipped unread, as damage."""
 DEFINITION_LIMIT = 1 << 20
 """The largest message definition read from ``message_definitions``; a larger one is left out."""
-_BATCH = 64
-"""Rows fetched from SQLite at a time while iterating messages."""
 
 
 def is_sqlite(path: Path) -> bool:
@@ -70,6 +68,7 @@ class Db3File:
             raise BagError(self.path, "not an SQLite database: expected the 16 bytes 'SQLite format 3\\0' at the "
                                       "start (a rosbag2 .db3 file)", 0)
         self._db: sqlite3.Connection | None = None
+        self._limit = min(MESSAGE_LIMIT, self.size)
         try:
             self._db = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True, check_same_thread=False)
             self._open()
@@ -134,28 +133,31 @@ class Db3File:
         if end is not None:
             where.append("timestamp < ?")
             values.append(end)
-        if channel_ids is not None:
+        if channel_ids is not None and not channel_ids >= self.channels.keys():  # all: no filter to evaluate
             where.append(f"topic_id IN ({', '.join('?' * len(channel_ids))})")
             values.extend(sorted(channel_ids))
-        limit = min(MESSAGE_LIMIT, self.size)
-        query = (f"SELECT id, topic_id, timestamp, length(data), CASE WHEN length(data) <= {limit} THEN data END "
+        # The size is checked as the row is read, before its bytes are: a blob's length is in its record header.
+        query = (f"SELECT topic_id, id, timestamp, timestamp, CASE WHEN length(data) <= {self._limit} THEN data END "
                  f"FROM messages WHERE {' AND '.join(where)} ORDER BY timestamp, id")
-        read = 0
+        make, rows = RawMessage._make, 0
         try:
-            cursor = self._connection.execute(query, values)
-            while rows := cursor.fetchmany(_BATCH):
-                for row_id, topic_id, timestamp, length, data in rows:
-                    if data is None:
-                        if on_error is not None:
-                            on_error(BagError(self.path, f"message {row_id} declares {length} bytes, more than the "
-                                                         f"{limit} a message may have here: skipped unread"))
-                        continue
-                    read += 1
-                    yield RawMessage(topic_id, row_id, timestamp, timestamp, bytes(data))
+            # Rows are selected in RawMessage's field order: a row becomes a message in one C call.
+            for rows, row in enumerate(self._connection.execute(query, values), 1):
+                if row[4] is None:
+                    self._refuse_oversized(row[1], on_error)
+                    continue
+                yield make(row)
         except sqlite3.Error as error:
             if on_error is not None:
-                on_error(BagError(self.path, f"the SQLite database is damaged ({error}): reading stopped after "
-                                             f"{read} messages, the rest of this pass is lost"))
+                on_error(BagError(self.path, f"the SQLite database is damaged ({error}): reading stopped at row "
+                                             f"{rows + 1} of this pass, the rest of this pass is lost"))
+
+    def _refuse_oversized(self, row_id: int, on_error: Callable[[BagError], None] | None) -> None:
+        if on_error is None:
+            return
+        (length,) = self._connection.execute("SELECT length(data) FROM messages WHERE id = ?", (row_id,)).fetchone()
+        on_error(BagError(self.path, f"message {row_id} declares {length} bytes, more than the {self._limit} a "
+                                     "message may have here: skipped unread"))
 
     def close(self) -> None:
         if self._db is not None:
