@@ -44,7 +44,8 @@ class RealSenseRgbdPeer(RgbdPeer):
     """An Intel RealSense (D400 series and others librealsense drives), or a librealsense recording."""
 
     path = Attribute(str, "", "a librealsense recording (.db3 or .bag) played instead of a device (empty: a device)")
-    serial = Attribute(str, "", "serial number of the device to open (empty: the only one connected)")
+    serial = Attribute(str, "", "serial number of the device to open (empty: the only one connected; "
+                       "not used with path)")
     width = Attribute(int, 0, "colour width (0: librealsense's default for the camera, or the recording's)", min=0)
     height = Attribute(int, 0, "colour height (0: as width)", min=0)
     fps = Attribute(int, 0, "colour frame rate (0: as width)", min=0)
@@ -79,6 +80,8 @@ class RealSenseRgbdPeer(RgbdPeer):
         self._device_serial = "" if self._recording is not None else self._choose_device()
         self._align = rs.align(rs.stream.color) if self.align else None
         self._pipeline: Any = None
+        self._domain: str | None = None
+        """The clock of the frames' timestamps (hardware_clock, global_time, system_time), logged once."""
         self._start()
         if self._recording is not None:
             playback = self._profile.get_device().as_playback()
@@ -135,6 +138,20 @@ class RealSenseRgbdPeer(RgbdPeer):
         except RuntimeError as error:
             raise CameraError(f"{self.name}: {self._source()} cannot stream {self._asked()} ({error}); it offers "
                               f"{self._modes()}") from None
+        try:
+            self._read_profile()
+        except CameraError:
+            self._pipeline.stop()  # a device left streaming would refuse the next opening
+            self._pipeline = None
+            raise
+        self._last: tuple[int, int] | None = None
+        self._waiting_since = time.monotonic()
+        self.exhausted = False
+
+    def _read_profile(self) -> None:
+        """Depth scale, colour format and intrinsics of the started pipeline; a CameraError for what
+        this peer cannot deliver."""
+        rs = self._rs
         device = self._profile.get_device()
         units = device.first_depth_sensor().get_depth_scale()
         # The option is a float32: its 7 significant digits are the decimal the device means (0.001,
@@ -152,9 +169,6 @@ class RealSenseRgbdPeer(RgbdPeer):
                               f"{depth.width()}x{depth.height()}: without align they must be of the same size")
         registered = color if self._align is not None else depth
         self._intrinsics = _intrinsics(registered.get_intrinsics(), self.frame_id)
-        self._last: tuple[int, int] | None = None
-        self._waiting_since = time.monotonic()
-        self.exhausted = False
 
     def _source(self) -> str:
         return f"recording {self._recording}" if self._recording is not None else f"RealSense {self._device_serial}"
@@ -214,6 +228,9 @@ class RealSenseRgbdPeer(RgbdPeer):
             if self._last is not None and (numbers[0] == self._last[0] or numbers[1] == self._last[1]):
                 continue  # one half repeated by the syncer: not a new pair
             self._last = numbers
+            if self._domain is None:
+                self._domain = depth.get_frame_timestamp_domain().name
+                log.info("%s: frames stamped by the %s", self.name, self._domain.replace("_", " "))
             return self._frame(frames)
 
     def _next_frames(self) -> Any:

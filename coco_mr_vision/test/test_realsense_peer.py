@@ -90,6 +90,7 @@ def test_reader_loops_the_recording_and_logs_its_length(realsense_recording: Pat
     finally:
         peer.on_stop()
     assert f"{SCENE.frames} frames of {SCENE.width}x{SCENE.height}" in caplog.text
+    assert "camera.realsense: frames stamped by the hardware clock" in caplog.text
     got = sink.rgbd.read_all()
     blue = [int(v.value.color.data[0, 0, 0]) for v in got]  # BGR8 by default: blue first
     assert blue[:SCENE.frames] == list(range(SCENE.frames)) and blue[SCENE.frames:] == [0, 1, 2, 3, 4]
