@@ -114,7 +114,9 @@ def test_the_librealsense_recording_gives_the_peer_s_frames_without_pyrealsense2
     bag_peer = BagRgbdPeer("bag", path=str(recording), color_topic=device.format(1, "Color") + "data/compressed",
                            depth_topic=device.format(0, "Depth") + "data/compressedDepth",
                            info_topic=device.format(1, "Color") + "camera_info", depth_scale=scene.depth_scale)
-    bag_frames = play(bag_peer)
+    with pytest.MonkeyPatch.context() as without:
+        without.setitem(sys.modules, "pyrealsense2", None)  # importing it now fails: the bag path must not
+        bag_frames = play(bag_peer)
     rs_frames = play(RealSenseRgbdPeer("rs", path=str(recording), realtime=False, align=False))
     assert len(bag_frames) == len(rs_frames) == scene.frames
     for index, (ours, theirs) in enumerate(zip(bag_frames, rs_frames)):
