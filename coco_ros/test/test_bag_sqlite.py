@@ -126,7 +126,8 @@ def test_the_librealsense_recording_gives_the_peer_s_frames_without_pyrealsense2
     a, b = bag_frames[-1].intrinsics, rs_frames[-1].intrinsics
     assert (a.width, a.height, a.fx, a.fy, a.cx, a.cy) == (b.width, b.height, b.fx, b.fy, b.cx, b.cy)
     stamps = [f.stamp for f in bag_frames]
-    assert stamps == sorted(stamps) and stamps[-1] - stamps[0] == pytest.approx((scene.frames - 1) / scene.fps, abs=0.05)
+    # The recorder's arrival times: fed at the scene's rate, so never faster; later on a loaded machine.
+    assert all(b > a for a, b in zip(stamps, stamps[1:])) and stamps[-1] - stamps[0] >= (scene.frames - 1.5) / scene.fps
 
 
 def play(peer) -> list:
