@@ -1,10 +1,11 @@
-"""Figure 6: reading and decoding a rosbag2 MCAP bag with many topics, CoCo's BagReader against rosbags.
+"""Figure 6: reading and decoding a rosbag2 bag with many topics, CoCo's BagReader against rosbags.
 
 The bag: 20 s of a mobile robot with a camera, six topics, 9,504 messages, 15 MB (zstd chunks):
 ``/tf`` (100 Hz, 2 transforms), ``/odom`` (50 Hz), ``/imu`` (200 Hz), ``/joint_states`` (100 Hz, 19
 joints), ``/scan`` (10 Hz, 360 ranges), ``/camera/image`` (15 Hz, 320x240 rgb8). It is written twice
 with the same CDR bytes: by the project's ``BagWriter`` and by ``rosbags``' own MCAP writer
-(``rosbags.rosbag2.Writer``), so neither reader reads only its own library's files.
+(``rosbags.rosbag2.Writer``), so neither reader reads only its own library's files; and a third time
+by rosbags into SQLite storage (one ``.db3``, what Humble and Iron record and librealsense writes).
 
 Variants, each a whole pass over the bag, per message (interleaved rounds, median):
 
@@ -43,6 +44,7 @@ JS_ANCHOR = "rosbags Reader + deserialize_cdr"
 JS_CDR = "CoCo BagReader + converter.from_cdr"
 JS_RCLPY = "CoCo BagReader + rclpy message + to_coco"
 ANCHOR_RAW = "rosbags Reader, no decoding"
+SQLITE = "rosbags Writer into SQLite (.db3)"
 T0 = 1_700_000_000_000_000_000
 SECONDS = 20
 
@@ -87,16 +89,17 @@ def write_bag(folder: Path) -> Path:
     return path
 
 
-def copy_with_rosbags(source: Path, folder: Path) -> Path:
-    """The same messages (CDR bytes, times, QoS-free connections) written by rosbags' MCAP writer."""
+def copy_with_rosbags(source: Path, folder: Path, storage: str = "MCAP") -> Path:
+    """The same messages (CDR bytes, times, QoS-free connections) written by rosbags' writer, in its
+    ``storage`` plugin (MCAP or SQLITE3)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
     from coco_ros.bag import BagReader
 
     store = get_typestore(Stores.ROS2_JAZZY)
-    path = folder / "rosbags_writer"
-    with BagReader(source) as reader, Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+    path = folder / f"rosbags_writer_{storage.lower()}"
+    with BagReader(source) as reader, Writer(path, version=9, storage_plugin=StoragePlugin[storage]) as writer:
         connections = {name: writer.add_connection(name, info.type, typestore=store)
                        for name, info in reader.topics.items()}
         for message in reader.messages():
@@ -207,10 +210,12 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="bench_bag_") as tmp:
         ours = write_bag(Path(tmp))
         theirs = copy_with_rosbags(ours, Path(tmp))
+        sqlite = copy_with_rosbags(ours, Path(tmp), "SQLITE3")
         size = sum(f.stat().st_size for f in ours.glob("*.mcap"))
         with _report.LoadMeter() as load:
             results = {"BagWriter": measure(variants(ours), args.rounds),
-                       "rosbags Writer": measure(variants(theirs), args.rounds)}
+                       "rosbags Writer": measure(variants(theirs), args.rounds),
+                       SQLITE: measure(variants(sqlite), args.rounds)}
             joints = measure(joint_variants(ours), args.rounds)
     others = "n/a" if load.others is None else f"{load.others:.0%}"
     tables, document = [], {}
@@ -227,10 +232,13 @@ def main() -> None:
             table.add(name, fmt_time_ns(median), f"{1e9 / median:,.0f}", fmt_ratio(ratio), verdict(ok))
             document[writer][name] = {"median_ns": median, "per_message_ns": values,
                                       "x_faster_than_rosbags": ratio, "goal_met": ok}
-        chunks = "zstd chunks" if writer == "BagWriter" else "uncompressed chunks, rosbags' default"
+        chunks = {"BagWriter": "zstd chunks", SQLITE: "SQLite storage, one .db3 file"}.get(
+            writer, "uncompressed chunks, rosbags' default")
+        checks = ("both read the messages table in timestamp order through SQLite" if writer == SQLITE else
+                  "BagReader checks every chunk's CRC (about 4.6 us per message of the uncompressed file), "
+                  "rosbags does not")
         table.notes.append(f"9,504 messages on 6 topics ({chunks}; {size / 1e6:.0f} MB with zstd); no-decoding "
-                           f"rows compare with rosbags' no-decoding row; BagReader checks every chunk's CRC "
-                           f"(about 4.6 us per message of the uncompressed file), rosbags does not; other "
+                           f"rows compare with rosbags' no-decoding row; {checks}; other "
                            f"processes used {others} of the {_report.machine()['cpus']} cores meanwhile.")
         tables.append(table)
     table = Table(f"Figure 6c - /joint_states and /tf alone (4,000 messages, BagWriter bag) into what a "
@@ -254,7 +262,7 @@ def main() -> None:
 
 
 def draw(plt: Any, results: dict[str, dict[str, list[float]]]) -> Any:
-    fig, axes = plt.subplots(1, len(results), figsize=(10, 3.6), sharey=True)
+    fig, axes = plt.subplots(1, len(results), figsize=(15, 3.6), sharey=True)
     for ax, (writer, samples) in zip(axes, results.items()):
         names = list(samples)
         values = [statistics.median(samples[n]) / 1e3 for n in names]
@@ -267,7 +275,7 @@ def draw(plt: Any, results: dict[str, dict[str, list[float]]]) -> Any:
         ax.set_xlabel("time per message (us)")
         ax.set_xlim(0, max(values) * 1.35)
         ax.tick_params(axis="y", labelsize=8)
-    fig.suptitle("Reading + decoding a 6-topic MCAP bag: CoCo BagReader vs rosbags (one process)")
+    fig.suptitle("Reading + decoding a 6-topic bag (MCAP, SQLite): CoCo BagReader vs rosbags (one process)")
     fig.tight_layout()
     return fig
 

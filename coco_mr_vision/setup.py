@@ -30,7 +30,7 @@ setup(
             "RgbdCameraReader = coco_mr_vision.rgbd_reader:RgbdCameraReader",
             "TumRgbdPeer = coco_mr_vision.rgbd_peers:TumRgbdPeer",
             "RedwoodRgbdPeer = coco_mr_vision.rgbd_peers:RedwoodRgbdPeer",
-            "RealSenseRgbdPeer = coco_mr_vision.rgbd_peers:RealSenseRgbdPeer",
+            "RealSenseRgbdPeer = coco_mr_vision.realsense_peer:RealSenseRgbdPeer",
             "MarkerTracker = coco_mr_vision.marker_tracker:MarkerTracker",
             "MarkerRegistration = coco_mr_vision.marker_registration:MarkerRegistration",
             "TouchRegistration = coco_mr_vision.touch_registration:TouchRegistration",

@@ -197,67 +197,14 @@ class RedwoodRgbdPeer(_FilePairs):
         return pairs, intrinsics, self.depth_scale
 
 
-class RealSenseRgbdPeer(RgbdPeer):
-    """An Intel RealSense camera through ``pyrealsense2``: depth aligned to colour, 16-bit depth at
-    the device's own depth scale, intrinsics from the device."""
-
-    width = Attribute(int, 640, "stream width", min=1)
-    height = Attribute(int, 480, "stream height", min=1)
-    fps = Attribute(int, 30, "stream rate", min=1)
-    serial = Attribute(str, "", "serial number of the device to open (empty: the first one)")
-    frame_id = Attribute(str, "camera", "frame of the camera")
-
-    def on_config(self) -> None:
-        try:
-            import pyrealsense2 as rs
-        except ImportError:
-            raise CameraError(f"{self.name}: the RealSense peer needs pyrealsense2 (pip install pyrealsense2)") \
-                from None
-        devices = rs.context().query_devices()
-        serials = [d.get_info(rs.camera_info.serial_number) for d in devices]
-        if not serials:
-            raise CameraError(f"{self.name}: no Intel RealSense device is connected")
-        if self.serial and self.serial not in serials:
-            raise CameraError(f"{self.name}: no RealSense with serial {self.serial}; connected: {', '.join(serials)}")
-        self._rs = rs
-        config = rs.config()
-        if self.serial:
-            config.enable_device(self.serial)
-        config.enable_stream(rs.stream.color, self.width, self.height, rs.format.bgr8, self.fps)
-        config.enable_stream(rs.stream.depth, self.width, self.height, rs.format.z16, self.fps)
-        self._pipeline = rs.pipeline()
-        profile = self._pipeline.start(config)
-        self._scale = 1.0 / profile.get_device().first_depth_sensor().get_depth_scale()
-        self._align = rs.align(rs.stream.color)
-        stream = profile.get_stream(rs.stream.color).as_video_stream_profile().get_intrinsics()
-        self._intrinsics = CameraIntrinsics(stream.width, stream.height, stream.fx, stream.fy, stream.ppx,
-                                            stream.ppy, distortion=tuple(stream.coeffs), frame_id=self.frame_id)
-
-    def grab(self) -> RGBDFrame | None:
-        frames = self._pipeline.poll_for_frames()
-        if not frames:
-            return None
-        frames = self._align.process(frames)
-        color, depth = frames.get_color_frame(), frames.get_depth_frame()
-        if not color or not depth:
-            return None
-        stamp = frames.get_timestamp() / 1000.0
-        return RGBDFrame(Image(np.asanyarray(color.get_data()).copy(), ImageFormat.BGR8, stamp, self.frame_id,
-                               self._intrinsics),
-                         Image(np.asanyarray(depth.get_data()).copy(), ImageFormat.DEPTH16, stamp, self.frame_id,
-                               self._intrinsics), self._intrinsics, self._scale)
-
-    def on_stop(self) -> None:
-        self._pipeline.stop()
-
-
 BACKENDS: dict[str, str] = {
     "tum": "TumRgbdPeer", "redwood": "RedwoodRgbdPeer", "bag": "BagRgbdPeer", "realsense": "RealSenseRgbdPeer",
     "topic": "TopicRgbdPeer",
 }
 """The peers RgbdCameraReader makes from its ``backend`` attribute, by registered component name:
 the bag and topic peers are coco_ros's (:mod:`coco_ros.vision.rgbd_bag`,
-:mod:`coco_ros.vision.rgbd_topics`), which depends on this package, not the other way round."""
+:mod:`coco_ros.vision.rgbd_topics`), which depends on this package, not the other way round; the
+RealSense peer is :mod:`.realsense_peer`."""
 
-__all__ = ["BACKENDS", "PRIMESENSE", "RealSenseRgbdPeer", "RedwoodRgbdPeer", "RgbdPeer",
+__all__ = ["BACKENDS", "PRIMESENSE", "RedwoodRgbdPeer", "RgbdPeer",
            "TumRgbdPeer", "associate"]

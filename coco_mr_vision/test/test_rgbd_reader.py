@@ -15,7 +15,8 @@ cv2 = pytest.importorskip("cv2")
 from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort  # noqa: E402
 from coco_core.errors import CameraError, CocoError  # noqa: E402
 from coco_mr_vision.image import ImageFormat  # noqa: E402
-from coco_mr_vision.rgbd_peers import RealSenseRgbdPeer, RedwoodRgbdPeer, TumRgbdPeer  # noqa: E402
+from coco_mr_vision.realsense_peer import RealSenseRgbdPeer  # noqa: E402
+from coco_mr_vision.rgbd_peers import RedwoodRgbdPeer, TumRgbdPeer  # noqa: E402
 from coco_mr_vision.rgbd_reader import RgbdCameraReader  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "rgbd"

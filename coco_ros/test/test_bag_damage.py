@@ -241,12 +241,12 @@ def test_not_mcap_files_are_refused_at_once(tmp_path):
         BagReader(text)
     sqlite = tmp_path / "old.db3"
     sqlite.write_bytes(b"SQLite format 3\x00" + bytes(100))
-    with pytest.raises(BagError, match=r"SQLite database \(a rosbag2 \.db3 bag\?\)"):
+    with pytest.raises(BagError, match=r"old\.db3: the SQLite database is damaged or not a rosbag2 bag"):
         BagReader(sqlite)
     with pytest.raises(BagError, match="no such bag"):
         BagReader(tmp_path / "missing")
     (tmp_path / "empty").mkdir()
-    with pytest.raises(BagError, match="expected metadata.yaml or at least one .mcap"):
+    with pytest.raises(BagError, match="expected metadata.yaml or at least one .mcap or .db3 file"):
         BagReader(tmp_path / "empty")
 
 
@@ -260,8 +260,8 @@ def test_metadata_yaml_problems_name_the_file(tmp_path):
     (folder / "bag_0.mcap").unlink()
     with pytest.raises(BagError, match=r"metadata\.yaml: lists files that are missing: .*bag_0\.mcap"):
         BagReader(folder)
-    (folder / "metadata.yaml").write_text(meta.replace("storage_identifier: mcap", "storage_identifier: sqlite3"))
-    with pytest.raises(BagError, match="storage 'sqlite3' is not supported: expected 'mcap'"):
+    (folder / "metadata.yaml").write_text(meta.replace("storage_identifier: mcap", "storage_identifier: leveldb"))
+    with pytest.raises(BagError, match="storage 'leveldb' is not supported: expected 'mcap' or 'sqlite3'"):
         BagReader(folder)
     (folder / "metadata.yaml").write_text("rosbag2_bagfile_information: [not, a, mapping]\n")
     with pytest.raises(BagError, match="expected a mapping 'rosbag2_bagfile_information'"):

@@ -1,22 +1,24 @@
-"""Reading rosbag2 bags stored as MCAP: topics, messages in log-time order, latched messages.
+"""Reading rosbag2 bags stored as MCAP or SQLite: topics, messages in log-time order, latched messages.
 
-A bag is a folder with ``metadata.yaml`` and one or more ``.mcap`` files (what ``ros2 bag record``
-makes), or a single ``.mcap`` file. Messages keep their CDR bytes; ``BagMessage.message``
-decodes them into rclpy messages on first access (:mod:`.cdr_decoder`), so filtering and
-forwarding cost no decoding.
+A bag is a folder with ``metadata.yaml`` and one or more ``.mcap`` or ``.db3`` files (what ``ros2 bag
+record`` makes: MCAP from Jazzy on, SQLite before), or a single ``.mcap`` or ``.db3`` file (a
+librealsense recording is one ``.db3``). A file is read by its content, not its name: SQLite's
+magic bytes make it a :class:`~.sqlite_file.Db3File`, anything else is read as MCAP. Messages keep
+their CDR bytes; ``BagMessage.message`` decodes them into rclpy messages on first access
+(:mod:`.cdr_decoder`), so filtering and forwarding cost no decoding.
 
-Damage (see :mod:`.mcap_file`): whatever is readable is read. Problems are :class:`BagError`s that
-name the file and the byte where reading stopped; they are collected in :attr:`BagReader.errors`
+Damage (see :mod:`.mcap_file` and :mod:`.sqlite_file`): whatever is readable is read. Problems are
+:class:`BagError`s that name the file and the byte where reading stopped; they are collected in :attr:`BagReader.errors`
 and reported by :meth:`BagReader.messages` *after* the last readable message: raised by default, or
-handed to the ``on_error`` callback given to the reader (then nothing is raised). A file that is not
-MCAP at all fails at once, when the reader is made. Fewer readable messages than the recorder's
+handed to the ``on_error`` callback given to the reader (then nothing is raised). A file that is neither
+MCAP nor SQLite at all fails at once, when the reader is made. Fewer readable messages than the recorder's
 ``metadata.yaml`` declares (a file cut exactly at a record boundary leaves no other trace) is damage
 too, reported the same way, per topic, and so are more (data copied twice that is not a byte-for-byte
 copy of a chunk, which the file reader skips itself). So is whatever a finished recording has and
 this one lacks, even where every message is readable: a data section that ends without its DataEnd
 record (a file cut at a record boundary, a recorder killed; the error says whether metadata.yaml's
 counts show that nothing is missing), a footer or summary that is gone or damaged, a bag folder
-without a readable ``metadata.yaml`` (its .mcap files are read, but nothing says how much was
+without a readable ``metadata.yaml`` (its storage files are read, but nothing says how much was
 recorded). A bag that is not what its recorder wrote must not pass for a sound one.
 """
 
@@ -31,6 +33,7 @@ from typing import Any, Callable, Iterable, Iterator
 from coco_core.errors import BagError, MessageTypeError, did_you_mean
 
 from .mcap_file import McapFile, RawMessage
+from .sqlite_file import Db3File, is_sqlite
 from .message_types import TF_MESSAGE, TypeResolver
 from .metadata import BagMetadata, read_metadata
 from .qos import Qos, parse_profiles
@@ -99,13 +102,26 @@ class BagMessage:
         return f"<BagMessage {self.topic} {self.type} t={self.log_time} {len(self.data)} bytes>"
 
 
+STORAGE_SUFFIXES = {"mcap": ".mcap", "sqlite3": ".db3"}
+"""rosbag2's storage identifiers (metadata.yaml) -> the suffix of their files."""
+
+
 def _file_index(path: Path) -> tuple[int, str]:
-    match = re.search(r"_(\d+)\.mcap$", path.name)
+    match = re.search(r"_(\d+)\.(mcap|db3)$", path.name)
     return (int(match.group(1)) if match else -1, path.name)
 
 
+def _storage_files(folder: Path) -> list[Path]:
+    return sorted((p for suffix in STORAGE_SUFFIXES.values() for p in folder.glob(f"*{suffix}")), key=_file_index)
+
+
+def _open_file(path: Path) -> McapFile | Db3File:
+    """A ``.db3`` file, or any SQLite database, is read as SQLite (a .db3 that is not is refused saying so)."""
+    return Db3File(path) if path.suffix == ".db3" or is_sqlite(path) else McapFile(path)
+
+
 class BagReader:
-    """Read a rosbag2 MCAP bag (folder or ``.mcap`` file).
+    """Read a rosbag2 bag (folder, ``.mcap`` or ``.db3`` file).
 
     ``on_error``: called with each :class:`BagError` met while reading messages (damaged data)
     instead of raising it at the end of :meth:`messages`.
@@ -121,10 +137,10 @@ class BagReader:
         self._found: list[BagError] = []
         """Damage found on opening that no file reports itself: metadata.yaml missing or unreadable, a
         data section that ends without its DataEnd record (reported after each pass of :meth:`messages`)."""
-        self._files: list[McapFile] = []
+        self._files: list[McapFile | Db3File] = []
         try:
             for file_path in self._resolve_files():
-                self._files.append(McapFile(file_path))
+                self._files.append(_open_file(file_path))
         except BaseException:
             self.close()
             raise
@@ -149,41 +165,41 @@ class BagReader:
             return [path]
         if not path.is_dir():
             raise BagError(
-                path, "no such bag: expected a rosbag2 bag folder (with metadata.yaml) or an .mcap file"
+                path, "no such bag: expected a rosbag2 bag folder (with metadata.yaml), an .mcap or a .db3 file"
             )
         try:
             self.metadata = read_metadata(path)
         except BagError as error:
             # The storage files carry the messages: they are read, and the bag is damaged.
-            if not any(path.glob("*.mcap")):
+            if not _storage_files(path):
                 raise
-            self._found.append(BagError(error.path, f"{error.detail}: the folder's .mcap files are read, but "
+            self._found.append(BagError(error.path, f"{error.detail}: the folder's storage files are read, but "
                                                     "nothing says how many messages were recorded, so a loss would "
                                                     "not show"))
         if self.metadata is None:
-            files = sorted(path.glob("*.mcap"), key=_file_index)
+            files = _storage_files(path)
             if not files:
                 raise BagError(
-                    path, "not a bag folder: expected metadata.yaml or at least one .mcap file in it"
+                    path, "not a bag folder: expected metadata.yaml or at least one .mcap or .db3 file in it"
                 )
             if not self._found:
                 self._found.append(BagError(
                     path / "metadata.yaml", "missing: a rosbag2 bag folder has one, written by its recorder; the "
-                    f"folder's {len(files)} .mcap file(s) are read, but nothing says how many messages were recorded, "
-                    "so a loss would not show (name an .mcap file itself to read a file without its folder)"))
+                    f"folder's {len(files)} {' and '.join(sorted({f.suffix for f in files}))} file(s) are read, but nothing says how many messages were recorded, "
+                    "so a loss would not show (name an .mcap or .db3 file itself to read a file without its folder)"))
             return files
         meta = self.metadata
-        if meta.storage_identifier and meta.storage_identifier != "mcap":
+        if meta.storage_identifier and meta.storage_identifier not in STORAGE_SUFFIXES:
             raise BagError(
                 path / "metadata.yaml",
-                f"storage {meta.storage_identifier!r} is not supported: expected 'mcap' "
+                f"storage {meta.storage_identifier!r} is not supported: expected 'mcap' or 'sqlite3' "
                 "(convert the bag with 'ros2 bag convert' to MCAP)",
             )
         if meta.compression_mode.lower() == "file":
             raise BagError(
                 path / "metadata.yaml",
                 f"file compression ({meta.compression_format}) is not supported: expected uncompressed "
-                ".mcap files (MCAP chunk compression is fine)",
+                "storage files (MCAP chunk compression is fine)",
             )
         files = [path / Path(name).name for name in meta.relative_file_paths]
         missing = [str(f) for f in files if not f.is_file()]

@@ -28,6 +28,7 @@ _CONVERTERS: dict[str, tuple[str, str]] = {
     "sensor_msgs/msg/JointState": ("joints", "JointStateConverter"),
     "sensor_msgs/msg/Image": ("images", "ImageMessageConverter"),
     "sensor_msgs/msg/CameraInfo": ("images", "CameraInfoConverter"),
+    "sensor_msgs/msg/CompressedImage": ("compressed", "CompressedImageConverter"),
     "sensor_msgs/msg/PointCloud2": ("clouds", "PointCloud2Converter"),
     "geometry_msgs/msg/PoseStamped": ("geometry", "PoseStampedConverter"),
     "geometry_msgs/msg/TransformStamped": ("geometry", "TransformStampedConverter"),

@@ -17,11 +17,14 @@ from coco_mr_vision.rgbd import RGBDFrame
 from coco_mr_vision.rgbd_peers import RgbdPeer
 
 from ..bag import BagReader
+from ..convert.compressed import CompressedImageConverter
 from ..convert.images import CameraInfoConverter, ImageMessageConverter
 
 
 class BagRgbdPeer(RgbdPeer):
-    """A rosbag2 bag with ``sensor_msgs/Image`` colour and depth and ``sensor_msgs/CameraInfo``.
+    """A rosbag2 bag (MCAP or SQLite) with ``sensor_msgs/Image`` or ``CompressedImage`` colour and depth
+    (image_transport's ``compressed`` and ``compressedDepth``, as librealsense records them) and
+    ``sensor_msgs/CameraInfo``.
 
     Colour and depth are paired by header stamp (nearest within ``max_difference``), the newest
     CameraInfo gives the intrinsics. Messages go through this package's bag reader and image converters. A
@@ -30,7 +33,7 @@ class BagRgbdPeer(RgbdPeer):
     skipped, counted in the profile's refused column and reported as damaged input; the frames
     after it are delivered."""
 
-    path = Attribute(str, "", "the bag folder or .mcap file")
+    path = Attribute(str, "", "the bag folder, .mcap or .db3 file")
     color_topic = Attribute(str, "/camera/color/image_raw", "colour images")
     depth_topic = Attribute(str, "/camera/depth/image_raw", "depth images registered to the colour ones")
     info_topic = Attribute(str, "/camera/color/camera_info", "camera intrinsics")
@@ -51,6 +54,7 @@ class BagRgbdPeer(RgbdPeer):
             raise CameraError(f"{self.name}: bag {self.path!r} has no topic {', '.join(missing)}; "
                               f"it has {', '.join(sorted(topics))}")
         self._images, self._infos = ImageMessageConverter(copy=True), CameraInfoConverter()
+        self._compressed = CompressedImageConverter()
         self.refused_messages = 0
         """Malformed messages skipped, over every pass of a looped recording."""
         self._start()
@@ -110,7 +114,8 @@ class BagRgbdPeer(RgbdPeer):
         if message.topic == self.info_topic:
             self._intrinsics = self._infos.to_coco(message.message)
             return None
-        image = self._images.to_coco(message.message)
+        converter = self._compressed if message.type == CompressedImageConverter.type_name else self._images
+        image = converter.to_coco(message.message)
         (self._color if message.topic == self.color_topic else self._depth).append(image)
         return self._pair()
 
