@@ -21,6 +21,7 @@ from coco_mr_vision.rgbd import RGBDFrame
 from coco_mr_vision.rgbd_reader import RgbdCameraReader
 from coco_ros.convert.images import CameraInfoConverter, ImageMessageConverter
 from coco_ros.vision.approximate_time import ApproximateTime
+from coco_ros.vision.rgbd_topics import TopicRgbdPeer
 from test_launcher_hosting import BUFFERED, Hosting, wait_until
 
 COLOR, DEPTH, INFO = ("/camera/camera/color/image_raw", "/camera/camera/aligned_depth_to_color/image_raw",
@@ -116,3 +117,44 @@ def test_a_camera_drivers_topics_feed_the_reader_paired_with_their_intrinsics(ri
     assert all(frame.intrinsics is not None and frame.intrinsics.fx == 30.0 for frame in sink.frames)
     assert peer.call("counts").result(1) == {"color": 12, "depth": 11, "camera_info": 13, "paired": 10, "unpaired": 0}
     assert peer.stats.refused == 1
+
+
+def test_compressed_transports_give_the_same_frames(rig) -> None:
+    """image_transport's compressed colour (PNG) and compressedDepth (16-bit PNG after its 12-byte
+    header) on the driver's /compressed and /compressedDepth topics: the same exact pixels and
+    depths as the raw topics give."""
+    import cv2
+    from sensor_msgs.msg import CompressedImage
+
+    hosting, driver, executor = rig
+    app = Application("topic_camera_compressed")
+    camera = RgbdCameraReader("camera")
+    camera.add_peer(TopicRgbdPeer("camera.topic", color_transport="compressed", depth_transport="compressedDepth"))
+    app.add(camera, PeriodicActivity("grab", 0.005))
+    sink = app.add(Frames("sink"), PeriodicActivity("sinking", 0.005))
+    app.connect("camera.rgbd", "sink.rgbd", BUFFERED)
+    publishers = {topic: driver.create_publisher(kind, topic, qos_profile_sensor_data)
+                  for topic, kind in ((f"{COLOR}/compressed", CompressedImage),
+                                      (f"{DEPTH}/compressedDepth", CompressedImage), (INFO, CameraInfo))}
+    hosting.start(app)
+    peer = camera.peers[0]
+    assert wait_until(lambda: all(p.get_subscription_count() == 1 for p in publishers.values()))
+    publishers[INFO].publish(CameraInfoConverter().to_ros(CameraIntrinsics(32, 24, 30.0, 30.0, 15.5, 11.5)))
+    assert wait_until(lambda: peer.received[2] == 1)
+    for index in range(3):
+        color = np.full((24, 32, 3), 40 * index, np.uint8)
+        color[:, :8] = (255, 0, 0)
+        depth = np.full((24, 32), 700 + index, np.uint16)
+        header = ImageMessageConverter().to_ros(Image(depth, ImageFormat.DEPTH16, 50.0 + index)).header
+        png = cv2.imencode(".png", cv2.cvtColor(color, cv2.COLOR_RGB2BGR))[1].tobytes()
+        publishers[f"{COLOR}/compressed"].publish(CompressedImage(header=header, format="rgb8; png compressed bgr8",
+                                                                  data=png))
+        depth_png = bytes(12) + cv2.imencode(".png", depth)[1].tobytes()
+        publishers[f"{DEPTH}/compressedDepth"].publish(CompressedImage(header=header,
+                                                                       format="16UC1; compressedDepth png",
+                                                                       data=depth_png))
+        assert wait_until(lambda: len(sink.frames) == index + 1)
+    assert hosting.stop()
+    assert [int(frame.depth.data[0, 0]) for frame in sink.frames] == [700, 701, 702]
+    assert all(frame.color.to(ImageFormat.RGB8).data[0, 0].tolist() == [255, 0, 0] for frame in sink.frames)
+    assert [int(frame.color.to(ImageFormat.RGB8).data[0, 20, 0]) for frame in sink.frames] == [0, 40, 80]

@@ -10,6 +10,11 @@ does: pairs the reader did not take in time are counted in the profile's ``merge
 images that never found a partner; a malformed message (an encoding the converter does not read,
 colour and depth of different sizes) is refused and counted in the ``refused`` column.
 
+Either stream may come through image_transport's compressed plugins, as the drivers also publish
+them (``color_transport="compressed"``: JPEG or PNG ``CompressedImage`` on ``COLOR_TOPIC/compressed``;
+``depth_transport="compressedDepth"``: PNG or RVL on ``DEPTH_TOPIC/compressedDepth``): a tenth of
+the bytes on a network, decoded here (:mod:`coco_ros.convert.compressed`) into the same images.
+
 The defaults are realsense2_camera's topic names (its node ``camera`` in the namespace ``camera``,
 depth aligned to colour: ``align_depth.enable:=true``); docs/vision.md lists those of other drivers.
 The subscriptions are best effort by default, which matches both a sensor-data publisher (best
@@ -34,6 +39,7 @@ from coco_mr_vision.image import CameraIntrinsics
 from coco_mr_vision.rgbd import RGBDFrame
 from coco_mr_vision.rgbd_peers import RgbdPeer
 
+from ..convert.compressed import CompressedImageConverter
 from ..convert.images import CameraInfoConverter, ImageMessageConverter
 from ..interface.component import launcher_node
 from .approximate_time import ApproximateTime
@@ -53,6 +59,10 @@ class TopicRgbdPeer(RgbdPeer):
     queue_size = Attribute(int, 10, "images of each topic kept while waiting for their partner", min=1)
     slop = Attribute(float, 0.02, "largest colour/depth stamp difference paired, s", min=0.0)
     depth_scale = Attribute(float, 1000.0, "units per metre of 16UC1 depth (ROS: millimetres)", min=1e-9)
+    color_transport = Attribute(str, "raw", "raw (sensor_msgs/Image on color_topic) or compressed (image_transport's "
+                                "CompressedImage on color_topic/compressed)", choices=("raw", "compressed"))
+    depth_transport = Attribute(str, "raw", "raw (sensor_msgs/Image on depth_topic) or compressedDepth "
+                                "(image_transport's on depth_topic/compressedDepth)", choices=("raw", "compressedDepth"))
     reliability = Attribute(str, "best_effort", "the subscriptions' QoS reliability: best_effort (matches any "
                             "publisher) or reliable (lost fragments repaired; reliable publishers only)",
                             choices=("best_effort", "reliable"))
@@ -60,7 +70,12 @@ class TopicRgbdPeer(RgbdPeer):
     def on_config(self) -> None:
         node, group = launcher_node(self)
         self._node = node
-        self._images, self._infos = ImageMessageConverter(copy=True), CameraInfoConverter()
+        raw, compressed = ImageMessageConverter(copy=True), CompressedImageConverter()
+        self._images = [raw if self.color_transport == "raw" else compressed,
+                        raw if self.depth_transport == "raw" else compressed]
+        self._topics = [self.color_topic if self.color_transport == "raw" else f"{self.color_topic}/compressed",
+                        self.depth_topic if self.depth_transport == "raw" else f"{self.depth_topic}/compressedDepth"]
+        self._infos = CameraInfoConverter()
         self._pairing = ApproximateTime(2, self.queue_size, self.slop)
         self._frames: deque[RGBDFrame] = deque(maxlen=self.queue_size)
         self._intrinsics: CameraIntrinsics | None = None
@@ -74,29 +89,28 @@ class TopicRgbdPeer(RgbdPeer):
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=self.queue_size,
                          reliability=ReliabilityPolicy.RELIABLE if self.reliability == "reliable"
                          else ReliabilityPolicy.BEST_EFFORT)
-        message = self._images.message_type
         # The CameraInfo first: a wait set takes what is ready in this order, so a frame's intrinsics
         # that came with it are known when its images pair.
         self._subscriptions = [
             node.create_subscription(self._infos.message_type, self.info_topic, self._info, qos, callback_group=group,
                                      raw=True),
-            node.create_subscription(message, self.color_topic, lambda data: self._image(COLOR, data), qos,
-                                     callback_group=group, raw=True),
-            node.create_subscription(message, self.depth_topic, lambda data: self._image(DEPTH, data), qos,
-                                     callback_group=group, raw=True)]
+            node.create_subscription(self._images[COLOR].message_type, self._topics[COLOR],
+                                     lambda data: self._image(COLOR, data), qos, callback_group=group, raw=True),
+            node.create_subscription(self._images[DEPTH].message_type, self._topics[DEPTH],
+                                     lambda data: self._image(DEPTH, data), qos, callback_group=group, raw=True)]
         log.info("%s: colour %s, depth %s, intrinsics %s (paired within %g s, %d queued)", self.name,
-                 self.color_topic, self.depth_topic, self.info_topic, self.slop, self.queue_size)
+                 *self._topics, self.info_topic, self.slop, self.queue_size)
 
     def _image(self, topic: int, data: bytes) -> None:
         self.received[topic] += 1
         try:
-            image = self._images.from_cdr(data)
+            image = self._images[topic].from_cdr(data)
             if topic == DEPTH and not image.format.is_depth:
-                raise CameraError(f"{self.depth_topic} carries {image.format.name} images, not depth (16UC1 or 32FC1)")
+                raise CameraError(f"{self._topics[DEPTH]} carries {image.format.name} images, not depth (16UC1 or 32FC1)")
             if image.stamp is None:
                 raise CameraError("an image without a header stamp cannot be paired")
         except Exception as error:  # noqa: BLE001 - a malformed message costs itself only
-            self.record_refusal(f"an image from {self.color_topic if topic == COLOR else self.depth_topic}", error)
+            self.record_refusal(f"an image from {self._topics[topic]}", error)
             return
         with self._lock:
             pair = self._pairing.add(topic, round(image.stamp * 1e9), image)
