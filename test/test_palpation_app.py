@@ -338,6 +338,28 @@ def test_a_real_rgbd_scene_with_a_fixed_registration(coco_launch: Path, palpatio
     assert rows["contact"].any()
 
 
+def test_the_camera_from_a_librealsense_recording(coco_launch: Path, palpation_session: Path,
+                                                  tmp_path: Path) -> None:
+    """``scene:=realsense scene_path:=RECORDING``: a recording that librealsense's own software
+    device and recorder wrote (60 frames of a plane 0.75 m away, a colour pattern, intrinsics set)
+    is the remote camera, through the RealSense peer, played at its rate and again at its end; with
+    the tracker joined by a fixed pose, every frame is streamed and meshed, and the structures hold
+    the plane's points. Nothing is reported as damaged."""
+    pytest.importorskip("pyrealsense2", reason="pyrealsense2 is in requirements.txt")
+    from coco_mr_vision.realsense_recording import SyntheticScene, write_recording
+
+    scene = SyntheticScene()
+    recording = write_recording(tmp_path / "desk.db3", scene)
+    output = tmp_path / "realsense"
+    run_app((coco_launch, str(APP)), palpation_session, output, "scene:=realsense", f"scene_path:={recording}",
+            "registration:=fixed", "display:=false")
+    summary = json.loads((output / "summary.json").read_text())
+    assert summary["input_damage"] == [] and summary["input_refused"] == {}, summary
+    assert summary["stream"]["frames"] >= scene.frames and summary["kdtree"]["updates"] >= 10, summary
+    # Meshed at stride 2 both ways: a quarter of the pixels are vertices (630 of 768 were kept in a run here).
+    assert summary["kdtree"]["points_median"] >= 0.75 * scene.width * scene.height / 4, summary
+
+
 def two_host_palpation() -> Path:
     """config/palpation_replay.xml over two hosts, nothing else changed: the remote process (the
     camera and its stream server) on host ``remote``, the first (its clock is the application's, so
