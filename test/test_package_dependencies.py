@@ -22,6 +22,7 @@ DECLARED_AS = {
     "tqdm": "<exec_depend>python3-tqdm</exec_depend>", "scipy": "<exec_depend>python3-scipy</exec_depend>",
     "numba": "<exec_depend>python3-numba</exec_depend>", "matplotlib": "<exec_depend>python3-matplotlib</exec_depend>",
     "PIL": "<exec_depend>python3-pil</exec_depend>", "pinocchio": "<exec_depend>pinocchio</exec_depend>",
+    "msgpack": "<exec_depend>python3-msgpack</exec_depend>",
     "ament_index_python": "<exec_depend>ament_index_python</exec_depend>",
     "mcap": '"mcap"', "rosbags": '"rosbags"', "moderngl": '"moderngl"', "glfw": '"glfw"',
     "trimesh": '"trimesh"', "fast_simplification": '"fast-simplification"',

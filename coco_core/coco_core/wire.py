@@ -161,7 +161,6 @@ def _table(parts: int) -> struct.Struct:
 
 
 _COUNT = struct.Struct("<I")
-_NUMPY_SCALARS = (np.generic,)
 
 
 Pack = Callable[[Any], bytes]
@@ -200,17 +199,18 @@ class Encoder:
         if depth == len(self._packers):
             if depth > MAX_DEPTH:
                 raise WrongTypeError(f"a value nested deeper than {MAX_DEPTH} cannot cross between hosts")
-            self._packers.append(msgpack.Packer(default=self._default, strict_types=True, use_bin_type=True,
-                                                datetime=False))
+            self._packers.append(self._packer())
         self._depth = depth + 1
         try:
             return self._packers[depth].pack(value)
         except BaseException:
-            self._packers[depth] = msgpack.Packer(default=self._default, strict_types=True, use_bin_type=True,
-                                                  datetime=False)  # one interrupted keeps what it had packed
+            self._packers[depth] = self._packer()  # one interrupted keeps what it had packed
             raise
         finally:
             self._depth = depth
+
+    def _packer(self) -> msgpack.Packer:
+        return msgpack.Packer(default=self._default, strict_types=True, use_bin_type=True, datetime=False)
 
     def _default(self, value: Any) -> msgpack.ExtType:
         kind = type(value)
@@ -224,7 +224,7 @@ class Encoder:
             return msgpack.ExtType(STAMP, self._pack([clock(value.time), value.seq, value.source,
                                                       [[name, clock(at)] for name, at in value.steps], value.it,
                                                       dict(value.user)]))
-        if kind is np.ndarray or isinstance(value, _NUMPY_SCALARS):
+        if kind is np.ndarray or isinstance(value, np.generic):
             return self._array(value)
         entry = _BY_CLASS.get(kind)
         if entry is not None:

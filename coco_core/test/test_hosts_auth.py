@@ -118,3 +118,26 @@ def test_the_launch_options_name_the_key_once(tmp_path: Path, monkeypatch: pytes
         launch_key(argparse.Namespace(key=str(path), key_env="APP_KEY"))
     with pytest.raises(KeyFileError, match="environment variable NOPE .* is not set"):
         launch_key(argparse.Namespace(key=None, key_env="NOPE"))
+
+
+def test_made_up_names_and_times_never_grow_the_rows_past_their_bound() -> None:
+    """A flood of messages each claiming another host name, sent at another time: the rows stay
+    within MAX_ROWS, the rest counted under (other senders), every message counted once."""
+    refusals = Refusals()
+    check = verifier(refusals)
+    for number in range(1000):
+        check.accept(Seal(f"host{number}", 1, 1, time.time() - number, bytes(32)), [b"x"])
+    rows = refusals.rows()
+    named = [row for row in rows if row[1] != auth.OTHER_SENDERS]
+    assert len(named) == auth.MAX_ROWS and len(rows) == auth.MAX_ROWS + 1  # one reason: one row of the others
+    assert sum(int(row[3]) for row in rows) == 1000
+
+
+def test_a_second_launch_with_the_key_claiming_this_host_is_reported(caplog: pytest.LogCaptureFixture) -> None:
+    check = Verifier(KEY, TOPIC, ["robot"], ["robot", "graphics"], Refusals(), own="graphics")
+    impostor = Sealer(KEY, TOPIC, "graphics")
+    for _ in range(3):
+        parts = [b"x"]
+        assert not check.accept(impostor.seal(parts), parts)
+    assert [row[2] for row in check.refusals.rows()] == ["a second launch claiming this host name"]
+    assert sum("claimed by two launches" in record.getMessage() for record in caplog.records) == 1

@@ -8,6 +8,7 @@ activities' cycles on /diagnostics, on its own DDS domain."""
 from __future__ import annotations
 
 import csv
+import re
 import signal
 import subprocess
 import time
@@ -207,7 +208,10 @@ def test_sigint_then_sigterm_while_configured_and_not_running_is_one_clean_stop(
         process.send_signal(signal.SIGTERM)
     finally:
         out = ended(process)
-    assert process.returncode == 0, out
+    # Sent back to back, the two may reach the process's threads in either order: SIGINT first is
+    # ros2 launch's stop (exit 0); SIGTERM first makes the SIGINT a second Ctrl-C (130, as documented).
+    first = re.search(r"stopping application param_app: received (SIGINT|SIGTERM)", out)
+    assert first is not None and "(clean)" in out, out
+    assert process.returncode == (0 if first.group(1) == "SIGINT" else 130), out
     assert time.monotonic() - sent < 4.0, out  # a stop's second and the interpreters' exits
-    assert "stopping application param_app: received SIGINT" in out and "(clean)" in out, out
     assert "Traceback" not in out, out

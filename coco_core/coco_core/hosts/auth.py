@@ -46,6 +46,11 @@ WINDOW = 64
 """How many counters before the highest seen are still accepted once each (reordering)."""
 MAX_NAME = 64
 """Characters of a claimed host name quoted in a log or a profile (the rest is cut)."""
+MAX_ROWS = 64
+"""Distinct (topic, claimed sender, reason) rows kept; past them, refusals are counted in one row
+per topic and reason under ``(other senders)``: a flood of made-up names must not grow memory or
+the log."""
+OTHER_SENDERS = "(other senders)"
 
 _HEADER = struct.Struct("<QQd")
 _LENGTH = struct.Struct("<Q")
@@ -117,8 +122,11 @@ class Refusals:
         self._lock = threading.Lock()
 
     def count(self, topic: str, sender: str, why: str) -> None:
+        """Count one refusal; ``why`` is one of a few fixed reasons (the rows stay few)."""
         key = (topic, quoted(sender), why)
         with self._lock:
+            if key not in self._counts and len(self._counts) >= MAX_ROWS:
+                key = (topic, OTHER_SENDERS, why)
             count = self._counts.get(key, 0) + 1
             self._counts[key] = count
         if count == 1:
@@ -147,8 +155,11 @@ class Verifier:
     application (a sender outside it is named as such)."""
 
     def __init__(self, key: AppKey, topic: str, senders: Sequence[str], hosts: Sequence[str],
-                 refusals: Refusals) -> None:
+                 refusals: Refusals, own: str = "") -> None:
         self.key = key
+        self.own = own
+        """The receiving host: an authentic message that claims its name comes from a second launch
+        of it (its own messages, heard back, are left out before they reach here)."""
         self.topic = topic
         self.senders = frozenset(senders)
         self.hosts = frozenset(hosts)
@@ -169,36 +180,40 @@ class Verifier:
         expected = mac(self.key, self.topic, seal.host, seal.session, seal.counter, seal.wall, parts)
         if not hmac.compare_digest(expected, bytes(seal.mac)):
             return "not authenticated (no key, another key, or changed on the way)"
+        if seal.host == self.own and self.own:
+            return self._claimed_twice(seal.host, "this host's own launch", seal.session)
         if seal.host not in self.senders:
             return ("a host this application does not declare" if seal.host not in self.hosts
                     else "a host that does not write on this topic")
         if not math.isfinite(seal.wall) or abs(time.time() - seal.wall) > FRESH:
-            return f"stale: sent {seal.wall - time.time():+.1f} s from now (a replay, or clocks more than {FRESH:g} s apart)"
+            return f"stale (a replay, or clocks more than {FRESH:g} s apart)"
         window = self._windows.get(seal.host)
         if window is None:
             window = self._windows[seal.host] = _Window(seal.session)
         elif window.session != seal.session:
-            if seal.host not in self._claimed:
-                self._claimed.add(seal.host)
-                log.error("host %s is claimed by two launches on %s (sessions %x and %x): is it started twice? The "
-                          "second one's messages are refused", seal.host, self.topic, window.session, seal.session)
-            return "a second launch claiming this host name"
+            return self._claimed_twice(seal.host, f"session {window.session:x}", seal.session)
         return _replayed(window, seal.counter)
+
+    def _claimed_twice(self, host: str, first: str, session: int) -> str:
+        """Report once that two launches with the key claim ``host``; the second is refused."""
+        if host not in self._claimed:
+            self._claimed.add(host)
+            log.error("host %s is claimed by two launches on %s (%s and session %x): is it started twice? The "
+                      "second one's messages are refused", host, self.topic, first, session)
+        return "a second launch claiming this host name"
 
 
 def _replayed(window: _Window, counter: int) -> str:
     """"" and ``counter`` recorded as seen, or why it is a replay."""
     if counter < 1:
-        return "counter 0: counters start at 1"
+        return "a counter of 0 (counters start at 1)"
     if counter > window.highest:
         shift = counter - window.highest
         window.seen = ((window.seen << shift) | 1) & ((1 << WINDOW) - 1) if shift < WINDOW else 1
         window.highest = counter
         return ""
     back = window.highest - counter
-    if back >= WINDOW:
-        return f"a replay (counter {counter}, {back} behind the newest)"
-    if window.seen >> back & 1:
-        return f"a replay (counter {counter} came already)"
+    if back >= WINDOW or window.seen >> back & 1:
+        return f"a replay (a counter seen already, or more than {WINDOW} behind the newest)"
     window.seen |= 1 << back
     return ""

@@ -76,7 +76,7 @@ class DdsBus:
         self.publisher = bridge.node.create_publisher(HostMessage, topic, QOS)
         self.beats = bridge.node.create_publisher(HostMessage, f"{topic}/heartbeat", BEATS)
         self._sealers = {self.publisher: Sealer(key, topic, host), self.beats: Sealer(key, f"{topic}/heartbeat", host)}
-        checks = {name: Verifier(key, name, others, hosts, refusals) for name in (topic, f"{topic}/heartbeat")}
+        checks = {name: Verifier(key, name, others, hosts, refusals, own=host) for name in (topic, f"{topic}/heartbeat")}
         self._own = {sealer.session for sealer in self._sealers.values()}
         self.subscriptions = [bridge.subscribe(HostMessage, topic, lambda message: self._heard(message, checks[topic]),
                                                QOS),
