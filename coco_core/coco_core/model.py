@@ -316,6 +316,23 @@ class ArgDeclaration:
     location: Location | None = None
 
 
+@dataclass(frozen=True)
+class TopicMirrorSpec:
+    """One ``<topic>``: an output port mirrored on a ROS topic by the ROS launcher (``coco_ros.mirror``);
+    ``coco-launch`` has no node and leaves it alone."""
+
+    component: str
+    port: str
+    topic: str = ""
+    """The topic's name; empty: ``~/<component>/<port>`` (under the launcher's node)."""
+    type: str = ""
+    """The ROS message type (``std_msgs/msg/ColorRGBA``); empty: chosen from the port's values."""
+    data: BufferPolicy = BufferPolicy.DATA
+    """The mirror connection's policy, which the topic's QoS follows."""
+    buffersize: int = 1
+    location: Location | None = None
+
+
 @dataclass
 class AppSpec:
     """A whole application after includes, substitutions and conditions were applied."""
@@ -359,6 +376,8 @@ class AppSpec:
     warnings: list[str] = field(default_factory=list)
     """``file:line: message`` for what was accepted but ignored (settings the original CoCo
     ignores, components left unchecked); the launchers print them."""
+    topics: list[TopicMirrorSpec] = field(default_factory=list)
+    """The ports the file mirrors on ROS topics (``<topics>``), in document order."""
 
     def all_components(self) -> list[ComponentSpec]:
         """Every component, peers included, depth first."""

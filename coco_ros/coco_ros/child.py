@@ -20,6 +20,7 @@ from rclpy.signals import SignalHandlerOptions
 from .hosting import ExecutorHost
 
 from .launcher import host_in_node, node_name, run_hosted
+from .mirror import PortMirrors
 from .parameters import ArgParameters
 from .rosout import RosoutLogging
 
@@ -61,7 +62,8 @@ class RosChildProcess(ChildProcess):
             # takes: a child's node shows the args and refuses changes as the launcher's does.
             ArgParameters(node, config.spec).declare({})
             host, executor = host_in_node(node, app, config.deployment)
-            with RosoutLogging(node):  # this process's log lines on /rosout, under its node's name
+            with (RosoutLogging(node),  # this process's log lines on /rosout, under its node's name
+                  PortMirrors(node, app, config.spec, config.host.get("expose", []))):
                 clean = run_hosted(app, host, executor)
             self.host = host if clean else None  # else a hung callback may still use it: left to the exit
             return clean

@@ -55,6 +55,7 @@ from rclpy.node import Node
 from .fastdds_segments import remove_abandoned
 from .hosting import ExecutorHost, ExecutorThread
 from .managed import ManagedApplication, ManagedLauncherNode
+from .mirror import PortMirrors, plan_mirrors
 from .diagnostics import ProfileDiagnostics
 from .operation_services import OperationServices
 from .parameters import ArgParameters, given_parameters
@@ -79,6 +80,9 @@ def make_ros_parser() -> argparse.ArgumentParser:
     parser.add_argument("--managed", action="store_true",
                         help="a managed (lifecycle) node: the application configures on the configure transition and "
                              "runs on activate; deactivate, cleanup or shutdown stop it (coco_ros.managed)")
+    parser.add_argument("--expose", action="append", default=[], metavar="PATTERN",
+                        help="mirror the output ports matching component.port (wildcards; all: every one) on "
+                             "ROS topics ~/<component>/<port> (coco_ros.mirror)")
     parser.add_argument("--executor-threads", type=_positive_int, metavar="N",
                         help="host the activities as callback groups of one executor with N threads (1: a "
                         "SingleThreadedExecutor) instead of a wait set on a thread of its own for each")
@@ -178,7 +182,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
             spec, app = built or load_and_build(options, signals, given)
             ArgParameters(node, spec).declare(given)
             signals.check()
-            return launch(spec, app, options, signals, RosHost(node, ros_args))
+            return launch(spec, app, options, signals, RosHost(node, ros_args, options.expose))
     except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(_NAME, error)
     finally:
@@ -211,10 +215,12 @@ class RosHost:
     prog = _NAME
     child_module = "coco_ros.child"
 
-    def __init__(self, node: Node | None = None, ros_args: Sequence[str] = ()) -> None:
+    def __init__(self, node: Node | None = None, ros_args: Sequence[str] = (), expose: Sequence[str] = ()) -> None:
         self.node = node
         """The launcher's node (None for ``--check``, which runs nothing)."""
         self.ros_args = list(ros_args)
+        self.expose = list(expose)
+        """``--expose`` patterns: the ports every process mirrors on topics (:mod:`.mirror`)."""
 
     def launch_options(self, options: argparse.Namespace) -> LaunchOptions:
         return LaunchOptions(Host.ROS, tuple(_threads(options.threads)), options.all_threads,
@@ -222,7 +228,10 @@ class RosHost:
 
     def child_config(self) -> dict[str, Any]:
         assert self.node is not None
-        return {"node": self.node.get_name(), "ros_args": self.ros_args}
+        return {"node": self.node.get_name(), "ros_args": self.ros_args, "expose": self.expose}
+
+    def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
+        return plan_mirrors(spec, app, options.expose).lines()
 
     def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
             processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
@@ -236,7 +245,7 @@ class RosHost:
                         options.executor_threads)
         signals.attach(app)
         with (ProfileDiagnostics(node, app.name, processes.snapshots if processes else lambda: [snapshot(app)]),
-              OperationServices(node, app, spec)):
+              OperationServices(node, app, spec), PortMirrors(node, app, spec, self.expose)):
             managed = None
             if isinstance(node, ManagedLauncherNode):
                 managed = node.managed = ManagedApplication(app, host)

@@ -1,0 +1,166 @@
+"""Output ports mirrored on ROS topics (coco_ros.mirror): ``<topics>`` and ``--expose``.
+
+In-process, with real rclpy nodes on this test's own DDS domain: the application is built from its
+XML and its port written by the test, the mirror served by an executor, the other side a real
+subscription. A BUFFER mirror delivers every value in order; nothing is pushed into the mirror
+while no one subscribes; ``--check`` names the ports no converter knows.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import pytest
+from coco_core.builder import build_application
+from coco_core.errors import ConfigErrors
+from coco_core.xml import load_application
+from coco_ros import launcher
+from coco_ros.mirror import PortMirrors, plan_mirrors
+
+DOMAIN = "81"
+APP = """<package name="mirror_app">
+  <components>
+    <component><name>producer</name><task>CostlyProducer</task><library>coco_core</library></component>
+    <component><name>gen</name><task>SignalGenerator</task><library>coco_core</library></component>
+    <component><name>device</name><task>SimulatedDevice</task><library>coco_mr_haptics</library></component>
+  </components>
+  <topics>
+    <topic task="producer" port="out" data="BUFFER" buffersize="200"/>
+    <topic task="gen" port="sample" name="/mirror_test/sample"/>
+  </topics>
+  <activities>
+    <activity name="a"><schedule type="periodic" period="10"/>
+      <components><component name="producer"/><component name="gen"/><component name="device"/></components>
+    </activity>
+  </activities>
+</package>
+"""
+
+
+@pytest.fixture
+def app_file(tmp_path: Path) -> Path:
+    path = tmp_path / "mirror_app.xml"
+    path.write_text(APP)
+    return path
+
+
+@pytest.fixture
+def ros(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Any, Any]]:
+    """An rclpy node (the launcher's stand-in) and a spinning executor on this test's domain."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    monkeypatch.setenv("ROS_DOMAIN_ID", DOMAIN)
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    context = Context()
+    rclpy.init(context=context)
+    node = Node("mirror_app", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    yield node, executor
+    executor.shutdown()
+    thread.join(5)
+    node.destroy_node()
+    context.try_shutdown()
+    context.destroy()
+
+
+def wait_for(condition: Callable[[], Any], what: str, seconds: float = 20) -> Any:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        result = condition()
+        if result:
+            return result
+        time.sleep(0.01)
+    pytest.fail(f"timed out waiting for {what}")
+
+
+def built(app_file: Path) -> tuple[Any, Any]:
+    spec = load_application(str(app_file), {})
+    return spec, build_application(spec)
+
+
+def test_a_buffer_mirror_publishes_every_value_in_order_and_only_to_subscribers(app_file: Path, ros) -> None:
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Float64
+
+    node, _ = ros
+    spec, app = built(app_file)
+    port = app.component("producer").outputs["out"]
+    with PortMirrors(node, app, spec) as mirrors:
+        mirror = next(m for m in mirrors.mirrors if m.port is port)
+        assert mirror.topic == "/mirror_app/producer/out"
+        for value in range(5):  # no subscriber: the port writes as if the mirror were not there
+            port.write(value)
+        assert mirror.connection.written == 0
+        received: list[float] = []
+        subscription = node.create_subscription(
+            Float64, mirror.topic, lambda msg: received.append(msg.data),
+            QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE))
+        wait_for(lambda: mirror.subscribers == 1, "the mirror to match the subscription")
+        for value in range(100):
+            port.write(value)
+        wait_for(lambda: len(received) >= 100, "100 mirrored values")
+        assert received == [float(v) for v in range(100)]
+        assert mirror.connection.counters() == {"written": 100, "read": 100, "dropped": 0, "pending": 0}
+        assert any(c.label == "producer.out -> ROS topic /mirror_app/producer/out" for c in app.connections)
+        node.destroy_subscription(subscription)
+        wait_for(lambda: mirror.subscribers == 0, "the mirror to see the subscriber go")
+        port.write(1000)
+        assert mirror.connection.written == 100
+
+
+def test_a_stamped_port_is_mirrored_once_its_first_value_shows_the_type(app_file: Path, ros) -> None:
+    from coco_core.stamps import Stamped
+    from std_msgs.msg import Float64
+
+    node, _ = ros
+    spec, app = built(app_file)
+    port = app.component("gen").outputs["sample"]
+    with PortMirrors(node, app, spec) as mirrors:
+        mirror = next(m for m in mirrors.mirrors if m.port is port)
+        assert mirror.publisher is None  # Stamped: no type before a value
+        port.write(Stamped(0.25))
+        wait_for(lambda: mirror.publisher is not None, "the publisher of the first value's type")
+        received: list[float] = []
+        node.create_subscription(Float64, "/mirror_test/sample", lambda msg: received.append(msg.data), 10)
+        wait_for(lambda: mirror.subscribers == 1, "the mirror to match the subscription")
+        port.write(Stamped(0.5))
+        wait_for(lambda: received, "the mirrored sample")
+        assert received == [0.5]
+
+
+def test_expose_patterns_choose_ports_and_name_what_cannot_be_mirrored(app_file: Path) -> None:
+    spec, app = built(app_file)
+    plan = plan_mirrors(spec, app, ["producer.*", "all"])
+    names = [m.port.qualified_name for m in plan.mirrored]
+    assert names.count("producer.out") == 1 and "gen.sample" in names
+    assert any(text.startswith("device.state: no converter knows") for text in plan.skipped)
+    with pytest.raises(ConfigErrors, match="device.state"):
+        plan_mirrors(spec, app, ["device.state"])
+    with pytest.raises(ConfigErrors, match="matches no output port"):
+        plan_mirrors(spec, app, ["nothing.*"])
+
+
+def test_check_names_a_port_no_converter_knows(app_file: Path, capsys) -> None:
+    assert launcher.main([str(app_file), "--check", "--expose", "producer.out"]) == 0
+    out = capsys.readouterr().out
+    assert "producer.out -> ~/producer/out (std_msgs/msg/Float64, BUFFER 200)" in out
+    assert launcher.main([str(app_file), "--check", "--expose", "device.state"]) == 1
+    assert "device.state" in capsys.readouterr().err
+
+
+def test_a_topic_of_an_input_port_or_an_unknown_type_is_an_error(tmp_path: Path) -> None:
+    path = tmp_path / "bad.xml"
+    path.write_text(APP.replace('<topic task="gen" port="sample" name="/mirror_test/sample"/>',
+                                '<topic task="producer" port="out" type="std_msgs/msg/Bool"/>'))
+    spec, app = built(path)
+    with pytest.raises(ConfigErrors, match="no converter for ROS type 'std_msgs/msg/Bool'"):
+        plan_mirrors(spec, app)
