@@ -40,7 +40,9 @@ class Attribute(Generic[T]):
 
     ``type_`` is ``int``, ``float``, ``bool``, ``str``, ``Path``, an ``enum.Enum`` subclass, or
     ``list[X]`` / ``tuple[X, ...]`` of one of those. ``choices``, ``min`` and ``max`` constrain the
-    value; ``check`` is any further validation that returns an error text or None.
+    value; ``check`` is any further validation that returns an error text or None. ``live``: the
+    component reads it while it runs (every update), so a change at run time takes effect; the ROS
+    launcher offers only those as writable parameters (:mod:`coco_ros.component_parameters`).
     """
 
     def __init__(
@@ -53,6 +55,7 @@ class Attribute(Generic[T]):
         min: float | None = None,
         max: float | None = None,
         check: Callable[[T], str | None] | None = None,
+        live: bool = False,
     ) -> None:
         self.type = type_
         self.doc = doc
@@ -60,6 +63,7 @@ class Attribute(Generic[T]):
         self.min = min
         self.max = max
         self.check = check
+        self.live = live
         self.name = ""
         self.default = default
 

@@ -314,6 +314,10 @@ class ArgDeclaration:
     fixed: bool = False
     """Declared with ``value=``: nothing from outside changes it."""
     location: Location | None = None
+    min: float | None = None
+    """``min=``: the least value it takes (a number), the low end of its ROS parameter's range."""
+    max: float | None = None
+    """``max=``: the greatest value it takes, the high end of its ROS parameter's range."""
 
 
 @dataclass(frozen=True)

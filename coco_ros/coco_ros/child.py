@@ -19,6 +19,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from .hosting import ExecutorHost
 
+from .component_parameters import ComponentParameters
 from .launcher import host_in_node, node_name, run_hosted
 from .mirror import PortMirrors
 from .parameters import ArgParameters
@@ -61,6 +62,7 @@ class RosChildProcess(ChildProcess):
             # The launcher resolved the args (its -p values included) and reported the -p values no arg
             # takes: a child's node shows the args and refuses changes as the launcher's does.
             ArgParameters(node, config.spec).declare({})
+            ComponentParameters(node, app).declare()
             host, executor = host_in_node(node, app, config.deployment)
             with (RosoutLogging(node),  # this process's log lines on /rosout, under its node's name
                   PortMirrors(node, app, config.spec, config.host.get("expose", []))):

@@ -58,6 +58,7 @@ from .managed import ManagedApplication, ManagedLauncherNode
 from .mirror import PortMirrors, plan_mirrors
 from .diagnostics import ProfileDiagnostics
 from .operation_services import OperationServices
+from .component_parameters import ComponentParameters
 from .parameters import ArgParameters, given_parameters
 from .rosout import RosoutLogging
 
@@ -181,6 +182,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         with RosoutLogging(node):  # CoCo's log lines on /rosout too, from here on
             spec, app = built or load_and_build(options, signals, given)
             ArgParameters(node, spec).declare(given)
+            ComponentParameters(node, app).declare()
             signals.check()
             return launch(spec, app, options, signals, RosHost(node, ros_args, options.expose))
     except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
