@@ -335,6 +335,10 @@ class TopicMirrorSpec:
     """The mirror connection's policy, which the topic's QoS follows."""
     buffersize: int = 1
     location: Location | None = None
+    frame: str = ""
+    """The ``header.frame_id`` of values that carry no frame (a device's position, a force)."""
+    hz: float = 0.0
+    """Publish the newest value at most this often (a 1 kHz loop seen by a viewer); 0: every value."""
 
 
 @dataclass

@@ -69,6 +69,12 @@ _NAME = "launcher"
 """How the launcher names itself in its error messages."""
 
 
+HOST_ARGS = {"ros_launcher": "true"}
+"""What the ROS launcher tells an application that declares these args (ranked as the node's
+parameters: below ``name:=value``): a file keeps what only a node can do (a TFBridge, /robot_description)
+to ``if="$(arg ros_launcher)"``, and ``coco-launch`` runs the rest of it untouched."""
+
+
 def make_ros_parser() -> argparse.ArgumentParser:
     """``coco-launch``'s parser plus the hosting options of the ROS launcher."""
     parser = make_parser(prog=PROG)
@@ -150,9 +156,9 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         # No -p / --params-file: the file is loaded and built before rclpy starts, so a wrong one is
         # reported before any node appears.
         if options.check:
-            return check(options, signals, RosHost())
+            return check(options, signals, RosHost(), HOST_ARGS)
         try:
-            built = load_and_build(options, signals)
+            built = load_and_build(options, signals, HOST_ARGS)
         except CocoError as error:
             return failure(_NAME, error)
     if options.host is not None:  # before the node: Fast DDS reads its profiles at the first participant
@@ -178,9 +184,9 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         node = node_type(node_name(name), automatically_declare_parameters_from_overrides=True)
         given = given_parameters(node)
         if options.check:
-            return check(options, signals, RosHost(), given)
+            return check(options, signals, RosHost(), {**HOST_ARGS, **given})
         with RosoutLogging(node):  # CoCo's log lines on /rosout too, from here on
-            spec, app = built or load_and_build(options, signals, given)
+            spec, app = built or load_and_build(options, signals, {**HOST_ARGS, **given})
             ArgParameters(node, spec).declare(given)
             ComponentParameters(node, app).declare()
             signals.check()

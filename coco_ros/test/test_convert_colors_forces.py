@@ -46,3 +46,13 @@ def test_forces_and_wrenches_go_out_in_the_converters_frame() -> None:
 def test_what_is_not_a_force_is_refused(value) -> None:
     with pytest.raises(WrongTypeError, match="force"):
         converter_for("geometry_msgs/msg/WrenchStamped").to_ros(value)
+
+
+def test_a_force_at_a_point_is_an_arrow_and_reads_back() -> None:
+    converter = converter_for("visualization_msgs/msg/Marker", frame_id="camera", scale=0.1)
+    arrow = converter.to_ros(((0.0, 0.0, 1.0), (0.0, 2.0, 0.0)))
+    assert arrow.header.frame_id == "camera" and [(p.x, p.y, p.z) for p in arrow.points] == [
+        (0.0, 0.0, 1.0), (0.0, pytest.approx(0.2), 1.0)]
+    assert converter.to_coco(arrow) == ((0.0, 0.0, 1.0), (0.0, pytest.approx(2.0), 0.0))
+    with pytest.raises(WrongTypeError, match="proxy and a force"):
+        converter.to_ros(((0.0, 0.0), (1.0, 0.0, 0.0)))

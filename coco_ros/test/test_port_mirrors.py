@@ -25,7 +25,7 @@ APP = """<package name="mirror_app">
   <components>
     <component><name>producer</name><task>CostlyProducer</task><library>coco_core</library></component>
     <component><name>gen</name><task>SignalGenerator</task><library>coco_core</library></component>
-    <component><name>device</name><task>SimulatedDevice</task><library>coco_mr_haptics</library></component>
+    <component><name>tree</name><task>KDTreeBuilder</task><library>coco_mr_haptics</library></component>
   </components>
   <topics>
     <topic task="producer" port="out" data="BUFFER" buffersize="200"/>
@@ -33,7 +33,7 @@ APP = """<package name="mirror_app">
   </topics>
   <activities>
     <activity name="a"><schedule type="periodic" period="10"/>
-      <components><component name="producer"/><component name="gen"/><component name="device"/></components>
+      <components><component name="producer"/><component name="gen"/><component name="tree"/></components>
     </activity>
   </activities>
 </package>
@@ -142,9 +142,9 @@ def test_expose_patterns_choose_ports_and_name_what_cannot_be_mirrored(app_file:
     plan = plan_mirrors(spec, app, ["producer.*", "all"])
     names = [m.port.qualified_name for m in plan.mirrored]
     assert names.count("producer.out") == 1 and "gen.sample" in names
-    assert any(text.startswith("device.state: no converter knows") for text in plan.skipped)
-    with pytest.raises(ConfigErrors, match="device.state"):
-        plan_mirrors(spec, app, ["device.state"])
+    assert any(text.startswith("tree.structure: no converter knows") for text in plan.skipped)
+    with pytest.raises(ConfigErrors, match="tree.structure"):
+        plan_mirrors(spec, app, ["tree.structure"])
     with pytest.raises(ConfigErrors, match="matches no output port"):
         plan_mirrors(spec, app, ["nothing.*"])
 
@@ -153,8 +153,8 @@ def test_check_names_a_port_no_converter_knows(app_file: Path, capsys) -> None:
     assert launcher.main([str(app_file), "--check", "--expose", "producer.out"]) == 0
     out = capsys.readouterr().out
     assert "producer.out -> ~/producer/out (std_msgs/msg/Float64, BUFFER 200)" in out
-    assert launcher.main([str(app_file), "--check", "--expose", "device.state"]) == 1
-    assert "device.state" in capsys.readouterr().err
+    assert launcher.main([str(app_file), "--check", "--expose", "tree.structure"]) == 1
+    assert "tree.structure" in capsys.readouterr().err
 
 
 def test_a_topic_of_an_input_port_or_an_unknown_type_is_an_error(tmp_path: Path) -> None:
@@ -164,3 +164,105 @@ def test_a_topic_of_an_input_port_or_an_unknown_type_is_an_error(tmp_path: Path)
     spec, app = built(path)
     with pytest.raises(ConfigErrors, match="no converter for ROS type 'std_msgs/msg/Bool'"):
         plan_mirrors(spec, app)
+
+
+def test_a_pooled_mesh_is_mirrored_as_its_points_and_a_handle_as_a_pose(ros) -> None:
+    """The palpation app's remote scene (a MeshReconstructor's slots) as a PointCloud2 in the mesh's
+    camera frame, the slot given back; a device's handle as a PoseStamped in the topic's frame."""
+    import numpy as np
+    from coco_core.application import Application
+    from coco_core.component import Component
+    from coco_core.model import AppSpec, TopicMirrorSpec
+    from coco_core.ports import OutputPort, PooledOutputPort
+    from coco_mr_haptics.types import HapticDeviceState
+    from coco_mr_vision.mesh import MeshInfo, MeshLayout, TriangleMesh
+    from geometry_msgs.msg import PoseStamped
+    from sensor_msgs.msg import PointCloud2
+
+    class Scene(Component):
+        mesh = PooledOutputPort(slots=2)
+        state = OutputPort(HapticDeviceState)
+
+    node, _ = ros
+    app = Application("mirror_app")
+    scene = app.add(Scene("scene"))
+    spec = AppSpec(name="mirror_app", topics=[
+        TopicMirrorSpec("scene", "mesh", "cloud", "sensor_msgs/msg/PointCloud2"),
+        TopicMirrorSpec("scene", "state", "handle", frame="hand_tracker")])
+    clouds: list[Any] = []
+    poses: list[Any] = []
+    node.create_subscription(PointCloud2, "/cloud", clouds.append, 1)
+    node.create_subscription(PoseStamped, "/handle", poses.append, 1)
+    with PortMirrors(node, app, spec) as mirrors:
+        wait_for(lambda: all(m.subscribers for m in mirrors.mirrors), "both mirrors to match")
+        layout = MeshLayout(2, 2)
+        slot = scene.mesh.acquire((layout.offsets[-1],), np.uint8)
+        vertices, _, colors, _ = TriangleMesh.writable(slot.array, layout)
+        vertices[:] = [[0, 0, 1], [0.1, 0, 1], [0, 0.1, 1], [0.1, 0.1, 1.2]]
+        colors[:] = 200
+        slot.stamp = MeshInfo(layout, 3, 0, None, 12.5, "camera")
+        scene.mesh.write(slot)
+        scene.state.write(HapticDeviceState((0.1, 0.2, 0.3)))
+        wait_for(lambda: clouds and poses, "the cloud and the pose")
+        cloud, pose = clouds[0], poses[0]
+        assert (cloud.header.frame_id, cloud.width, cloud.height) == ("camera", 3, 1)
+        assert cloud.header.stamp.sec == 12
+        assert pose.header.frame_id == "hand_tracker"
+        assert (pose.pose.position.x, pose.pose.position.y, pose.pose.position.z) == (0.1, 0.2, 0.3)
+        wait_for(lambda: slot.readers == 0, "the mirror to give the slot back")
+
+
+def test_a_force_goes_out_as_a_wrench_and_an_arrow_in_the_topics_frame(ros) -> None:
+    from coco_core.application import Application
+    from coco_core.component import Component
+    from coco_core.model import AppSpec, TopicMirrorSpec
+    from coco_core.ports import OutputPort
+    from coco_mr_haptics.types import HapticSample
+    from geometry_msgs.msg import WrenchStamped
+    from visualization_msgs.msg import Marker
+
+    class Renderer(Component):
+        sample = OutputPort(HapticSample)
+        proxy_force = OutputPort(tuple)
+
+    node, _ = ros
+    app = Application("mirror_app")
+    renderer = app.add(Renderer("renderer"))
+    spec = AppSpec(name="mirror_app", topics=[
+        TopicMirrorSpec("renderer", "proxy_force", "force", "geometry_msgs/msg/WrenchStamped", frame="camera"),
+        TopicMirrorSpec("renderer", "sample", "arrow", "visualization_msgs/msg/Marker", frame="camera")])
+    wrenches: list[Any] = []
+    arrows: list[Any] = []
+    node.create_subscription(WrenchStamped, "/force", wrenches.append, 1)
+    node.create_subscription(Marker, "/arrow", arrows.append, 1)
+    with PortMirrors(node, app, spec) as mirrors:
+        wait_for(lambda: all(m.subscribers for m in mirrors.mirrors), "both mirrors to match")
+        renderer.proxy_force.write((0.0, 0.0, 5.0))
+        renderer.sample.write(HapticSample(1.0, (0.0, 0.0, 1.0), (0.0, 0.0, 0.99), (0.0, 0.0, 5.0), True, "cloud",
+                                           0.01))
+        wait_for(lambda: wrenches and arrows, "the wrench and the arrow")
+    assert wrenches[0].header.frame_id == "camera" and wrenches[0].wrench.force.z == 5.0
+    arrow = arrows[0]
+    assert arrow.header.frame_id == "camera" and arrow.type == Marker.ARROW
+    assert [(p.x, p.y, p.z) for p in arrow.points] == [(0.0, 0.0, 0.99), (0.0, 0.0, pytest.approx(1.09))]
+
+
+def test_a_mirror_with_a_rate_publishes_the_newest_value_and_counts_the_rest_dropped(app_file: Path, ros) -> None:
+    from coco_core.model import TopicMirrorSpec
+    from std_msgs.msg import Float64
+
+    node, _ = ros
+    spec, app = built(app_file)
+    spec.topics[:] = [TopicMirrorSpec("producer", "out", "limited", hz=20)]
+    port = app.component("producer").outputs["out"]
+    received: list[float] = []
+    node.create_subscription(Float64, "/limited", lambda msg: received.append(msg.data), 10)
+    with PortMirrors(node, app, spec) as mirrors:
+        mirror = mirrors.mirrors[0]
+        wait_for(lambda: mirror.subscribers == 1, "the mirror to match the subscription")
+        for value in range(50):
+            port.write(value)
+        wait_for(lambda: received and received[-1] == 49.0, "the newest value")
+        counters = mirror.connection.counters()
+    assert len(received) < 10 and counters["written"] == 50
+    assert counters["read"] == len(received) and counters["dropped"] == 50 - len(received)

@@ -6,6 +6,7 @@
         <topic task="distance" port="distance"/>                       <!-- ~/distance/distance -->
         <topic task="distance" port="color" name="/bowl_color" type="std_msgs/msg/ColorRGBA"/>
         <topic task="tf" port="gripper" data="BUFFER" buffersize="100"/>
+        <topic task="renderer" port="proxy_force" type="geometry_msgs/msg/WrenchStamped" frame="camera" hz="30"/>
     </topics>
 
 Each ``<topic>`` is a connection from the output port to a ROS publisher (``coco_ros.mirror``): its
@@ -22,8 +23,9 @@ from .connections import BUFFER_POLICIES, buffer_size
 from .draft import Draft
 from .reader import CONDITIONS, FileReader
 from .tree import Element
+from .values import parse_number
 
-TOPIC_ATTRIBUTES = ("buffersize", "data", "name", "port", "task", "type", *CONDITIONS)
+TOPIC_ATTRIBUTES = ("buffersize", "data", "frame", "hz", "name", "port", "task", "type", *CONDITIONS)
 
 
 def read_topics(reader: FileReader, element: Element, draft: Draft) -> None:
@@ -36,7 +38,11 @@ def read_topics(reader: FileReader, element: Element, draft: Draft) -> None:
         reader.empty(child)
         data = BufferPolicy(reader.choice(child, values, "data", BUFFER_POLICIES, "DATA"))
         size = buffer_size(reader, child, values, data)
+        hz = reader.parsed(child, values, "hz", parse_number) or 0.0
+        if hz < 0:
+            reader.error(f'<topic> attribute hz="{values["hz"]}": expected a rate >= 0 (0: every value)', child)
         component, port = values.get("task", "").strip(), values.get("port", "").strip()
         if component and port:
             draft.topics.append(TopicMirrorSpec(component, port, values.get("name", "").strip(),
-                                                values.get("type", "").strip(), data, size, child.location))
+                                                values.get("type", "").strip(), data, size, child.location,
+                                                values.get("frame", "").strip(), max(hz, 0.0)))

@@ -10,6 +10,7 @@ carry the same messages.
 
 from __future__ import annotations
 
+import inspect
 import numbers
 import types
 import typing
@@ -19,9 +20,11 @@ import numpy as np
 from coco_core.errors import MessageError
 from coco_core.pool import Slot
 from coco_core.stamps import Stamped
+from coco_mr_vision.mesh import TriangleMesh
 
 from ..convert import converter_for, normalize_type_name, supported_types
 from ..convert.base import Converter
+from .adapt import is_handle
 
 BY_CLASS: tuple[str, ...] = (
     "sensor_msgs/msg/JointState",
@@ -35,6 +38,8 @@ BY_CLASS: tuple[str, ...] = (
 TFMessage entry; /tf comes from the graph through a TFBridge)."""
 
 NUMBER = "std_msgs/msg/Float64"
+CLOUD = "sensor_msgs/msg/PointCloud2"
+POSE = "geometry_msgs/msg/PoseStamped"
 ARRAY = "std_msgs/msg/Float64MultiArray"
 FORCE = "geometry_msgs/msg/WrenchStamped"
 
@@ -59,6 +64,10 @@ def ros_type_of(cls: type) -> str | None:
             return name
     if "force" in getattr(cls, "__dataclass_fields__", {}):
         return FORCE  # a HapticForce (coco_mr_haptics): its force and stamp
+    if issubclass(cls, TriangleMesh):
+        return CLOUD  # its vertices (adapt.mesh_cloud)
+    if is_handle(cls):
+        return POSE  # a device's handle (adapt.adapted)
     if issubclass(cls, (tuple, list, np.ndarray)):
         return ARRAY
     return None
@@ -67,6 +76,12 @@ def ros_type_of(cls: type) -> str | None:
 def value_ros_type(value: Any) -> str | None:
     """:func:`ros_type_of` the class of ``value`` (a ``Stamped`` one's payload)."""
     return ros_type_of(type(value.value if isinstance(value, Stamped) else value))
+
+
+def mirror_converter(ros_type: str, frame: str) -> Converter:
+    """The converter of a mirror, given the topic's ``frame`` where it takes one (``frame_id``)."""
+    taken = "frame_id" in inspect.signature(type(converter_for(ros_type)).__init__).parameters
+    return converter_for(ros_type, frame_id=frame) if frame and taken else converter_for(ros_type)
 
 
 def explicit_converter(type_name: str, where: str) -> Converter:

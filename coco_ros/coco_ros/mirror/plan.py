@@ -41,11 +41,16 @@ class Mirrored:
     ros_type: str
     data: BufferPolicy
     size: int
+    frame: str = ""
+    """The frame of values that carry none (:attr:`TopicMirrorSpec.frame`)."""
+    hz: float = 0.0
+    """The most messages a second (the newest value each period); 0: every value."""
 
     def describe(self) -> str:
         kind = self.ros_type or "type of its first value"
         size = f" {self.size}" if self.data is not BufferPolicy.DATA else ""
-        return f"{self.port.qualified_name} -> {self.topic} ({kind}, {self.data.value}{size})"
+        rate = f", at most {self.hz:g} Hz" if self.hz else ""
+        return f"{self.port.qualified_name} -> {self.topic} ({kind}, {self.data.value}{size}{rate})"
 
 
 @dataclass
@@ -137,8 +142,9 @@ def _output(app: Application, component_name: str, port_name: str) -> OutputPort
 
 def _mirrored(port: OutputPort, topic: TopicMirrorSpec) -> Mirrored:
     where = port.qualified_name
-    if isinstance(port, PooledOutputPort):
-        raise CocoError(f"{where} is a pooled output (frames in slots): no converter knows its values")
+    if isinstance(port, PooledOutputPort) and (not topic.type or topic.data is not BufferPolicy.DATA):
+        raise CocoError(f"{where} is a pooled output (frames in slots): mirrored with a type= (a mesh: "
+                        "sensor_msgs/msg/PointCloud2) and data=DATA (the newest frame) only")
     if topic.type:
         ros_type = explicit_converter(topic.type, where).type_name
     elif by_value(port.type):
@@ -150,4 +156,4 @@ def _mirrored(port: OutputPort, topic: TopicMirrorSpec) -> Mirrored:
                             "<topic> a type= of coco_ros.convert's, or leave it out")
         ros_type = known
     return Mirrored(port, topic.topic or default_topic(*_names(where)), ros_type, topic.data,
-                    topic.buffersize)
+                    topic.buffersize, topic.frame, topic.hz)

@@ -13,6 +13,10 @@ Nothing is converted while no one subscribes: until the publisher matches a subs
 declared as carrying anything (``Stamped``) has its publisher made once its first value showed the
 message type (:mod:`.choice`), looked at by a timer of the executor, never by the writer.
 
+A ``<topic hz=...>`` publishes the newest value at most that often instead: a timer of the executor
+takes it, the older ones count as dropped, and the port's writes wake nothing (a 1 kHz haptic loop
+seen by a viewer at 30 Hz costs its process 30 conversions a second, not a thousand).
+
 QoS follows the policy: DATA keeps the newest message (depth 1, reliable), BUFFER ``n`` keeps
 ``n`` (reliable: a subscriber that keeps up gets every value in order), CIRCULAR ``n`` keeps ``n``
 best effort (the newest matter, as on the connection).
@@ -27,11 +31,13 @@ from typing import Any
 from coco_core import Application
 from coco_core.connections import EMPTY, make_connection
 from coco_core.policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from coco_core.pool import Slot
+from coco_core.ports import PooledOutputPort
 from coco_core.stamps import Message, Stamped
 
 from ..bag.qos import Qos
-from ..convert import converter_for
-from .choice import value_ros_type
+from .adapt import adapted, slot_value
+from .choice import mirror_converter, value_ros_type
 from .plan import Mirrored
 
 log = logging.getLogger("coco.mirror")
@@ -58,10 +64,13 @@ class PortMirror:
         self.app = app
         self.mirrored = mirrored
         self.topic = node.resolve_topic_name(mirrored.topic, only_expand=True)
-        self.connection = make_connection(ConnectionPolicy(mirrored.data, SyncPolicy.LOCKED, mirrored.size))
+        port = mirrored.port
+        self.connection = port.connection() if isinstance(port, PooledOutputPort) else \
+            make_connection(ConnectionPolicy(mirrored.data, SyncPolicy.LOCKED, mirrored.size))
         self.connection.reader = f"ROS topic {self.topic}"
         self.publisher: Any = None
         self.guard: Any = None
+        """What drains the connection: a guard condition its writes trigger, or a timer (``hz``)."""
         self.subscribers = 0
         self.errors = 0
         self._last_log = 0.0
@@ -92,13 +101,18 @@ class PortMirror:
     def _attach(self, ros_type: str) -> None:
         from rclpy.event_handler import PublisherEventCallbacks
 
-        converter = converter_for(ros_type)
-        self._encode = converter.to_cdr if converter.writes_cdr else converter.to_ros
+        converter = mirror_converter(ros_type, self.mirrored.frame)
+        encode = converter.to_cdr if converter.writes_cdr else converter.to_ros
+        frame = self.mirrored.frame
+        self._encode = lambda value: encode(adapted(value, frame))
         self.publisher = self.node.create_publisher(
             converter.message_type, self.topic, qos_of(self.mirrored.data, self.mirrored.size).to_rclpy(),
             callback_group=self.group, event_callbacks=PublisherEventCallbacks(matched=self._matched))
-        self.guard = self.node.create_guard_condition(self._drain, callback_group=self.group)
-        self.connection.trigger = self.guard.trigger
+        if self.mirrored.hz > 0:
+            self.guard = self.node.create_timer(1.0 / self.mirrored.hz, self._publish_newest, callback_group=self.group)
+        else:
+            self.guard = self.node.create_guard_condition(self._drain, callback_group=self.group)
+            self.connection.trigger = self.guard.trigger
         self.port.add_connection(self.connection)
         self.port.mute(self.connection, True)
         self.app.connections.append(self.connection)  # its counters in the profile
@@ -113,23 +127,39 @@ class PortMirror:
 
     def _drain(self) -> None:
         """Convert and publish every value waiting, in order (the guard condition's callback)."""
-        connection, publisher = self.connection, self.publisher
-        while (item := connection.pop()) is not EMPTY:
-            value = item.value if type(item) is Message else item
-            if isinstance(value, Stamped):
-                value = value.value
+        while (item := self.connection.pop()) is not EMPTY:
+            self._publish(item)
+
+    def _publish_newest(self) -> None:
+        """The newest value waiting, published (the timer's callback, ``hz``); older ones are dropped."""
+        item = self.connection.pop_newest()
+        if item is not EMPTY:
+            self._publish(item)
+
+    def _publish(self, item: Any) -> None:
+        try:
+            message = self._message(item)
+        except Exception as error:  # a value no converter takes must not stop the others
+            self.connection.skip()
+            self._failed(error)
+            return
+        self.publisher.publish(message)
+
+    def _message(self, item: Any) -> Any:
+        """The message of what the connection gave: a value, or a pooled frame (held meanwhile)."""
+        if type(item) is Slot:
             try:
-                message = self._encode(value)
-            except Exception as error:  # a value no converter takes must not stop the others
-                connection.skip()
-                self._failed(error)
-                continue
-            publisher.publish(message)
+                return self._encode(slot_value(item))
+            finally:
+                item.release()
+        return self._encode(item.value if type(item) is Message else item)
 
     def _drop_pending(self) -> None:
         """Take what waits unpublished (counted as dropped): nothing is left in flight."""
-        while self.connection.pop() is not EMPTY:
+        while (item := self.connection.pop()) is not EMPTY:
             self.connection.skip()
+            if type(item) is Slot:
+                item.release()
 
     def _failed(self, error: Exception) -> None:
         self.errors += 1
@@ -146,5 +176,8 @@ class PortMirror:
         self.port.mute(self.connection, True)
         self._drop_pending()
         self.node.destroy_publisher(self.publisher)
-        self.node.destroy_guard_condition(self.guard)
+        if self.mirrored.hz > 0:
+            self.node.destroy_timer(self.guard)
+        else:
+            self.node.destroy_guard_condition(self.guard)
         self.publisher = self.guard = None
