@@ -153,3 +153,74 @@ def test_coco_launch_runs_the_same_file_without_ros(session, coco_launch: Path) 
     result = run_launcher(coco_launch, APP, f"bag:={folder}", "display:=false", "--check")
     assert result.returncode == 0, result.stderr
     assert "ros_tf" not in result.stdout and "robot_description" not in result.stdout, result.stdout
+
+
+def test_a_recording_of_the_mirrored_joint_states_replays_into_the_same_application_with_the_same_outputs(
+        session, tmp_path: Path, peer: Any) -> None:
+    """``ros2 bag record /joint_states`` (here: a subscription of this test writing the CDR bytes with
+    the project's BagWriter, as rosbag2 does), then ``coco-replay`` of that recording into the same
+    application taking its inputs from the topics (``source:=topics``): every distance, its time and
+    its colour as the run on the original bag wrote them. The bowl is fixed (``fixed_bowl:=true``):
+    one input topic, so the order of the inputs is the recording's."""
+    import os
+    import signal
+
+    from coco_ros.bag import BagWriter
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    from rclpy.qos import QoSProfile
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64
+
+    folder, info = session
+    common = ["display:=false", "fixed_bowl:=true", f"time_origin:={info.start_ns / 1e9}"]
+    recording, first, second = tmp_path / "recording", tmp_path / "first", tmp_path / "second"
+    matched: list[int] = []
+    with BagWriter(recording) as writer:
+        recorder = peer.create_subscription(
+            JointState, "/joint_states", lambda data: writer.write("/joint_states", data, time.time_ns(),
+                                                                   "sensor_msgs/msg/JointState"),
+            QoSProfile(depth=1000), raw=True,
+            event_callbacks=SubscriptionEventCallbacks(matched=lambda status: matched.append(status.current_count)))
+        process = subprocess.Popen([str(LAUNCHER), APP, f"bag:={folder}", f"output:={first}", "rate:=4", *common,
+                                    "--managed", "--ros-args", "-r", "__node:=recorded_under_test"],
+                                   cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        try:
+            wait_for(lambda: matched and matched[-1], "the recorder to match /joint_states")
+            for transition in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
+                request = ChangeState.Request(transition=Transition(id=transition))
+                assert answer(peer, ChangeState, "/recorded_under_test/change_state", request).success
+            out, _ = process.communicate(timeout=120)
+        finally:
+            process.kill()
+        assert process.returncode == 0, out
+        peer.destroy_subscription(recorder)
+    rows = list(csv.DictReader((first / "distance.csv").open(newline="")))
+    assert len(rows) > 200
+
+    distances: list[float] = []
+    seen: list[int] = []
+    peer.create_subscription(Float64, "/distance", lambda msg: distances.append(msg.data), QoSProfile(depth=1000),
+                             event_callbacks=SubscriptionEventCallbacks(matched=lambda s: seen.append(s.current_count)))
+    process = subprocess.Popen([str(LAUNCHER), APP, "source:=topics", f"output:={second}", *common],
+                               cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        # The application subscribed before the replay starts (coco-replay waits 10 s at most, and a
+        # loaded machine may take longer to build the application).
+        wait_for(lambda: peer.count_subscribers("/joint_states") >= 1 and seen and seen[-1],
+                 "the application's /joint_states subscription and /distance publisher")
+        replay = subprocess.run([str(LAUNCHER.with_name("coco-replay")), str(recording), "--rate", "4",
+                                 "--wait-subscribers", "1", "--no-progress"],
+                                cwd=ROOT, capture_output=True, text=True, timeout=120,
+                                env={**os.environ, "ROS_DOMAIN_ID": DOMAIN})
+        assert replay.returncode == 0, replay.stderr
+        wait_for(lambda: len(distances) >= len(rows), "every distance of the replayed recording")
+        process.send_signal(signal.SIGINT)
+        out, _ = process.communicate(timeout=60)
+    finally:
+        process.kill()
+    assert process.returncode == 0, out
+    replayed = list(csv.DictReader((second / "distance.csv").open(newline="")))
+    columns = ("time", "distance", "r", "g", "b")
+    assert [[row[c] for c in columns] for row in replayed] == [[row[c] for c in columns] for row in rows]

@@ -10,15 +10,14 @@ on their own DDS domain."""
 from __future__ import annotations
 
 import math
-import threading
-import time
-from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Iterator
 
 import pytest
 from coco_core.builder import build_application
 from coco_core.xml import parse_application_string
 from coco_ros.component_parameters import ComponentParameters
+
+from conftest import spinning_peer, wait_for
 
 DOMAIN = "84"
 APP = """<package name="attribute_app">
@@ -43,52 +42,25 @@ APP = """<package name="attribute_app">
 @pytest.fixture
 def running(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Any, Any, Any]]:
     """(the application, running; its node with the attributes declared; a parameter client)."""
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rclpy.parameter_client import AsyncParameterClient
 
-    monkeypatch.setenv("ROS_DOMAIN_ID", DOMAIN)
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     app = build_application(parse_application_string(APP))
-    context = Context()
-    rclpy.init(context=context)
-    node = Node("attribute_app", context=context)
-    peer = Node("attribute_peer", context=context)
-    ComponentParameters(node, app).declare()
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    executor.add_node(peer)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
-    app.start()
-    client = AsyncParameterClient(peer, "attribute_app")
-    assert client.wait_for_services(timeout_sec=20), "the node's parameter services never appeared"
-    yield app, node, client
-    app.request_stop()
-    app.stop()
-    executor.shutdown()
-    spinner.join(5)
-    peer.destroy_node()
-    node.destroy_node()
-    context.try_shutdown()
-    context.destroy()
+    for peer in spinning_peer(monkeypatch, DOMAIN, "attribute_peer"):
+        node = Node("attribute_app", context=peer.context)
+        ComponentParameters(node, app).declare()
+        peer.executor.add_node(node)
+        app.start()
+        client = AsyncParameterClient(peer, "attribute_app")
+        assert client.wait_for_services(timeout_sec=20), "the node's parameter services never appeared"
+        yield app, node, client
+        app.request_stop()
+        app.stop()
+        node.destroy_node()
 
 
 def answer(future: Any, seconds: float = 10) -> Any:
-    deadline = time.monotonic() + seconds
-    while not future.done() and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert future.done(), "the parameter service did not answer"
-    return future.result()
-
-
-def wait_for(condition: Callable[[], Any], what: str, seconds: float = 10) -> None:
-    deadline = time.monotonic() + seconds
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.01)
+    return wait_for(lambda: future.done() and future.result(), "the parameter service's answer", seconds)
 
 
 def test_descriptors_say_type_doc_range_and_what_may_change(running) -> None:
@@ -112,7 +84,7 @@ def test_a_live_set_reaches_the_component_and_bad_values_are_refused_with_why(ru
     app, _, client = running
     generator = app.component("gen")
     assert answer(client.set_parameters([Parameter("gen.frequency", value=2.0)])).results[0].successful
-    wait_for(lambda: generator.frequency == 2.0, "the component to take the new frequency")
+    wait_for(lambda: generator.frequency == 2.0, "the component to take the new frequency", 10)
     refused = [("gen.frequency", math.nan, "out of range"),  # rclpy's range check says it
                ("gen.frequency", -1.0, "out of range"),
                ("gen.amplitude", math.nan, "NaN and infinities are refused"),  # no range: the component's check

@@ -8,10 +8,8 @@ while no one subscribes; ``--check`` names the ports no converter knows.
 
 from __future__ import annotations
 
-import threading
-import time
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Iterator
 
 import pytest
 from coco_core.builder import build_application
@@ -19,6 +17,8 @@ from coco_core.errors import ConfigErrors
 from coco_core.xml import load_application
 from coco_ros import launcher
 from coco_ros.mirror import PortMirrors, plan_mirrors
+
+from conftest import spinning_peer, wait_for
 
 DOMAIN = "81"
 APP = """<package name="mirror_app">
@@ -48,38 +48,9 @@ def app_file(tmp_path: Path) -> Path:
 
 
 @pytest.fixture
-def ros(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Any, Any]]:
-    """An rclpy node (the launcher's stand-in) and a spinning executor on this test's domain."""
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-
-    monkeypatch.setenv("ROS_DOMAIN_ID", DOMAIN)
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    context = Context()
-    rclpy.init(context=context)
-    node = Node("mirror_app", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
-    yield node, executor
-    executor.shutdown()
-    thread.join(5)
-    node.destroy_node()
-    context.try_shutdown()
-    context.destroy()
-
-
-def wait_for(condition: Callable[[], Any], what: str, seconds: float = 20) -> Any:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        result = condition()
-        if result:
-            return result
-        time.sleep(0.01)
-    pytest.fail(f"timed out waiting for {what}")
+def ros(monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
+    """An rclpy node (the launcher's stand-in, and the subscriber) spinning on this test's domain."""
+    yield from spinning_peer(monkeypatch, DOMAIN, "mirror_app")
 
 
 def built(app_file: Path) -> tuple[Any, Any]:
@@ -91,7 +62,7 @@ def test_a_buffer_mirror_publishes_every_value_in_order_and_only_to_subscribers(
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Float64
 
-    node, _ = ros
+    node = ros
     spec, app = built(app_file)
     port = app.component("producer").outputs["out"]
     with PortMirrors(node, app, spec) as mirrors:
@@ -121,7 +92,7 @@ def test_a_stamped_port_is_mirrored_once_its_first_value_shows_the_type(app_file
     from coco_core.stamps import Stamped
     from std_msgs.msg import Float64
 
-    node, _ = ros
+    node = ros
     spec, app = built(app_file)
     port = app.component("gen").outputs["sample"]
     with PortMirrors(node, app, spec) as mirrors:
@@ -183,7 +154,7 @@ def test_a_pooled_mesh_is_mirrored_as_its_points_and_a_handle_as_a_pose(ros) -> 
         mesh = PooledOutputPort(slots=2)
         state = OutputPort(HapticDeviceState)
 
-    node, _ = ros
+    node = ros
     app = Application("mirror_app")
     scene = app.add(Scene("scene"))
     spec = AppSpec(name="mirror_app", topics=[
@@ -225,7 +196,7 @@ def test_a_force_goes_out_as_a_wrench_and_an_arrow_in_the_topics_frame(ros) -> N
         sample = OutputPort(HapticSample)
         proxy_force = OutputPort(tuple)
 
-    node, _ = ros
+    node = ros
     app = Application("mirror_app")
     renderer = app.add(Renderer("renderer"))
     spec = AppSpec(name="mirror_app", topics=[
@@ -251,7 +222,7 @@ def test_a_mirror_with_a_rate_publishes_the_newest_value_and_counts_the_rest_dro
     from coco_core.model import TopicMirrorSpec
     from std_msgs.msg import Float64
 
-    node, _ = ros
+    node = ros
     spec, app = built(app_file)
     spec.topics[:] = [TopicMirrorSpec("producer", "out", "limited", hz=20)]
     port = app.component("producer").outputs["out"]
