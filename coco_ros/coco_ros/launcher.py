@@ -3,6 +3,7 @@
     ros2 run coco_ros launcher app.xml [name:=value ...] [--host NAME [--host-timeout S]] [--duration S] [--profile S]
                                [--check [--allow-unknown] [--graph FILE]] [--list]
                                [--threads NAME[,NAME]] [--all-threads] [--executor-threads N] [--managed]
+                               [--expose PATTERN]
                                [--ros-args -r __node:=NAME -p param:=value ...]
 
 The command line is ``coco-launch``'s (same file format, same ``name:=value`` arguments, same
@@ -16,7 +17,11 @@ SIGTERM) stops every activity within a second, after each component's ``on_stop`
 (:mod:`coco_core.signals`: the rules and the exit statuses). With ``--host NAME`` it runs that host's
 part of an application over several hosts (``docs/hosts.md``), its node named ``<application>_<host>``.
 
-Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.host.node``).
+Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.host.node``). What the
+ROS tools see of the application: its ``<arg>``s and its components' attributes as parameters
+(:mod:`.parameters`, :mod:`.component_parameters`), output ports mirrored on topics by the file's
+``<topics>`` and ``--expose`` (:mod:`.mirror`), and ``ros_launcher:=true`` given to a file that
+declares that arg (:data:`HOST_ARGS`).
 """
 
 from __future__ import annotations

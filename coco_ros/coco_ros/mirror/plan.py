@@ -90,7 +90,7 @@ def plan_mirrors(spec: AppSpec, app: Application, patterns: Sequence[str] = ()) 
                                       topic.location))
     for pattern in patterns:
         matched = _matching(app, pattern)
-        if not matched and not app.elsewhere:
+        if not matched and not _elsewhere(app, pattern):
             errors.append(ConfigError(f"--expose {pattern!r} matches no output port of application {app.name} "
                                       "(expected component.port, wildcards allowed, or all)"))
         for port in matched:
@@ -124,6 +124,12 @@ def _matching(app: Application, pattern: str) -> list[OutputPort]:
     if pattern == ALL:
         return ports
     return [port for port in ports if fnmatch.fnmatchcase(port.qualified_name, pattern)]
+
+
+def _elsewhere(app: Application, pattern: str) -> bool:
+    """Whether ``pattern`` may name ports of components that run in another process (which mirrors them)."""
+    component = pattern.rpartition(".")[0] or pattern
+    return pattern == ALL or any(fnmatch.fnmatchcase(name, component) for name in app.elsewhere)
 
 
 def _output(app: Application, component_name: str, port_name: str) -> OutputPort | None:
