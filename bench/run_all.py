@@ -5,7 +5,7 @@
     PYTHONPATH=coco_core .venv/bin/python bench/run_all.py --markdown /tmp/tables.md
 
 ``bench_replay`` and ``bench_latency`` start the installed ROS launcher and ``coco-replay``, and
-``bench_palpation`` (about 7 minutes), ``bench_flowvr`` and ``bench_hosts`` the installed ``coco-launch``: build the workspace and
+``bench_palpation`` (about 7 minutes), ``bench_flowvr``, ``bench_hosts`` and ``bench_transforms_server`` the installed ``coco-launch``: build the workspace and
 ``source install/setup.bash`` first.
 
 Each benchmark runs in a fresh interpreter so that one's threads, DDS participants and garbage do
@@ -27,7 +27,7 @@ from _table import Table
 
 BENCHMARKS = ["bench_ports", "bench_pool", "bench_period", "bench_transforms", "bench_bag", "bench_replay",
               "bench_latency", "bench_hosting", "bench_display", "bench_check", "bench_processes", "bench_ipc", "bench_ipc_path", "bench_flowvr", "bench_hosts", "bench_haptics",
-              "bench_vision", "bench_palpation"]
+              "bench_vision", "bench_palpation", "bench_transforms_server"]
 
 
 def markdown(results: Path) -> str:

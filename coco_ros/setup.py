@@ -70,6 +70,7 @@ setup(
             "PalpationSummary = coco_ros.palpation.summary:PalpationSummary",
             "ROSHapticDevice = coco_ros.haptics.device:ROSHapticDevice",
             "BagRgbdPeer = coco_ros.vision.rgbd_bag:BagRgbdPeer",
+            "TopicRgbdPeer = coco_ros.vision.rgbd_topics:TopicRgbdPeer",
         ],
     },
 )

@@ -4,6 +4,7 @@ a simulated device strokes a CSG scene at 1 kHz, and what it writes is checked a
 from __future__ import annotations
 
 import json
+import os
 import re
 from pathlib import Path
 
@@ -78,3 +79,58 @@ def test_absurd_numbers_and_deep_nesting_are_refused_at_their_line(original: str
     assert f"haptic.xml:{line}" in message
     for word in words:
         assert word in message
+
+
+def _not_a_trajectory(kind: str, folder: Path) -> str:
+    """A name the trajectory attribute must refuse: what the probe gave ``--check``."""
+    if kind == "device":
+        return "/dev/zero"
+    if kind == "folder":
+        return str(folder)
+    path = folder / kind
+    if kind == "fifo":
+        os.mkfifo(path)
+    else:  # a 2 GB file, sparse: no disk is used
+        with open(path, "wb") as file:
+            file.truncate(2 << 30)
+    return str(path)
+
+
+@pytest.mark.parametrize("kind,words", [
+    ("device", "is a character device, not a regular file"),
+    ("fifo", "is a FIFO, not a regular file"),
+    ("folder", "is a directory, not a regular file"),
+    ("huge", "has 2147483648 bytes, more than the limit of"),
+])
+def test_a_trajectory_that_is_no_regular_file_is_refused_when_the_file_loads(tmp_path: Path, kind: str,
+                                                                              words: str) -> None:
+    """``--check`` builds the application as the run does: it finds what the device's ``on_config``
+    would refuse (the run went on without its device until killed)."""
+    spec = parse_application_string(Path(APP).read_text(), "haptic.xml", {"trajectory": _not_a_trajectory(kind, tmp_path)})
+    line = next(i for i, row in enumerate(Path(APP).read_text().splitlines(), 1) if '<attribute name="trajectory"' in row)
+    with pytest.raises(ConfigErrors) as caught:
+        build_application(spec, "haptics")  # the process with the device
+    message = str(caught.value)
+    assert f"haptic.xml:{line}" in message and "device.trajectory (file)" in message, message
+    assert words in message and "expected a CSV file time,x,y,z[,buttons]" in message, message
+
+
+def test_check_refuses_dev_zero_as_the_trajectory(coco_launch: Path) -> None:
+    result = run_launcher(coco_launch, APP, "--check", "trajectory:=/dev/zero")
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "/dev/zero is a character device, not a regular file" in result.stderr
+
+
+@pytest.mark.parametrize("arg,value,attribute", [
+    ("stiffness", "nan", "scene.stiffness"),  # 40 % of cycles faulted to zero force, exit 0
+    ("stiffness", "1e999", "scene.stiffness"),
+    ("friction", "nan", "scene.static_friction"),  # a ZeroDivisionError in the renderer, exit 0
+])
+def test_a_non_finite_material_is_refused_at_its_line(arg: str, value: str, attribute: str) -> None:
+    text = Path(APP).read_text()
+    name = attribute.split(".")[1]
+    line = next(i for i, row in enumerate(text.splitlines(), 1) if f'name="{name}" value="$(arg {arg})"' in row)
+    with pytest.raises(ConfigErrors) as caught:
+        build_application(parse_application_string(text, "haptic.xml", {arg: value}), "haptics")
+    message = str(caught.value)
+    assert f"haptic.xml:{line}: attribute {attribute} (float): expected a finite number" in message, message

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import SHARED_DATA, run_launcher
+from conftest import DEMO_APP, SHARED_DATA, run_launcher
 
 BROKEN_CONNECTION = """<package>
   <components>
@@ -82,3 +82,28 @@ def test_list_shows_installed_components(coco_launch: Path) -> None:
     found = re.search(r"^ROSInterface  \(.*?(?=^\S)", result.stdout, re.M | re.S)
     rosinterface = found.group(0) if found else ""
     assert "ports one output per subscribe spec" in rosinterface and "JointState -> JointSample" in rosinterface
+
+
+@pytest.mark.parametrize("words, said", [
+    (["mode2=all"], "argument 'mode2=all' must look like name:=value"),
+    (["windw:=4"], "arg 'windw' was given (windw:=4) but no file declares it; did you mean 'window'?"),
+    (["--allow-unknown"], "--allow-unknown goes with --check only"),
+    (["--host", "station"], "--host station: application demo_pipeline declares no <host>"),
+])
+def test_a_wrong_command_line_exits_with_2(words: list[str], said: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """The README's exit statuses: 2 for a wrong command line (it was 1, as for a wrong file)."""
+    from coco_core.launcher import main
+
+    assert main([DEMO_APP, *words, "--duration", "0.1"]) == 2
+    assert said in capsys.readouterr().err
+
+
+def test_a_wrong_file_with_a_wrong_command_line_exits_with_1(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Both wrong: the file's errors come first (fixing the command line alone would not do)."""
+    from coco_core.launcher import main
+
+    app = tmp_path / "broken.xml"
+    app.write_text(BROKEN_CONNECTION.format(out=tmp_path / "never.csv").replace('data="DATA"', 'data="FOO"'))
+    assert main([str(app), "nothing:=1", "--check"]) == 1
+    err = capsys.readouterr().err
+    assert "no file declares it" in err and 'data="FOO" is not valid' in err

@@ -226,22 +226,20 @@ def test_palpation_app_without_processes_touches_the_same_places(coco_launch: Pa
     assert places_touched(runs["processes"]) & expected == places_touched(runs["one process"]) & expected == expected
 
 
-HAND_DOMAIN = "151"
-"""The DDS domain of the ROS variant's test (unique among the suite's)."""
+HAND_DOMAIN, CAMERA_DOMAIN = "151", "159"
 
 
-def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_path: Path) -> None:
-    """``ros2 run coco_ros launcher config/palpation_replay.xml hand:=topic``: the hand's poses come
-    from DDS, here the session's ``/hand/pose`` played by ``coco-replay`` (as a live tracker or a
-    played recording publishes them) once the application runs; the touch registers the tracker
-    and the places the hand reaches after it are touched, as with the bag's hand. The launcher is
-    stopped by Ctrl-C once the hand's recording has been played (a topic has no end)."""
+def fed_by_replay(session: Path, output: Path, domain: str, app_args: tuple[str, ...],
+                  topics: tuple[str, ...]) -> str:
+    """Run the application with the ROS launcher (``app_args`` choose its sources) and, once it runs,
+    ``coco-replay`` of the session's ``topics`` at the hand's pace, as live sources publish them;
+    Ctrl-C once they have been played (a topic has no end). The launcher's output; its exit status
+    must be 0."""
     installed = ROOT / "install" / "coco_ros" / "lib" / "coco_ros"
-    env = {**os.environ, "ROS_DOMAIN_ID": HAND_DOMAIN, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+    env = {**os.environ, "ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
            "PYTHONUNBUFFERED": "1"}
-    output = tmp_path / "topic"
     launcher = subprocess.Popen(
-        [str(installed / "launcher"), str(APP), "hand:=topic", f"bag:={palpation_session}", f"output:={output}",
+        [str(installed / "launcher"), str(APP), *app_args, f"bag:={session}", f"output:={output}",
          f"stream:=tcp://127.0.0.1:{free_port()}", "display:=false", "--profile", "100", "--duration", "120"],
         cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines: list[str] = []
@@ -258,8 +256,8 @@ def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_p
     reader.start()
     try:
         assert running.wait(120), "".join(lines)[-6000:]
-        replay = subprocess.run([str(installed / "coco-replay"), str(palpation_session), "--topics", "/hand/pose",
-                                 "--rate", str(HAND_RATE), "--wait-subscribers", "1", "--no-progress"],
+        replay = subprocess.run([str(installed / "coco-replay"), str(session), "--topics", *topics,
+                                 "--rate", str(HAND_RATE), "--wait-subscribers", str(len(topics)), "--no-progress"],
                                 cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
         assert replay.returncode == 0 and "subscriptions after" not in replay.stdout + replay.stderr, replay.stdout + replay.stderr
     finally:
@@ -268,7 +266,41 @@ def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_p
         reader.join(5)
     log = "".join(lines)
     assert code == 0, log[-6000:]
+    return log
+
+
+def test_ros_launcher_takes_the_hand_from_a_topic(palpation_session: Path, tmp_path: Path) -> None:
+    """``ros2 run coco_ros launcher config/palpation_replay.xml hand:=topic``: the hand's poses come
+    from DDS, here the session's ``/hand/pose`` played by ``coco-replay`` (as a live tracker or a
+    played recording publishes them) once the application runs; the touch registers the tracker
+    and the places the hand reaches after it are touched, as with the bag's hand."""
+    output = tmp_path / "topic"
+    log = fed_by_replay(palpation_session, output, HAND_DOMAIN, ("hand:=topic",), ("/hand/pose",))
     assert "registered from" in log, log[-6000:]
+    rows = haptic_rows(output)
+    expected = places_after_the_registration(output)
+    assert {"press_3", "stroke"} <= expected, f"the registration came late: only {expected} after it"
+    assert expected <= places_touched(rows)
+    assert behind_the_body(rows) <= BEHIND_BOUND
+
+
+def test_ros_launcher_takes_the_camera_from_a_drivers_topics(palpation_session: Path, tmp_path: Path) -> None:
+    """``scene:=topic hand:=topic``: the remote camera is a ROS 2 driver's colour, depth and
+    camera_info topics (the bag's topic names given as the camera_*_topic args), paired by stamp by
+    the TopicRgbdPeer, and the hand a tracker's topic: the session's, played by one ``coco-replay``
+    as the live camera and tracker publish them together (reliable: a lost fragment of a frame is
+    sent again, where a busy machine loses most frames of a best-effort subscription). The touch registers the tracker, and the
+    places the hand reaches after it are touched, as with the bag's camera."""
+    output = tmp_path / "camera_topics"
+    camera = ("/camera/color/image_raw", "/camera/depth/image_raw", "/camera/color/camera_info")
+    log = fed_by_replay(palpation_session, output, CAMERA_DOMAIN,
+                        ("scene:=topic", "hand:=topic", "camera_reliability:=reliable",
+                         *(f"camera_{kind}_topic:={topic}"
+                                                          for kind, topic in zip(("color", "depth", "info"), camera))),
+                        (*camera, "/hand/pose"))
+    assert "registered from" in log, log[-6000:]
+    paired = re.search(r"camera_topics: (\d+) colour, (\d+) depth, (\d+) camera_info messages; (\d+) frames paired", log)
+    assert paired and int(paired.group(4)) >= 30, log[-3000:]
     rows = haptic_rows(output)
     expected = places_after_the_registration(output)
     assert {"press_3", "stroke"} <= expected, f"the registration came late: only {expected} after it"
@@ -304,3 +336,58 @@ def test_a_real_rgbd_scene_with_a_fixed_registration(coco_launch: Path, palpatio
     assert summary["kdtree"]["updates"] >= 2 and summary["stream"]["frames"] >= 10, summary
     rows = haptic_rows(output)
     assert rows["contact"].any()
+
+
+def two_host_palpation() -> Path:
+    """config/palpation_replay.xml over two hosts, nothing else changed: the remote process (the
+    camera and its stream server) on host ``remote``, the first (its clock is the application's, so
+    the camera's stamps are), everything else on host ``local``."""
+    text = APP.read_text()
+    opened = text.index("    <activities>\n") + len("    <activities>\n")
+    closed = text.index("    </activities>")
+    remote = text.index('        <process name="remote">')
+    end = text.index("        </process>\n", remote) + len("        </process>\n")
+    placed = (text[:opened] + '        <host name="remote">\n' + text[remote:end] + "        </host>\n"
+              + '        <host name="local">\n' + text[opened:remote] + text[end:closed] + "        </host>\n"
+              + text[closed:])
+    path = ROOT / "config" / f".test_palpation_two_hosts_{os.getpid()}.xml"  # beside the original: paths resolve alike
+    path.write_text(placed)
+    return path
+
+
+def test_remote_palpation_over_two_hosts_on_a_delaying_lossy_link(palpation_session: Path, tmp_path: Path) -> None:
+    """The paper's two sites as two hosts: the camera and its stream on ``remote``, the hand, the
+    haptic loop, the meshing and the view on ``local``, each a network namespace, joined by a link
+    that delays every packet by 5 ms and loses 1 % of them. The stream crosses the link; the touch
+    registers the tracker, the places the hand reaches after it are touched, and the summary gives
+    the sensor-to-pixel latency on the first host's clock with the local host's measured offset."""
+    from netns import Impairment, Network, unavailable
+    from test_hosts_netns import start
+
+    if unavailable() is not None:
+        pytest.skip(f"no simulated network here: {unavailable()}")
+    app = two_host_palpation()
+    output = tmp_path / "two_hosts"
+    try:
+        args = (str(app), f"bag:={palpation_session}", f"output:={output}", f"rate:={HAND_RATE}",
+                "stream:=tcp://10.77.0.1:5611", "--profile", "100", "--duration", "90")
+        with Network(["remote", "local"], domain=188, impairment=Impairment(delay_s=0.005, loss=0.01, seed=5)) as net:
+            remote = start(net, "remote", tmp_path / "remote.log", *args)
+            local = start(net, "local", tmp_path / "local.log", *args)
+            assert local.wait(200) == 0, (tmp_path / "local.log").read_text()[-6000:]
+            assert remote.wait(30) == 0, (tmp_path / "remote.log").read_text()[-6000:]
+            dropped_on_link = sum(counts["dropped"] for counts in net.counters().values())
+    finally:
+        app.unlink()
+    local_log = (tmp_path / "local.log").read_text()
+    assert dropped_on_link > 0 and "registered from" in local_log, local_log[-6000:]
+    rows = haptic_rows(output)
+    expected = places_after_the_registration(output)
+    assert {"press_3", "stroke"} <= expected, f"the registration came late: only {expected} after it"
+    assert expected <= places_touched(rows)
+    assert behind_the_body(rows) <= BEHIND_BOUND
+    summary = json.loads((output / "summary.json").read_text())
+    clock = summary["clock"]
+    assert clock["exchanges"] > 0 and abs(clock["offset_ms"]) <= clock["uncertainty_ms"] + 0.05  # one machine
+    camera = summary["display_latency_ms"]["camera"]
+    assert camera["frames"] > 30 and 5.0 < camera["median"] < 2000.0  # the link's 5 ms are in it

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 _EXPORTS = {
     "Activity": "activity", "PeriodicActivity": "activity", "TriggeredActivity": "activity",
     "Application": "application", "WiringError": "application",
-    "Attribute": "attributes", "AttributeValueError": "attributes",
+    "Attribute": "attributes", "AttributeValueError": "attributes", "FileAttribute": "attributes",
     "Component": "component", "ErrorPolicy": "component", "UnknownNameError": "component",
     "Connection": "connections",
     "CocoError": "errors", "ConfigError": "errors", "ConfigErrors": "errors", "Location": "errors",
@@ -49,7 +49,7 @@ def __getattr__(name: str) -> Any:
 if TYPE_CHECKING:
     from .activity import Activity, PeriodicActivity, TriggeredActivity
     from .application import Application, WiringError
-    from .attributes import Attribute, AttributeValueError
+    from .attributes import Attribute, AttributeValueError, FileAttribute
     from .component import Component, ErrorPolicy, UnknownNameError
     from .connections import Connection
     from .errors import CocoError, ConfigError, ConfigErrors, Location

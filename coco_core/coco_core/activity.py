@@ -235,9 +235,12 @@ class Activity:
             self.gate.when_open(callback)
 
     def cycle(self) -> None:
-        """One activation: queued operation calls, then every component in order."""
+        """One activation: queued operation calls, then every component in order (not while the
+        application is paused, :meth:`StartGate.pause`, unless it stops: its drain still runs)."""
         if self._ops:
             self._run_pending()
+        if self.gate is not None and self.gate.paused and not self._stopping:
+            return
         iteration = self.iteration
         if iteration is not None and not iteration.begin():
             return  # no message on beginit (FlowVR's module waits for one): no cycle

@@ -18,6 +18,7 @@ from .connections import Connection, make_connection
 from .filters import Filter
 from .filters import Router as RoutingFilter
 from .hosts.auth import Refusals
+from .hosts.clock import ClockOffset
 from .errors import CocoError, WiringError, did_you_mean
 from .lifecycle import STOP_TIMEOUT, Progress, StartGate
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -77,9 +78,15 @@ class ApplicationHost(Protocol):
 class Application:
     """A set of components, connections and activities that start and stop together."""
 
-    def __init__(self, name: str = "coco", on_error: ErrorPolicy = ErrorPolicy.CONTINUE) -> None:
+    def __init__(self, name: str = "coco", on_error: ErrorPolicy | None = None) -> None:
         self.name = name
-        self.on_error = on_error
+        self.on_error = on_error or ErrorPolicy.CONTINUE
+        """What a component's error does, unless the component has a policy of its own."""
+        self.stops_on_refused_config = on_error is None
+        """Whether a component that refuses its configuration (raises in ``on_config``) stops the
+        application: yes unless a policy was given. Why: such a component never runs (a haptic
+        device without its trajectory), and an application running on without it only looks
+        healthy; ``continue`` or ``stop_component``, given, say that it may."""
         self.process = ""
         """Which ``<process>`` of the application this object runs; empty: the launcher's own. The
         launcher's application also holds stand-ins of the activities its child processes run."""
@@ -135,6 +142,11 @@ class Application:
         exit non-zero and summaries report it, although the application ran on what was readable.
         With processes, each process's list also holds what the others found (the process level
         passes it on), so that a summary sees the damage of the whole application."""
+        self.clock = ClockOffset()
+        """This host's clock against the application's (the first host's), measured when the hosts
+        joined (:mod:`coco_core.hosts.clock`); the identity on one host. A component that sends its
+        stamps to another host by a way of its own (a stream) puts them on the application's clock
+        with it, and its reader back on its own, as connections between hosts do."""
         self.network_refusals = Refusals()
         """Messages from other hosts this process refused (not authenticated, replayed, from a host
         the file does not declare): counted by topic and sender for the profile, never damage and
@@ -395,7 +407,9 @@ class Application:
         self._damage_listeners.append(listener)
 
     def request_stop(self, reason: str = "stop requested", hard: bool = False) -> None:
-        """Ask every activity to stop; returns at once (safe from signal handlers and components).
+        """Ask every activity to stop; returns at once (from any thread or component; not from a
+        signal handler, which may interrupt a thread that holds a lock this takes: the launchers'
+        handlers only record, :mod:`coco_core.signals`).
 
         ``hard``: a signal or a fault, after which :meth:`stop` waits :data:`STOP_TIMEOUT` seconds at
         most; otherwise the application asks itself (its work is done) and the activities get what
@@ -558,6 +572,16 @@ class Application:
         log.info("application %s stopped %.3f s after the request (%s)", self.name,
                  time.monotonic() - self._stop_requested_at, "clean" if clean else "some activities did not stop")
         return clean
+
+    def pause(self, paused: bool) -> None:
+        """Hold every activity's cycles, in every process, or let them run again
+        (:meth:`StartGate.pause`); resumed, this process's triggered activities look at what was
+        written to them meanwhile."""
+        self.gate.pause(paused)
+        if not paused:
+            for activity in self.activities.values():
+                if activity.process == self.process:
+                    activity.wake()
 
     def set_period(self, activity: str, period: float) -> None:
         """Change a periodic activity's period (seconds) while it runs."""

@@ -8,9 +8,11 @@ documents the component. Errors name the component, the attribute and what was e
 from __future__ import annotations
 
 import enum
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Generic, Sequence, TypeVar, get_args, get_origin
-from .errors import AttributeValueError
+from .errors import AttributeValueError, FileReadError, bounded, excerpt
+from .files import DATA_FILE_LIMIT, check_regular_file
 
 if TYPE_CHECKING:
     from .component import Component
@@ -21,13 +23,19 @@ _TRUE = {"true", "1", "yes", "on"}
 _FALSE = {"false", "0", "no", "off"}
 
 
+def _shown(value: Any) -> str:
+    """``value`` as an error quotes it, cut short: a value may come from a service call or a file,
+    and is never echoed whole into a log or a reply."""
+    return excerpt(value) if isinstance(value, str) else bounded(repr(value), 120)
+
+
 def _parse_bool(text: str) -> bool:
     word = text.strip().lower()
     if word in _TRUE:
         return True
     if word in _FALSE:
         return False
-    raise AttributeValueError(f"expected a boolean (true/false/1/0/yes/no/on/off), got {text!r}")
+    raise AttributeValueError(f"expected a boolean (true/false/1/0/yes/no/on/off), got {_shown(text)}")
 
 
 def _split_list(text: str) -> list[str]:
@@ -43,6 +51,11 @@ class Attribute(Generic[T]):
     value; ``check`` is any further validation that returns an error text or None. ``live``: the
     component reads it while it runs (every update), so a change at run time takes effect; the ROS
     launcher offers only those as writable parameters (:mod:`coco_ros.component_parameters`).
+
+    A float is finite unless ``finite=False`` (then the doc should say what NaN or an infinity
+    means): NaN passes every ``min``/``max`` comparison, so ``stiffness:=nan`` or ``1e999`` (which
+    parses as an infinity) would reach the component and fault it at run time; refusing them here,
+    once, covers every component.
     """
 
     def __init__(
@@ -55,6 +68,7 @@ class Attribute(Generic[T]):
         min: float | None = None,
         max: float | None = None,
         check: Callable[[T], str | None] | None = None,
+        finite: bool = True,
         live: bool = False,
     ) -> None:
         self.type = type_
@@ -63,6 +77,7 @@ class Attribute(Generic[T]):
         self.min = min
         self.max = max
         self.check = check
+        self.finite = finite
         self.live = live
         self.name = ""
         self.default = default
@@ -103,13 +118,13 @@ class Attribute(Generic[T]):
                 return tp[text.strip()]
             except KeyError:
                 raise AttributeValueError(
-                    f"expected one of {', '.join(m.name for m in tp)}, got {text!r}"
+                    f"expected one of {', '.join(m.name for m in tp)}, got {_shown(text)}"
                 ) from None
         if tp in (int, float):
             try:
                 return tp(text.strip())
             except ValueError:
-                raise AttributeValueError(f"expected {'an integer' if tp is int else 'a number'}, got {text!r}") from None
+                raise AttributeValueError(f"expected {'an integer' if tp is int else 'a number'}, got {_shown(text)}") from None
         if tp is str:
             return text
         if tp is Path:
@@ -133,7 +148,7 @@ class Attribute(Generic[T]):
         if origin in (list, tuple):
             inner = get_args(self.type)[0]
             if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
-                raise AttributeValueError(f"expected a {self.type_name}, got {value!r}")
+                raise AttributeValueError(f"expected a {self.type_name}, got {_shown(value)}")
             return origin(self._coerce_scalar(inner, item) for item in value)
         return self._coerce_scalar(self.type, value)
 
@@ -145,22 +160,24 @@ class Attribute(Generic[T]):
         if tp is Path and isinstance(value, str):
             return Path(value)
         if tp is int and isinstance(value, bool):
-            raise AttributeValueError(f"expected an integer, got {value!r}")
+            raise AttributeValueError(f"expected an integer, got {_shown(value)}")
         if isinstance(value, tp):
             return value
         if tp is int and isinstance(value, float) and value.is_integer():
             return int(value)
-        raise AttributeValueError(f"expected {getattr(tp, '__name__', tp)}, got {value!r}")
+        raise AttributeValueError(f"expected {getattr(tp, '__name__', tp)}, got {_shown(value)}")
 
     def _check_constraints(self, value: Any) -> None:
         scalars = value if isinstance(value, (list, tuple)) else [value]
         for scalar in scalars:
+            if self.finite and isinstance(scalar, float) and not math.isfinite(scalar):
+                raise AttributeValueError(f"expected a finite number, got {_shown(scalar)}")
             if self.choices is not None and scalar not in self.choices:
-                raise AttributeValueError(f"expected one of {', '.join(map(str, self.choices))}, got {scalar!r}")
+                raise AttributeValueError(f"expected one of {', '.join(map(str, self.choices))}, got {_shown(scalar)}")
             if self.min is not None and scalar < self.min:
-                raise AttributeValueError(f"expected >= {self.min}, got {scalar!r}")
+                raise AttributeValueError(f"expected >= {self.min}, got {_shown(scalar)}")
             if self.max is not None and scalar > self.max:
-                raise AttributeValueError(f"expected <= {self.max}, got {scalar!r}")
+                raise AttributeValueError(f"expected <= {self.max}, got {_shown(scalar)}")
         if self.check is not None:
             problem = self.check(value)
             if problem:
@@ -169,3 +186,35 @@ class Attribute(Generic[T]):
     def describe(self) -> dict[str, Any]:
         """Declaration summary for docs and ``coco-launch --list``."""
         return {"name": self.name, "type": self.type_name, "default": self.default, "doc": self.doc}
+
+
+class FileAttribute(Attribute[str]):
+    """An attribute naming a file that the component reads whole (a hand trajectory, camera
+    intrinsics); empty: no file.
+
+    Why a kind of its own: the name may point anywhere (``/dev/zero``, a FIFO, a folder, a 2 GB
+    file), and the run must never be the first to find out. The declaration carries the file's
+    limit and what it should be, so that setting the value (from an application file, hence under
+    ``--check``, or from code) makes the same checks as the component's read, which goes through
+    :func:`~coco_core.files.read_regular_file` with the same limit inside
+    :meth:`Component.reading_attribute_file <coco_core.component.Component.reading_attribute_file>`:
+    a regular file, at most ``limit`` bytes, that can be opened for reading.
+    """
+
+    def __init__(self, default: str, doc: str, *, expected: str, limit: int = DATA_FILE_LIMIT) -> None:
+        super().__init__(str, default, doc)
+        self.expected = expected
+        """What the file should be ("a CSV file time,x,y,z"), for the errors."""
+        self.limit = limit
+
+    @property
+    def type_name(self) -> str:
+        return "file"
+
+    def _check_constraints(self, value: Any) -> None:
+        super()._check_constraints(value)
+        if value:
+            try:
+                check_regular_file(value, self.limit)
+            except FileReadError as error:
+                raise AttributeValueError(f"{error}; expected {self.expected}") from None

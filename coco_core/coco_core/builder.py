@@ -185,7 +185,7 @@ class _Builder:
             raise ConfigError(f"no process {process!r} in the application; "
                               f"{did_you_mean(process, placement.processes)}")
         mine = [c for c in spec.components if placement.process_of(c.name) == process]
-        app = Application(spec.name or Path(spec.file).stem, on_error=ErrorPolicy(spec.on_error or "continue"))
+        app = Application(spec.name or Path(spec.file).stem, on_error=ErrorPolicy(spec.on_error) if spec.on_error else None)
         app.process = process
         app.elsewhere = {name: owner for name, owner in placement.of_component.items() if owner != process}
         app.elsewhere.update(spec.other_hosts)

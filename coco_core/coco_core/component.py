@@ -26,8 +26,9 @@ import traceback
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Callable, ClassVar, Iterator
 
-from .attributes import Attribute
+from .attributes import Attribute, FileAttribute
 from .errors import CocoError, DeclarationError, FileReadError, UnknownNameError, did_you_mean
+from .hosts.clock import ClockOffset
 from . import operations as ops
 from .operations import Operation
 from .ports import InputPort, OutputPort, Port
@@ -228,6 +229,13 @@ class Component:
                             "transformation graph")
         return self.app.transforms
 
+    @property
+    def host_clock(self) -> ClockOffset:
+        """This host's clock against the application's (:attr:`Application.clock
+        <coco_core.application.Application.clock>`): what stamps sent to another host by a way of
+        the component's own are converted with; the identity outside an application."""
+        return self.app.clock if self.app is not None else ClockOffset()
+
     # --- attributes -----------------------------------------------------------------------------
     def set_attribute_now(self, name: str, value: Any) -> None:
         """Set an attribute immediately (text is parsed). Use from the component's own thread or
@@ -326,7 +334,7 @@ class Component:
             log.error("component %s raised in %s again (%d errors so far): %s", self.name, phase, errors,
                       traceback.format_exc().strip().splitlines()[-1])
             self._last_error_log = now
-        policy = self.on_error or (self.app.on_error if self.app else ErrorPolicy.CONTINUE)
+        policy = self.error_policy(phase)
         if disable or policy is ErrorPolicy.STOP_COMPONENT:
             self.enabled = False
             log.error("component %s is stopped after its error in %s", self.name, phase)
@@ -336,12 +344,28 @@ class Component:
             elif self.activity is not None:
                 self.activity.stop()
 
+    def error_policy(self, phase: str) -> ErrorPolicy:
+        """What an error in ``phase`` does: the component's own policy, else the application's; a
+        refused configuration (``on_config``) stops an application that was given no policy
+        (:attr:`Application.stops_on_refused_config <coco_core.application.Application.stops_on_refused_config>`)."""
+        if self.on_error is not None:
+            return self.on_error
+        if self.app is None:
+            return ErrorPolicy.CONTINUE
+        if phase == "on_config" and self.app.stops_on_refused_config:
+            return ErrorPolicy.STOP_APP
+        return self.app.on_error
+
     @contextlib.contextmanager
-    def reading_attribute_file(self, name: str, expected: str) -> Iterator[None]:
+    def reading_attribute_file(self, name: str, expected: str = "") -> Iterator[None]:
         """A block that reads the file attribute ``name`` names, with
         :func:`~coco_core.files.read_regular_file` (a regular file of bounded size: ``/dev/zero``
         would grow without end, a FIFO block ``on_config`` for ever); its error is raised again
-        naming the attribute, and ``expected`` (what the file should be)."""
+        naming the attribute, and ``expected`` (what the file should be; empty: the ``expected`` of
+        the attribute's :class:`~coco_core.attributes.FileAttribute` declaration)."""
+        declaration = self.attribute_declaration(name)
+        if not expected and isinstance(declaration, FileAttribute):
+            expected = declaration.expected
         try:
             yield
         except FileReadError as error:

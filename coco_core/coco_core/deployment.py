@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Iterable, Mapping
 
 from . import registry
 from .drivers import Driving, MainThreadDriver, ThreadDriver
-from .errors import CocoError, DeploymentError, did_you_mean
+from .errors import CocoError, CommandLineError, DeploymentError, did_you_mean
 from .model import ActivitySpec, AppSpec, ComponentSpec, ProcessSpec
 from .processes.channels import woken_by_other_processes
 from .processes.placement import LAUNCHER, Placement
@@ -210,7 +210,7 @@ def plan(application: str, facts: Iterable[ActivityFacts], woken: Iterable[str],
     names = [f.name for f in facts]
     unknown = sorted(set(options.threads) - set(names))
     if unknown:
-        raise CocoError(f"--threads: no activity {', '.join(map(repr, unknown))} in application {application}; "
+        raise CommandLineError(f"--threads: no activity {', '.join(map(repr, unknown))} in application {application}; "
                         f"{did_you_mean(unknown[0], names)}")
     planned = {f.name: _place(f, f.name in woken, options) for f in facts}
     return Deployment(application, options, dict(processes or {LAUNCHER: None}), planned)

@@ -17,8 +17,7 @@ def main(early: list[int] | None = None, launcher: str = "coco_core.launcher") -
     """Run ``launcher``'s ``main`` with the launcher's signal handling in force from now on;
     ``early``: signals the installed script recorded before this ran (they count as received). The
     ROS launcher's script starts here too, with ``launcher="coco_ros.launcher"``."""
-    signals = LaunchSignals().install()
-    signals.received.extend(early or ())
+    signals = LaunchSignals().install(early or ())
     launch = importlib.import_module(launcher).main
     code: int = launch(signals=signals)
     return signals.finish(code)

@@ -32,6 +32,13 @@ class ConfigError(CocoError):
         super().__init__(f"{location}: {message}" if location else message)
 
 
+class CommandLineError(ConfigError):
+    """A wrong command line rather than a wrong file: a word that is not ``name:=value``, a given
+    arg that no file declares, an option the application cannot take (``--host``, ``--threads``
+    naming what it does not have). The launchers exit with 2 for it, as for an option argparse
+    refuses (the README's exit statuses), and with 1 when the file is wrong too."""
+
+
 class ConfigErrors(CocoError):
     """Several configuration errors found in one pass, reported together so one run shows them all."""
 
@@ -49,9 +56,23 @@ def did_you_mean(name: str, valid: "Iterable[str]") -> str:
     names = sorted(valid)
     if not names:
         return "there are none"
-    close = difflib.get_close_matches(name, names, n=1)
+    # A name twice as long as every valid one is no typo of them; comparing a huge one (a 5 MB name
+    # sent to a service) would take seconds.
+    close = difflib.get_close_matches(name, names, n=1) if len(name) <= 2 * max(map(len, names)) else []
     hint = f"did you mean {close[0]!r}? " if close else ""
     return f"{hint}valid: {', '.join(names)}"
+
+
+def excerpt(text: str, limit: int = 120) -> str:
+    """``text`` quoted for an error message, cut to ``limit`` characters with its length said: what
+    came from outside (a value, a name) is never echoed whole into a log or a reply."""
+    return repr(text) if len(text) <= limit else f"{text[:limit - 3]!r}... ({len(text)} characters)"
+
+
+def bounded(text: str, limit: int) -> str:
+    """``text`` (an error's message) cut to ``limit`` characters, its length said: for a reason
+    passed on to a caller or a log line, whatever it quotes."""
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters in all)"
 
 
 class ActivityError(CocoError, ValueError):
@@ -294,7 +315,8 @@ class KeyFileError(CocoError, ValueError):
 
 
 class PacketError(CocoError, ValueError):
-    """A packet that cannot be decoded; ``kind`` is ``garbage`` or ``truncated``."""
+    """A packet that cannot be decoded or taken; ``kind`` is ``garbage``, ``truncated`` or
+    ``out_of_order`` (a sequence number at or before the last one taken)."""
 
     def __init__(self, kind: str, message: str) -> None:
         super().__init__(message)

@@ -30,17 +30,11 @@ file must stop here (an hour of a 1 kHz trajectory is about 150 MB: give a recor
 def read_regular_file(path: str | os.PathLike[str], limit: int, what: str = "file") -> bytes:
     """The bytes of the regular file at ``path``, at most ``limit`` of them.
 
-    ``what`` names the file in errors ("application file", "URDF", ...). ``O_NONBLOCK`` keeps
-    ``open`` from waiting for a FIFO's writer; the type is then checked on the open descriptor, so
-    that what is read is what was checked.
+    ``what`` names the file in errors ("application file", "URDF", ...).
     """
     name = os.fspath(path)
+    descriptor = _open_checked(name, limit, what)
     try:
-        descriptor = os.open(name, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
-    except OSError as error:
-        raise FileReadError(f"cannot read {what} {name}: {error.strerror}") from None
-    try:
-        _check(os.fstat(descriptor), name, limit, what)
         os.set_blocking(descriptor, True)
         chunks: list[bytes] = []
         size = 0
@@ -59,14 +53,27 @@ def read_regular_file(path: str | os.PathLike[str], limit: int, what: str = "fil
 
 
 def check_regular_file(path: str | os.PathLike[str], limit: int, what: str = "file") -> None:
-    """Raise :class:`FileReadError` unless ``path`` is a regular file of at most ``limit`` bytes:
-    for a loader that checks a name long before the file is read (``<urdf>`` in an application)."""
-    name = os.fspath(path)
+    """Raise :class:`FileReadError` unless ``path`` is a regular file of at most ``limit`` bytes
+    that can be opened for reading: the checks of :func:`read_regular_file` without the read, for a
+    loader that checks a name long before the file is read (``<urdf>`` in an application, a file
+    attribute under ``--check``)."""
+    os.close(_open_checked(os.fspath(path), limit, what))
+
+
+def _open_checked(name: str, limit: int, what: str) -> int:
+    """A descriptor open for reading on ``name``, once it is known to be a regular file within
+    ``limit``. ``O_NONBLOCK`` keeps ``open`` from waiting for a FIFO's writer; the type is checked
+    on the open descriptor, so that what is read is what was checked."""
     try:
-        status = os.stat(name)
+        descriptor = os.open(name, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as error:
         raise FileReadError(f"cannot read {what} {name}: {error.strerror}") from None
-    _check(status, name, limit, what)
+    try:
+        _check(os.fstat(descriptor), name, limit, what)
+    except BaseException:
+        os.close(descriptor)
+        raise
+    return descriptor
 
 
 def check_writable_file(path: str | os.PathLike[str], what: str = "file") -> None:

@@ -24,7 +24,7 @@ from .builder import build_application, configure_logging
 from .connections import Connection
 from .dataflow_graph import check_graph_file, write_graph
 from .deployment import Deployment, LaunchOptions, deployed, plan_deployment
-from .errors import CocoError, ConfigError, ConfigErrors, Interrupted
+from .errors import CocoError, CommandLineError, ConfigError, ConfigErrors, Interrupted
 from .hosts.crossing import crossing_problems
 from .hosts.key import launch_key
 from .hosts.level import host_level
@@ -49,7 +49,7 @@ def parse_assignments(items: Sequence[str]) -> dict[str, str]:
     for item in items:
         name, sep, value = item.partition(":=")
         if not sep or not name:
-            raise CocoError(f"argument {item!r} must look like name:=value")
+            raise CommandLineError(f"argument {item!r} must look like name:=value")
         args[name] = value
     return args
 
@@ -257,11 +257,20 @@ def launcher_services(app: Application, options: argparse.Namespace,
             print(report(), flush=True)
 
 
+USAGE = 2
+"""The exit status for a wrong command line (the README's, argparse's)."""
+
+
 def failure(prog: str, error: CocoError) -> int:
     """Say why a launch ended before or while it started, and the exit status for it: 128 + the
-    signal number when a signal interrupted it, else 1 (a wrong file, a child that could not start)."""
+    signal number when a signal interrupted it, :data:`USAGE` when only the command line is wrong
+    (:class:`CommandLineError`: a malformed ``name:=value``, an arg no file declares), else 1 (a
+    wrong file, a child that could not start)."""
     print(f"{prog}: {error}", file=sys.stderr)
-    return error.status if isinstance(error, Interrupted) else 1
+    if isinstance(error, Interrupted):
+        return error.status
+    errors = error.errors if isinstance(error, ConfigErrors) else [error]
+    return USAGE if all(isinstance(each, CommandLineError) for each in errors) else 1
 
 
 def stopped_by_a_failure(app: Application) -> bool:
@@ -284,11 +293,11 @@ def load_spec(options: argparse.Namespace, signals: LaunchSignals,
     values for the file's args ranked below the command line's ``name:=value`` (the ROS launcher's
     node parameters)."""
     if options.allow_unknown and not options.check:
-        raise CocoError("--allow-unknown goes with --check only: an application without some of its "
+        raise CommandLineError("--allow-unknown goes with --check only: an application without some of its "
                         "components cannot run")
     if options.graph is not None:
         if not options.check:
-            raise CocoError("--graph goes with --check: it draws the application instead of running it")
+            raise CommandLineError("--graph goes with --check: it draws the application instead of running it")
         check_graph_file(options.graph)  # a wrong name fails before the file is read
     args = parse_assignments(options.args)
     log.debug("reading %s", options.app)
@@ -318,14 +327,14 @@ def select_host(spec: AppSpec, options: argparse.Namespace) -> AppSpec:
     whole of an application that declares no host."""
     if not spec.hosts:
         if options.host is not None:
-            raise CocoError(f"--host {options.host}: application {spec.name} declares no <host>; it runs on one "
+            raise CommandLineError(f"--host {options.host}: application {spec.name} declares no <host>; it runs on one "
                             "machine (docs/hosts.md)")
         if options.key is not None or options.key_env is not None:
-            raise CocoError(f"--key and --key-env authenticate the hosts of an application; {spec.name} declares no "
-                            "<host>")
+            raise CommandLineError(f"--key and --key-env authenticate the hosts of an application; {spec.name} "
+                                   "declares no <host>")
         return spec
     if options.host is None:
-        raise CocoError(f"application {spec.name} runs on several hosts ({', '.join(h.name for h in spec.hosts)}): "
+        raise CommandLineError(f"application {spec.name} runs on several hosts ({', '.join(h.name for h in spec.hosts)}): "
                         "say which one this machine is with --host NAME")
     return host_part(spec, options.host)
 
@@ -394,7 +403,7 @@ def begin(options: argparse.Namespace, prog: str) -> int | None:
         return 0
     if options.app is None:
         print(f"{prog}: an application file is needed (or --list)", file=sys.stderr)
-        return 2
+        return USAGE
     return None
 
 
@@ -438,6 +447,10 @@ def launch(spec: AppSpec, app: Application, options: argparse.Namespace, signals
     level = logging.getLevelName(options.log_level)
     configure_logging(spec.log, level)  # may open the file's log
     key = launch_key(options) if spec.part_of else None
+    if spec.part_of and key is None:
+        raise CommandLineError(f"application {spec.name} runs on several hosts, which authenticate each other with "
+                               "the application's key: give --key FILE or --key-env NAME (coco-keygen FILE makes one; "
+                               "copy it to every host)")
     with host_level(spec, app, options.host_timeout, key, signals.check) as hosts:
         with process_level(spec, app, deployment, level, child_module=host.child_module,
                            child_config=host.child_config(), clock=hosts.clock if hosts else None,

@@ -54,6 +54,8 @@ class StartGate:
         self._opened = threading.Event()
         self._on_open: list[Callable[[], None]] = []
         self._report: Callable[[], None] | None = None
+        self._paused = False
+        self._on_pause: list[Callable[[bool], None]] = []
 
     def hold(self, report: Callable[[], None]) -> None:
         """This process runs one part of the application: once its activities are configured, call
@@ -97,6 +99,29 @@ class StartGate:
     def is_open(self) -> bool:
         """Whether the activities may cycle (see :meth:`open`)."""
         return self._opened.is_set()
+
+    @property
+    def paused(self) -> bool:
+        """Whether the activities' cycles are held (:meth:`pause`): their components do not run."""
+        return self._paused
+
+    def pause(self, paused: bool) -> None:
+        """Hold every activity's cycles (True) or let them run again (False), after the gate
+        opened: a managed node's deactivate and activate (``coco_ros.managed``). The activities
+        keep their threads, timers and configuration; what is written meanwhile waits in the
+        connections. ``listener(paused)`` of :meth:`when_paused` is called at each change."""
+        with self._lock:
+            if self._paused == paused:
+                return
+            self._paused = paused
+            listeners = list(self._on_pause)
+        for listener in listeners:
+            listener(paused)
+
+    def when_paused(self, listener: Callable[[bool], None]) -> None:
+        """Call ``listener(paused)`` at each :meth:`pause` (the process level tells the children)."""
+        with self._lock:
+            self._on_pause.append(listener)
 
     def when_open(self, callback: Callable[[], None]) -> None:
         """Call ``callback`` when the gate opens (now, if it is open)."""

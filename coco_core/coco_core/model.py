@@ -375,7 +375,9 @@ class AppSpec:
     """Final values of the ``<arg>`` declarations."""
     arg_declarations: dict[str, ArgDeclaration] = field(default_factory=dict)
     """The ``<arg>`` declarations by name, in file order (given but undeclared args are not here)."""
-    on_error: str = "continue"
+    on_error: str = ""
+    """The ``<package>``'s ``on_error``; empty when the file gives none (:class:`~coco_core.application.Application`
+    then continues after a component's error but stops when a component refuses its configuration)."""
     log: LogSpec | None = None
     transforms: TransformsSpec | None = None
     """The declared transformation graph structure; None when no file has ``<transforms>``."""

@@ -16,7 +16,7 @@ from importlib.metadata import entry_points
 from typing import Callable, TypeVar
 
 from .component import Component
-from .errors import CocoError, did_you_mean, UnknownComponentError
+from .errors import CocoError, did_you_mean, excerpt, UnknownComponentError
 
 GROUP = "coco.components"
 MAX_PATH_PARTS = 32
@@ -82,12 +82,8 @@ def _check_path(task: str) -> None:
     modules, classes = module_name.split("."), class_name.split(".")
     if len(modules) + len(classes) > MAX_PATH_PARTS or not all(part.isidentifier() for part in modules + classes):
         raise UnknownComponentError(
-            f"cannot import component {_shorten(task)}: expected package.module:Class, Python names separated "
+            f"cannot import component {excerpt(task)}: expected package.module:Class, Python names separated "
             f"by dots (at most {MAX_PATH_PARTS} of them)")
-
-
-def _shorten(text: str, limit: int = 120) -> str:
-    return repr(text) if len(text) <= limit else f"{text[:limit - 3]!r}... ({len(text)} characters)"
 
 
 def load(task: str, library: str = "") -> type[Component]:
@@ -104,7 +100,7 @@ def load(task: str, library: str = "") -> type[Component]:
         in_library = sorted(n for n, r in known.items() if r.library == library) if library else []
         scope = f" in library {library!r} (which provides: {', '.join(in_library) or 'nothing'})" if library else ""
         raise UnknownComponentError(
-            f"unknown component {_shorten(task)}{scope}; {did_you_mean(task, list(known))}")
+            f"unknown component {excerpt(task)}{scope}; {did_you_mean(task, list(known))}")
     if library and registration.library != library:
         raise UnknownComponentError(
             f"component {task!r} is provided by library {registration.library!r}, not {library!r}")

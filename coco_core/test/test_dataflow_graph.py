@@ -142,6 +142,6 @@ def test_a_directory_named_like_a_graph_is_refused(tmp_path):
 
 def test_graph_goes_with_check(tmp_path):
     done = launch(str(CONFIG / "flowvr_b_demand_driven.xml"), "--graph", str(tmp_path / "g.dot"))
-    assert done.returncode == 1
+    assert done.returncode == 2  # a wrong command line
     assert "--graph goes with --check" in done.stderr
     assert not (tmp_path / "g.dot").exists()

@@ -140,7 +140,7 @@ def test_check_prints_every_hosts_part_and_the_connections_between_them(tmp_path
     assert one.returncode == 0 and "host robot of" not in one.stdout and "process work" in one.stdout
     run = subprocess.run([sys.executable, "-m", "coco_core.launcher", str(path), "--duration", "1"],
                          capture_output=True, text=True, timeout=120)
-    assert run.returncode == 1 and "say which one this machine is with --host NAME" in run.stderr
+    assert run.returncode == 2 and "say which one this machine is with --host NAME" in run.stderr  # a wrong command line
 
 
 def test_the_data_flow_graph_draws_each_host_around_its_processes(tmp_path: Path) -> None:
@@ -175,12 +175,12 @@ def test_a_launch_over_hosts_needs_the_key_and_only_values_that_can_cross(tmp_pa
     launcher = [sys.executable, "-m", "coco_core.launcher"]
     done = subprocess.run([*launcher, str(path), "--host", "robot", "--duration", "1"], capture_output=True, text=True,
                           timeout=120)
-    assert done.returncode == 1 and "give --key FILE or --key-env NAME (coco-keygen FILE makes one" in done.stderr
+    assert done.returncode == 2 and "give --key FILE or --key-env NAME (coco-keygen FILE makes one" in done.stderr
     one_host = tmp_path / "one.xml"
     one_host.write_text(APP.format(tmp=tmp_path, filter="").split("<activities>")[0] + "</package>")
     done = subprocess.run([*launcher, str(one_host), "--key", str(path), "--duration", "1"], capture_output=True,
                           text=True, timeout=120)
-    assert done.returncode == 1 and "one.xml" not in done.stdout and "declares no <host>" in done.stderr
+    assert done.returncode == 2 and "one.xml" not in done.stdout and "declares no <host>" in done.stderr
     (tmp_path / "weird.py").write_text(WEIRD)
     weird = tmp_path / "weird.xml"
     weird.write_text(APP.format(tmp=tmp_path, filter="").replace("<task>SignalGenerator</task>", "<task>weird:Weird</task>")

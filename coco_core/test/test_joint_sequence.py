@@ -69,11 +69,11 @@ def test_empty_poses_attribute_is_an_error():
 
 
 def test_poses_that_are_no_regular_file_are_refused_naming_the_attribute():
-    from coco_core.errors import FileReadError
+    from coco_core.errors import AttributeValueError
 
-    with pytest.raises(FileReadError) as raised:
-        JointSequence("arm", poses="/dev/zero").init()
-    assert str(raised.value) == ("attribute arm.poses: poses file /dev/zero is a character device, not a regular "
+    with pytest.raises(AttributeValueError) as raised:
+        JointSequence("arm", poses="/dev/zero")
+    assert str(raised.value) == ("attribute arm.poses (file): file /dev/zero is a character device, not a regular "
                                  "file; expected a CSV file: a header of joint names, one pose per row")
 
 

@@ -49,3 +49,37 @@ def test_a_ctrl_c_while_the_interpreter_tears_down_leaves_the_launch_status(stat
 
 def test_a_ctrl_c_after_the_launch_finished_leaves_at_once_with_130() -> None:
     assert run_script(0, now=True) == 128 + signal.SIGINT
+
+
+HELD = textwrap.dedent("""
+    import os, signal
+    from coco_core import Application
+    from coco_core.signals import LaunchSignals
+
+    signals = LaunchSignals().install()
+    app = Application("held")
+    signals.attach(app)
+    # The main thread holds a lock of the stop's path (the start gate's), as it did inside the stop
+    # that a first signal's handler ran when a second came: handlers run in the main thread.
+    with app.gate._lock:
+        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), signal.SIGTERM)
+        handled = len(signals.received)  # both handlers ran before this line, in this thread
+    print("handled", handled, flush=True)
+    print("stop requested:", app.wait(5), app.stop_reason, flush=True)
+""")
+
+
+def test_a_signal_never_waits_for_a_lock_that_the_interrupted_thread_holds() -> None:
+    """The ROS launcher hung for good on SIGINT then SIGTERM: the second handler waited for the
+    lock (an activity driver's, around rclpy's Timer.reset) that the first one's stop held, in the
+    same thread. Handlers now only record; the stop runs in a thread of its own, which waits for the
+    lock like any other thread."""
+    try:
+        completed = subprocess.run([sys.executable, "-c", HELD], timeout=20, capture_output=True, text=True)
+    except subprocess.TimeoutExpired as hung:
+        pytest.fail(f"the handler waited for the lock its own thread holds (hung):\n{hung.stdout!r}")
+    assert completed.returncode == 0, completed.stderr
+    assert "handled 2" in completed.stdout and "stop requested: True received SIGINT" in completed.stdout, \
+        completed.stdout + completed.stderr
+

@@ -641,3 +641,28 @@ def test_no_activity_cycles_before_every_activity_is_configured(make_app, main):
         if main:
             runner.join(5.0)
         app.stop()
+
+
+def test_a_paused_application_holds_every_cycle_and_runs_what_waits_when_resumed(make_app, wait_until):
+    """Application.pause (a managed node's deactivate): no component runs while paused, though the
+    periodic activity's clock goes on; what is written meanwhile waits in the connection, and the
+    triggered activity reads it once resumed (activate)."""
+    app, source, _other, sink = event_rig(make_app)
+    ticker = app.add(Ticker("ticker"), PeriodicActivity("periodic", 0.01))
+    app.start()
+    assert wait_until(lambda: ticker.updates > 2)
+    app.pause(True)
+    periodic = app.activities["periodic"]
+
+    def ticks() -> int:
+        summary = periodic.stats.error_summary()
+        return summary.samples if summary is not None else 0
+
+    begun = ticks()
+    assert wait_until(lambda: ticks() >= begun + 2)  # a cycle under way when the pause came has ended
+    held, seen = ticker.updates, ticks()
+    source.out.write(7)
+    assert wait_until(lambda: ticks() >= seen + 5)  # five periods
+    assert ticker.updates == held and sink.values == [], "no component ran while paused"
+    app.pause(False)
+    assert wait_until(lambda: sink.values == [7] and ticker.updates > held)

@@ -109,6 +109,12 @@ def test_python_values_are_coerced(name, value, expected):
     ("ids", "1, 200", "expected <= 100, got 200"),
     ("ids", 5, "expected a list of int"),
     ("even", 3, "3 is odd"),
+    # NaN passes min=0.0 (every comparison with it is false), and 1e999 parses as an infinity.
+    ("gain", "nan", "expected a finite number, got nan"),
+    ("gain", "1e999", "expected a finite number, got inf"),
+    ("gain", float("-inf"), "expected a finite number, got -inf"),
+    ("weights", "0.5, nan", "expected a finite number, got nan"),
+    ("weights", (0.5, float("inf")), "expected a finite number, got inf"),
 ])
 def test_violations_name_the_component_and_the_attribute(name, value, fragment):
     with pytest.raises(AttributeValueError) as info:
@@ -116,6 +122,14 @@ def test_violations_name_the_component_and_the_attribute(name, value, fragment):
     message = str(info.value)
     assert f"my_tuner.{name}" in message, message
     assert fragment in message, message
+
+
+def test_an_attribute_that_says_it_takes_non_finite_numbers_gets_them():
+    class Limited(Component):
+        limit = Attribute(float, float("inf"), "largest value; inf: none", finite=False)
+
+    assert Limited("limited", limit="inf").limit == float("inf")
+    assert Limited("limited", limit="nan").limit != Limited("other").limit
 
 
 def test_a_rejected_value_leaves_the_attribute_unchanged():

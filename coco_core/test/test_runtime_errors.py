@@ -9,6 +9,7 @@ import time
 import pytest
 
 from coco_core import Component, ErrorPolicy, PeriodicActivity, TriggeredActivity
+from coco_core.launcher import stopped_by_a_failure
 
 
 class Faulty(Component):
@@ -141,7 +142,7 @@ def test_errors_in_on_config_and_on_stop_are_reported_not_raised(make_app, wait_
             raise OSError("flush failed")
 
     caplog.set_level(logging.ERROR, logger="coco")
-    app = make_app("phases")
+    app = make_app("phases", on_error=ErrorPolicy.CONTINUE)  # given: the application goes on without it
     activity = PeriodicActivity("periodic", 0.005)
     bad_config = app.add(BadConfig("bad_config"), activity)
     bad_stop = app.add(BadStop("bad_stop"), activity)
@@ -153,6 +154,41 @@ def test_errors_in_on_config_and_on_stop_are_reported_not_raised(make_app, wait_
     messages = [r.getMessage() for r in coco_errors(caplog)]
     assert any("bad_config" in m and "on_config" in m and "no device" in m for m in messages)
     assert any("bad_stop" in m and "on_stop" in m and "flush failed" in m for m in messages)
+
+
+class RefusesItsConfiguration(Healthy):
+    def on_config(self):
+        raise OSError("no trajectory")
+
+
+def test_a_refused_configuration_stops_an_application_given_no_policy(make_app):
+    """A component that cannot configure never runs: the application must not run on as if it were
+    sound (a haptic device without its trajectory ran until killed), so it stops, as a failure (the
+    launchers then exit 1)."""
+    app = make_app("refused")
+    refused = app.add(RefusesItsConfiguration("device"), PeriodicActivity("periodic", 0.005))
+    other = app.add(Healthy("other"), TriggeredActivity("triggered"))
+    t0 = time.monotonic()
+    app.run(duration=10.0)
+    assert time.monotonic() - t0 < 5.0, "the refused configuration stopped the application"
+    assert app.stop_reason == "component device raised in on_config"
+    assert refused.calls == 0 and other.calls == 0
+    assert stopped_by_a_failure(app)
+
+
+@pytest.mark.parametrize("policy", [ErrorPolicy.CONTINUE, ErrorPolicy.STOP_COMPONENT])
+@pytest.mark.parametrize("given_to", ["application", "component"])
+def test_a_policy_given_lets_the_application_run_on_without_the_refused_component(make_app, wait_until, policy,
+                                                                                  given_to):
+    app = make_app("refused", on_error=policy if given_to == "application" else None)
+    activity = PeriodicActivity("periodic", 0.005)
+    refused = app.add(RefusesItsConfiguration("device"), activity)
+    healthy = app.add(Healthy("healthy"), activity)
+    if given_to == "component":
+        refused.on_error = policy
+    app.start()
+    assert wait_until(lambda: healthy.calls >= 5)
+    assert not app.stop_requested and not refused.enabled and refused.calls == 0
 
 
 def test_error_in_a_peer_is_isolated_from_its_owner(make_app, wait_until, caplog):

@@ -226,6 +226,25 @@ def test_only_local_host_names_are_answered(graph, servers) -> None:
     client.close()
 
 
+def test_requests_are_answered_one_at_a_time_and_silent_or_streaming_clients_hold_no_turn(graph, servers) -> None:
+    """Requests take turns (a flood must not take the GIL from the application's activities): a
+    client that connects and says nothing, and an open WebSocket stream, leave the turn to the
+    others, one that stops half-way through its request gives it back after a second, and the turn
+    is given back after every answer, refused ones too."""
+    server = servers(graph)
+    silent = socket.create_connection(("127.0.0.1", server.port), timeout=5.0)
+    stream = WsClient(server, "/ws/graph")
+    halting = socket.create_connection(("127.0.0.1", server.port), timeout=5.0)
+    halting.sendall(b"GET /api/fra")  # then nothing: it holds the turn for a second at most
+    assert stream.status == 101 and stream.message()["type"] == "graph"
+    assert get(server, "api/nowhere")[0] == 404
+    for _ in range(3):
+        assert get(server, "api/frames")[0] == 200
+    stream.close()
+    silent.close()
+    halting.close()
+
+
 # --- WebSocket ---------------------------------------------------------------------------------------
 def test_transform_stream_sends_snapshot_then_changes(graph, servers) -> None:
     server = servers(graph)

@@ -65,7 +65,7 @@ def test_later_layout_merges_the_include_where_it_stands(samples):
     assert app.log.types == ["debug", "err", "log"]
     assert app.log.outfile == "log2.txt"
     assert app.paths[0] == "/home/pippo/Libraries/coco/build/lib"
-    assert app.on_error == "continue"
+    assert app.on_error == ""  # none given: continue, but a refused configuration stops the application
 
 
 def test_legacy_layout_defines_components_in_their_activities(samples):

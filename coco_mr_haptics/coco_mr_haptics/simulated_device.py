@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from coco_core.attributes import Attribute
+from coco_core.attributes import Attribute, FileAttribute
 from coco_core.component import Component
 from coco_core.errors import HapticDeviceError
 from coco_core.files import DATA_FILE_LIMIT, read_regular_file
@@ -96,8 +96,8 @@ class SimulatedDevice(Component):
     workspace_max = Attribute(list[float], [0.1, 0.1, 0.1], "m: upper corner of the workspace box")
     coupling_stiffness = Attribute(float, 300.0, "N/m: the virtual coupling from hand to handle", min=0.0)
     coupling_damping = Attribute(float, 3.0, "N s/m: the virtual coupling's damping", min=0.0)
-    trajectory = Attribute(str, "", "CSV file time,x,y,z[,buttons] of the hand (workspace frame); "
-                           "empty: targets arrive on the hand port")
+    trajectory = FileAttribute("", "CSV file time,x,y,z[,buttons] of the hand (workspace frame); "
+                               "empty: targets arrive on the hand port", expected="a CSV file time,x,y,z[,buttons]")
     time_step = Attribute(float, 0.0, "s per update; 0 = the measured time between updates (real time)",
                           min=0.0)
     stop_at_end = Attribute(bool, False, "stop the application once the trajectory is over")
@@ -117,7 +117,7 @@ class SimulatedDevice(Component):
                                     f"workspace_max {self.workspace_max} on every axis")
         self._trajectory = None
         if self.trajectory:
-            with self.reading_attribute_file("trajectory", "a CSV file time,x,y,z[,buttons]"):
+            with self.reading_attribute_file("trajectory"):
                 self._trajectory = HandTrajectory(Path(self.trajectory))
         if self._trajectory is not None:
             hand, self._buttons = self._trajectory.at(0.0)

@@ -151,14 +151,15 @@ def test_implicit_surf_alone():
 
 def test_implicit_surf_alone_never_sends_a_non_finite_force():
     app = Application("alone_nan")
-    surf = HapticImplicitSurf("surf", surface="sphere(0.1)", stiffness=math.inf)
+    # A finite but absurd stiffness and a deep contact overflow the force (an infinite one is refused).
+    surf = HapticImplicitSurf("surf", surface="sphere(10)", stiffness=1e308)
     handle = Handle("handle")
     app.add(surf)
     app.add(handle)
     app.connect("handle.state", "surf.device")
     app.connect("surf.force", "handle.force")
     surf.configure()
-    for z in (0.2, 0.15, 0.11, 0.1, 0.097, math.nan):
+    for z in (20.0, 15.0, 11.0, 10.0, 9.7, 8.0, math.nan):
         handle.state.write(HapticDeviceState((0.0, 0.0, z)))
         surf.step()
         assert handle.force.read()[1].force == (0.0, 0.0, 0.0)
@@ -225,11 +226,11 @@ def test_a_non_finite_hand_pose_is_refused_and_the_handle_stays_where_it_was():
 
 
 def test_a_non_finite_force_is_never_sent_to_the_device(tmp_path):
-    """An infinite stiffness makes the proxy's force NaN in contact: the renderer sends zero instead,
-    counts the fault (summary, sample) and restarts the proxy; the device never sees a NaN."""
-    wild = HapticImplicitSurf("wild", surface="plane()", stiffness=math.inf)
-    device, renderer, recorder, run = loop(tmp_path, [(0, 0, 0, 0.05), (0.3, 0, 0, -0.02), (1, 0, 0, -0.02)],
-                                           [wild])
+    """An absurd stiffness and a deep contact overflow the proxy's force to NaN: the renderer sends
+    zero instead, counts the fault (summary, sample) and restarts the proxy; the device never sees a NaN."""
+    wild = HapticImplicitSurf("wild", surface="plane()", stiffness=1e308)
+    device, renderer, recorder, run = loop(tmp_path, [(0, 0, 0, 0.05), (0.3, 0, 0, -5), (1, 0, 0, -5)], [wild],
+                                           device_attributes={"workspace_min": [-10] * 3, "workspace_max": [10] * 3})
     forces = []
     for _ in range(1000):
         device.step()
@@ -294,12 +295,16 @@ def test_a_trajectory_that_is_no_regular_file_is_refused_naming_the_attribute(tm
 
     from coco_core.errors import FileReadError
 
-    path = special
+    # Setting the attribute refuses such a name (test_haptic_app); here the file is swapped after it.
+    path = tmp_path / "hand.csv"
+    path.write_text("time,x,y,z\n0,0,0,0\n1,0,0,0\n")
+    device = SimulatedDevice("device", trajectory=str(path))
+    path.unlink()
     if special == "fifo":
-        path = str(tmp_path / "hand.csv")
         os.mkfifo(path)
+    else:
+        path.symlink_to(special)
     kind = "a FIFO" if special == "fifo" else "a character device"
-    device = SimulatedDevice("device", trajectory=path)
     signal.signal(signal.SIGALRM, lambda *_: pytest.fail("reading the trajectory did not end"))
     signal.setitimer(signal.ITIMER_REAL, 10)
     try:

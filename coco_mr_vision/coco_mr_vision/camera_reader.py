@@ -25,7 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from coco_core.attributes import Attribute
+from coco_core.attributes import Attribute, FileAttribute
 from coco_core.component import Component
 from coco_core.errors import CameraError, FileReadError
 from coco_core.files import check_regular_file, read_regular_file
@@ -160,14 +160,15 @@ class CameraReader(Component):
     fps = Attribute(float, 30.0, "frame rate of an image sequence under timing=file", min=1e-3)
     loop = Attribute(bool, False, "start a video or image sequence again at its end")
     frame_id = Attribute(str, "camera", "frame of the camera in the transformation graph")
-    intrinsics = Attribute(str, "", "JSON file with the camera's intrinsics (empty: none attached)")
+    intrinsics = FileAttribute("", "JSON file with the camera's intrinsics (empty: none attached)",
+                               expected="a JSON file of camera intrinsics")
 
     image = OutputPort(Stamped, "Stamped(Image): each frame in `format`, stamped at acquisition")
 
     def init(self) -> None:
         self._camera: CameraIntrinsics | None = None
         if self.intrinsics:
-            with self.reading_attribute_file("intrinsics", "a JSON file of camera intrinsics"):
+            with self.reading_attribute_file("intrinsics"):
                 self._camera = CameraIntrinsics.from_json(self.intrinsics, frame_id=self.frame_id)
         self.frames = 0
         """Frames delivered."""

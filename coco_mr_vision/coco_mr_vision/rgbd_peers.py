@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from coco_core.attributes import Attribute
+from coco_core.attributes import Attribute, FileAttribute
 from coco_core.component import Component
 from coco_core.errors import CameraError
 from coco_core.files import DATA_FILE_LIMIT, read_regular_file
@@ -102,7 +102,8 @@ class TumRgbdPeer(_FilePairs):
     association = Attribute(str, "", "association file (time rgb time depth per line), relative to path; "
                             "empty: associations.txt if present, else pair rgb.txt and depth.txt")
     max_difference = Attribute(float, 0.02, "largest colour/depth time difference paired, s", min=0.0)
-    intrinsics = Attribute(str, "", "JSON intrinsics (empty: PrimeSense defaults, as Open3D uses for TUM)")
+    intrinsics = FileAttribute("", "JSON intrinsics (empty: PrimeSense defaults, as Open3D uses for TUM)",
+                               expected="a JSON file of camera intrinsics")
     depth_scale = Attribute(float, 5000.0, "depth units per metre (TUM: 5000)", min=1e-9)
     frame_id = Attribute(str, "camera", "frame of the camera")
 
@@ -121,7 +122,7 @@ class TumRgbdPeer(_FilePairs):
                                              "text files of lines 'time file'"):
                 rgb, depth = _rows(folder / "rgb.txt", 2), _rows(folder / "depth.txt", 2)
             pairs = associate(rgb, depth, self.max_difference, folder)
-        with self.reading_attribute_file("intrinsics", "a JSON file of camera intrinsics"):
+        with self.reading_attribute_file("intrinsics"):
             intrinsics = _intrinsics_file(self.intrinsics, PRIMESENSE, self.frame_id)
         return pairs, intrinsics, self.depth_scale
 
@@ -170,7 +171,8 @@ class RedwoodRgbdPeer(_FilePairs):
     """A Redwood / Open3D folder: ``color/`` and ``depth/`` with numbered files, a camera JSON beside them."""
 
     path = Attribute(str, "", "the folder holding color/ and depth/")
-    intrinsics = Attribute(str, "", "JSON intrinsics (empty: the folder's *.json, else PrimeSense defaults)")
+    intrinsics = FileAttribute("", "JSON intrinsics (empty: the folder's *.json, else PrimeSense defaults)",
+                               expected="a JSON file of camera intrinsics")
     depth_scale = Attribute(float, 1000.0, "depth units per metre (Redwood: millimetres)", min=1e-9)
     fps = Attribute(float, 30.0, "frame rate the numbered files were recorded at (for their stamps)", min=1e-3)
     frame_id = Attribute(str, "camera", "frame of the camera")
@@ -190,7 +192,7 @@ class RedwoodRgbdPeer(_FilePairs):
             found = sorted(folder.glob("*.json"))
             intrinsics_path = str(found[0]) if found else ""
         pairs = [(c, d, index / self.fps) for index, (c, d) in enumerate(zip(colors, depths))]
-        with self.reading_attribute_file("intrinsics", "a JSON file of camera intrinsics"):
+        with self.reading_attribute_file("intrinsics"):
             intrinsics = _intrinsics_file(intrinsics_path, PRIMESENSE, self.frame_id)
         return pairs, intrinsics, self.depth_scale
 
@@ -251,10 +253,11 @@ class RealSenseRgbdPeer(RgbdPeer):
 
 BACKENDS: dict[str, str] = {
     "tum": "TumRgbdPeer", "redwood": "RedwoodRgbdPeer", "bag": "BagRgbdPeer", "realsense": "RealSenseRgbdPeer",
+    "topic": "TopicRgbdPeer",
 }
 """The peers RgbdCameraReader makes from its ``backend`` attribute, by registered component name:
-the bag peer is coco_ros's (:mod:`coco_ros.vision.rgbd_bag`), which depends on this package, not
-the other way round."""
+the bag and topic peers are coco_ros's (:mod:`coco_ros.vision.rgbd_bag`,
+:mod:`coco_ros.vision.rgbd_topics`), which depends on this package, not the other way round."""
 
 __all__ = ["BACKENDS", "PRIMESENSE", "RealSenseRgbdPeer", "RedwoodRgbdPeer", "RgbdPeer",
            "TumRgbdPeer", "associate"]

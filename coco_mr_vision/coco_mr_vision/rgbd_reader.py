@@ -32,7 +32,8 @@ class RgbdCameraReader(Component):
 
     manages_peers = True
 
-    backend = Attribute(str, "", "tum, redwood, bag or realsense when no peer is declared", choices=("", *BACKENDS))
+    backend = Attribute(str, "", "tum, redwood, bag, realsense or topic when no peer is declared",
+                        choices=("", *BACKENDS))
     path = Attribute(str, "", "folder, bag or device the made peer opens (its `path` attribute)")
     loop = Attribute(bool, False, "start a recording again at its end")
     color_format = Attribute(ImageFormat, ImageFormat.BGR8, "format of the colour images")

@@ -5,13 +5,17 @@ The server binds a PUB socket and sends one packet per frame; a slow or absent r
 blocks it (ZeroMQ drops beyond the high-water mark). The receiver connects a SUB socket and, each
 activation, drains every packet that arrived and delivers only the newest ("newest frame only",
 what live use wants); the older ones are counted as dropped, as are gaps in the sequence numbers.
-Garbage, truncated and out-of-order packets are counted by kind and skipped: a bad packet is never
-a crash. Each server run names itself in its packets, so a server that starts again (its sequence
+Garbage, truncated and out-of-order packets are counted by kind, and together in the profile's
+refused column, and skipped: a bad packet is never a crash. Each server run names itself in its packets, so a server that starts again (its sequence
 numbers from 1) is counted once as a restart and its frames delivered, not taken for stale ones.
-Latency is measured from the frame's acquisition stamp on the server side (the monotonic clock is
-shared by the processes of one host); the receiver's stamps carry the time the server took the frame
-(its packet's ``sent``, taken before the encoding) and the time the receiver decoded it as the
-stamp's first ``steps``.
+Latency is measured from the frame's acquisition stamp on the server side; the receiver's stamps
+carry the time the server took the frame (its packet's ``sent``, taken before the encoding) and the
+time the receiver decoded it as the stamp's first ``steps``. The packet's times are on the
+application's clock (the server converts with its host's offset, the receiver back with its own:
+:attr:`Component.host_clock <coco_core.component.Component.host_clock>`), so that a server and a
+receiver on two hosts of one application (``<host>``) give latencies on one clock, the first
+host's, within the offsets' uncertainty; on one host the clock is the monotonic clock its processes
+share.
 
 The receiver trusts nothing in a packet (see :mod:`coco_mr_vision.stream_codec`): ZeroMQ refuses a
 message larger than the packet of the receiver's ``max_frame`` (``MAXMSGSIZE``), every header field
@@ -93,7 +97,8 @@ class StreamingServer(Component):
     def _send(self, color: Image | None, depth: Image | None, depth_scale: float, stamp: Stamp | None) -> None:
         self._seq += 1
         now = time.perf_counter()
-        packet = encode(self._seq, stamp.time if stamp is not None else now, now, color, depth,
+        to_app = self.host_clock.to_app
+        packet = encode(self._seq, to_app(stamp.time if stamp is not None else now), to_app(now), color, depth,
                         depth_scale=depth_scale, color_encoding=self.color_encoding, quality=self.quality,
                         depth_encoding=self.depth_encoding, source=stamp.source if stamp else self.name,
                         stream=self._stream)
@@ -203,10 +208,13 @@ class StreamingReceiver(Component):
             self._socket.connect(self.address)
 
     def _refuse(self, error: PacketError) -> None:
-        """Count a bad packet; the first of each kind is logged as a warning (a server configured for
-        larger frames than ``max_frame`` shows up at once), the others at debug level."""
+        """Count a bad packet by its kind and in the profile's refused column (with the launcher's
+        summary, the one place a flood shows); the first of each kind is logged as a warning (a
+        server configured for larger frames than ``max_frame`` shows up at once), the others at
+        debug level."""
         count = getattr(self, error.kind) + 1
         setattr(self, error.kind, count)
+        self.stats.refused += 1
         log.log(logging.WARNING if count == 1 else logging.DEBUG, "%s: %s packet: %s%s", self.name, error.kind,
                 error, " (further ones are counted)" if count == 1 else "")
 
@@ -219,7 +227,7 @@ class StreamingReceiver(Component):
             self._stream, self._last_seq = header.stream, 0  # numbered from 1: a gap before is a drop
         gap = header.seq - self._last_seq
         if gap <= 0:
-            self.out_of_order += 1
+            self._refuse(PacketError("out_of_order", f"sequence number {header.seq} after {self._last_seq}"))
             return False
         if gap > MAX_JUMP:
             if self._last_seq and self._jump != (header.stream, header.seq - 1):
@@ -260,7 +268,9 @@ class StreamingReceiver(Component):
             self._refuse(error)
             return
         received = time.perf_counter()
-        latency = received - frame.acquired
+        from_app = self.host_clock.from_app
+        acquired, sent = from_app(frame.acquired), from_app(frame.sent)
+        latency = received - acquired
         self.latency_last = latency
         if 0.0 <= latency <= MAX_LATENCY:
             self.latency_sum += latency
@@ -268,7 +278,7 @@ class StreamingReceiver(Component):
         self.frames += 1
         # The way so far, for a latency split by step downstream: taken by the server to send (before
         # its encoding), received here (decoded: what the receiver's readers get).
-        stamp = Stamp(frame.acquired, frame.seq, frame.source, (("sent", frame.sent), ("received", received)))
+        stamp = Stamp(acquired, frame.seq, frame.source, (("sent", sent), ("received", received)))
         if frame.depth is not None and frame.color is not None:
             self.rgbd.write(Stamped(RGBDFrame(frame.color, frame.depth, frame.depth.intrinsics,
                                               frame.depth_scale), stamp))

@@ -113,13 +113,17 @@ def test_intrinsics_that_are_no_regular_file_are_refused_naming_the_attribute(tm
 
     from coco_core.errors import FileReadError
 
+    # Setting the attribute refuses a FIFO (FileAttribute); here the file is swapped after it.
     fifo = tmp_path / "camera.json"
+    fifo.write_text("{}")
+    reader = CameraReader("cam", source=str(tmp_path / "frame_*.png"), intrinsics=str(fifo))
+    fifo.unlink()
     os.mkfifo(fifo)
     signal.signal(signal.SIGALRM, lambda *_: pytest.fail("reading the intrinsics blocked"))
     signal.setitimer(signal.ITIMER_REAL, 10)
     try:
         with pytest.raises(FileReadError) as raised:
-            CameraReader("cam", source=str(tmp_path / "frame_*.png"), intrinsics=str(fifo)).init()
+            reader.init()
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
     assert str(raised.value) == (f"attribute cam.intrinsics: intrinsics file {fifo} is a FIFO, not a regular "

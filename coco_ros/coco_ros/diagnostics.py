@@ -21,10 +21,12 @@ answers, which must not hold up the executor that serves the application's ROS e
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 from typing import Any
 
+from coco_core.errors import CocoError
 from coco_core.report import ProfileSnapshot
 
 ACTIVITY_COLUMNS = ("schedule", "cycles", "overruns", "period error p50/p99/max us")
@@ -39,6 +41,12 @@ THRESHOLDS: dict[str, tuple[float, str]] = {
     "diagnostics.drops_warn": (1, "samples a connection drops between two arrays that make it WARN"),
 }
 OK, WARN, ERROR = b"\x00", b"\x01", b"\x02"
+
+
+def is_threshold(value: Any) -> bool:
+    """Whether ``value`` may be a threshold: a finite number >= 0. NaN passes ``< 0`` and would
+    make every comparison false, so an activity could never WARN."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value >= 0
 
 
 class ProfileDiagnostics:
@@ -59,6 +67,9 @@ class ProfileDiagnostics:
         for name, (default, doc) in declared.items():
             if not node.has_parameter(name):  # -p diagnostics...:= declared it already, with its value
                 node.declare_parameter(name, default, ParameterDescriptor(description=doc))
+            given = node.get_parameter(name).value
+            if not is_threshold(given):  # the callback below checks later changes only
+                raise CocoError(f"-p {name}:={given!r}: expected a finite number >= 0")
         period = node.get_parameter(PERIOD).value
         node.add_on_set_parameters_callback(self._check_change)
         self._publisher = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -75,9 +86,9 @@ class ProfileDiagnostics:
             if parameter.name == PERIOD:
                 return SetParametersResult(successful=False, reason=(
                     f"{PERIOD} is read when the launcher starts: restart it with -p {PERIOD}:=SECONDS"))
-            if parameter.name in THRESHOLDS and (not isinstance(parameter.value, (int, float))
-                                                 or isinstance(parameter.value, bool) or parameter.value < 0):
-                return SetParametersResult(successful=False, reason=f"{parameter.name} must be a number >= 0")
+            if parameter.name in THRESHOLDS and not is_threshold(parameter.value):
+                return SetParametersResult(successful=False, reason=(
+                    f"{parameter.name} must be a finite number >= 0, got {parameter.value!r}"))
         return SetParametersResult(successful=True)
 
     def __enter__(self) -> ProfileDiagnostics:

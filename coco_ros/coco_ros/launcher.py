@@ -41,6 +41,7 @@ from coco_core.applications import find_application
 from coco_core.deployment import Deployment, Host, LaunchOptions, deployed
 from coco_core.launcher import (
     HUNG,
+    USAGE,
     begin,
     check,
     failure,
@@ -91,7 +92,8 @@ def make_ros_parser() -> argparse.ArgumentParser:
                         help="run every activity on its own thread (as coco-launch does)")
     parser.add_argument("--managed", action="store_true",
                         help="a managed (lifecycle) node: the application configures on the configure transition and "
-                             "runs on activate; deactivate, cleanup or shutdown stop it (coco_ros.managed)")
+                             "runs on activate; deactivate holds it until the next activate; cleanup or shutdown stop "
+                             "it (coco_ros.managed)")
     parser.add_argument("--expose", action="append", default=[], metavar="PATTERN",
                         help="mirror the output ports matching component.port (wildcards; all: every one) on "
                              "ROS topics ~/<component>/<port> (coco_ros.mirror)")
@@ -155,7 +157,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
     if options.managed and options.executor_threads is not None:
         print(f"{_NAME}: --managed needs the default hosting (a wait set per activity): with --executor-threads the "
               "activities would configure in the executor that serves the configure transition", file=sys.stderr)
-        return 2
+        return USAGE
     built = None
     if not sets_parameters(ros_args):
         # No -p / --params-file: the file is loaded and built before rclpy starts, so a wrong one is
@@ -178,7 +180,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         rclpy.init(args=[_NAME, *ros_args], signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # a malformed --ros-args section
         print(f"{_NAME}: malformed --ros-args section: {error}", file=sys.stderr)
-        return 2
+        return USAGE
     node = None
     try:
         # With -p / --params-file, the node comes first: its values are the file's args too.

@@ -10,10 +10,14 @@ transition     what the application does
 =============  ==================================================================================
 configure      every activity of every process starts and configures its components (``on_config``,
                in its own thread); the transition ends once all have, and nothing cycles yet
-activate       the start gate opens: every activity runs (``--duration`` counts from here)
-deactivate,    a natural stop: every activity finishes its work and flushes, then the launcher ends
-cleanup,       (an application runs once: a stopped one cannot be activated again; start the
-shutdown       launcher again for that)
+activate       the start gate opens: every activity runs (``--duration`` counts from the first);
+               after a deactivate, the activities run again where they were held
+deactivate     every activity of every process holds its cycles (``Application.pause``): threads,
+               timers and configuration stay, what is written meanwhile waits in the connections
+               (a buffer keeps its ``buffersize`` newest), operations are still served
+cleanup,       a natural stop: every activity finishes its work and flushes, then the launcher ends
+shutdown       (an application runs once: a stopped one cannot be configured again; start the
+               launcher again for that)
 =============  ==================================================================================
 
 Without ``--managed`` the launcher configures and activates at once, as before. The built
@@ -22,6 +26,12 @@ node's parameters and services answer before ``configure``. A configure that fai
 ``on_config`` raising under ``on_error="stop_app"``, a signal) answers FAILURE and the launcher
 stops. Managed hosting needs the default wait sets: with ``--executor-threads`` the activities
 would configure in the executor that serves the very transition waiting for them.
+
+A transition that is not valid from the current state (configure twice, activate before
+configure, configure while active) is refused: the service answers ``success=False``, the log says
+which transitions are valid, and the application goes on as it was. rclpy 7.1.6 (the version on
+the package index) raises from its service callback instead, which ended the executor's spin and
+stopped the application; :class:`ManagedLauncherNode` checks the transition before handing it over.
 """
 
 from __future__ import annotations
@@ -31,6 +41,8 @@ import threading
 from typing import Any
 
 from coco_core import Application
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 log = logging.getLogger("coco")
@@ -74,16 +86,27 @@ class ManagedApplication:
         return True
 
     def activate(self) -> bool:
+        """Run every activity: the first time, open the start gate; after a deactivate, resume."""
         if not self._configured.is_set() or self.app.stop_requested:
             log.error("activate: application %s %s", self.app.name,
                       "is stopping or stopped (it runs once: start the launcher again)" if self.app.stop_requested
                       else "is not configured")
             return False
-        self.app.gate.open()
+        if self.app.gate.is_open:
+            self.app.pause(False)
+            log.info("application %s active again", self.app.name)
+        else:
+            self.app.gate.open()
+        return True
+
+    def deactivate(self) -> bool:
+        """Hold every activity's cycles until the next activate (see the module)."""
+        self.app.pause(True)
+        log.info("application %s inactive: every activity holds its cycles until activate", self.app.name)
         return True
 
     def end(self, transition: str) -> bool:
-        """deactivate, cleanup, shutdown: a natural stop (every activity flushes), then the launcher ends."""
+        """cleanup, shutdown: a natural stop (every activity flushes), then the launcher ends."""
         self.app.request_stop(f"lifecycle transition {transition}")
         return True
 
@@ -96,6 +119,33 @@ class ManagedLauncherNode(LifecycleNode):
         super().__init__(name, **kwargs)
         self.managed: ManagedApplication | None = None
 
+    def valid_transitions(self) -> dict[int, str]:
+        """The transitions valid from the current state: label by id (what ``ros2 lifecycle list`` shows)."""
+        return {transition[0]: transition[1] for transition in self._state_machine.available_transitions}
+
+    def _LifecycleNodeMixin__on_change_state(self, request: ChangeState.Request,
+                                             response: ChangeState.Response) -> ChangeState.Response:
+        """The change_state service (rclpy's callback, by its mangled name): a transition that is
+        not valid from the current state is refused with the valid ones named; a valid one goes to
+        rclpy's state machine (its ``trigger_*``: the three shutdown transitions are the only others). rclpy 7.1.6's own callback raised for an invalid one (rcl's
+        "Transition is not registered"), out of the executor's spin, which stopped the application."""
+        wanted = request.transition
+        valid = self.valid_transitions()
+        by_label = {label: id for id, label in valid.items()}
+        transition = by_label.get(wanted.label) if wanted.label else (wanted.id if wanted.id in valid else None)
+        if transition is None:
+            state = self._state_machine.current_state[1]
+            log.error("lifecycle transition %s refused: not valid from state %s; valid: %s",
+                      wanted.label or wanted.id, state, ", ".join(f"{label} ({id})" for id, label in valid.items()))
+            response.success = False
+            return response
+        trigger = {Transition.TRANSITION_CONFIGURE: self.trigger_configure,
+                   Transition.TRANSITION_CLEANUP: self.trigger_cleanup,
+                   Transition.TRANSITION_ACTIVATE: self.trigger_activate,
+                   Transition.TRANSITION_DEACTIVATE: self.trigger_deactivate}.get(transition, self.trigger_shutdown)
+        response.success = trigger() == TransitionCallbackReturn.SUCCESS
+        return response
+
     def _answer(self, done: bool) -> TransitionCallbackReturn:
         return TransitionCallbackReturn.SUCCESS if done else TransitionCallbackReturn.FAILURE
 
@@ -106,7 +156,7 @@ class ManagedLauncherNode(LifecycleNode):
         return self._answer(self.managed is not None and self.managed.activate())
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        return self._answer(self.managed is not None and self.managed.end("deactivate"))
+        return self._answer(self.managed is not None and self.managed.deactivate())
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
         return self._answer(self.managed is not None and self.managed.end("cleanup"))

@@ -17,6 +17,10 @@ The services are served by a thread of their own (an :class:`~coco_ros.wait_set.
 a group of their own), never by the node's executor: a call waits until the owning activity has run
 the operation, at most :data:`CALL_TIMEOUT` seconds, and that wait must not hold up the executor,
 which may host the very activity that is to run it (``--executor-threads 1``).
+
+Anyone on the DDS domain may call them, so a request is bounded before it is read: names of at most
+:data:`MAX_NAME` characters, arguments of at most :data:`MAX_ARGUMENTS` bytes (refused with the
+limit), and what a reply or the log quotes of a request is cut (:data:`MAX_REASON`).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from typing import Any
 import yaml
 
 from coco_core import Application, CocoError, registry
+from coco_core.errors import bounded, excerpt
 from coco_core.model import AppSpec
 
 from .wait_set import ActivityWaitSet, WaitSetGroup
@@ -38,6 +43,16 @@ log = logging.getLogger("coco.operations")
 CALL_TIMEOUT = 10.0
 """Seconds a service call waits for its operation's result: an operation runs at its activity's
 next cycle, so a slow periodic activity answers late, and a stopped one never."""
+MAX_ARGUMENTS = 64 * 1024
+"""Bytes of YAML a call's arguments may have: an operation takes a few values (a window, a frame's
+name, a pose); a larger text is refused before it is parsed (20 MB kept pure-Python YAML busy past
+any timeout, then went whole into the log)."""
+MAX_NAME = 256
+"""Characters a component's or an operation's name in a call may have (an application's are short
+identifiers): a longer one is refused before it is looked up."""
+MAX_REASON = 1000
+"""Characters of an error passed back to the caller and into the log (an operation's error may
+quote the value it refused)."""
 
 
 def takes_no_argument(function: Any) -> bool:
@@ -46,19 +61,29 @@ def takes_no_argument(function: Any) -> bool:
     return all(p.default is not p.empty or p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD) for p in parameters)
 
 
+def check_name(what: str, name: str) -> None:
+    """Refuse a ``what`` ("component", "operation") name longer than :data:`MAX_NAME`."""
+    if len(name) > MAX_NAME:
+        raise CocoError(f"{what} name {excerpt(name, 40)} is longer than the limit of {MAX_NAME} characters")
+
+
 def arguments_of(text: str) -> tuple[tuple[Any, ...], dict[str, Any]]:
-    """(positional, keywords) from the request's YAML: a list, a mapping or one value; empty: none."""
+    """(positional, keywords) from the request's YAML: a list, a mapping or one value; empty: none.
+    More than :data:`MAX_ARGUMENTS` bytes are refused unread."""
+    size = len(text.encode("utf-8", errors="replace"))
+    if size > MAX_ARGUMENTS:
+        raise CocoError(f"arguments {excerpt(text, 40)} have {size} bytes, more than the limit of {MAX_ARGUMENTS}")
     try:
         value = yaml.safe_load(text) if text.strip() else None
     except yaml.YAMLError as error:
-        raise CocoError(f"arguments {text!r} are not YAML: {error}") from None
+        raise CocoError(f"arguments {excerpt(text)} are not YAML: {error}") from None
     if value is None:
         return (), {}
     if isinstance(value, list):
         return tuple(value), {}
     if isinstance(value, dict):
         if not all(isinstance(key, str) for key in value):
-            raise CocoError(f"arguments {text!r}: the keys of a mapping name keyword arguments")
+            raise CocoError(f"arguments {excerpt(text)}: the keys of a mapping name keyword arguments")
         return (), value
     return (value,), {}
 
@@ -111,12 +136,15 @@ class OperationServices:
 
     def _call(self, request: Any, response: Any) -> Any:
         try:
+            check_name("component", request.component)
+            check_name("operation", request.operation)
             args, kwargs = arguments_of(request.arguments)
             response.result = result_text(self.call(request.component, request.operation, args, kwargs))
             response.success = True
         except Exception as error:  # the caller gets the reason, the application goes on
             response.success, response.error = False, _reason(error)
-            log.warning("service call of %s.%s failed: %s", request.component, request.operation, response.error)
+            log.warning("service call of %s.%s failed: %s", excerpt(request.component, 40),
+                        excerpt(request.operation, 40), response.error)
         return response
 
     def _trigger(self, component: str, name: str) -> Any:
@@ -132,5 +160,6 @@ class OperationServices:
 
 
 def _reason(error: BaseException) -> str:
-    """The text a caller reads: CoCo's errors say what to do; others name their type."""
-    return str(error) if isinstance(error, CocoError) else f"{type(error).__name__}: {error}"
+    """The text a caller reads: CoCo's errors say what to do; others name their type. Cut to
+    :data:`MAX_REASON` characters: it may quote what the caller sent."""
+    return bounded(str(error) if isinstance(error, CocoError) else f"{type(error).__name__}: {error}", MAX_REASON)

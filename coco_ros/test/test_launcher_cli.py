@@ -101,7 +101,7 @@ def test_fast_period_is_planned_on_a_thread(app_file: Path, capsys) -> None:
 
 
 def test_unknown_thread_name_is_an_error_before_anything_starts(app_file: Path, capsys) -> None:
-    assert launcher.main([str(app_file), "--threads", "averagin"]) == 1
+    assert launcher.main([str(app_file), "--threads", "averagin"]) == 2  # a wrong command line (README)
     err = capsys.readouterr().err
     assert "no activity 'averagin'" in err and "averaging" in err
     assert not rclpy.ok(), "rclpy must not be initialised for a wrong command line"
@@ -113,6 +113,15 @@ def test_bad_file_names_file_and_line_and_starts_nothing(tmp_path: Path, capsys)
     assert launcher.main([str(path), "--duration", "1"]) == 1
     err = capsys.readouterr().err
     assert f"{path}:5:" in err and "MovingAvrage" in err
+    assert not rclpy.ok()
+
+
+@pytest.mark.parametrize("word, said", [("period=1", "argument 'period=1' must look like name:=value"),
+                                        ("perod:=1", "arg 'perod' was given (perod:=1) but no file declares it")])
+def test_a_wrong_name_value_word_is_a_usage_error(app_file: Path, word: str, said: str, capsys) -> None:
+    """Exit 2 (the README's status for a wrong command line), as coco-launch; it was 1."""
+    assert launcher.main([str(app_file), word, "--duration", "0.1"]) == 2
+    assert said in capsys.readouterr().err
     assert not rclpy.ok()
 
 

@@ -68,7 +68,30 @@ def test_the_profile_reaches_diagnostics_with_levels_and_live_thresholds(tmp_pat
         wait_for(refused.done, "the answer to set diagnostics.period")
         assert not refused.result().results[0].successful
         assert "read when the launcher starts" in refused.result().results[0].reason
+        nan = client.set_parameters([Parameter("diagnostics.period_error_warn_us", value=float("nan"))])
+        wait_for(nan.done, "the answer to set diagnostics.period_error_warn_us to NaN")
+        assert not nan.result().results[0].successful, "NaN would make every comparison false: never WARN"
+        assert "must be a finite number >= 0, got nan" in nan.result().results[0].reason
     finally:
         process.terminate()
         out, _ = process.communicate(timeout=20)
     assert process.returncode in (0, 130, 143), out
+
+
+@pytest.mark.parametrize("name,value", [("diagnostics.period_error_warn_us", float("nan")),
+                                        ("diagnostics.drops_warn", float("inf")), ("diagnostics.period", -1.0)])
+def test_a_threshold_given_at_the_start_is_checked_too(peer: tuple[Any, Any], name: str, value: float) -> None:
+    """``-p NAME:=VALUE`` declares the parameter before the change callback exists: checked apart."""
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    from coco_core.errors import CocoError
+    from coco_ros.diagnostics import ProfileDiagnostics
+
+    node = Node("diag_start", context=peer[0].context, parameter_overrides=[Parameter(name, value=value)],
+                automatically_declare_parameters_from_overrides=True)
+    try:
+        with pytest.raises(CocoError, match=rf"-p {name}:={value!r}: expected a finite number >= 0"):
+            ProfileDiagnostics(node, "app", lambda: [])
+    finally:
+        node.destroy_node()

@@ -75,6 +75,19 @@ def test_operations_are_services_of_the_launchers_node(tmp_path: Path, peer: tup
         assert not wrong.success and "set_window" in wrong.error, wrong
         bad = answer(call, CallOperation.Request(component="avg", operation="set_window", arguments="[1, 2, 3]"))
         assert not bad.success and "TypeError" in bad.error, bad
+        # Hostile requests: refused at once with the limit, quoted only in part (reply and log).
+        huge = answer(call, CallOperation.Request(component="avg", operation="set_window", arguments="w" * 2_000_000))
+        assert not huge.success and "have 2000000 bytes, more than the limit of 65536" in huge.error, huge.error[:300]
+        assert len(huge.error) < 300, huge.error[:300]
+        named = answer(call, CallOperation.Request(component="x" * 1_000_000, operation="set_window", arguments="3"))
+        assert not named.success and "longer than the limit of 256 characters" in named.error, named.error[:300]
+        assert len(named.error) < 300, named.error[:300]
+        quoted = answer(call, CallOperation.Request(component="avg", operation="set_window",
+                                                    arguments="'" + "w" * 60_000 + "'"))
+        assert not quoted.success and "expected an integer" in quoted.error and len(quoted.error) < 1200, \
+            quoted.error[:300]
+        absurd = answer(call, CallOperation.Request(component="avg", operation="set_window", arguments=str(10**12)))
+        assert not absurd.success and "expected <= 100000, got 1000000000000" in absurd.error, absurd.error
         # An operation without arguments is a Trigger too.
         triggered = answer(counts, Trigger.Request())
         assert triggered.success and triggered.message, triggered
@@ -82,3 +95,4 @@ def test_operations_are_services_of_the_launchers_node(tmp_path: Path, peer: tup
         process.terminate()
         out, _ = process.communicate(timeout=20)
     assert process.returncode in (0, 130, 143), out
+    assert max(map(len, out.splitlines())) < 2000, "a request was echoed whole into the log"

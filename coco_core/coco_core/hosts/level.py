@@ -31,9 +31,7 @@ def host_level(spec: AppSpec, app: Application, timeout: float, key: AppKey | No
         yield None
         return
     if key is None:
-        raise KeyFileError(f"application {spec.name} runs on several hosts, which authenticate each other with "
-                           "the application's key: give --key FILE or --key-env NAME (coco-keygen FILE makes one; "
-                           "copy it to every host)")
+        raise KeyFileError(f"host {spec.part_of}: the hosts of application {spec.name} need its key")
     crossing = crossing_problems(spec)
     if crossing:
         raise ConfigErrors([ConfigError(problem) for problem in crossing])
@@ -44,6 +42,7 @@ def host_level(spec: AppSpec, app: Application, timeout: float, key: AppKey | No
     ends = None
     try:
         session.join(transport.bus(spec, session.receive, key, app.network_refusals))
+        app.clock = session.clock
         app.router = session  # the process level's supervisor takes over, passing other hosts' calls on
         ends = session.ends = ends_between_hosts(app, spec, session.clock, key)
         yield session

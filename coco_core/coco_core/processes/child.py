@@ -37,6 +37,7 @@ from ..hosts.transport import Ends
 from ..launcher import stopped_by_a_failure
 from ..memory_lock import lock_memory
 from ..report import snapshot
+from ..signals import signal_watcher
 from .channels import attach
 from .control import ControlLink, Handlers
 from .messages import (
@@ -48,6 +49,7 @@ from .messages import (
     Damage,
     Outcome,
     ProfileRequest,
+    Pause,
     Run,
     SetPeriod,
     Start,
@@ -149,6 +151,7 @@ class ChildProcess:
             drive(app, config.deployment, config.wakes)
             attach(app, config.plans, config.wakes)
             if config.clock is not None:
+                app.clock = config.clock
                 self.ends = ends_between_hosts(app, spec, config.clock, config.key)
                 if self.ends is not None:
                     matched(self.ends, config.host_timeout, lambda: None, app)
@@ -232,6 +235,7 @@ class ChildProcess:
         self.link.serve({
             **self._handlers(app),
             Run: lambda _: app.gate.open(),
+            Pause: lambda message: app.pause(message.paused),
             Stop: lambda message: app.request_stop(f"launcher: {message.reason}", hard=message.hard),
         })
         self.link.abandon("the launcher is gone")
@@ -254,12 +258,18 @@ def main(argv: list[str] | None = None, kind: type[ChildProcess] = ChildProcess)
     child = kind(ControlLink(fd, "the launcher"), parent)
 
     def terminate(_signum: int, _frame: object) -> None:
+        """Record (the watcher's thread stops the application: a handler takes no lock, see
+        :mod:`coco_core.signals`); before the application is built, end the child here."""
         child.orphaned = True
         if child.app is None:
             sys.exit(1)
-        child.app.request_stop("launcher: SIGTERM", hard=True)
+
+    def stop(_signum: int) -> None:
+        if child.app is not None:
+            child.app.request_stop("launcher: SIGTERM", hard=True)
 
     signal.signal(signal.SIGTERM, terminate)
+    signal_watcher().watch(stop)
     try:
         return child.run()
     finally:

@@ -12,7 +12,8 @@ start the activities), the child answers :class:`Configured` when all of its own
 process has, :class:`Run` opens the start gate (:mod:`coco_core.lifecycle`). At the end,
 :class:`Stop`, and the child's :class:`Stopped` with its last profile. At any time:
 :class:`StopRequest` (a child's component stopped the application), :class:`Damage` (damaged input
-found somewhere, passed on to every process), :class:`SetPeriod`, and the two requests,
+found somewhere, passed on to every process), :class:`SetPeriod`, :class:`Pause` (a managed
+node's deactivate and activate), and the two requests,
 :class:`Call` (an operation of a component in another process) and :class:`ProfileRequest`, each
 answered by a :class:`Result` with the request's ``id``.
 """
@@ -102,6 +103,13 @@ class Start(Message):
 @dataclass(frozen=True)
 class Run(Message):
     """Every activity of every process is configured: the start gate opens."""
+
+
+@dataclass(frozen=True)
+class Pause(Message):
+    """Hold every activity's cycles, or let them run again (``Application.pause``)."""
+
+    paused: bool
 
 
 @dataclass(frozen=True)

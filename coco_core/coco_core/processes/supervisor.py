@@ -47,6 +47,7 @@ from .messages import (
     Configured,
     Damage,
     Outcome,
+    Pause,
     ProfileRequest,
     Run,
     SetPeriod,
@@ -223,6 +224,7 @@ class ProcessSupervisor:
             self.close()
             raise
         self.app.gate.when_open(self._start_all)
+        self.app.gate.when_paused(self._pause_all)
         for child in self.children.values():
             for name in child.activities:
                 ProcessDriver(self, child, self.app.activities[name], self.deployment.activities[name].driving,
@@ -270,6 +272,11 @@ class ProcessSupervisor:
             return
         for child in self.children.values():
             child.link.send(Run())
+
+    def _pause_all(self, paused: bool) -> None:
+        """Pass the launcher's pause or resume on to every child (:meth:`Application.pause`)."""
+        for child in self.children.values():
+            child.link.send(Pause(paused))
 
     def start_child(self, child: Child) -> None:
         """Tell ``child`` to start (configure) its activities, once: every process was built by now;

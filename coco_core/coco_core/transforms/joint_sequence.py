@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..attributes import Attribute
+from ..attributes import Attribute, FileAttribute
 from ..component import Component
 from ..errors import ConfigError, Location
 from ..files import DATA_FILE_LIMIT, read_regular_file
@@ -64,7 +64,8 @@ def read_poses(path: Path) -> tuple[tuple[str, ...], np.ndarray]:
 class JointSequence(Component):
     """Writes each pose of a CSV file for ``hold`` seconds, every update (see the module)."""
 
-    poses = Attribute(Path, Path(""), "CSV file: a header of joint names, one pose per row")
+    poses = FileAttribute("", "CSV file: a header of joint names, one pose per row",
+                          expected="a CSV file: a header of joint names, one pose per row")
     hold = Attribute(float, 1.0, "seconds each pose is held", min=1e-3)
     stop_at_end = Attribute(bool, False, "request the application stop once the last pose was held")
     frames = Attribute(int, 0, "values that must arrive on `seen` during each pose before the next (0: the clock "
@@ -74,10 +75,10 @@ class JointSequence(Component):
     seen = InputPort(object, doc="what measures the poses (e.g. marker detections): counted against `frames`")
 
     def init(self) -> None:
-        if str(self.poses) in ("", "."):
+        if not self.poses:
             raise ConfigError(f"component {self.name}: the poses attribute is empty; give a CSV file of poses")
-        with self.reading_attribute_file("poses", "a CSV file: a header of joint names, one pose per row"):
-            self.names, self.values = read_poses(self.poses)
+        with self.reading_attribute_file("poses"):
+            self.names, self.values = read_poses(Path(self.poses))
         self.pose = 0
         """Index of the pose being held."""
         self._since: float | None = None

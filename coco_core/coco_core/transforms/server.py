@@ -48,6 +48,13 @@ vanished one is reported as an ``error`` entry.
 edges' kinds and live values, and live lookups chosen on the page or in its URL
 (``/?target=a&source=b``, several pairs allowed).
 
+Load: at most :data:`REQUEST_THREADS` clients are served at once (the others wait in the kernel's
+listen queue), their requests read and answered one at a time, each followed by a pause as long as
+it took (:data:`REQUEST_PAUSE`), so that however many clients ask at once, the server holds the GIL
+at most about half of the time and never with more than one thread: the application's activities,
+which share the GIL, are not held up by a flood (a thread per client, all parsing at once, stalled
+a 5 ms replay for 227 ms). WebSocket streams run on their own threads once open.
+
 Security: the server only reads the graph. Bound to a loopback address it answers only requests
 whose ``Host`` is a loopback name (no DNS rebinding), and it accepts a WebSocket only from a page of
 the same origin (any web site could otherwise open a socket to localhost).
@@ -96,6 +103,24 @@ BACKLOG = 1024
 MIN_RATE = 0.01
 """The lowest rate a server or a client may ask for (a message every 100 s): the interval between
 messages is ``1 / rate`` seconds, and one of 10^300 s is no interval a timer can wait."""
+
+REQUEST_THREADS = 8
+"""Client connections served at once, each on a thread of its own (a WebSocket stream gives its
+place back once open); the serving loop accepts no more meanwhile, and the others wait in the
+kernel's listen queue (:data:`BACKLOG`). Why: 500 threads started at once, each parsing its request,
+took the GIL from the application's activities in turns. A client that connects and says nothing
+keeps its place until the read timeout (10 s)."""
+
+TURN_READ_TIMEOUT = 1.0
+"""Seconds each read of a request may wait while the request holds the turn: a client that sends
+part of a request and stops keeps the others waiting this long, not the 10 s read timeout."""
+
+REQUEST_PAUSE = 1.0
+"""After answering a request, the server pauses this many times the time the request took before it
+answers the next one. Requests are read and answered one at a time (each connection still has a
+thread of its own, but it waits for its turn blocked, holding no GIL), and the pause leaves the GIL
+to the application's activities at least half of the time: 500 requests answered together took it
+from them in turns (a 5 ms replay stalled 227 ms). See ``bench/bench_transforms_server.py``."""
 
 GRAPH_MAX_AGE = 0.1
 """Seconds a serialised ``/api/graph`` is served again while the graph changes (a replay changes it
@@ -257,6 +282,37 @@ class _HTTPServer(ThreadingHTTPServer):
     request_queue_size = BACKLOG
     block_on_close = False  # stop() joins the WebSocket threads itself, with a time limit
     owner: TransformServer
+
+    def __init__(self, address: tuple[str, int], handler: type[BaseHTTPRequestHandler]) -> None:
+        super().__init__(address, handler)
+        self.turn = threading.Lock()
+        """Held by the request being read and answered (:data:`REQUEST_PAUSE`)."""
+        self._places = threading.BoundedSemaphore(REQUEST_THREADS)
+        self._holding = threading.local()
+        """``place``: whether this handler thread holds one of the :attr:`_places`."""
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        """In the serving loop: wait for a place (:data:`REQUEST_THREADS`), then serve ``request``
+        on a thread of its own; a request still waiting when the server stops is closed."""
+        while not self._places.acquire(timeout=0.05):
+            if self.owner._stopping:
+                self.shutdown_request(request)
+                return
+        super().process_request(request, client_address)
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        self._holding.place = True
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self.leave_place()
+
+    def leave_place(self) -> None:
+        """Give this handler thread's place back (once): at its end, or when its WebSocket stream
+        opens (it lives on, mostly waiting)."""
+        if getattr(self._holding, "place", False):
+            self._holding.place = False
+            self._places.release()
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         log.debug("transform server: error with client %s", client_address, exc_info=True)
@@ -475,6 +531,8 @@ class _Handler(BaseHTTPRequestHandler):
     protocol_version = "HTTP/1.1"  # a 101 answer must say HTTP/1.1; every other answer closes
     timeout = 10.0  # for reading a request; lifted once a WebSocket is open
     server_version = "CoCoTransforms/1.0"
+    _turn = False
+    """Whether this request holds :attr:`_HTTPServer.turn`."""
 
     @property
     def owner(self) -> TransformServer:
@@ -482,6 +540,32 @@ class _Handler(BaseHTTPRequestHandler):
 
     def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 (the base class's name)
         log.debug("%s %s", self.address_string(), format % args)
+
+    def handle(self) -> None:
+        """Wait for the request's first bytes (blocked, no GIL held), then for the turn, and only
+        then read and answer it (:data:`TURN_READ_TIMEOUT`), and pause (:data:`REQUEST_PAUSE`): a
+        client that connects and sends nothing holds no turn. A WebSocket gives the turn back once open, without a pause
+        (:meth:`_give_turn_back`)."""
+        try:
+            if not self.connection.recv(1, socket.MSG_PEEK):
+                return  # closed before saying anything
+        except OSError:  # the read timeout, or a reset
+            return
+        self.server.turn.acquire()
+        self._turn = True
+        self.connection.settimeout(TURN_READ_TIMEOUT)
+        began = _time.perf_counter()
+        try:
+            super().handle()
+        finally:
+            if self._turn:
+                _time.sleep(REQUEST_PAUSE * (_time.perf_counter() - began))
+            self._give_turn_back()
+
+    def _give_turn_back(self) -> None:
+        if self._turn:
+            self._turn = False
+            self.server.turn.release()
 
     def do_GET(self) -> None:  # noqa: N802 (the base class's name)
         parts = urlsplit(self.path)
@@ -624,4 +708,6 @@ class _Handler(BaseHTTPRequestHandler):
         except OSError:
             self.owner._unregister(connection)
             return
+        self._give_turn_back()  # the stream lives on its own threads, mostly waiting
+        self.server.leave_place()
         connection.run()

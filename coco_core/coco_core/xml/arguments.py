@@ -19,7 +19,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator, Mapping
 
-from ..errors import ConfigError, Location, did_you_mean
+from ..errors import CommandLineError, ConfigError, Location, did_you_mean
 from ..model import ArgDeclaration
 from .reader import CONDITIONS, FileReader
 from .tree import Element
@@ -150,7 +150,7 @@ class Arguments:
     def unknown_given(self) -> list[ConfigError]:
         """An error for each given arg that no file declares (usually a typo on the command line)."""
         return [
-            ConfigError(
+            CommandLineError(
                 f"arg {name!r} was given ({name}:={value}) but no file declares it; "
                 f"{did_you_mean(name, list(self._declared))}"
             )

@@ -117,7 +117,7 @@ class _Loader:
         self.includes_refused = False
 
     def load(self, data: bytes | str, file: str, directory: str) -> AppSpec:
-        name, on_error = Path(file).stem, "continue"
+        name, on_error = Path(file).stem, ""
         root = self._parse(data, file)
         if root is not None:
             reader = FileReader(directory, self.substitutions, self.errors, self.warnings,

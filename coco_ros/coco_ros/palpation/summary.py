@@ -26,6 +26,9 @@ structures, draining the haptic samples at each wake-up) and reads:
   passed (the camera's: ``sent``, ``received``, then the view's ``frame_start``: its update began
   and the scene read the frame, ``drawn``, ``read_back``), each step the time from the one before.
 
+On several hosts (``<host>``), the stamps are on the first host's clock; ``clock`` in the JSON says
+this host's offset to it and how well it is known (``exchanges`` 0: this is the first host).
+
 The JSON (``json`` attribute) is written at the stop; :func:`describe` puts it in a few lines
 (``python -m coco_ros.palpation summary.json``, what ``scripts/run_app.sh palpation`` shows). Nothing
 is estimated: a figure with no data behind it is null. Besides: ``input_damage`` (the application's
@@ -208,6 +211,8 @@ class PalpationSummary(Component):
             "display_latency_ms": {source: {"frames": latencies.count, **latencies.milliseconds(**QUANTILES)}
                                    for source, latencies in sorted(self._display.items())},
             "display_steps_ms": {source: _steps_ms(steps) for source, steps in sorted(self._display_steps.items())},
+            "clock": {"offset_ms": 1e3 * self.host_clock.offset, "uncertainty_ms": 1e3 * self.host_clock.uncertainty,
+                      "exchanges": self.host_clock.exchanges},
             "input_damage": list(self.app.damage) if self.app is not None else [],
             "input_refused": {name: component.stats.refused for name, component in self.app.components.items()
                               if component.stats.refused} if self.app is not None else {},
@@ -261,9 +266,12 @@ def describe(summary: dict[str, Any]) -> str:
     if tree.get("steps_ms"):
         lines.append(f"sensor to touchable: median {ms(tree['latency_ms'], 'median')}, p99 "
                      f"{ms(tree['latency_ms'], 'p99')}; step medians: {steps(tree['steps_ms'])}")
+    clock = summary.get("clock") or {}
+    on_clock = (f" (on the first host's clock, this host's offset known to +- {clock['uncertainty_ms']:.3f} ms)"
+                if clock.get("exchanges") else "")
     for source, latency in (summary.get("display_latency_ms") or {}).items():
         lines.append(f"display latency from {source}: median {ms(latency, 'median')}, p99 {ms(latency, 'p99')} "
-                     f"({latency['frames']} frames)")
+                     f"({latency['frames']} frames){on_clock}")
         split = (summary.get("display_steps_ms") or {}).get(source)
         if split:
             lines.append(f"  step medians: {steps(split)}")
