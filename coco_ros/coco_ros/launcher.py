@@ -61,7 +61,7 @@ from rclpy.node import Node
 from .fastdds_segments import remove_abandoned
 from .hosting import ExecutorHost, ExecutorThread
 from .managed import ManagedApplication, ManagedLauncherNode
-from .mirror import PortMirrors, plan_mirrors
+from .mirror import PortMirrors, check_mirrors
 from .diagnostics import ProfileDiagnostics
 from .operation_services import OperationServices
 from .component_parameters import ComponentParameters
@@ -246,7 +246,7 @@ class RosHost:
         return {"node": self.node.get_name(), "ros_args": self.ros_args, "expose": self.expose}
 
     def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
-        return plan_mirrors(spec, app, options.expose).lines()
+        return check_mirrors(spec, app, options.expose, options.allow_unknown)
 
     def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
             processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:

@@ -237,3 +237,15 @@ def test_a_mirror_with_a_rate_publishes_the_newest_value_and_counts_the_rest_dro
         counters = mirror.connection.counters()
     assert len(received) < 10 and counters["written"] == 50
     assert counters["read"] == len(received) and counters["dropped"] == 50 - len(received)
+
+
+def test_check_names_a_port_of_a_child_process_no_converter_knows(tmp_path: Path, capsys) -> None:
+    """The ports of a ``<process>``'s components are that child's to mirror: ``--check`` builds its
+    part to see them."""
+    path = tmp_path / "in_a_child.xml"
+    path.write_text(APP.replace('<activity name="a">', '<process name="worker"><activity name="a">')
+                    .replace("</activity>\n  </activities>", "</activity></process>\n  </activities>"))
+    assert launcher.main([str(path), "--check", "--expose", "producer.out"]) == 0
+    assert "producer.out -> ~/producer/out (std_msgs/msg/Float64, BUFFER 200)" in capsys.readouterr().out
+    assert launcher.main([str(path), "--check", "--expose", "tree.structure"]) == 1
+    assert "tree.structure" in capsys.readouterr().err

@@ -33,7 +33,7 @@ class ForceArrowConverter(Converter[Marker, tuple]):
 
     def __init__(self, frame_id: str = "", scale: float = 0.02, ns: str = "force") -> None:
         if not (math.isfinite(scale) and scale > 0):
-            raise ValueError(f"scale must be a positive number of metres per unit, got {scale}")
+            raise MessageError(f"scale must be a positive number of metres per unit, got {scale}")
         self.frame_id, self.scale, self.ns = frame_id, scale, ns
 
     def to_coco(self, msg: Marker) -> tuple[Vector, Vector]:

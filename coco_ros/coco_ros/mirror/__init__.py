@@ -10,7 +10,7 @@ from typing import Any
 from coco_core import Application
 from coco_core.model import AppSpec
 
-from .plan import ALL, MirrorPlan, Mirrored, plan_mirrors
+from .plan import ALL, MirrorPlan, Mirrored, check_mirrors, plan_mirrors
 from .publisher import TYPE_POLL_S, PortMirror
 
 
@@ -47,4 +47,4 @@ class PortMirrors:
             mirror.close()
 
 
-__all__ = ["ALL", "MirrorPlan", "Mirrored", "PortMirror", "PortMirrors", "plan_mirrors"]
+__all__ = ["ALL", "MirrorPlan", "Mirrored", "PortMirror", "PortMirrors", "check_mirrors", "plan_mirrors"]

@@ -68,6 +68,20 @@ class MirrorPlan:
                 + [f"  not mirrored: {text}" for text in self.skipped])
 
 
+def check_mirrors(spec: AppSpec, app: Application, patterns: Sequence[str] = (), allow_unknown: bool = False) -> list[str]:
+    """``--check``: the mirrors of every process of ``spec`` (``app`` is the launcher's part; each
+    child's part is built here, as the child will build it), as lines to print, or a
+    :class:`ConfigErrors` naming every port that cannot be mirrored."""
+    from coco_core.builder import build_application
+
+    plan = plan_mirrors(spec, app, patterns)
+    for process in spec.processes:
+        part = plan_mirrors(spec, build_application(spec, process.name, allow_unknown), patterns)
+        plan.mirrored += part.mirrored
+        plan.skipped += part.skipped
+    return plan.lines()
+
+
 def default_topic(component: str, port: str) -> str:
     """``~/<component>/<port>``: ``/<node>/<component>/<port>`` once the node resolves it."""
     return f"~/{component}/{port}"
