@@ -75,7 +75,7 @@ def check_mirrors(spec: AppSpec, app: Application, patterns: Sequence[str] = (),
     from coco_core.builder import build_application
 
     plan = plan_mirrors(spec, app, patterns)
-    for process in spec.processes:
+    for process in spec.processes if spec.topics or patterns else ():  # nothing to mirror: no part built
         part = plan_mirrors(spec, build_application(spec, process.name, allow_unknown), patterns)
         plan.mirrored += part.mirrored
         plan.skipped += part.skipped
