@@ -26,14 +26,17 @@ APP = """<package name="mirror_app">
     <component><name>producer</name><task>CostlyProducer</task><library>coco_core</library></component>
     <component><name>gen</name><task>SignalGenerator</task><library>coco_core</library></component>
     <component><name>tree</name><task>KDTreeBuilder</task><library>coco_mr_haptics</library></component>
+    <component><name>consumer</name><task>CostlyConsumer</task><library>coco_core</library></component>
   </components>
+  <connections>
+    <connection data="BUFFER" buffersize="200"><src task="producer" port="out"/><dest task="consumer" port="item"/></connection>
+  </connections>
   <topics>
-    <topic task="producer" port="out" data="BUFFER" buffersize="200"/>
     <topic task="gen" port="sample" name="/mirror_test/sample"/>
   </topics>
   <activities>
     <activity name="a"><schedule type="periodic" period="10"/>
-      <components><component name="producer"/><component name="gen"/><component name="tree"/></components>
+      <components><component name="producer"/><component name="gen"/><component name="tree"/><component name="consumer"/></components>
     </activity>
   </activities>
 </package>
@@ -58,16 +61,18 @@ def built(app_file: Path) -> tuple[Any, Any]:
     return spec, build_application(spec)
 
 
-def test_a_buffer_mirror_publishes_every_value_in_order_and_only_to_subscribers(app_file: Path, ros) -> None:
+def test_expose_of_a_buffered_port_publishes_every_value_in_order_and_only_to_subscribers(app_file: Path,
+                                                                                          ros) -> None:
+    """``--expose producer.out``: the port's BUFFER connection gives its mirror a BUFFER of its own."""
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Float64
 
     node = ros
     spec, app = built(app_file)
     port = app.component("producer").outputs["out"]
-    with PortMirrors(node, app, spec) as mirrors:
+    with PortMirrors(node, app, spec, ["producer.out"]) as mirrors:
         mirror = next(m for m in mirrors.mirrors if m.port is port)
-        assert mirror.topic == "/mirror_app/producer/out"
+        assert mirror.topic == "/mirror_app/producer/out" and str(mirror.connection.policy) == "BUFFER/LOCKED[200]"
         for value in range(5):  # no subscriber: the port writes as if the mirror were not there
             port.write(value)
         assert mirror.connection.written == 0

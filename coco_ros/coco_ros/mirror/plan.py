@@ -3,8 +3,8 @@
 Two sources, merged: the file's ``<topics>`` (:class:`~coco_core.model.TopicMirrorSpec`) and the
 launcher's ``--expose PATTERN`` (``distance.*``, ``tf.gripper``, ``all``), matched against
 ``component.port`` of every output port. A port both name keeps the file's settings; one that only a
-pattern names gets a DATA connection (the newest value, a keep-last-1 topic) on
-``~/<component>/<port>``.
+pattern names is mirrored on ``~/<component>/<port>`` with the policy of the port's own connections
+(:func:`port_policy`): a port whose readers take every value (BUFFER) is seen whole on its topic.
 
 What cannot be mirrored is an error naming it: an unknown component or port, an input port, a port
 whose declared type no converter knows (a pattern with a wildcard leaves those out, in
@@ -29,6 +29,9 @@ from .choice import by_value, explicit_converter, ros_type_of
 
 ALL = "all"
 """The pattern that mirrors every output port."""
+MAX_DEPTH = 1000
+"""The deepest topic history ``--expose`` gives a port connected with a larger buffer (65536-sample
+BUFFERs are common; DDS would keep that many messages per topic)."""
 
 
 @dataclass(frozen=True)
@@ -112,7 +115,9 @@ def plan_mirrors(spec: AppSpec, app: Application, patterns: Sequence[str] = ()) 
                 continue
             seen.add(port.qualified_name)
             try:
-                plan.mirrored.append(_mirrored(port, TopicMirrorSpec(*_names(port.qualified_name))))
+                data, size = port_policy(port)
+                plan.mirrored.append(_mirrored(port, TopicMirrorSpec(*_names(port.qualified_name), data=data,
+                                                                     buffersize=size)))
             except CocoError as error:
                 if _wildcard(pattern):
                     plan.skipped.append(f"{port.qualified_name}: {error}")
@@ -121,6 +126,16 @@ def plan_mirrors(spec: AppSpec, app: Application, patterns: Sequence[str] = ()) 
     if errors:
         raise ConfigErrors(errors)
     return plan
+
+
+def port_policy(port: OutputPort) -> tuple[BufferPolicy, int]:
+    """The policy the mirror of a port ``--expose`` names takes from the port's own connections: the first
+    queued one's (BUFFER or CIRCULAR, its size up to :data:`MAX_DEPTH`), else DATA."""
+    for connection in port.connections:
+        policy = connection.policy
+        if policy.data in (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR):
+            return policy.data, min(policy.size, MAX_DEPTH)
+    return BufferPolicy.DATA, 1
 
 
 def _names(qualified: str) -> tuple[str, str]:
