@@ -66,6 +66,14 @@ def answer(node: Any, service: type, name: str, request: Any) -> Any:
     return wait_for(lambda: future.done() and future.result(), f"an answer from {name}")
 
 
+def transition(step: int) -> Any:
+    """A lifecycle_msgs ChangeState request for the transition ``step``."""
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+
+    return ChangeState.Request(transition=Transition(id=step))
+
+
 def gripper_positions(tf: list[Any], static: list[Any]) -> list[np.ndarray]:
     """The position of left_gripper in base after each /tf message: the URDF's chain composed from
     the newest transform of each link (moving ones on /tf, fixed ones on /tf_static)."""
@@ -126,10 +134,10 @@ def test_the_main_job_publishes_tf_the_urdf_the_distance_and_its_colour(session,
     try:
         change = "/teleop_under_test/change_state"
         wait_for(lambda: {"/distance", "/distance_color", "/joint_states"} <= matched, "the mirrors to match")
-        assert answer(peer, ChangeState, change, ChangeState.Request(transition=Transition(id=Transition.TRANSITION_CONFIGURE))).success
+        assert answer(peer, ChangeState, change, transition(Transition.TRANSITION_CONFIGURE)).success
         descriptions: list[str] = []  # a viewer that starts after the URDF was published still gets it
         peer.create_subscription(String, "/robot_description", lambda msg: descriptions.append(msg.data), latched)
-        assert answer(peer, ChangeState, change, ChangeState.Request(transition=Transition(id=Transition.TRANSITION_ACTIVATE))).success
+        assert answer(peer, ChangeState, change, transition(Transition.TRANSITION_ACTIVATE)).success
         out, _ = process.communicate(timeout=120)
     finally:
         process.kill()
@@ -188,9 +196,8 @@ def test_a_recording_of_the_mirrored_joint_states_replays_into_the_same_applicat
                                    cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         try:
             wait_for(lambda: matched and matched[-1], "the recorder to match /joint_states")
-            for transition in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
-                request = ChangeState.Request(transition=Transition(id=transition))
-                assert answer(peer, ChangeState, "/recorded_under_test/change_state", request).success
+            for step in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
+                assert answer(peer, ChangeState, "/recorded_under_test/change_state", transition(step)).success
             out, _ = process.communicate(timeout=120)
         finally:
             process.kill()

@@ -67,7 +67,8 @@ def test_descriptors_say_type_doc_range_and_what_may_change(running) -> None:
     from rcl_interfaces.msg import ParameterType
 
     _, _, client = running
-    frequency, seed, window = answer(client.describe_parameters(["gen.frequency", "gen.seed", "avg.window"])).descriptors
+    names = ["gen.frequency", "gen.seed", "avg.window"]
+    frequency, seed, window = answer(client.describe_parameters(names)).descriptors
     assert frequency.type == ParameterType.PARAMETER_DOUBLE and not frequency.read_only
     assert "sine frequency" in frequency.description
     assert frequency.floating_point_range[0].from_value == 0.0

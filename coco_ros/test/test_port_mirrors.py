@@ -29,14 +29,16 @@ APP = """<package name="mirror_app">
     <component><name>consumer</name><task>CostlyConsumer</task><library>coco_core</library></component>
   </components>
   <connections>
-    <connection data="BUFFER" buffersize="200"><src task="producer" port="out"/><dest task="consumer" port="item"/></connection>
+    <connection data="BUFFER" buffersize="200">
+      <src task="producer" port="out"/><dest task="consumer" port="item"/></connection>
   </connections>
   <topics>
     <topic task="gen" port="sample" name="/mirror_test/sample"/>
   </topics>
   <activities>
     <activity name="a"><schedule type="periodic" period="10"/>
-      <components><component name="producer"/><component name="gen"/><component name="tree"/><component name="consumer"/></components>
+      <components><component name="producer"/><component name="gen"/><component name="tree"/>
+        <component name="consumer"/></components>
     </activity>
   </activities>
 </package>

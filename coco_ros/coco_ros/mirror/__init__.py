@@ -23,7 +23,8 @@ class PortMirrors:
 
         self.node = node
         group = MutuallyExclusiveCallbackGroup()
-        self.mirrors = [PortMirror(node, group, app, mirrored) for mirrored in plan_mirrors(spec, app, patterns).mirrored]
+        plan = plan_mirrors(spec, app, patterns)
+        self.mirrors = [PortMirror(node, group, app, mirrored) for mirrored in plan.mirrored]
         self._waiting: list[PortMirror] = []
         self._timer: Any = None
         self._group = group

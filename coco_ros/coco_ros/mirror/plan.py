@@ -71,7 +71,8 @@ class MirrorPlan:
                 + [f"  not mirrored: {text}" for text in self.skipped])
 
 
-def check_mirrors(spec: AppSpec, app: Application, patterns: Sequence[str] = (), allow_unknown: bool = False) -> list[str]:
+def check_mirrors(spec: AppSpec, app: Application, patterns: Sequence[str] = (),
+                  allow_unknown: bool = False) -> list[str]:
     """``--check``: the mirrors of every process of ``spec`` (``app`` is the launcher's part; each
     child's part is built here, as the child will build it), as lines to print, or a
     :class:`ConfigErrors` naming every port that cannot be mirrored."""
