@@ -256,3 +256,37 @@ def test_check_names_a_port_of_a_child_process_no_converter_knows(tmp_path: Path
     assert "producer.out -> ~/producer/out (std_msgs/msg/Float64, BUFFER 200)" in capsys.readouterr().out
     assert launcher.main([str(path), "--check", "--expose", "tree.structure"]) == 1
     assert "tree.structure" in capsys.readouterr().err
+
+
+def test_a_frame_pose_goes_to_a_pose_topic_and_to_tf(ros) -> None:
+    """A FramePose port is a PoseStamped by default, and a /tf transform with ``type=TFMessage``."""
+    import numpy as np
+    from coco_core.application import Application
+    from coco_core.component import Component
+    from coco_core.model import AppSpec, TopicMirrorSpec
+    from coco_core.ports import OutputPort
+    from coco_core.transforms.samples import FramePose
+    from geometry_msgs.msg import PoseStamped
+    from tf2_msgs.msg import TFMessage
+
+    class Tracker(Component):
+        tool = OutputPort(FramePose)
+
+    node = ros
+    app = Application("mirror_app")
+    tracker = app.add(Tracker("tracker"))
+    spec = AppSpec(name="mirror_app", topics=[TopicMirrorSpec("tracker", "tool", "tool_pose"),
+                                              TopicMirrorSpec("tracker", "tool", "/tf", "tf2_msgs/msg/TFMessage")])
+    poses: list[Any] = []
+    tf: list[Any] = []
+    node.create_subscription(PoseStamped, "/tool_pose", poses.append, 1)
+    node.create_subscription(TFMessage, "/tf", tf.append, 1)
+    with PortMirrors(node, app, spec) as mirrors:
+        wait_for(lambda: all(m.subscribers for m in mirrors.mirrors), "both mirrors to match")
+        transform = np.eye(4)
+        transform[:3, 3] = (0.5, 0.0, 0.25)
+        tracker.tool.write(FramePose("world", "tool", transform, 3.0))
+        wait_for(lambda: poses and tf, "the pose and the transform")
+    assert poses[0].header.frame_id == "world" and poses[0].pose.position.x == 0.5
+    sent = tf[0].transforms[0]
+    assert (sent.header.frame_id, sent.child_frame_id, sent.transform.translation.z) == ("world", "tool", 0.25)
