@@ -105,22 +105,25 @@ class PortMirror:
         encode = converter.to_cdr if converter.writes_cdr else converter.to_ros
         frame = self.mirrored.frame
         self._encode = lambda value: encode(adapted(value, frame))
-        self.publisher = self.node.create_publisher(
-            converter.message_type, self.topic, qos_of(self.mirrored.data, self.mirrored.size).to_rclpy(),
-            callback_group=self.group, event_callbacks=PublisherEventCallbacks(matched=self._matched))
+        self.port.add_connection(self.connection)  # muted before a subscriber can match
+        self.port.mute(self.connection, True)
+        self.app.connections.append(self.connection)  # its counters in the profile
         if self.mirrored.hz > 0:
             self.guard = self.node.create_timer(1.0 / self.mirrored.hz, self._publish_newest, callback_group=self.group)
         else:
             self.guard = self.node.create_guard_condition(self._drain, callback_group=self.group)
             self.connection.trigger = self.guard.trigger
-        self.port.add_connection(self.connection)
-        self.port.mute(self.connection, True)
-        self.app.connections.append(self.connection)  # its counters in the profile
+        self.publisher = self.node.create_publisher(
+            converter.message_type, self.topic, qos_of(self.mirrored.data, self.mirrored.size).to_rclpy(),
+            callback_group=self.group, event_callbacks=PublisherEventCallbacks(matched=self._matched))
+        self.port.mute(self.connection, self.subscribers == 0)  # a subscription matched while it was made
         log.info("port %s mirrored on %s (%s)", self.port.qualified_name, self.topic, ros_type)
 
     def _matched(self, status: Any) -> None:
         """rmw's matched event: unmute on the first subscriber, mute (and drop what waits) after the last."""
         self.subscribers = status.current_count
+        if self.publisher is None:  # the event came before create_publisher returned: _attach applies it
+            return
         self.port.mute(self.connection, self.subscribers == 0)
         if self.subscribers == 0:
             self._drop_pending()
