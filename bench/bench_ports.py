@@ -6,7 +6,11 @@ publish a sensor_msgs/JointState with 19 joints, then ``spin_once`` until the su
 has fired. The floor is the least a latest-value hand-off can cost in Python: ``deque(maxlen=1)``
 append and read, each under a ``threading.Lock``. Goal: every port round >= 100x cheaper than rclpy.
 
-    PYTHONPATH=coco_core .venv/bin/python bench/bench_ports.py [--json PATH] [--no-plot]
+With ``--expose`` every variant is measured a second time beside itself, its writer's port
+mirrored on a ROS topic (``coco_ros.mirror``, as the ROS launcher's ``--expose all`` does) that no
+one subscribes to: a mirror without a subscriber must cost a write nothing.
+
+    PYTHONPATH=coco_core .venv/bin/python bench/bench_ports.py [--json PATH] [--no-plot] [--expose]
 """
 
 from __future__ import annotations
@@ -92,10 +96,14 @@ def policies() -> list[ConnectionPolicy]:
             for sync in (SyncPolicy.LOCKED, SyncPolicy.LOCK_FREE, SyncPolicy.UNSYNC)]
 
 
-def build_variants(payload: JointSample) -> dict[str, Loop]:
+MIRRORED = ", mirrored"
+"""The suffix of a variant whose writer's port is mirrored on a topic without a subscriber."""
+
+
+def build_variants(payload: JointSample, suffix: str = "") -> tuple[Application, dict[str, Loop]]:
     """One writer/reader pair per policy, wired by an application (never started: no threads)."""
-    app = Application("bench_ports")
-    variants: dict[str, Loop] = {FLOOR: floor_loop(payload)}
+    app = Application(f"bench_ports{suffix}")
+    variants: dict[str, Loop] = {} if suffix else {FLOOR: floor_loop(payload)}
     for policy in policies():
         tag = f"{policy.data.value}_{policy.sync.value}".lower()
         writer, reader = app.add(Writer(f"w_{tag}")), app.add(Reader(f"r_{tag}"))
@@ -104,8 +112,23 @@ def build_variants(payload: JointSample) -> dict[str, Loop]:
         status, value = reader.inp.read()
         if status is not NEW_DATA or value is not payload:
             raise AssertionError(f"{policy}: read back {status!r} {value!r}, not the payload just written")
-        variants[str(policy)] = port_loop(writer.out, reader.inp, payload)
-    return variants
+        variants[f"{policy}{suffix}"] = port_loop(writer.out, reader.inp, payload)
+    return app, variants
+
+
+def mirrored_variants(payload: JointSample, context: Any) -> tuple[dict[str, Loop], Any]:
+    """The variants again, each writer's port mirrored on a JointState topic that no one subscribes
+    to; the mirrors (a context manager, entered) and their node, to close after the measurement."""
+    from coco_core.model import AppSpec, TopicMirrorSpec
+    from coco_ros.mirror import PortMirrors
+    from rclpy.node import Node
+
+    app, variants = build_variants(payload, MIRRORED)
+    topics = [TopicMirrorSpec(name, "out", type="sensor_msgs/msg/JointState")
+              for name, component in app.components.items() if isinstance(component, Writer)]
+    node = Node("bench_ports_mirrors", context=context)
+    mirrors = PortMirrors(node, app, AppSpec(name=app.name, topics=topics)).__enter__()
+    return variants, (mirrors, node)
 
 
 def table(samples: dict[str, Samples]) -> tuple[Table, dict[str, Any]]:
@@ -149,11 +172,18 @@ def draw(samples: dict[str, Samples]):
 
 
 def main() -> None:
-    args = _report.parser("bench_ports", __doc__.splitlines()[0]).parse_args()
+    parser = _report.parser("bench_ports", __doc__.splitlines()[0])
+    parser.add_argument("--expose", action="store_true",
+                        help="measure every variant also with its port mirrored on a topic without subscriber")
+    args = parser.parse_args()
     names, position, velocity, effort = joint_data()
     payload = JointSample(tuple(names), position, velocity, effort)
-    variants = build_variants(payload)
+    variants = build_variants(payload)[1]
     with RosContext() as context:
+        mirrored = None
+        if args.expose:
+            extra, mirrored = mirrored_variants(payload, context)
+            variants = {**variants, **extra}
         ros = Loopback(context, JointState, "bench_joint_states")
         msg = JointState(name=names, position=position.tolist(), velocity=velocity.tolist(),
                          effort=effort.tolist())
@@ -164,6 +194,9 @@ def main() -> None:
             samples = measure(variants, repeats=7, target_s=0.05)
         finally:
             ros.destroy()
+            if mirrored is not None:
+                mirrored[0].__exit__(None, None, None)
+                mirrored[1].destroy_node()
     t, results = table(samples)
     _report.emit("bench_ports", args, [t], results)
     _report.save_plot(args, draw(samples))

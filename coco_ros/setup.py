@@ -64,6 +64,7 @@ setup(
             "BagRecorder = coco_ros.replay.recorder:BagRecorder",
             "ROSInterface = coco_ros.interface.component:ROSInterface",
             "TFBridge = coco_ros.tf.bridge:TFBridge",
+            "RobotDescription = coco_ros.tf.description:RobotDescription",
             "EndEffectorDistance = coco_ros.teleop.distance:EndEffectorDistance",
             "TeleopSummary = coco_ros.teleop.summary:TeleopSummary",
             "PalpationSummary = coco_ros.palpation.summary:PalpationSummary",

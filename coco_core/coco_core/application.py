@@ -100,6 +100,10 @@ class Application:
         self.connections: list[Connection] = []
         self.outgoing: list[Connection] = []
         """The writers' ends of connections into other processes (their readers' processes profile them)."""
+        self.attribute_watchers: list[Callable[[Component, str], None]] = []
+        """Called with the component and the attribute's name after ``set_attribute`` changed one at
+        run time (in the component's thread): what shows the running values (the ROS launcher's
+        parameters) follows."""
         self.incoming_filters: dict[str, Filter] = {}
         """The filters of connections from other processes into this one, by ``src->dest`` label:
         made by the builder (a Merge in its group, in file order) and put on the reader's side of
@@ -219,6 +223,11 @@ class Application:
     def components(self) -> dict[str, Component]:
         """Every component by instance name, peers included."""
         return dict(self._components)
+
+    def attribute_changed(self, component: Component, name: str) -> None:
+        """Tell the :attr:`attribute_watchers` that ``component``'s attribute ``name`` changed."""
+        for watcher in self.attribute_watchers:
+            watcher(component, name)
 
     def operation(self, component: str, name: str) -> Operation | RemoteOperation:
         """The operation ``name`` of ``component``, called by name: a local one, or one that another

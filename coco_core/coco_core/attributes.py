@@ -48,7 +48,9 @@ class Attribute(Generic[T]):
 
     ``type_`` is ``int``, ``float``, ``bool``, ``str``, ``Path``, an ``enum.Enum`` subclass, or
     ``list[X]`` / ``tuple[X, ...]`` of one of those. ``choices``, ``min`` and ``max`` constrain the
-    value; ``check`` is any further validation that returns an error text or None.
+    value; ``check`` is any further validation that returns an error text or None. ``live``: the
+    component reads it while it runs (every update), so a change at run time takes effect; the ROS
+    launcher offers only those as writable parameters (:mod:`coco_ros.component_parameters`).
 
     A float is finite unless ``finite=False`` (then the doc should say what NaN or an infinity
     means): NaN passes every ``min``/``max`` comparison, so ``stiffness:=nan`` or ``1e999`` (which
@@ -67,6 +69,7 @@ class Attribute(Generic[T]):
         max: float | None = None,
         check: Callable[[T], str | None] | None = None,
         finite: bool = True,
+        live: bool = False,
     ) -> None:
         self.type = type_
         self.doc = doc
@@ -75,6 +78,7 @@ class Attribute(Generic[T]):
         self.max = max
         self.check = check
         self.finite = finite
+        self.live = live
         self.name = ""
         self.default = default
 

@@ -249,8 +249,11 @@ class Component:
 
     @ops.operation
     def set_attribute(self, name: str, value: Any) -> None:
-        """Change an attribute at run time; validated, applied between two updates."""
+        """Change an attribute at run time; validated, applied between two updates. The
+        application's attribute watchers hear of it (the ROS launcher's parameters show what runs)."""
         self.set_attribute_now(name, value)
+        if self.app is not None:
+            self.app.attribute_changed(self, name)
 
     @ops.operation
     def get_attribute(self, name: str) -> Any:

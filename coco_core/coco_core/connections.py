@@ -62,7 +62,7 @@ class Connection(abc.ABC):
     wake the sink's triggered activity.
     """
 
-    __slots__ = ("source", "sink", "policy", "trigger", "age", "__weakref__")
+    __slots__ = ("source", "sink", "policy", "trigger", "age", "reader", "__weakref__")
 
     carries_stamps: ClassVar[bool] = False
     """Whether the writing port hands this connection :class:`~coco_core.stamps.Message` objects
@@ -78,6 +78,8 @@ class Connection(abc.ABC):
         self.trigger: Callable[[], None] | None = None
         self.age: MessageAges | None = None
         """The age of each message the reader takes, in a profiled run (None: not measured)."""
+        self.reader: str | None = None
+        """What reads a connection that has no input port (a ROS topic's mirror), for its label."""
 
     @abc.abstractmethod
     def push(self, value: Any) -> None:
@@ -146,7 +148,7 @@ class Connection(abc.ABC):
     def label(self) -> str:
         """``writer.port -> reader.port``, for the profile."""
         source = self.source.qualified_name if self.source else "?"
-        sink = self.sink.qualified_name if self.sink else "?"
+        sink = self.sink.qualified_name if self.sink else self.reader or "?"
         return f"{source} -> {sink}"
 
     def measure_ages(self, ages: MessageAges) -> None:
@@ -176,7 +178,7 @@ class Connection(abc.ABC):
 
     def __repr__(self) -> str:
         source = self.source.qualified_name if self.source else "?"
-        sink = self.sink.qualified_name if self.sink else "?"
+        sink = self.sink.qualified_name if self.sink else self.reader or "?"
         return f"<Connection {source} -> {sink} {self.policy}>"
 
 

@@ -361,6 +361,10 @@ class LaunchHost(Protocol):
     def child_config(self) -> dict[str, Any]:
         """What every child's host needs beyond the plan (:attr:`~.processes.messages.Config.host`)."""
 
+    def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
+        """``--check``: what the host adds to a built part of the application (lines to print), or a
+        :class:`CocoError` naming what it cannot host (the ROS launcher: a port no topic can mirror)."""
+
     def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
             processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
         """Host and run the launcher's part until a stop; whether the stop was clean."""
@@ -377,6 +381,9 @@ class PlainHost:
 
     def child_config(self) -> dict[str, Any]:
         return {}
+
+    def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
+        return [f"<topics>: {len(spec.topics)} port mirror(s) left to the ROS launcher"] if spec.topics else []
 
     def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
             processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
@@ -415,8 +422,8 @@ def check(options: argparse.Namespace, signals: LaunchSignals, host: LaunchHost,
             crossing = crossing_problems(part) if not options.allow_unknown else []
             if crossing:
                 raise ConfigErrors([ConfigError(problem) for problem in crossing])
-            trees.append(describe(part, app, plan_deployment(part, host.launch_options(options)),
-                                  options.allow_unknown))
+            trees.append("\n".join([describe(part, app, plan_deployment(part, host.launch_options(options)),
+                                              options.allow_unknown), *host.checked(part, app, options)]))
         log_warnings(spec)  # the parts share the file's list of warnings
         signals.check()
         print("\n".join(trees))

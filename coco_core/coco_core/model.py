@@ -314,6 +314,31 @@ class ArgDeclaration:
     fixed: bool = False
     """Declared with ``value=``: nothing from outside changes it."""
     location: Location | None = None
+    min: float | None = None
+    """``min=``: the least value it takes (a number), the low end of its ROS parameter's range."""
+    max: float | None = None
+    """``max=``: the greatest value it takes, the high end of its ROS parameter's range."""
+
+
+@dataclass(frozen=True)
+class TopicMirrorSpec:
+    """One ``<topic>``: an output port mirrored on a ROS topic by the ROS launcher (``coco_ros.mirror``);
+    ``coco-launch`` has no node and leaves it alone."""
+
+    component: str
+    port: str
+    topic: str = ""
+    """The topic's name; empty: ``~/<component>/<port>`` (under the launcher's node)."""
+    type: str = ""
+    """The ROS message type (``std_msgs/msg/ColorRGBA``); empty: chosen from the port's values."""
+    data: BufferPolicy = BufferPolicy.DATA
+    """The mirror connection's policy, which the topic's QoS follows."""
+    buffersize: int = 1
+    location: Location | None = None
+    frame: str = ""
+    """The ``header.frame_id`` of values that carry no frame (a device's position, a force)."""
+    hz: float = 0.0
+    """Publish the newest value at most this often (a 1 kHz loop seen by a viewer); 0: every value."""
 
 
 @dataclass
@@ -361,6 +386,8 @@ class AppSpec:
     warnings: list[str] = field(default_factory=list)
     """``file:line: message`` for what was accepted but ignored (settings the original CoCo
     ignores, components left unchecked); the launchers print them."""
+    topics: list[TopicMirrorSpec] = field(default_factory=list)
+    """The ports the file mirrors on ROS topics (``<topics>``), in document order."""
 
     def all_components(self) -> list[ComponentSpec]:
         """Every component, peers included, depth first."""

@@ -147,6 +147,17 @@ class OutputPort(Port):
         """Whether ``connection`` (one of this port's) gets the messages' stamps only."""
         return connection in self._stamps_only
 
+    def mute(self, connection: Connection, muted: bool) -> None:
+        """Stop (``muted``) or resume giving ``connection`` (one of this port's, given every message)
+        this port's writes. A reader that wants the values only at times (a ROS topic's mirror while
+        nobody subscribes, :mod:`coco_ros.mirror`) then costs a write nothing, where an idle
+        connection would still cost a push. The list is replaced, never changed in place: a write
+        in another thread keeps the list it took, and the other connections miss nothing."""
+        if connection not in self.connections or connection in self._stamps_only or connection in self._shared:
+            raise PolicyError(f"{connection!r} is not a connection of {self.qualified_name} given every message")
+        every = [other for other in self._every if other is not connection]
+        self._every = every if muted else [*every, connection]
+
     def share(self, connection: Connection) -> None:
         """Let ``connection`` (one of this port's) take turns with the other shared connections."""
         if connection not in self._every:

@@ -35,7 +35,7 @@ def test_errors_carry_file_and_line_and_are_reported_together():
         (
             "app.xml:2",
             "unexpected element <bogus> in <package>; expected one of: activities, arg, "
-            "components, connections, includes, log, logconfig, paths, ports, resourcespaths, transforms",
+            "components, connections, includes, log, logconfig, paths, ports, resourcespaths, topics, transforms",
         ),
         ("app.xml:4", "<component> needs a <task>: the name the component is registered under"),
     ]

@@ -309,7 +309,7 @@ def test_the_original_sample_with_an_unknown_element_loads_with_a_warning(tmp_pa
     assert len(spec.components) == 9
     assert spec.warnings == [
         f"{copy}:14: unexpected element <test> in <package>; expected one of: activities, arg, components, "
-        "connections, includes, log, logconfig, paths, ports, resourcespaths, transforms; ignored, as the original "
+        "connections, includes, log, logconfig, paths, ports, resourcespaths, topics, transforms; ignored, as the original "
         "CoCo ignores it (this file uses none of this project's extensions, so it is read in the original "
         "dialect)"]
     # Its substitution is evaluated, as the original launcher does: a wrong one is still an error.

@@ -86,6 +86,20 @@ def test_arg_choices_as_in_ros2_launch():
     ]
 
 
+def test_arg_bounds_hold_whoever_gives_the_value():
+    """``min=`` / ``max=``: a number within them (the ROS launcher's parameter range), checked at the
+    declaration for a default and for a given value alike."""
+    declaration = '\n  <arg name="rate" default="1.0" min="0" max="10"/>'
+    text = with_attributes('<attribute name="r" value="$(arg rate)"/>', declaration)
+    app = parse_application_string(text, args={"rate": "10"})
+    assert (app.arg_declarations["rate"].min, app.arg_declarations["rate"].max) == (0.0, 10.0)
+    assert errors_of(text, args={"rate": "11"}) == [(2, "arg 'rate' is '11'; expected a number >= 0 and <= 10")]
+    assert errors_of(text, args={"rate": "fast"}) == [(2, "arg 'rate' is 'fast'; expected a number >= 0 and <= 10")]
+    assert errors_of(text, args={"rate": "nan"}) == [(2, "arg 'rate' is 'nan'; expected a number >= 0 and <= 10")]
+    wrong = with_attributes("", '<arg name="a" default="1" min="low"/>')
+    assert errors_of(wrong) == [(1, '<arg> attribute min="low": expected a number')]
+
+
 def test_arg_must_be_declared_before_use():
     text = """<package>
   <components><component><task>$(arg t)</task></component></components>

@@ -19,7 +19,9 @@ from rclpy.signals import SignalHandlerOptions
 
 from .hosting import ExecutorHost
 
+from .component_parameters import ComponentParameters
 from .launcher import host_in_node, node_name, run_hosted
+from .mirror import PortMirrors
 from .parameters import ArgParameters
 from .rosout import RosoutLogging
 
@@ -60,8 +62,10 @@ class RosChildProcess(ChildProcess):
             # The launcher resolved the args (its -p values included) and reported the -p values no arg
             # takes: a child's node shows the args and refuses changes as the launcher's does.
             ArgParameters(node, config.spec).declare({})
+            ComponentParameters(node, app).declare()
             host, executor = host_in_node(node, app, config.deployment)
-            with RosoutLogging(node):  # this process's log lines on /rosout, under its node's name
+            with (RosoutLogging(node),  # this process's log lines on /rosout, under its node's name
+                  PortMirrors(node, app, config.spec, config.host.get("expose", []))):
                 clean = run_hosted(app, host, executor)
             self.host = host if clean else None  # else a hung callback may still use it: left to the exit
             return clean

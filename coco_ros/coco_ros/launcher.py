@@ -3,6 +3,7 @@
     ros2 run coco_ros launcher app.xml [name:=value ...] [--host NAME [--host-timeout S]] [--duration S] [--profile S]
                                [--check [--allow-unknown] [--graph FILE]] [--list]
                                [--threads NAME[,NAME]] [--all-threads] [--executor-threads N] [--managed]
+                               [--expose PATTERN]
                                [--ros-args -r __node:=NAME -p param:=value ...]
 
 The command line is ``coco-launch``'s (same file format, same ``name:=value`` arguments, same
@@ -16,7 +17,11 @@ SIGTERM) stops every activity within a second, after each component's ``on_stop`
 (:mod:`coco_core.signals`: the rules and the exit statuses). With ``--host NAME`` it runs that host's
 part of an application over several hosts (``docs/hosts.md``), its node named ``<application>_<host>``.
 
-Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.host.node``).
+Components reach the node through ``coco_ros.hosting.ros_node(self)`` (``app.host.node``). What the
+ROS tools see of the application: its ``<arg>``s and its components' attributes as parameters
+(:mod:`.parameters`, :mod:`.component_parameters`), output ports mirrored on topics by the file's
+``<topics>`` and ``--expose`` (:mod:`.mirror`), and ``ros_launcher:=true`` given to a file that
+declares that arg (:data:`HOST_ARGS`).
 """
 
 from __future__ import annotations
@@ -56,8 +61,10 @@ from rclpy.node import Node
 from .fastdds_segments import remove_abandoned
 from .hosting import ExecutorHost, ExecutorThread
 from .managed import ManagedApplication, ManagedLauncherNode
+from .mirror import PortMirrors, check_mirrors
 from .diagnostics import ProfileDiagnostics
 from .operation_services import OperationServices
+from .component_parameters import ComponentParameters
 from .parameters import ArgParameters, given_parameters
 from .rosout import RosoutLogging
 
@@ -66,6 +73,12 @@ log = logging.getLogger("coco")
 PROG = "ros2 run coco_ros launcher"
 _NAME = "launcher"
 """How the launcher names itself in its error messages."""
+
+
+HOST_ARGS = {"ros_launcher": "true"}
+"""What the ROS launcher tells an application that declares these args (ranked as the node's
+parameters: below ``name:=value``): a file keeps what only a node can do (a TFBridge, /robot_description)
+to ``if="$(arg ros_launcher)"``, and ``coco-launch`` runs the rest of it untouched."""
 
 
 def make_ros_parser() -> argparse.ArgumentParser:
@@ -81,6 +94,9 @@ def make_ros_parser() -> argparse.ArgumentParser:
                         help="a managed (lifecycle) node: the application configures on the configure transition and "
                              "runs on activate; deactivate holds it until the next activate; cleanup or shutdown stop "
                              "it (coco_ros.managed)")
+    parser.add_argument("--expose", action="append", default=[], metavar="PATTERN",
+                        help="mirror the output ports matching component.port (wildcards; all: every one) on "
+                             "ROS topics ~/<component>/<port> (coco_ros.mirror)")
     parser.add_argument("--executor-threads", type=_positive_int, metavar="N",
                         help="host the activities as callback groups of one executor with N threads (1: a "
                         "SingleThreadedExecutor) instead of a wait set on a thread of its own for each")
@@ -147,9 +163,9 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         # No -p / --params-file: the file is loaded and built before rclpy starts, so a wrong one is
         # reported before any node appears.
         if options.check:
-            return check(options, signals, RosHost())
+            return check(options, signals, RosHost(), HOST_ARGS)
         try:
-            built = load_and_build(options, signals)
+            built = load_and_build(options, signals, HOST_ARGS)
         except CocoError as error:
             return failure(_NAME, error)
     if options.host is not None:  # before the node: Fast DDS reads its profiles at the first participant
@@ -175,12 +191,13 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         node = node_type(node_name(name), automatically_declare_parameters_from_overrides=True)
         given = given_parameters(node)
         if options.check:
-            return check(options, signals, RosHost(), given)
+            return check(options, signals, RosHost(), {**HOST_ARGS, **given})
         with RosoutLogging(node):  # CoCo's log lines on /rosout too, from here on
-            spec, app = built or load_and_build(options, signals, given)
+            spec, app = built or load_and_build(options, signals, {**HOST_ARGS, **given})
             ArgParameters(node, spec).declare(given)
+            ComponentParameters(node, app).declare()
             signals.check()
-            return launch(spec, app, options, signals, RosHost(node, ros_args))
+            return launch(spec, app, options, signals, RosHost(node, ros_args, options.expose))
     except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(_NAME, error)
     finally:
@@ -213,10 +230,12 @@ class RosHost:
     prog = _NAME
     child_module = "coco_ros.child"
 
-    def __init__(self, node: Node | None = None, ros_args: Sequence[str] = ()) -> None:
+    def __init__(self, node: Node | None = None, ros_args: Sequence[str] = (), expose: Sequence[str] = ()) -> None:
         self.node = node
         """The launcher's node (None for ``--check``, which runs nothing)."""
         self.ros_args = list(ros_args)
+        self.expose = list(expose)
+        """``--expose`` patterns: the ports every process mirrors on topics (:mod:`.mirror`)."""
 
     def launch_options(self, options: argparse.Namespace) -> LaunchOptions:
         return LaunchOptions(Host.ROS, tuple(_threads(options.threads)), options.all_threads,
@@ -224,7 +243,10 @@ class RosHost:
 
     def child_config(self) -> dict[str, Any]:
         assert self.node is not None
-        return {"node": self.node.get_name(), "ros_args": self.ros_args}
+        return {"node": self.node.get_name(), "ros_args": self.ros_args, "expose": self.expose}
+
+    def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
+        return check_mirrors(spec, app, options.expose, options.allow_unknown)
 
     def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
             processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
@@ -238,7 +260,7 @@ class RosHost:
                         options.executor_threads)
         signals.attach(app)
         with (ProfileDiagnostics(node, app.name, processes.snapshots if processes else lambda: [snapshot(app)]),
-              OperationServices(node, app, spec)):
+              OperationServices(node, app, spec), PortMirrors(node, app, spec, self.expose)):
             managed = None
             if isinstance(node, ManagedLauncherNode):
                 managed = node.managed = ManagedApplication(app, host)

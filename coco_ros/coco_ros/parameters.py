@@ -9,9 +9,12 @@ a CoCo user with ``name:=value``. Both reach the same ``<arg>``, in this order o
 
 Every declared ``<arg>`` is declared as a node parameter, typed from its final value (``true`` /
 ``false`` a bool, an integer an int, a number a double, anything else a string), with the arg's
-``doc`` and ``<choice>`` values in its descriptor, so ``ros2 param list/get/describe`` tell what the
-application runs with. An arg is read when the application is built, so a change while it runs
-would be accepted and ignored: ``ros2 param set`` on an arg is refused with the reason instead.
+``doc`` and ``<choice>`` values in its descriptor and its ``min`` / ``max`` as the integer or
+floating point range, so ``ros2 param list/get/describe`` tell what the application runs with. An
+arg is read when the application is built, so a change while it runs would be accepted and
+ignored: every arg is declared ``read_only`` (rqt_reconfigure and Foxglove offer no field that
+always fails; ``ros2 param set`` is refused), its descriptor saying how to change it (restart with
+``name:=VALUE``). The components' attributes are parameters too (:mod:`.component_parameters`).
 Parameters given with ``-p`` that no ``<arg>`` declares are reported once (a typo would otherwise
 go unnoticed); the node's own parameters (``use_sim_time``, ``qos_overrides.*``) are left to rclpy,
 and ``diagnostics.*`` to :mod:`coco_ros.diagnostics`.
@@ -21,12 +24,13 @@ from __future__ import annotations
 
 import logging
 import math
+import sys
 from collections.abc import Mapping
 from typing import Any
 
 from coco_core import CocoError
 from coco_core.errors import did_you_mean
-from coco_core.model import AppSpec
+from coco_core.model import AppSpec, ArgDeclaration
 
 log = logging.getLogger("coco.parameters")
 
@@ -67,6 +71,27 @@ def arg_text(name: str, value: Any) -> str:
                     "(a bool, an integer, a number or a string), not an array")
 
 
+INT64 = (-(2 ** 63), 2 ** 63 - 1)
+
+
+def with_range(descriptor: Any, kind: str, low: float | None, high: float | None) -> Any:
+    """``descriptor`` with the integer (``kind`` "integer") or floating point ("double") range of the
+    bounds ``low`` / ``high`` (either may be None: that end is open), which rclpy checks on every
+    set and rqt_reconfigure and Foxglove show as a slider's ends; another kind takes no range."""
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange
+
+    if low is None and high is None:
+        return descriptor
+    if kind == "integer":
+        descriptor.integer_range = [IntegerRange(from_value=INT64[0] if low is None else math.ceil(low),
+                                                 to_value=INT64[1] if high is None else math.floor(high), step=0)]
+    elif kind == "double":
+        descriptor.floating_point_range = [FloatingPointRange(
+            from_value=-sys.float_info.max if low is None else float(low),
+            to_value=sys.float_info.max if high is None else float(high), step=0.0)]
+    return descriptor
+
+
 def given_parameters(node: Any) -> dict[str, str]:
     """The values ``-p`` and ``--params-file`` gave ``node`` (created with
     ``automatically_declare_parameters_from_overrides``), as arg texts."""
@@ -76,7 +101,7 @@ def given_parameters(node: Any) -> dict[str, str]:
 
 
 class ArgParameters:
-    """Declares ``spec``'s args on ``node`` and refuses changes to them while the application runs."""
+    """Declares ``spec``'s args on ``node``, read-only: the application reads them when it is built."""
 
     def __init__(self, node: Any, spec: AppSpec) -> None:
         self.node = node
@@ -84,10 +109,7 @@ class ArgParameters:
 
     def declare(self, given: Mapping[str, str]) -> None:
         """Declare every arg (its final value, even where ``-p`` said otherwise because
-        ``name:=value`` won), report ``-p`` values that no arg takes, then guard the args."""
-        from rcl_interfaces.msg import ParameterDescriptor
-        from rclpy.parameter import Parameter
-
+        ``name:=value`` won) and report ``-p`` values that no arg takes."""
         declarations = self.spec.arg_declarations
         unknown = sorted(name for name in given if name not in declarations)
         if unknown:
@@ -95,27 +117,24 @@ class ArgParameters:
                         "change nothing; %s", ", ".join(unknown), self.spec.name,
                         did_you_mean(unknown[0], list(declarations)))
         for name, declaration in declarations.items():
-            value = typed_value(declaration.value)
-            if self.node.has_parameter(name):
-                if self.node.get_parameter(name).value != value:
-                    # name:=value won over -p: the node says what the application really runs with.
-                    self.node.set_parameters([Parameter(name, value=value)])
-                continue
-            choices = f"one of: {', '.join(declaration.choices)}" if declaration.choices else ""
-            self.node.declare_parameter(name, value, ParameterDescriptor(
-                description=declaration.doc or f"<arg> {name} of application {self.spec.name}",
-                additional_constraints=choices, read_only=declaration.fixed))
-        self.node.add_on_set_parameters_callback(self._refuse_args)
+            if self.node.has_parameter(name):  # given with -p: declared from the overrides, without a descriptor
+                self.node.undeclare_parameter(name)
+            # Its final value, even where name:=value won over -p: the node says what really runs.
+            self.node.declare_parameter(name, typed_value(declaration.value), self.descriptor(declaration),
+                                        ignore_override=True)
 
-    def _refuse_args(self, parameters: list[Any]) -> Any:
-        """A change to an arg is refused with the reason (the application reads its args when it is
-        built); other parameters (the node's own) are rclpy's business."""
-        from rcl_interfaces.msg import SetParametersResult
+    def descriptor(self, declaration: ArgDeclaration) -> Any:
+        """An arg's descriptor: read-only with the way to change it, its doc, choices and range."""
+        from rcl_interfaces.msg import ParameterDescriptor
 
-        refused = [parameter.name for parameter in parameters if parameter.name in self.spec.arg_declarations]
-        if not refused:
-            return SetParametersResult(successful=True)
-        names = ", ".join(refused)
-        return SetParametersResult(successful=False, reason=(
-            f"{names}: <arg> of application {self.spec.name}, read when it was built; it cannot change "
-            f"while it runs: restart the launcher with {refused[0]}:=VALUE or -p {refused[0]}:=VALUE"))
+        name = declaration.name
+        constraints = [f"read-only: <arg> of application {self.spec.name}, read when it was built; restart the "
+                       f"launcher with {name}:=VALUE or -p {name}:=VALUE"]
+        if declaration.choices:
+            constraints.append(f"one of: {', '.join(declaration.choices)}")
+        descriptor = ParameterDescriptor(
+            description=declaration.doc or f"<arg> {name} of application {self.spec.name}",
+            additional_constraints="; ".join(constraints), read_only=True)
+        value = typed_value(declaration.value)
+        kind = "double" if isinstance(value, float) else "integer" if isinstance(value, int) else "other"
+        return with_range(descriptor, kind, declaration.min, declaration.max)

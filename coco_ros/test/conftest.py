@@ -77,3 +77,32 @@ def rclpy_peer(monkeypatch: pytest.MonkeyPatch, domain: str, name: str) -> Itera
     node.destroy_node()
     context.try_shutdown()
     context.destroy()  # its DDS participant ends here, not whenever the garbage collector gets to it
+
+
+def spinning_peer(monkeypatch: pytest.MonkeyPatch, domain: str, name: str) -> Iterator[Any]:
+    """For a fixture: an rclpy node on DDS ``domain`` (localhost only) whose executor spins in a thread
+    of its own, so that a test can wait on what its callbacks collect (:func:`wait_for`)."""
+    import threading
+
+    from rclpy.executors import SingleThreadedExecutor
+
+    peers = rclpy_peer(monkeypatch, domain, name)
+    node, executor = next(peers)
+    assert isinstance(executor, SingleThreadedExecutor)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    yield node
+    executor.shutdown()
+    spinner.join(5)
+    next(peers, None)  # the peer's own clean-up
+
+
+def wait_for(condition: Callable[[], Any], what: str, seconds: float = 20) -> Any:
+    """What ``condition()`` gives once it is true, asked every 10 ms; fails naming ``what`` after ``seconds``."""
+    import time
+
+    deadline = time.monotonic() + seconds
+    while not (result := condition()):
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.01)
+    return result

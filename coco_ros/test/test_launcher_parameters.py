@@ -1,6 +1,7 @@
 """The application's ``<arg>``s as ROS parameters of the launcher's node (coco_ros.parameters):
 ``-p`` and ``--params-file`` set them below ``name:=value``, ``ros2 param get`` reads what runs, and
-``ros2 param set`` on an arg is refused with a reason, never accepted and ignored.
+``ros2 param set`` on an arg is refused (the args are read-only, their descriptors say how to change
+them and carry their ranges), never accepted and ignored.
 
 The launcher runs as the installed script in a subprocess; the other side is a real rclpy parameter
 client of this test on its own DDS domain (localhost only)."""
@@ -24,7 +25,7 @@ from conftest import rclpy_peer
 
 APP = """<package name="param_app">
   <arg name="output" doc="CSV file the recorder writes"/>
-  <arg name="window" default="4" doc="moving-average window"/>
+  <arg name="window" default="4" min="1" max="64" doc="moving-average window"/>
   <arg name="mode" default="fast" doc="a choice"><choice value="fast"/><choice value="slow"/></arg>
   <arg name="fixed" value="1.5"/>
   <components>
@@ -174,9 +175,12 @@ def test_param_get_reads_what_runs_and_param_set_on_an_arg_is_refused(app_file: 
         assert values[2].string_value == "fast" and values[3].double_value == 1.5
         described = done(lambda: client.describe_parameters(["mode"])).descriptors[0]
         assert described.description == "a choice" and "fast, slow" in described.additional_constraints
+        window = done(lambda: client.describe_parameters(["window"])).descriptors[0]
+        assert window.read_only and "read when it was built" in window.additional_constraints
+        assert "window:=VALUE" in window.additional_constraints
+        assert (window.integer_range[0].from_value, window.integer_range[0].to_value) == (1, 64)
         result = done(lambda: client.set_parameters([Parameter("window", value=9)])).results[0]
-        assert not result.successful
-        assert "read when it was built" in result.reason and "window:=VALUE" in result.reason
+        assert not result.successful and "read-only" in result.reason
         assert done(lambda: client.get_parameters(["window"])).values[0].integer_value == 6
         # The node's own parameters stay rclpy's.
         assert done(lambda: client.set_parameters([Parameter("use_sim_time", value=False)])).results[0].successful

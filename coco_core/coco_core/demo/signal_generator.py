@@ -15,9 +15,9 @@ from ..stamps import Stamp, Stamped
 class SignalGenerator(Component):
     """Writes one sample of ``amplitude * sin(2 pi frequency t) + noise`` per activation."""
 
-    frequency = Attribute(float, 0.5, "sine frequency in Hz; may be changed while running", min=0.0)
-    amplitude = Attribute(float, 1.0, "peak value of the sine")
-    noise = Attribute(float, 0.1, "standard deviation of the added Gaussian noise", min=0.0)
+    frequency = Attribute(float, 0.5, "sine frequency in Hz; may be changed while running", min=0.0, live=True)
+    amplitude = Attribute(float, 1.0, "peak value of the sine", live=True)
+    noise = Attribute(float, 0.1, "standard deviation of the added Gaussian noise", min=0.0, live=True)
     seed = Attribute(int, 1, "seed of the noise, so that runs are repeatable")
 
     sample = OutputPort(Stamped, "the noisy sample, stamped when it was produced")

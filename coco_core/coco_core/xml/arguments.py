@@ -23,8 +23,9 @@ from ..errors import CommandLineError, ConfigError, Location, did_you_mean
 from ..model import ArgDeclaration
 from .reader import CONDITIONS, FileReader
 from .tree import Element
+from .values import parse_number
 
-ARG_ATTRIBUTES = ("default", "doc", "name", "value", *CONDITIONS)
+ARG_ATTRIBUTES = ("default", "doc", "max", "min", "name", "value", *CONDITIONS)
 _NAME = re.compile(r"[A-Za-z0-9_.-]+")
 
 
@@ -100,9 +101,33 @@ class Arguments:
             value = ""
         if choices and value is not None and value not in choices:
             reader.error(f"arg {name!r} is {value!r}; expected one of: {', '.join(choices)}", element)
+        low, high = self._bound(reader, element, "min"), self._bound(reader, element, "max")
+        if value is not None and (low is not None or high is not None):
+            self._check_bounds(reader, element, name, value, low, high)
         self.values[name] = value or ""
         self.declarations[name] = ArgDeclaration(name, self.values[name], tuple(choices),
-                                                 reader.attribute(element, "doc") or "", fixed, element.location)
+                                                 reader.attribute(element, "doc") or "", fixed, element.location,
+                                                 low, high)
+
+    @staticmethod
+    def _bound(reader: FileReader, element: Element, which: str) -> float | None:
+        """``min=`` / ``max=``: the numbers an arg's value must lie within (a ROS parameter's range)."""
+        values = {which: reader.attribute(element, which) or ""}
+        return reader.parsed(element, values, which, parse_number)
+
+    @staticmethod
+    def _check_bounds(reader: FileReader, element: Element, name: str, value: str, low: float | None,
+                      high: float | None) -> None:
+        """An arg with bounds is a number within them, whoever gave it."""
+        expected = " and ".join(text for text in (f">= {low:g}" if low is not None else "",
+                                                  f"<= {high:g}" if high is not None else "") if text)
+        try:
+            number = parse_number(value)
+        except ValueError:
+            reader.error(f"arg {name!r} is {value!r}; expected a number {expected}", element)
+            return
+        if (low is not None and number < low) or (high is not None and number > high):
+            reader.error(f"arg {name!r} is {value!r}; expected a number {expected}", element)
 
     @staticmethod
     def _choices(reader: FileReader, element: Element) -> list[str]:

@@ -41,7 +41,7 @@ def read_connection(reader: FileReader, element: Element) -> ConnectionSpec | No
             "only LOCAL (components of one process) is",
             element,
         )
-    size = _buffer_size(reader, element, values, data)
+    size = buffer_size(reader, element, values, data)
     event = reader.parsed(element, values, "event", parse_bool)
     stamps_only = reader.parsed(element, values, "stamps_only", parse_bool)
     codec = reader.choice(element, values, "codec", CODECS, "plain")
@@ -67,7 +67,7 @@ def read_connection(reader: FileReader, element: Element) -> ConnectionSpec | No
     )
 
 
-def _buffer_size(
+def buffer_size(
     reader: FileReader, element: Element, values: dict[str, str], data: BufferPolicy
 ) -> int:
     """``buffersize``: -1 or nothing means 1, which only makes sense for the unsized policies."""
@@ -84,14 +84,14 @@ def _buffer_size(
         return 1
     if size == 0 and data not in SIZED:
         reader.warn(
-            f'<connection> attribute buffersize="{text}" on a {data.value} connection is ignored: it '
+            f'<{element.tag}> attribute buffersize="{text}" on a {data.value} connection is ignored: it '
             "holds the newest value only (the original CoCo ignores the size too)",
             element,
         )
         return 1
     if size < 1:
         reader.error(
-            f'<connection> attribute buffersize="{text}": expected at least 1, or -1 for the default',
+            f'<{element.tag}> attribute buffersize="{text}": expected at least 1, or -1 for the default',
             element,
         )
         return 1

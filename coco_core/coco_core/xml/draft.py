@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 from ..errors import Location
 from ..model import (
     ActivitySpec, AttributeSpec, ComponentSpec, CompositeSpec, ConnectionSpec, HostSpec, LogSpec, PortRef,
-    ProcessSpec,
+    ProcessSpec, TopicMirrorSpec,
 )
 
 if TYPE_CHECKING:
@@ -63,6 +63,8 @@ class Draft:
     stands for (see :mod:`.composite`)."""
     composites: list[CompositeSpec] = field(default_factory=list)
     """The composite instances read so far, with scoped names."""
+    topics: list[TopicMirrorSpec] = field(default_factory=list)
+    """The ``<topic>`` mirrors read so far (see :mod:`.topics`)."""
     activity_count: int = 0
     pipeline_count: int = 0
     farm_count: int = 0

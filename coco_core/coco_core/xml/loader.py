@@ -31,6 +31,7 @@ from .reader import CONDITIONS, FileReader
 from .references import check_draft
 from .resources import find_resource, not_found_message
 from .substitution import Substitutions
+from .topics import read_topics
 from .transforms import read_transforms
 from .tree import Element, parse_xml
 from .values import parse_int
@@ -47,6 +48,7 @@ PACKAGE_CHILDREN = (
     "paths",
     "ports",
     "resourcespaths",
+    "topics",
     "transforms",
 )
 LOG_CHILDREN = ("file", "levels", "outfile", "types")
@@ -145,6 +147,7 @@ class _Loader:
             transforms=self.draft.transforms.spec if self.draft.transforms is not None else None,
             composites=self.draft.composites,
             warnings=self.warnings,
+            topics=self.draft.topics,
         )
 
     def _reading_order(self, error: ConfigError) -> tuple[int, int]:
@@ -193,6 +196,9 @@ class _Loader:
                 self._components(reader, child, on_error)
             elif child.tag == "ports":
                 read_ports(reader, child, self.draft)
+            elif child.tag == "topics":
+                if reader.kept(child):
+                    read_topics(reader, child, self.draft)
             elif child.tag == "transforms":
                 if reader.kept(child):
                     self.draft.transforms = read_transforms(reader, child, self.draft.transforms)

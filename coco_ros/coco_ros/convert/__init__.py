@@ -32,6 +32,9 @@ _CONVERTERS: dict[str, tuple[str, str]] = {
     "sensor_msgs/msg/PointCloud2": ("clouds", "PointCloud2Converter"),
     "geometry_msgs/msg/PoseStamped": ("geometry", "PoseStampedConverter"),
     "geometry_msgs/msg/TransformStamped": ("geometry", "TransformStampedConverter"),
+    "geometry_msgs/msg/WrenchStamped": ("forces", "WrenchStampedConverter"),
+    "std_msgs/msg/ColorRGBA": ("colors", "ColorRGBAConverter"),
+    "visualization_msgs/msg/Marker": ("markers", "ForceArrowConverter"),
     "tf2_msgs/msg/TFMessage": ("geometry", "TFMessageConverter"),
     "std_msgs/msg/Float64": ("scalars", "Float64Converter"),
     **{f"std_msgs/msg/{element}{suffix}MultiArray": ("arrays", "MultiArrayConverter")

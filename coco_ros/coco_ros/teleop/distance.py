@@ -80,8 +80,9 @@ def _check_far(value: float) -> str | None:
 class EndEffectorDistance(Component):
     """UpdateColorCalc: gripper-to-bowl distance and its colour; see the module docstring."""
 
-    near = Attribute(float, 0.02, "distance (m) at or below which the colour is green", min=0.0)
-    far = Attribute(float, 0.5, "distance (m) at or above which the colour is red", check=_check_far)
+    near = Attribute(float, 0.02, "distance (m) at or below which the colour is green", min=0.0, live=True)
+    far = Attribute(float, 0.5, "distance (m) at or above which the colour is red", check=_check_far,
+                    live=True)
 
     gripper = InputPort(FramePose | Stamped, event=True, doc="T_base_gripper, optionally Stamped")
     bowl = InputPort(FramePose | Stamped, event=True, doc="T_base_bowl, optionally Stamped")
