@@ -138,3 +138,20 @@ def _identity(rs: Any) -> Any:
 
 
 __all__ = ["SyntheticScene", "write_recording"]
+
+
+def frames_of(peer: Any) -> list[Any]:
+    """Every frame a recording's peer (an :class:`~coco_mr_vision.rgbd_peers.RgbdPeer`) gives from
+    its configuration to its end: what a reader asking for frames at 200 Hz gets of a real-time one."""
+    peer.on_config()
+    frames = []
+    try:
+        while not peer.exhausted:
+            frame = peer.grab()
+            if frame is not None:
+                frames.append(frame)
+            elif getattr(peer, "realtime", False):
+                time.sleep(0.005)
+    finally:
+        peer.on_stop()
+    return frames

@@ -16,8 +16,7 @@ from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, In
 from coco_core.errors import CameraError  # noqa: E402
 from coco_mr_vision.image import ImageFormat  # noqa: E402
 from coco_mr_vision.realsense_peer import RealSenseRgbdPeer  # noqa: E402
-from coco_mr_vision.realsense_recording import SyntheticScene  # noqa: E402
-from coco_mr_vision.rgbd import RGBDFrame  # noqa: E402
+from coco_mr_vision.realsense_recording import SyntheticScene, frames_of  # noqa: E402
 from coco_mr_vision.rgbd_reader import RgbdCameraReader  # noqa: E402
 
 SCENE = SyntheticScene()
@@ -27,24 +26,8 @@ class Sink(Component):
     rgbd = InputPort(object)
 
 
-def play(peer: RealSenseRgbdPeer) -> list[RGBDFrame]:
-    """Every frame of the recording the peer gives; in real time, asked for as a 200 Hz reader would."""
-    peer.on_config()
-    frames = []
-    try:
-        while not peer.exhausted:
-            frame = peer.grab()
-            if frame is not None:
-                frames.append(frame)
-            elif peer.realtime:
-                time.sleep(0.005)
-    finally:
-        peer.on_stop()
-    return frames
-
-
 def test_every_recorded_frame_with_exact_depth_intrinsics_and_stamps(realsense_recording: Path):
-    frames = play(RealSenseRgbdPeer("rs", path=str(realsense_recording), realtime=False, align=False))
+    frames = frames_of(RealSenseRgbdPeer("rs", path=str(realsense_recording), realtime=False, align=False))
     assert len(frames) == SCENE.frames
     for index, frame in enumerate(frames):
         assert frame.depth.format is ImageFormat.DEPTH16 and frame.color.format is ImageFormat.RGB8
@@ -62,7 +45,7 @@ def test_every_recorded_frame_with_exact_depth_intrinsics_and_stamps(realsense_r
 
 
 def test_aligned_to_colour_and_filtered(realsense_recording: Path):
-    frames = play(RealSenseRgbdPeer("rs", path=str(realsense_recording), realtime=False,
+    frames = frames_of(RealSenseRgbdPeer("rs", path=str(realsense_recording), realtime=False,
                                     filters="decimation, hole_filling"))
     assert len(frames) == SCENE.frames
     depth = frames[-1].depth.data
@@ -99,7 +82,7 @@ def test_reader_loops_the_recording_and_logs_its_length(realsense_recording: Pat
 def test_real_time_playback_takes_the_recording_s_time(realsense_recording: Path):
     peer = RealSenseRgbdPeer("rs", path=str(realsense_recording))
     start = time.monotonic()
-    frames = play(peer)
+    frames = frames_of(peer)
     elapsed = time.monotonic() - start
     assert elapsed >= (SCENE.frames - 2) / SCENE.fps * 0.9, "played at the recorded pace"
     assert len(frames) >= SCENE.frames // 3, "frames the reader missed are dropped, as a live camera drops them"

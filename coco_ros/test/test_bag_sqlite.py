@@ -105,7 +105,7 @@ def test_the_librealsense_recording_gives_the_peer_s_frames_without_pyrealsense2
     the pixels, intrinsics and count the RealSense peer reads from it through librealsense."""
     pytest.importorskip("pyrealsense2", reason="librealsense writes the recording")
     from coco_mr_vision.realsense_peer import RealSenseRgbdPeer
-    from coco_mr_vision.realsense_recording import SyntheticScene, write_recording
+    from coco_mr_vision.realsense_recording import SyntheticScene, frames_of, write_recording
     from coco_ros.vision.rgbd_bag import BagRgbdPeer
 
     scene = SyntheticScene()
@@ -116,8 +116,8 @@ def test_the_librealsense_recording_gives_the_peer_s_frames_without_pyrealsense2
                            info_topic=device.format(1, "Color") + "camera_info", depth_scale=scene.depth_scale)
     with pytest.MonkeyPatch.context() as without:
         without.setitem(sys.modules, "pyrealsense2", None)  # importing it now fails: the bag path must not
-        bag_frames = play(bag_peer)
-    rs_frames = play(RealSenseRgbdPeer("rs", path=str(recording), realtime=False, align=False))
+        bag_frames = frames_of(bag_peer)
+    rs_frames = frames_of(RealSenseRgbdPeer("rs", path=str(recording), realtime=False, align=False))
     assert len(bag_frames) == len(rs_frames) == scene.frames
     for index, (ours, theirs) in enumerate(zip(bag_frames, rs_frames)):
         assert np.array_equal(ours.depth.data, theirs.depth.data), index
@@ -128,16 +128,3 @@ def test_the_librealsense_recording_gives_the_peer_s_frames_without_pyrealsense2
     stamps = [f.stamp for f in bag_frames]
     # The recorder's arrival times: fed at the scene's rate, so never faster; later on a loaded machine.
     assert all(b > a for a, b in zip(stamps, stamps[1:])) and stamps[-1] - stamps[0] >= (scene.frames - 1.5) / scene.fps
-
-
-def play(peer) -> list:
-    peer.on_config()
-    frames = []
-    try:
-        while not peer.exhausted:
-            frame = peer.grab()
-            if frame is not None:
-                frames.append(frame)
-    finally:
-        peer.on_stop()
-    return frames
