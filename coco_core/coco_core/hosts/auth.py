@@ -3,9 +3,9 @@
 Any participant of a DDS domain can publish on any topic of it. So every message between the hosts
 of an application (the launch's heartbeats and calls, every sample of a connection) carries a
 :class:`Seal`: the sending host's name, a random ``session`` number of the sending end's launch, a
-``counter`` that the end increments for every message, its wall-clock time, and an HMAC-SHA256
-over all of these, the topic and the message's own fields, keyed with the application's key
-(:mod:`.key`). The receiving end (:class:`Verifier`, one per topic) refuses:
+``counter`` that the end increments for every message, its wall-clock time, and a MAC (keyed
+BLAKE2b-256) over all of these, the topic and the message's own fields, keyed with the
+application's key (:mod:`.key`). The receiving end (:class:`Verifier`, one per topic) refuses:
 
 - a message whose MAC is wrong (sent without the key, or changed on the way);
 - one from a host that the application file does not declare, or that should not write on that
@@ -52,6 +52,9 @@ per topic and reason under ``(other senders)``: a flood of made-up names must no
 the log."""
 OTHER_SENDERS = "(other senders)"
 
+MAC_BYTES = 32
+PERSON = b"coco host msg"
+"""BLAKE2b's personalisation: a MAC made here is of no use to any other protocol that shares the key."""
 _HEADER = struct.Struct("<QQd")
 _LENGTH = struct.Struct("<Q")
 
@@ -68,20 +71,23 @@ class Seal:
 
 
 def mac(key: AppKey, topic: str, host: str, session: int, counter: int, wall: float, parts: Iterable[Any]) -> bytes:
-    """The HMAC-SHA256 of a message: its topic, sender, session, counter and time, then each of
-    ``parts`` (buffers or ``str``), each led by its length so that no two messages share an input."""
-    digest = hmac.new(key.secret, digestmod=hashlib.sha256)
-    update = digest.update
+    """The MAC of a message: keyed BLAKE2b-256 (RFC 7693's keyed mode, a MAC by design) over its
+    topic, sender, session, counter and time, then each of ``parts`` (buffers or ``str``), each led
+    by its length so that no two messages share an input.
+
+    Why BLAKE2b and one call over the joined bytes: HMAC-SHA256 fed part by part cost a Python call
+    each, and OpenSSL's one-shot HMAC lets the interpreter lock go even for a few hundred bytes, so
+    that the writing thread waited for the reading one at every sample (a small sample's way between
+    hosts took twice as long). hashlib's BLAKE2b keeps the lock below 2 KiB, and is twice as fast."""
+    chunks: list[Any] = []
     for text in (topic, host):
         encoded = text.encode()
-        update(_LENGTH.pack(len(encoded)))
-        update(encoded)
-    update(_HEADER.pack(session, counter, wall))
+        chunks += (_LENGTH.pack(len(encoded)), encoded)
+    chunks.append(_HEADER.pack(session, counter, wall))
     for part in parts:
         data = part.encode() if type(part) is str else part
-        update(_LENGTH.pack(memoryview(data).nbytes))
-        update(data)
-    return digest.digest()
+        chunks += (_LENGTH.pack(memoryview(data).nbytes), data)
+    return hashlib.blake2b(b"".join(chunks), key=key.secret, digest_size=MAC_BYTES, person=PERSON).digest()
 
 
 class Sealer:
