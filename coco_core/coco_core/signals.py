@@ -53,6 +53,9 @@ INTERRUPTED = 128 + signal.SIGINT
 
 LOOK_AGAIN = 0
 """What :meth:`SignalWatcher.wake` passes for no signal: act on what was delivered and not acted on."""
+SYNC_TIMEOUT = 0.5
+"""Seconds the main thread waits for the watcher to have read the signals delivered before (it
+reads them at once; the bound is for a watcher that is not running)."""
 
 
 class SignalWatcher:
@@ -70,6 +73,9 @@ class SignalWatcher:
         self._read, self._write = os.pipe()
         os.set_blocking(self._write, False)  # what set_wakeup_fd asks: a full pipe drops a byte, never blocks
         self._thread = threading.Thread(target=self._loop, name="coco:signals", daemon=True)
+        self._looked = 0
+        """How many :data:`LOOK_AGAIN` the watcher has acted on (:meth:`sync` waits for one more)."""
+        self._looking = threading.Condition()
 
     def watch(self, act: Callable[[int], None]) -> None:
         """Call ``act(signum)`` in the watcher's thread for every signal from now on (and
@@ -86,6 +92,19 @@ class SignalWatcher:
         except BlockingIOError:  # full: the watcher has bytes to read, and looks again anyway
             pass
 
+    def sync(self, timeout: float = SYNC_TIMEOUT) -> None:
+        """Return once the watcher has read every signal delivered before the call (never from a
+        signal handler: it waits on a lock). Why: the main thread's handlers run in the order of
+        the signals' numbers, the watcher's in the order of their delivery, which decides a
+        launch's first signal."""
+        if not self._thread.is_alive():
+            return
+        with self._looking:
+            seen = self._looked
+        self.wake()
+        with self._looking:
+            self._looking.wait_for(lambda: self._looked > seen, timeout)
+
     def _loop(self) -> None:
         while True:
             for signum in os.read(self._read, 64):
@@ -93,6 +112,10 @@ class SignalWatcher:
                     self.act(signum)
                 except Exception:  # a failed stop must not end the watching
                     log.exception("acting on signal %d failed", signum)
+                if signum == LOOK_AGAIN:
+                    with self._looking:
+                        self._looked += 1
+                        self._looking.notify_all()
 
 
 _watcher: SignalWatcher | None = None
@@ -144,7 +167,7 @@ class LaunchSignals:
         self.received.append(signum)
         if self.interrupting:
             self.interrupting = False  # one exception: a second signal must not interrupt its handling
-            raise Interrupted(self._first())
+            raise Interrupted(signum)  # :meth:`loading` makes it the launch's first signal
 
     def _act(self, signum: int) -> None:
         """The watcher's thread: a signal was delivered (or :data:`LOOK_AGAIN`). After the launch
@@ -169,11 +192,14 @@ class LaunchSignals:
         app.request_stop(f"received {signal.Signals(signum).name}", hard=True)
 
     def _first(self) -> int:
-        """The launch's first signal (one was received). Python runs the handlers of signals that
-        came while the main thread was in one native call in the order of their numbers (SIGINT
-        before an earlier SIGTERM): the watcher's order of delivery says which came first."""
+        """The launch's first signal (one was received; the main thread, never a handler). Python
+        runs the handlers of signals that came while the main thread was in one native call in the
+        order of their numbers (SIGINT before an earlier SIGTERM): the watcher's order of delivery
+        says which came first, once it has read them all."""
         if self._early:
             return self.received[0]
+        if len(self._delivered) < len(self.received):
+            self._watcher.sync()
         return self._delivered[0] if self._delivered else self.received[0]
 
     def check(self) -> None:
@@ -196,6 +222,9 @@ class LaunchSignals:
         self.interrupting = True
         try:
             yield
+        except Interrupted:
+            self.interrupting = False
+            raise Interrupted(self._first()) from None  # the handler raised with the signal it ran for
         finally:
             self.interrupting = False
 
