@@ -146,6 +146,9 @@ class RealSenseRgbdPeer(RgbdPeer):
             raise
         self._last: tuple[int, int] | None = None
         self._waiting_since = time.monotonic()
+        self._played = False
+        """A recording's playback was seen playing, or gave a frame: only then is "stopped" its end
+        (right after the start, on a loaded machine, it said stopped before it began)."""
         self.exhausted = False
 
     def _read_profile(self) -> None:
@@ -255,8 +258,15 @@ class RealSenseRgbdPeer(RgbdPeer):
         while True:
             ready, frames = self._pipeline.try_wait_for_frames(0 if self.realtime else _SLICE_MS)
             if ready:
+                self._played = True
                 return frames
-            if self._profile.get_device().as_playback().current_status() == self._rs.playback_status.stopped:
+            status = self._profile.get_device().as_playback().current_status()
+            if status == self._rs.playback_status.playing:
+                self._played = True
+            elif not self._played and time.monotonic() - self._waiting_since >= self.timeout:
+                raise CameraError(f"{self.name}: the recording {self._recording} did not start playing within "
+                                  f"{self.timeout:g} s")
+            elif status == self._rs.playback_status.stopped and self._played:
                 frames = self._pipeline.poll_for_frames()  # what the pipeline still held when playback ended
                 if frames:
                     return frames
