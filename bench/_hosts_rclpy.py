@@ -120,8 +120,7 @@ def subscribe(node: Any, kind: str, latency: int, burst: int, path: str) -> None
         record(number, phase, written, received)
 
     def decoded(message: Any) -> None:  # as a reader's end takes a sample: its seal checked, then decoded
-        seal = Seal(message.sender, message.session, message.counter, message.wall, message.mac)
-        if not verifier.accept(seal, sample_parts(message)):
+        if not verifier.accept(seal_of(message), sample_parts(message)):
             raise SystemExit("a sample of the benchmark failed its seal")
         value = decoder.decode(message)
         record(int(value[1]), int(value[2]), float(value[0]), time.perf_counter())  # received: decoded
@@ -134,9 +133,10 @@ def subscribe(node: Any, kind: str, latency: int, burst: int, path: str) -> None
     if kind == "small":
         node.create_subscription(JointState, "bench_small", arrived, qos)
     elif kind == "sample":
-        from coco_core.hosts.auth import Refusals, Seal, Verifier
+        from coco_core.hosts.auth import Refusals, Verifier
         from coco_interfaces.msg import Sample
         from coco_ros.hosts.sample import SampleDecoder, sample_parts
+        from coco_ros.hosts.seal import seal_of
 
         decoder = SampleDecoder()
         verifier = Verifier(BENCH_KEY, "bench_sample", ["robot"], ["robot", "graphics"], Refusals())

@@ -37,6 +37,7 @@ from coco_ros.hosts.bridge import THREAD_NAME, HostBridge
 from coco_ros.hosts.channel import DdsFrameReader, DdsReader, DdsWriter, attach_between_hosts
 from coco_ros.hosts.qos import qos_of
 from coco_ros.hosts.sample import SampleEncoder, sample_parts
+from coco_ros.hosts.seal import sealed
 
 DOMAIN = "164"  # its own: no other test uses it
 REDWOOD = Path(__file__).resolve().parents[3] / "shared" / "data" / "rgbd" / "redwood"
@@ -373,14 +374,6 @@ def test_the_rgbd_codec_carries_a_redwood_frame(link):
     assert coded < raw / 4, (coded, raw)
 
 
-def sealed(sample: Sample, sealer: Sealer) -> Sample:
-    """``sample`` sealed as a writer's end with the key would seal it."""
-    seal = sealer.seal(sample_parts(sample))
-    sample.sender, sample.session, sample.counter, sample.wall, sample.mac = (seal.host, seal.session, seal.counter,
-                                                                             seal.wall, seal.mac)
-    return sample
-
-
 def test_a_damaged_sample_is_counted_reported_and_skipped(link, hosts):
     """Samples with the key that do not decode (garbage, an unknown codec, user stamps that are
     not, a pickle, numbers out of range, a value of another type than the port takes) are counted
@@ -400,7 +393,7 @@ def test_a_damaged_sample_is_counted_reported_and_skipped(link, hosts):
            Sample(number=7, seq=7, codec="plain", payload=SampleEncoder("plain", sealer).encode("a str", 1).payload)]
     bad += [Sample(number=number, seq=number, codec="plain", payload=bytes(number)) for number in range(8, 13)]
     for sample in bad:
-        garbage.publish(sealed(sample, sealer))
+        garbage.publish(sealed(sample, sealer, sample_parts(sample)))
     assert wait_for(lambda: crossing.reader.damaged == 12)
     damage = crossing.reader_app.damage
     assert len(damage) == 10 and all("source.out->sink.sample from host alpha" in what for what in damage)

@@ -25,7 +25,7 @@ from collections.abc import Callable, Iterator
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from coco_core.errors import PacketError
-from coco_core.hosts.auth import Refusals, Seal, Sealer, Verifier
+from coco_core.hosts.auth import Refusals, Sealer, Verifier
 from coco_core.hosts.channel import ros_name
 from coco_core.hosts.key import AppKey
 from coco_core.hosts.messages import Heartbeat
@@ -34,6 +34,7 @@ from coco_core.wire import Decoder, Encoder
 from coco_interfaces.msg import HostMessage
 
 from .bridge import HostBridge
+from .seal import seal_of, sealed
 
 log = logging.getLogger("coco")
 
@@ -88,17 +89,14 @@ class DdsBus:
         out = HostMessage()
         out.sender, out.recipient, out.body = self.host, recipient, self._encoder.encode(message)
         publisher = self.beats if isinstance(message, Heartbeat) else self.publisher
-        seal = self._sealers[publisher].seal(message_parts(out))
-        out.session, out.counter, out.wall, out.mac = seal.session, seal.counter, seal.wall, seal.mac
-        publisher.publish(out)
+        publisher.publish(sealed(out, self._sealers[publisher], message_parts(out)))
 
     def _heard(self, message: HostMessage, verifier: Verifier) -> None:
         if message.recipient not in ("", self.host):
             return
         if message.sender == self.host and message.session in self._own:
             return  # its own, heard back
-        if not verifier.accept(Seal(message.sender, message.session, message.counter, message.wall, message.mac),
-                               message_parts(message)):
+        if not verifier.accept(seal_of(message), message_parts(message)):
             return
         try:
             body = self._decoder.decode(message.body)

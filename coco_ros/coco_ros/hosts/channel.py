@@ -49,7 +49,7 @@ from rclpy.exceptions import InvalidHandle
 from coco_core.component import DAMAGE_LISTED
 from coco_core.connections import Connection, CountedConnection, make_connection
 from coco_core.errors import ChannelError, CocoError, ConfigError, PacketError
-from coco_core.hosts.auth import Seal, Sealer, Verifier
+from coco_core.hosts.auth import Sealer, Verifier
 from coco_core.hosts.channel import HostChannel
 from coco_core.hosts.key import AppKey
 from coco_core.policy import BufferPolicy, SyncPolicy
@@ -65,6 +65,7 @@ from .bridge import HostBridge
 from .qos import qos_of
 from .sample import (STAMP_CODEC, Clock, Frame, SampleDecoder, SampleEncoder, check_numbers, same_clock,
                      sample_parts)
+from .seal import seal_of
 
 if TYPE_CHECKING:
     from coco_core.application import Application
@@ -185,8 +186,7 @@ class Arrivals:
             return False
 
     def _arrive(self, sample: Sample) -> None:
-        if not self._verifier.accept(Seal(sample.sender, sample.session, sample.counter, sample.wall, sample.mac),
-                                     sample_parts(sample)):
+        if not self._verifier.accept(seal_of(sample), sample_parts(sample)):
             return
         try:
             if sample.writer_done:

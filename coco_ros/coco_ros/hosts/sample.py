@@ -66,6 +66,8 @@ from coco_core.stamps import NO_USER_STAMPS, Message, Stamp, UserStamps
 from coco_core.wire import FIRST_EXTENSION, Clock, Decoder, Encoder, Pack, Unpack, same_clock, value_type
 from coco_interfaces.msg import Sample
 
+from .seal import sealed
+
 STAMP_CODEC = "stamp"
 """The codec of a stamps-only connection's samples: the stamp fields, no payload."""
 PAYLOAD_CODECS = ("plain", "rgbd")
@@ -167,10 +169,7 @@ class SampleEncoder:
         return self._seal(sample)
 
     def _seal(self, sample: Sample) -> Sample:
-        seal = self.sealer.seal(sample_parts(sample))
-        sample.sender, sample.session, sample.counter, sample.wall = seal.host, seal.session, seal.counter, seal.wall
-        sample.mac = seal.mac
-        return sample
+        return sealed(sample, self.sealer, sample_parts(sample))
 
 
 class SampleDecoder:
