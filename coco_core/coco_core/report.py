@@ -1,6 +1,8 @@
 """The profiler's report: what ``coco-launch --profile`` prints.
 
-Per process (when the application has several): pid, CPU time and resident memory. Per activity:
+Per process: pid, CPU time, CPU share (CPU time over the time the process has lived, in cores:
+the machine's budget, :mod:`coco_core.cpu`) and resident memory; per thread of each process, its CPU
+time and share, the busiest first (a thread near one core busy-waits, or cannot keep up). Per activity:
 cycles, overruns and period error percentiles. Per component: executions, total time, mean and
 standard deviation of compute time and of service time (time between activations), errors, and
 stamp-to-output latency when the component records it (from its inputs' origins: a ``Stamped``
@@ -26,6 +28,7 @@ from dataclasses import dataclass, field
 
 from .application import Application
 from .connections import Connection
+from .cpu import process_cpu, thread_cpu
 from .ports import PooledOutputPort
 
 
@@ -41,6 +44,11 @@ class ProfileSnapshot:
     """User + system CPU seconds of the whole process so far."""
     rss: int
     """Resident memory in bytes."""
+    cores: float | None = None
+    """CPU time over the time the process has lived, start-up included (cores); None: unknown (a
+    child that sent no profile)."""
+    threads: list[list[str]] = field(default_factory=list)
+    """Each thread that used CPU time: name, CPU seconds, cores (over the thread's life)."""
     activities: list[list[str]] = field(default_factory=list)
     components: list[list[str]] = field(default_factory=list)
     connections: list[list[str]] = field(default_factory=list)
@@ -71,8 +79,11 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
     """The profile of what this process runs of ``app``: its own activities (not the stand-ins of
     activities that other processes run) and the connections it reads."""
     times = os.times()
+    use = process_cpu(since=app.started_at or None)
     shot = ProfileSnapshot(process, os.getpid(), time.perf_counter() - app.started_at if app.started_at else 0.0,
-                           times.user + times.system, _rss())
+                           times.user + times.system, _rss(), None if use is None or not use.wall else use.cores)
+    shot.threads = [[name, f"{thread.seconds:.2f}", f"{thread.cores:.2f}"]
+                    for name, thread in thread_cpu() if thread.seconds > 0]
     local = [activity for activity in app.activities.values() if activity.process == app.process]
     for activity in local:
         summary = activity.stats.error_summary() if activity.period is not None else None
@@ -139,10 +150,15 @@ def render(name: str, snapshots: list[ProfileSnapshot]) -> str:
                 for shot in snapshots for row in getattr(shot, attribute)]
 
     where = ["process"] if several else []
-    if several:
-        parts.append(_table(["process", "pid", "cpu s", "rss MB"],
-                            [[shot.process or "launcher", str(shot.pid), f"{shot.cpu:.2f}", f"{shot.rss / 2**20:.1f}"]
-                             for shot in snapshots]))
+    known = [shot.cores for shot in snapshots if shot.cores is not None]
+    parts.append(_table(["process", "pid", "cpu s", "rss MB", "cpu cores"],
+                        [[shot.process or "launcher", str(shot.pid), f"{shot.cpu:.2f}", f"{shot.rss / 2**20:.1f}",
+                          "-" if shot.cores is None else f"{shot.cores:.2f}"] for shot in snapshots])
+                 + f"\nall processes: {sum(known):.2f} cores of {os.cpu_count() or 1} (CPU time / time lived, "
+                 "start-up included)")
+    threads = rows("threads")
+    if threads:
+        parts.append(_table([*where, "thread", "cpu s", "cpu cores"], threads))
     parts.append(_table([*where, "activity", "schedule", "cycles", "overruns", "period error p50/p99/max us"],
                         rows("activities")))
     parts.append(_table([*where, "component", "activity", "execs", "total ms", "compute mean us", "compute std us",

@@ -1,0 +1,57 @@
+"""CPU share in the profile: per process, and per thread, so that a busy wait shows by its name."""
+
+from __future__ import annotations
+
+import subprocess
+import time
+
+from coco_core import Component, PeriodicActivity
+from coco_core.cpu import process_cpu, thread_cpu
+from coco_core.report import render, snapshot
+
+SPIN_CPU = 0.15
+"""CPU seconds the spinning activity burns in all: 15 ticks of /proc's 10 ms, far above its noise."""
+
+
+class Spin(Component):
+    """Busy-waits through its first updates until its thread used ``SPIN_CPU`` seconds of CPU."""
+
+    def init(self) -> None:
+        self.done = False
+
+    def on_update(self) -> None:
+        while not self.done and time.thread_time() < SPIN_CPU:
+            pass
+        self.done = True
+
+
+class Idle(Component):
+    def on_update(self) -> None:
+        pass
+
+
+def test_the_profile_shows_each_threads_cpu_and_the_spinner_first(make_app, wait_until) -> None:
+    app = make_app("cpu")
+    spin = app.add(Spin("spin"), PeriodicActivity("spinning", 0.01))
+    app.add(Idle("idle"), PeriodicActivity("idling", 0.01))
+    app.start()
+    assert wait_until(lambda: spin.done, timeout=60.0)
+    shot = snapshot(app)
+    threads = {row[0]: (float(row[1]), float(row[2])) for row in shot.threads}
+    assert threads["coco:spinning"][0] >= SPIN_CPU - 0.02, shot.threads
+    assert threads.get("coco:idling", (0.0, 0.0))[0] < threads["coco:spinning"][0], shot.threads
+    activity_rows = [row for row in shot.threads if row[0].startswith("coco:")]
+    assert activity_rows[0][0] == "coco:spinning", "busiest first"
+    assert shot.cores is not None and 0 < shot.cores
+    text = render(app.name, [shot])
+    assert "cpu cores" in text and "coco:spinning" in text, text
+    assert f"all processes: {shot.cores:.2f} cores" in text, text
+
+
+def test_a_process_that_is_gone_has_no_cpu_and_a_live_one_its_own() -> None:
+    done = subprocess.Popen(["true"])
+    assert done.wait(timeout=30) == 0
+    assert process_cpu(done.pid) is None, "reaped: no /proc entry"
+    mine = process_cpu()
+    assert mine is not None and mine.seconds > 0 and mine.wall > 0
+    assert any(name == "MainThread" for name, _ in thread_cpu())
