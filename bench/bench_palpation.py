@@ -57,7 +57,7 @@ from pathlib import Path
 from typing import Any
 
 import _report
-from _table import Table, fmt_ratio, verdict
+from _table import Table, fmt_ratio, fmt_time_ns, verdict
 
 REPO = _report.REPO
 APP = REPO / "config" / "palpation_replay.xml"
@@ -369,10 +369,10 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
                          "alone, before each round's runs (medians over the anchors)",
                          ["scheduling", "anchors", "p99", "max (worst anchor)", "missed (all anchors)"])
     for kind, found in anchors.items():
-        anchor_table.add(kind, len(found), f"{idle_p99[kind]:.0f} us", f"{max(r['max_ns'] for r in found) / 1e3:.0f} us",
+        anchor_table.add(kind, len(found), fmt_time_ns(1e3 * idle_p99[kind]), fmt_time_ns(max(r["max_ns"] for r in found)),
                          sum(r["missed"] for r in found))
-    anchor_table.notes.append(f"p99 ranged {min(r['p99_ns'] for r in idle) / 1e3:.0f}-"
-                              f"{max(r['p99_ns'] for r in idle) / 1e3:.0f} us over all anchors as the machine's load "
+    anchor_table.notes.append(f"p99 ranged {fmt_time_ns(min(r['p99_ns'] for r in idle))} - "
+                              f"{fmt_time_ns(max(r['p99_ns'] for r in idle))} over all anchors as the machine's load "
                               "moved")
     cpu_names = list(dict.fromkeys(name for condition in runs.values() for run in condition
                                    for name in run.get("process_cores", {})))
@@ -390,14 +390,16 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
         loop = {"missed": c["haptic_missed"], "max_ns": 1e3 * (c["haptic_max_us"] if c["haptic_max_us"] is not None
                                                                 else float("inf"))}
         haptic_ok = bench_processes.judged(loop, ratio, GOAL_HAPTIC_RATIO)
+        haptic_p99 = "n/a" if c["haptic_p99_us"] is None else fmt_time_ns(1e3 * c["haptic_p99_us"])
+        worst = "n/a" if c["haptic_max_us"] is None else fmt_time_ns(1e3 * c["haptic_max_us"])
         cores = c["process_cores"]
         cpu_table.add(f"{period} ms", layout, *["-" if cores.get(n) is None else f"{cores[n]:.2f}" for n in cpu_names],
                       f"{sum(v for v in cores.values() if v is not None):.2f}")
         lat = c["latency_median"]
         table.add(f"{period} ms", layout, ms(lat), ms(c["latency_p99"]),
                   verdict(None if lat is None else lat <= GOAL_LATENCY_MS),
-                  "-" if c["haptic_rate_hz"] is None else f"{c['haptic_rate_hz']:.0f} Hz", f"{(c['haptic_p99_us'] or 0) / 1e3:.2f} ms", fmt_ratio(ratio),
-                  c["haptic_missed"], "n/a" if c["haptic_max_us"] is None else f"{c['haptic_max_us']:.0f} us",
+                  "-" if c["haptic_rate_hz"] is None else f"{c['haptic_rate_hz']:.0f} Hz", haptic_p99, fmt_ratio(ratio),
+                  c["haptic_missed"], worst,
                   verdict(haptic_ok), f"{c['tree_hz'] or 0:.1f} Hz",
                   f"{c['tree_points'] or 0:,.0f}", verdict((c["tree_hz"] or 0) >= GOAL_TREE_HZ * 0.97),
                   "-" if c["display_fps"] is None else f"{c['display_fps']:.1f}", c["registered"],
@@ -409,9 +411,8 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
                             + f" (goal {GOAL_LATENCY_MS:.0f} ms; paper 75 ms: {lat / 75:.2f}x); bound by "
                             + bound(c["display_steps"], c["display_shares"]))
         verdicts.append(f"{period} ms display, {layout}: haptic p99 period error "
-                        f"{(c['haptic_p99_us'] or 0) / 1e3:.2f} ms "
-                        f"= {fmt_ratio(ratio)} the idle activity's ({anchor_us:.0f} us, {c['anchor']}, same "
-                        f"rounds), {c['haptic_missed']} missed, worst {c['haptic_max_us']} us: "
+                        f"{haptic_p99} = {fmt_ratio(ratio)} the idle activity's ({fmt_time_ns(1e3 * anchor_us)}, "
+                        f"{c['anchor']}, same rounds), {c['haptic_missed']} missed, worst {worst}: "
                         + ("PASS" if haptic_ok else
                            f"MISS ({bench_processes.why_missed(loop, ratio, GOAL_HAPTIC_RATIO)})")
                         + f" (goal {GOAL_HAPTIC_RATIO:.0f}x, none missed, worst <= {bound_us:.0f} us; rate "

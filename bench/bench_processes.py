@@ -108,7 +108,7 @@ def why_missed(r: dict[str, Any], ratio: float, goal: float, period_ns: float = 
     """What made a loop miss, in words ('' when it passed)."""
     reasons = []
     if not ratio <= goal:
-        reasons.append(f"p99 {ratio:.1f}x its anchor's (goal {goal:g}x)")
+        reasons.append(f"p99 {fmt_ratio(ratio)} its anchor's (goal {goal:g}x)")
     if r["missed"]:
         reasons.append(f"{r['missed']} deadline{'s' if r['missed'] != 1 else ''} missed")
     if r["max_ns"] > WORST_BOUND * period_ns:
