@@ -55,3 +55,19 @@ def test_a_process_that_is_gone_has_no_cpu_and_a_live_one_its_own() -> None:
     mine = process_cpu()
     assert mine is not None and mine.seconds > 0 and mine.wall > 0
     assert any(name == "MainThread" for name, _ in thread_cpu())
+
+
+def test_the_profile_at_exit_keeps_the_cpu_of_the_threads_that_ended(make_app, wait_until) -> None:
+    """The final profile is taken after the activities' threads ended, when /proc lists them no more:
+    each driver records its thread's CPU when it ends."""
+    app = make_app("cpu_at_exit")
+    spin = app.add(Spin("spin"), PeriodicActivity("spinning", 0.01))
+    app.start()
+    assert wait_until(lambda: spin.done, timeout=60.0)
+    assert app.stop()
+    shot = snapshot(app)
+    threads = {row[0]: float(row[1]) for row in shot.threads}
+    assert "coco:spinning" not in threads, shot.threads
+    assert threads["coco:spinning (ended)"] >= SPIN_CPU - 0.02, shot.threads
+    row = next(row for row in shot.activities if row[0] == "spinning")
+    assert row[5] != "-" and float(row[5]) > 0, row
