@@ -111,7 +111,9 @@ def why_missed(r: dict[str, Any], ratio: float, goal: float, period_ns: float = 
         reasons.append(f"p99 {fmt_ratio(ratio)} its anchor's (goal {goal:g}x)")
     if r["missed"]:
         reasons.append(f"{r['missed']} deadline{'s' if r['missed'] != 1 else ''} missed")
-    if r["max_ns"] > WORST_BOUND * period_ns:
+    if r["max_ns"] == float("inf"):
+        reasons.append("worst case unknown")
+    elif r["max_ns"] > WORST_BOUND * period_ns:
         reasons.append(f"worst {fmt_time_ns(r['max_ns'])} > {fmt_time_ns(WORST_BOUND * period_ns)}")
     return ", ".join(reasons)
 
