@@ -85,9 +85,11 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
     shot = ProfileSnapshot(process, os.getpid(), time.perf_counter() - app.started_at if app.started_at else 0.0,
                            times.user + times.system, _rss(), None if use is None or not use.wall else use.cores)
     local = [activity for activity in app.activities.values() if activity.process == app.process]
-    ended = {f"coco:{a.name}": a.stats.thread_cpu for a in local if a.stats.thread_cpu is not None}
+    ended = {f"coco:{a.name}": a.stats.thread_cpu for a in local if a.stats.thread_cpu is not None and not a.main}
     live = {name: use for name, use in thread_cpu() if name not in ended}
-    threads = [*live.items(), *((f"{name} (ended)", use) for name, use in ended.items())]
+    threads = [*live.items(), *((f"{name} (ended)", use) for name, use in ended.items()),
+               *((f"MainThread: activity {a.name} (ended)", a.stats.thread_cpu)  # a part of MainThread's row
+                 for a in local if a.stats.thread_cpu is not None and a.main)]
     shot.threads = [[name, f"{use.seconds:.2f}", f"{use.cores:.2f}"]
                     for name, use in sorted(threads, key=lambda row: -row[1].seconds) if use.seconds > 0]
     for activity in local:
