@@ -487,11 +487,11 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
         right.axhline(GOAL_TREE_HZ, color="k", linestyle="--", linewidth=1, label="camera 30 Hz")
         for i, c in enumerate(combined):
             ratio = bench_processes.ratio_of(1e3 * (c["haptic_p99_us"] or 0.0), 1e3 * idle_p99.get(c["anchor"], 0.0))
-            right.text(i, max(c["tree_hz"] or 0, c["display_fps"] or 0) + 1, f"haptic p99\n{ratio:.1f}x idle",
+            right.text(i, max(c["tree_hz"] or 0, c["display_fps"] or 0) + 1, f"haptic p99\n{ratio:.1f}x idle\n{c['haptic_missed']} missed",
                        ha="center", fontsize=7)
         right.set_xticks(range(len(names)), names, fontsize=8)
         right.set_ylabel("per second")
-        right.set_title("rates (haptic p99 / idle above)")
+        right.set_title("rates (haptic p99 / idle, missed deadlines above)")
         right.set_ylim(0, 45)
         right.legend(fontsize=7, loc="upper right")
         figure.tight_layout()

@@ -352,7 +352,8 @@ def main() -> None:
         left.set_ylabel("p99 period error (us, log)")
         left.set_title("1 kHz activity beside a busy one")
         for index, name in enumerate(names):
-            left.text(index, results[name]["p99_ns"] / 1e3, fmt_time_ns(results[name]["p99_ns"]), ha="center",
+            left.text(index, results[name]["p99_ns"] / 1e3,
+                      f"{fmt_time_ns(results[name]['p99_ns'])}\n{results[name]['missed']} missed", ha="center",
                       va="bottom", fontsize=8)
         readers = list(wake)
         for key, offset, label in (("p50_ns", -0.2, "p50"), ("p99_ns", 0.2, "p99")):
