@@ -17,6 +17,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 TICKS = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
@@ -114,21 +115,26 @@ def _children() -> dict[int, list[int]]:
     return children
 
 
-def _name(pid: int) -> str:
-    """A child process of the process level calls itself ``coco:<process>`` (its comm); another by its comm."""
+def _name(pid: int, processes: Iterable[str]) -> str:
+    """A child process of the process level calls itself ``coco:<process>`` (its comm, which the OS
+    cuts at 15 bytes: the one of ``processes`` it begins); another by its comm in brackets."""
     try:
         with open(f"/proc/{pid}/comm") as comm:
             name = comm.read().strip()
     except OSError:
         return f"[{pid}]"
-    return name[len("coco:"):] if name.startswith("coco:") else f"[{name}]"
+    if not name.startswith("coco:"):
+        return f"[{name}]"
+    name = name[len("coco:"):]
+    matches = [process for process in processes if process.startswith(name)]
+    return matches[0] if len(matches) == 1 else name
 
 
-def application_cpu(launcher: int) -> dict[str, float]:
+def application_cpu(launcher: int, processes: Iterable[str] = ()) -> dict[str, float]:
     """The cores of the launcher (pid ``launcher``) and of each process under it (the process
-    level's children by their ``<process>`` name, any other, such as an encoder a component
-    started, by its command in brackets): the application's whole budget on this host. Empty off
-    Linux."""
+    level's children by their ``<process>`` name, one of ``processes``; any other, such as an
+    encoder a component started, by its command in brackets): the application's whole budget on
+    this host. Empty off Linux."""
     use = process_cpu(launcher)
     if use is None:
         return {}
@@ -139,7 +145,7 @@ def application_cpu(launcher: int) -> dict[str, float]:
         pid = waiting.pop(0)
         child = process_cpu(pid)
         if child is not None:
-            name = _name(pid)
+            name = _name(pid, processes)
             shares[name if name not in shares else f"{name} {pid}"] = child.cores
         waiting += tree.get(pid, [])
     return shares

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
+import sys
 import time
 
 from coco_core import Component, PeriodicActivity
-from coco_core.cpu import process_cpu, thread_cpu
+from coco_core.cpu import application_cpu, process_cpu, thread_cpu
 from coco_core.report import render, snapshot
 
 SPIN_CPU = 0.15
@@ -71,3 +73,25 @@ def test_the_profile_at_exit_keeps_the_cpu_of_the_threads_that_ended(make_app, w
     assert threads["coco:spinning (ended)"] >= SPIN_CPU - 0.02, shot.threads
     row = next(row for row in shot.activities if row[0] == "spinning")
     assert row[5] != "-" and float(row[5]) > 0, row
+
+
+def test_the_applications_cpu_names_each_child_by_its_process_even_past_the_os_limit() -> None:
+    """A child of the process level calls itself ``coco:<process>``, cut by the OS at 15 bytes; any
+    other process under the launcher (an encoder a component started) is named by its command."""
+    named = subprocess.Popen([sys.executable, "-c", "import ctypes, sys; "
+                              "ctypes.CDLL(None).prctl(15, b'coco:averylongprocessname'[:15], 0, 0, 0); "
+                              "print('named', flush=True); sys.stdin.read()"],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    other = subprocess.Popen(["sleep", "60"])
+    try:
+        assert named.stdout is not None and named.stdout.readline().strip() == "named"
+        shares = application_cpu(os.getpid(), {"averylongprocessname", "short"})
+        assert "averylongprocessname" in shares, shares
+        assert "[sleep]" in shares, shares
+        assert set(shares) >= {"launcher"} and all(cores >= 0 for cores in shares.values())
+    finally:
+        other.kill()
+        other.wait()
+        assert named.stdin is not None
+        named.stdin.close()
+        named.wait(timeout=30)

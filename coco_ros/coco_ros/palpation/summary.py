@@ -266,7 +266,11 @@ class PalpationSummary(Component):
         self.on_update()
         self._stopped_at = time.perf_counter()
         # The launcher: this process, or its parent when this is one of the process level's children.
-        self._cpu = application_cpu(os.getppid() if self.app is not None and self.app.process else os.getpid())
+        if self.app is not None:
+            names = {activity.process for activity in self.app.activities.values() if activity.process}
+            self._cpu = application_cpu(os.getppid() if self.app.process else os.getpid(), names)
+        else:
+            self._cpu = application_cpu(os.getpid())
         silent = self._silent_at_end()
         if silent is not None:
             self._gap(silent)
