@@ -253,6 +253,11 @@ def combine(runs: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def us(value: float | None) -> str:
+    """A duration given in microseconds, in the unit that keeps it readable."""
+    return "n/a" if value is None else fmt_time_ns(1e3 * value)
+
+
 def ms(value: float | None, digits: int = 1) -> str:
     return "n/a" if value is None else f"{value:.{digits}f} ms"
 
@@ -300,7 +305,7 @@ def measure(args: Any, bag: Path) -> tuple[Runs, list[dict[str, Any]]]:
                     idle[-1]["others"] = load.others
                     anchors[loop.describe()] = idle[-1]["p99_ns"] / 1e3
                     print(f"round {round_ + 1}, {period} ms: idle 1 kHz activity ({loop.describe()}) p99 "
-                          f"{idle[-1]['p99_ns'] / 1e3:.0f} us, max {idle[-1]['max_ns'] / 1e3:.0f} us, "
+                          f"{fmt_time_ns(idle[-1]['p99_ns'])}, max {fmt_time_ns(idle[-1]['max_ns'])}, "
                           f"{idle[-1]['missed']} missed", flush=True)
                 for layout in order:
                     app, extra = variants[layout]
@@ -310,8 +315,8 @@ def measure(args: Any, bag: Path) -> tuple[Runs, list[dict[str, Any]]]:
                     run["idle_p99_us"] = anchors[run["anchor"]]
                     runs.setdefault((period, layout), []).append(run)
                     print(f"round {round_ + 1}, {period} ms, {layout}: latency median "
-                          f"{ms(run['latency_ms']['median'])}, haptic p99 {run['haptic_p99_us']} us "
-                          f"(max {run['haptic_max_us']} us, {run['haptic_missed']} missed), "
+                          f"{ms(run['latency_ms']['median'])}, haptic p99 {us(run['haptic_p99_us'])} "
+                          f"(max {us(run['haptic_max_us'])}, {run['haptic_missed']} missed), "
                           f"KD-tree {run['tree_hz'] or 0:.1f} Hz, display {run['display_fps'] or 0:.1f} fps, "
                           f"app {run['app_cores'] or 0:.2f} cores",
                           flush=True)
