@@ -66,6 +66,7 @@ import numpy as np
 import _report
 from _ros import RosContext  # sets ROS_DOMAIN_ID before rclpy is imported
 from _table import Table, fmt_ratio, fmt_time_ns
+from coco_core.cpu import process_cpu
 from coco_core.interrupt import interrupt
 
 if str(_report.REPO / "coco_ros") not in sys.path:
@@ -346,6 +347,79 @@ class Driver:
         self.node.destroy_node()
 
 
+STARTUP_LIMIT_S = 240.0
+"""The longest the pipelines get to start and give a first output."""
+STALLED_S, STALLED_CPU_S = 10.0, 0.1
+"""A silent pipeline whose process used less than STALLED_CPU_S of CPU in the last STALLED_S is hung
+(a launcher still starting uses far more: imports, the URDF, DDS discovery)."""
+EVENTS_WAIT_S = 30.0
+"""How long the EventsExecutor node gets, at least, once the others answered."""
+
+
+class Startup:
+    """Waits until every pipeline gave its first output, judging a silent one by its progress, not
+    by a fixed time: six processes start at once on two cores beside the EventsExecutor node, which
+    spins a core while it delivers nothing, so a launcher may need well over 30 s to start (the
+    last one started, the one-activity launcher, stopped the run at a fixed 30 s in 3 runs of 3 on
+    a loaded machine) while a hung one uses no CPU at all."""
+
+    def __init__(self, driver: Driver, processes: dict[str, subprocess.Popen[str]], required: list[str]) -> None:
+        self.driver, self.processes, self.required = driver, processes, required
+        self.began = time.perf_counter()
+        self.answered_after: dict[str, float] = {}
+        self.hung: list[str] = []
+        self._checked = 0.0
+        self._progress: dict[str, tuple[float, float]] = {}
+        """Pipeline -> (its process's CPU seconds, when they last grew by STALLED_CPU_S)."""
+
+    def answered(self, pipeline: str) -> bool:
+        return bool(self.driver.tracks[(pipeline, "distance")].latencies)
+
+    def ready(self) -> bool:
+        return all(map(self.answered, self.required))
+
+    def done(self) -> bool:
+        """Whether to stop waiting: all answered (the EventsExecutor node too, or it had its time),
+        a process exited, a silent one is hung, or the limit passed."""
+        now = time.perf_counter()
+        for pipeline in PIPELINES:
+            if pipeline not in self.answered_after and self.answered(pipeline):
+                self.answered_after[pipeline] = now - self.began
+        if now - self._checked >= 1.0:
+            self._checked = now
+            self._watch(now)
+        if self.ready() and (self.answered(EVENTS) or now - self.began >= EVENTS_WAIT_S):
+            return True
+        return (bool(self.hung) or now - self.began >= STARTUP_LIMIT_S
+                or any(p.poll() is not None for p in self.processes.values()))
+
+    def _watch(self, now: float) -> None:
+        for pipeline in self.required:
+            if self.answered(pipeline):
+                continue
+            use = process_cpu(self.processes[pipeline].pid)
+            seconds = use.seconds if use is not None else 0.0
+            last, since = self._progress.get(pipeline, (-1.0, now))
+            if seconds - last >= STALLED_CPU_S:
+                self._progress[pipeline] = (seconds, now)
+            elif now - since >= STALLED_S:
+                self.hung.append(pipeline)
+
+    def failure(self) -> str:
+        """Why the wait ended without every required pipeline's output."""
+        silent = [name for name in self.required if not self.answered(name)]
+        states = []
+        for name in silent:
+            use = process_cpu(self.processes[name].pid)
+            cpu = f"{use.seconds:.1f} CPU s" if use is not None else "gone"
+            why = (f"hung: less than {STALLED_CPU_S:g} CPU s in {STALLED_S:g} s" if name in self.hung
+                   else f"exit {self.processes[name].poll()}" if self.processes[name].poll() is not None
+                   else "still starting")
+            states.append(f"{name} ({why}; {cpu})")
+        return (f"no output after {time.perf_counter() - self.began:.0f} s from " + ", ".join(states)
+                + "; answered after: " + ", ".join(f"{n} {t:.1f} s" for n, t in self.answered_after.items()))
+
+
 def start(command: list[str]) -> subprocess.Popen[str]:
     """A pipeline process, its output kept for the profile it prints at the end."""
     return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=_report.REPO)
@@ -415,9 +489,9 @@ def table(driver: Driver, profiles: dict[tuple[str, str], tuple[float, float] | 
                 f"{args.postures} postures swept; an output matches its joint state by value (within "
                 f"{MATCH_TOLERANCE:g} m); the first output per joint state counts."]
     if not driver.tracks[(EVENTS, "distance")].latencies:
-        t.notes.append("plain rclpy node, EventsExecutor: no output in the 30 s the pipelines had to start, so it was left "
-                       "out (rclpy.experimental.EventsExecutor of these Jazzy wheels spun a core and ran no "
-                       "callback); its ratios are n/a")
+        t.notes.append("plain rclpy node, EventsExecutor: no output while the pipelines started (at least "
+                       f"{EVENTS_WAIT_S:g} s), so it was left out (rclpy.experimental.EventsExecutor of these Jazzy "
+                       "wheels spun a core and ran no callback); its ratios are n/a")
     return t, results
 
 
@@ -570,19 +644,18 @@ def main() -> None:
         outputs: dict[str, str] = {}
         try:
             required = [pipeline for pipeline in PIPELINES if pipeline != EVENTS]
-            answered = lambda pipeline: bool(driver.tracks[(pipeline, "distance")].latencies)  # noqa: E731
-            ready = lambda: all(map(answered, required))  # noqa: E731
-            driver.run(30.0, PIPELINES, until=lambda: (ready() and answered(EVENTS)) or
-                       any(p.poll() is not None for p in processes.values()))
-            if not ready():
-                silent = [name for name in required if not answered(name)]
-                raise RuntimeError(f"no output within 30 s from {', '.join(silent)}: "
-                                   + "; ".join(f"{n}: exit {p.poll()}" for n, p in processes.items()))
-            if answered(EVENTS):
+            startup = Startup(driver, processes, required)
+            driver.run(STARTUP_LIMIT_S, PIPELINES, until=startup.done)
+            if not startup.ready():
+                raise RuntimeError(startup.failure())
+            print("first output after: " + ", ".join(f"{n} {t:.1f} s" for n, t in startup.answered_after.items()),
+                  file=sys.stderr)
+            if startup.answered(EVENTS):
                 required.insert(1, EVENTS)
             else:
                 interrupt(processes.pop(EVENTS), timeout=2.0)
-                print(f"{EVENTS}: no output in 30 s: left out of the run", file=sys.stderr)
+                print(f"{EVENTS}: no output in {time.perf_counter() - startup.began:.0f} s: left out of the run",
+                      file=sys.stderr)
             driver.turns(args.warmup, required)
             driver.reset()
             driver.turns(args.seconds, required)
@@ -595,6 +668,10 @@ def main() -> None:
             print(f"warning: {name} exited {processes[name].returncode}:\n{out[-3000:]}", file=sys.stderr)
     t, results = table(driver, {(name, component): profiled_latency(outputs[name], component)
                                 for name in LAUNCHED for component in PROFILED}, args)
+    results["first_output_s"] = startup.answered_after
+    t.notes.append("start: every pipeline's process started at once; first output after "
+                   + ", ".join(f"{n} {s:.1f} s" for n, s in startup.answered_after.items())
+                   + f" (a silent one is waited for while its process uses CPU, up to {STARTUP_LIMIT_S:g} s)")
     _report.emit("bench_latency", args, [t], results)
     _report.save_plot(args, draw(driver))
 

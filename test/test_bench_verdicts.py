@@ -73,3 +73,28 @@ def test_the_display_tables_explain_llvmpipe_where_it_renders() -> None:
     text = frame_and_profile_text(renderer)
     assert renderer in text.splitlines()[0]
     assert "LP_NUM_THREADS" in text
+
+
+def test_a_loop_passes_only_without_missed_deadlines_and_within_its_worst_case_bound() -> None:
+    """Issue 34: bench_processes printed PASS beside missed deadlines and 11 ms worst cases."""
+    import bench_processes
+
+    on_time = {"missed": 0, "max_ns": 100e3}
+    assert bench_processes.judged(on_time, 1.0, 2.0)
+    assert not bench_processes.judged(on_time, 2.5, 2.0)
+    assert not bench_processes.judged({"missed": 2, "max_ns": 100e3}, 1.0, 2.0)
+    late = {"missed": 0, "max_ns": 11e6}
+    assert not bench_processes.judged(late, 1.0, 2.0)
+    assert "worst 11 ms > 500 us" in bench_processes.why_missed(late, 1.0, 2.0)
+    assert bench_processes.ratio_of(100.0, 0.0) == 1.0, "sub-microsecond p99s compare as one microsecond"
+
+
+def test_bound_by_names_the_largest_share_of_the_path_not_of_the_summed_step_medians() -> None:
+    """Issue 34: the step medians add up to no frame's latency; the share is the summary's median over
+    frames of step / path."""
+    import bench_palpation
+
+    steps = {"received": 50.0, "drawn": 40.0}
+    shares = {"received": 0.3, "drawn": 0.6}
+    assert bench_palpation.bound(steps, shares) == "drawn (40 ms median, 60% of the path: median over frames)"
+    assert bench_palpation.bound(steps, {}) == "n/a"

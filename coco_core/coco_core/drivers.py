@@ -22,6 +22,7 @@ import threading
 import time
 from typing import TYPE_CHECKING, Protocol
 
+from .cpu import CpuUse
 from .operations import set_current_activity
 from .period import PeriodGrid
 from .scheduling import apply_to_current_thread
@@ -109,6 +110,7 @@ class ThreadDriver:
         self._activity, self._entered = activity, True
         self._thread = threading.current_thread()
         set_current_activity(activity)
+        began, cpu = time.perf_counter(), time.thread_time()
         try:
             for warning in apply_to_current_thread(activity.scheduling, activity.reserved_cores):
                 log.warning("activity %s: %s", activity.name, warning)
@@ -124,6 +126,7 @@ class ThreadDriver:
             activity.fail(error)
         finally:
             activity.finish()
+            activity.stats.thread_cpu = CpuUse(time.thread_time() - cpu, time.perf_counter() - began)
             set_current_activity(None)
 
     def _triggered(self, activity: Activity) -> None:

@@ -27,10 +27,11 @@ that comes during a natural one (Ctrl-C) bounds it again.
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 from collections.abc import Callable, Iterable
+
+from .cpu import process_cpu
 
 STOP_TIMEOUT = 1.0
 """Seconds every activity gets, together, to finish its cycle and run ``on_stop`` after a hard stop;
@@ -39,7 +40,6 @@ PROGRESS_CPU = 0.05
 """CPU seconds the application's processes must use during :data:`STOP_TIMEOUT` to count as working:
 5 % of a core (an activity blocked for ever uses none, the middleware's idle threads a few
 milliseconds; one that encodes or writes, even on a loaded machine, far more)."""
-_TICKS = os.sysconf("SC_CLK_TCK")
 
 
 class StartGate:
@@ -134,12 +134,8 @@ class StartGate:
 
 def cpu_seconds(pid: int) -> float:
     """CPU seconds (user + system) used so far by process ``pid``; 0 when it is gone."""
-    try:
-        with open(f"/proc/{pid}/stat") as stat:
-            fields = stat.read().rsplit(")", 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / _TICKS
+    use = process_cpu(pid)
+    return 0.0 if use is None else use.seconds
 
 
 class Progress:

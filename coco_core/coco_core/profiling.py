@@ -16,6 +16,7 @@ from array import array
 from dataclasses import dataclass
 from typing import Any
 
+from .cpu import CpuUse
 from .pool import Slot
 from .stamps import Message
 
@@ -146,6 +147,9 @@ class ActivityStats:
         until it wrapped (1.5 MB over the first five minutes of a 5 ms activity, read as a leak)."""
         self._next = 0
         self._lock = threading.Lock()
+        self.thread_cpu: CpuUse | None = None
+        """The CPU its thread used from the activity's start to its end, set by the driver when it ends:
+        the profile at exit is taken after the threads ended, when /proc no longer lists them."""
 
     def record_error(self, error: float) -> None:
         """Wake-up time minus deadline of one periodic cycle."""

@@ -1,7 +1,11 @@
 """The profiler's report: what ``coco-launch --profile`` prints.
 
-Per process (when the application has several): pid, CPU time and resident memory. Per activity:
-cycles, overruns and period error percentiles. Per component: executions, total time, mean and
+Per process: pid, CPU time, CPU share (CPU time over the time the process has lived, in cores:
+the machine's budget, :mod:`coco_core.cpu`) and resident memory; per thread of each process, its CPU
+time and share, the busiest first (a thread near one core busy-waits, or cannot keep up). Per activity:
+cycles, overruns, period error percentiles, and its thread's CPU share (a thread's, as recorded by its
+driver when it ended: the profile at exit comes after the threads ended; ``-`` for an activity whose
+thread this process does not name, such as a ROS wait set's). Per component: executions, total time, mean and
 standard deviation of compute time and of service time (time between activations), errors, and
 stamp-to-output latency when the component records it (from its inputs' origins: a ``Stamped``
 value's acquisition, a plain value's message stamp, its write in this process or another). Per connection: flow counters. Per pooled
@@ -26,6 +30,7 @@ from dataclasses import dataclass, field
 
 from .application import Application
 from .connections import Connection
+from .cpu import process_cpu, thread_cpu
 from .ports import PooledOutputPort
 
 
@@ -41,6 +46,11 @@ class ProfileSnapshot:
     """User + system CPU seconds of the whole process so far."""
     rss: int
     """Resident memory in bytes."""
+    cores: float | None = None
+    """CPU time over the time the process has lived, start-up included (cores); None: unknown (a
+    child that sent no profile)."""
+    threads: list[list[str]] = field(default_factory=list)
+    """Each thread that used CPU time: name, CPU seconds, cores (over the thread's life)."""
     activities: list[list[str]] = field(default_factory=list)
     components: list[list[str]] = field(default_factory=list)
     connections: list[list[str]] = field(default_factory=list)
@@ -71,14 +81,24 @@ def snapshot(app: Application, process: str = "") -> ProfileSnapshot:
     """The profile of what this process runs of ``app``: its own activities (not the stand-ins of
     activities that other processes run) and the connections it reads."""
     times = os.times()
+    use = process_cpu(since=app.started_at or None)
     shot = ProfileSnapshot(process, os.getpid(), time.perf_counter() - app.started_at if app.started_at else 0.0,
-                           times.user + times.system, _rss())
+                           times.user + times.system, _rss(), None if use is None or not use.wall else use.cores)
     local = [activity for activity in app.activities.values() if activity.process == app.process]
+    ended = {f"coco:{a.name}": a.stats.thread_cpu for a in local if a.stats.thread_cpu is not None and not a.main}
+    live = {name: use for name, use in thread_cpu() if name not in ended}
+    threads = [*live.items(), *((f"{name} (ended)", use) for name, use in ended.items()),
+               *((f"MainThread: activity {a.name} (ended)", a.stats.thread_cpu)  # a part of MainThread's row
+                 for a in local if a.stats.thread_cpu is not None and a.main)]
+    shot.threads = [[name, f"{use.seconds:.2f}", f"{use.cores:.2f}"]
+                    for name, use in sorted(threads, key=lambda row: -row[1].seconds) if use.seconds > 0]
     for activity in local:
         summary = activity.stats.error_summary() if activity.period is not None else None
         error = f"{_us(summary.p50)} / {_us(summary.p99)} / {_us(summary.max)}" if summary else "-"
+        use = activity.stats.thread_cpu or live.get(f"coco:{activity.name}")
         shot.activities.append([activity.name + (" (main)" if activity.main else ""), activity.describe(),
-                                str(activity.stats.cycles), str(activity.stats.overruns), error])
+                                str(activity.stats.cycles), str(activity.stats.overruns), error,
+                                "-" if use is None else f"{use.cores:.2f}"])
     for owner, components in app.schedule_tree():
         if owner is not None and owner.process != app.process:
             continue
@@ -139,12 +159,17 @@ def render(name: str, snapshots: list[ProfileSnapshot]) -> str:
                 for shot in snapshots for row in getattr(shot, attribute)]
 
     where = ["process"] if several else []
-    if several:
-        parts.append(_table(["process", "pid", "cpu s", "rss MB"],
-                            [[shot.process or "launcher", str(shot.pid), f"{shot.cpu:.2f}", f"{shot.rss / 2**20:.1f}"]
-                             for shot in snapshots]))
-    parts.append(_table([*where, "activity", "schedule", "cycles", "overruns", "period error p50/p99/max us"],
-                        rows("activities")))
+    known = [shot.cores for shot in snapshots if shot.cores is not None]
+    parts.append(_table(["process", "pid", "cpu s", "rss MB", "cpu cores"],
+                        [[shot.process or "launcher", str(shot.pid), f"{shot.cpu:.2f}", f"{shot.rss / 2**20:.1f}",
+                          "-" if shot.cores is None else f"{shot.cores:.2f}"] for shot in snapshots])
+                 + f"\nall processes: {sum(known):.2f} cores of {os.cpu_count() or 1} (CPU time / time lived, "
+                 "start-up included)")
+    threads = rows("threads")
+    if threads:
+        parts.append(_table([*where, "thread", "cpu s", "cpu cores"], threads))
+    parts.append(_table([*where, "activity", "schedule", "cycles", "overruns", "period error p50/p99/max us",
+                         "cpu cores"], rows("activities")))
     parts.append(_table([*where, "component", "activity", "execs", "total ms", "compute mean us", "compute std us",
                          "service mean ms", "service std ms", "errors", "refused", "merged", "latency mean/max ms"],
                         rows("components")))

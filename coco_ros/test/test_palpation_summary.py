@@ -130,6 +130,33 @@ def test_the_latencies_are_split_by_the_steps_their_stamps_passed(tmp_path):
     assert "sensor to touchable: median 45.0" in text and "drawn +100.0" in text, text
 
 
+def test_each_steps_share_is_of_its_own_frames_path(tmp_path):
+    """What bounds a path: the median over frames of step / that frame's whole path, not a share
+    of the summed step medians (which add up to no frame's latency): half the frames spend 90 % of
+    their path received, the other half 10 %, and the median share is a frame's, 0.9 or 0.1."""
+    sources, summary = rig(tmp_path)
+    for i in range(101):
+        slow = i % 2 == 0  # 51 frames: 90 ms of 100 received; 50: 10 ms of 100
+        way = Stamp(1.0, i, "camera").step("received", 1.090 if slow else 1.010).step("drawn", 1.100)
+        sources.display_latency.write(Stamped(0.100, way))
+    summary.step()
+    summary.stop()
+    report = json.loads((tmp_path / "summary.json").read_text())
+    shares = report["display_step_shares"]["camera"]
+    assert shares["received"] == pytest.approx(0.9, rel=0.01) and shares["drawn"] == pytest.approx(0.1, rel=0.01)
+
+
+def test_the_cpu_of_every_process_of_the_application_is_reported_at_the_stop(tmp_path):
+    """Here the summary runs in the launcher's own process (no process level): that one alone."""
+    sources, summary = rig(tmp_path)
+    summary.stop()
+    report = json.loads((tmp_path / "summary.json").read_text())
+    cpu = report["cpu"]
+    assert list(cpu["cores"]) == ["launcher"] and cpu["cores"]["launcher"] > 0, cpu
+    assert cpu["total_cores"] == cpu["cores"]["launcher"]
+    assert "CPU (cores, CPU time / time lived): launcher " in describe(report)
+
+
 def test_the_display_latency_is_reported_by_the_source_a_frame_showed_first(tmp_path):
     """GLManager stamps each frame that shows a new input with the oldest such input: the remote
     camera's frames (acquisition to pixels, the paper's sensor-to-display latency) and the hand's

@@ -26,6 +26,15 @@ structures, draining the haptic samples at each wake-up) and reads:
   passed (the camera's: ``sent``, ``received``, then the view's ``frame_start``: its update began
   and the scene read the frame, ``drawn``, ``read_back``), each step the time from the one before.
 
+Each split also gives every step's *share* of its frame's path (``step_shares``,
+``display_step_shares``: the median over frames of step / that frame's acquisition-to-end time),
+which is what "bound by" means: the step medians do not add up to the path's median (each is a
+median of its own), so a share of their sum explains no figure.
+
+``cpu`` (at the stop): each process of the application on this host (the launcher and its children),
+its CPU time over the time it lived, in cores (:mod:`coco_core.cpu`), and all of them together: the
+machine's cores are the budget, and this says who spends it.
+
 On several hosts (``<host>``), the stamps are on the first host's clock; ``clock`` in the JSON says
 this host's offset to it and how well it is known (``exchanges`` 0: this is the first host).
 
@@ -47,12 +56,14 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 from pathlib import Path
 from typing import Any
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.cpu import application_cpu
 from coco_core.histogram import LogHistogram
 from coco_core.ports import InputPort
 from coco_core.stamps import Stamp, Stamped, unstamped
@@ -71,8 +82,23 @@ def _record_steps(steps: dict[str, LogHistogram], stamp: Stamp) -> None:
         steps.setdefault(name, LogHistogram()).record(max(seconds, 0.0))
 
 
+def _record_shares(shares: dict[str, LogHistogram], stamp: Stamp) -> None:
+    """Each step's share of this frame's path (acquisition to its last step), when the path took time."""
+    intervals = stamp.intervals()
+    path = sum(seconds for _, seconds in intervals)
+    if path <= 0:
+        return
+    for name, seconds in intervals:
+        shares.setdefault(name, LogHistogram(lowest=1e-4, highest=10.0)).record(max(seconds, 0.0) / path)
+
+
 def _steps_ms(steps: dict[str, LogHistogram]) -> dict[str, Any]:
     return {name: histogram.milliseconds(**QUANTILES) for name, histogram in steps.items()}
+
+
+def _shares(shares: dict[str, LogHistogram]) -> dict[str, float]:
+    """The median share of each step (0..1)."""
+    return {name: histogram.quantile(0.5) for name, histogram in shares.items()}
 
 
 def _rate(count: int, first: float, last: float) -> float | None:
@@ -115,6 +141,8 @@ class PalpationSummary(Component):
         self._touchable = LogHistogram()
         """Acquisition of a streamed frame to its structure built (sensor-to-touchable)."""
         self._touchable_steps: dict[str, LogHistogram] = {}
+        self._touchable_shares: dict[str, LogHistogram] = {}
+        """Each step's share of its frame's sensor-to-touchable path."""
         self.frames_received = 0
         self.frames_missed = 0
         self._last_seq: int | None = None
@@ -130,6 +158,10 @@ class PalpationSummary(Component):
         """Sensor-to-display latencies by the source of the input a frame showed first."""
         self._display_steps: dict[str, dict[str, LogHistogram]] = {}
         """The same split by the steps of the way, by source."""
+        self._display_shares: dict[str, dict[str, LogHistogram]] = {}
+        """Each step's share of its frame's path, by source."""
+        self._cpu: dict[str, float] = {}
+        """Process name -> cores, read at the stop."""
 
     def on_update(self) -> None:
         for value in self.frames.read_all():  # first: the samples after the newest frame are told apart
@@ -169,12 +201,14 @@ class PalpationSummary(Component):
             if origin is not None and origin.steps:
                 self._touchable.record(max(origin.steps[-1][1] - origin.time, 0.0))
                 _record_steps(self._touchable_steps, origin)
+                _record_shares(self._touchable_shares, origin)
         for residual in self.residual.read_all():
             self.registration_residual = float(residual)
         for latency in self.display_latency.read_all():
             source = latency.stamp.source or "?"
             self._display.setdefault(source, LogHistogram()).record(max(float(latency.value), 0.0))
             _record_steps(self._display_steps.setdefault(source, {}), latency.stamp)
+            _record_shares(self._display_shares.setdefault(source, {}), latency.stamp)
 
     def _gap(self, seconds: float) -> None:
         """A time without a newer frame: a stall when longer than ``stall``."""
@@ -199,6 +233,7 @@ class PalpationSummary(Component):
             "points_median": round(self._points.quantile(0.5)) if self._points.count else None,
             "latency_ms": self._touchable.milliseconds(**QUANTILES),
             "steps_ms": _steps_ms(self._touchable_steps),
+            "step_shares": _shares(self._touchable_shares),
         }
         return {
             "haptics": haptic,
@@ -211,6 +246,9 @@ class PalpationSummary(Component):
             "display_latency_ms": {source: {"frames": latencies.count, **latencies.milliseconds(**QUANTILES)}
                                    for source, latencies in sorted(self._display.items())},
             "display_steps_ms": {source: _steps_ms(steps) for source, steps in sorted(self._display_steps.items())},
+            "display_step_shares": {source: _shares(shares) for source, shares in sorted(self._display_shares.items())},
+            "cpu": {"cores": self._cpu, "total_cores": sum(self._cpu.values()) if self._cpu else None,
+                    "machine_cores": os.cpu_count()},
             "clock": {"offset_ms": 1e3 * self.host_clock.offset, "uncertainty_ms": 1e3 * self.host_clock.uncertainty,
                       "exchanges": self.host_clock.exchanges},
             "input_damage": list(self.app.damage) if self.app is not None else [],
@@ -227,6 +265,12 @@ class PalpationSummary(Component):
     def on_stop(self) -> None:
         self.on_update()
         self._stopped_at = time.perf_counter()
+        # The launcher: this process, or its parent when this is one of the process level's children.
+        if self.app is not None:
+            names = {activity.process for activity in self.app.activities.values() if activity.process}
+            self._cpu = application_cpu(os.getppid() if self.app.process else os.getpid(), names)
+        else:
+            self._cpu = application_cpu(os.getpid())
         silent = self._silent_at_end()
         if silent is not None:
             self._gap(silent)
@@ -275,6 +319,11 @@ def describe(summary: dict[str, Any]) -> str:
         split = (summary.get("display_steps_ms") or {}).get(source)
         if split:
             lines.append(f"  step medians: {steps(split)}")
+    cpu = summary.get("cpu") or {}
+    if cpu.get("cores"):
+        lines.append("CPU (cores, CPU time / time lived): "
+                     + ", ".join(f"{name} {cores:.2f}" for name, cores in cpu["cores"].items())
+                     + f"; all {cpu['total_cores']:.2f} of the machine's {cpu['machine_cores']}")
     if stream.get("stalls"):
         silent = stream.get("silent_at_end_s")
         lines.append(f"STREAM STALLED {stream['stalls']} time{'s' if stream['stalls'] != 1 else ''} (no newer frame "
