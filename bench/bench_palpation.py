@@ -3,7 +3,7 @@
 ``config/palpation_replay.xml`` (the paper's section 6.1) on a generated session, run by the
 installed ``coco-launch`` twice per round on the same session with the same arguments (the hand at
 half speed, as the app's tests run it): as written
-(six processes: launcher, hand, remote, haptics, local, view) and with its ``<process>`` elements removed
+(seven processes: launcher, hand, remote, haptics, stream, local, view) and with its ``<process>`` elements removed
 (every activity in the launcher's process). Rounds alternate the order, so that the shared machine's
 noise falls on both alike; by default at the paper's 60 Hz display (``display_period`` 16 ms) and at
 the app's default 50 ms, and with ``stride`` 1 (every depth pixel meshed and put in the KD-tree: the
