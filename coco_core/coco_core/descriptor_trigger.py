@@ -56,7 +56,10 @@ class DescriptorTrigger:
 
     def close(self) -> None:
         """End the thread and wait for it; before the component closes the descriptors (a closed one
-        would make the poll return at once, for ever)."""
+        would make the poll return at once, for ever). Once: a second call does nothing (closing the
+        eventfd again could close a descriptor that has its number since)."""
+        if self._closed:
+            return
         self._closed = True
         os.eventfd_write(self._close, 1)
         self._armed.set()

@@ -59,6 +59,7 @@ def test_close_ends_a_thread_that_waits_for_data_or_for_a_rearm():
     idle = DescriptorTrigger("test:idle", [read], Wakes())
     idle.start()
     idle.close()  # in poll(2), nothing readable
+    idle.close()  # once only: its eventfd is not closed twice
     wakes = Wakes()
     waiting = DescriptorTrigger("test:waiting", [read], wakes)
     waiting.start()
