@@ -313,6 +313,44 @@ def test_a_receiver_in_a_triggered_activity_is_woken_by_its_socket():
     assert not any(thread.name == "coco:receiver (socket)" for thread in threading.enumerate())
 
 
+def test_a_triggered_receiver_is_woken_by_a_broken_connection_and_connects_again():
+    """A message over the largest packet makes ZeroMQ drop the connection for good: the monitor's
+    descriptor wakes the receiver's activity (nobody activates it), which counts the disconnection and
+    connects again, and the next packet is delivered."""
+    from coco_mr_vision.image import Image, ImageFormat
+    from coco_mr_vision.stream_header import FrameLimit
+
+    address = f"tcp://127.0.0.1:{free_port()}"
+    publisher = zmq.Context.instance().socket(zmq.PUB)
+    publisher.setsockopt(zmq.LINGER, 0)
+    publisher.bind(address)
+    app = Application("receive")
+    receiver = app.add(StreamingReceiver("receiver", address=address, max_frame=[640, 480]), TriggeredActivity("s"))
+    image = Image(np.full((48, 64, 3), 9, np.uint8), ImageFormat.RGB8, 1.0, "camera")
+    sent = 0
+
+    def until(done, resend: bool) -> bool:
+        nonlocal sent
+        deadline = time.monotonic() + 10
+        while not done() and time.monotonic() < deadline:
+            if resend:
+                sent += 1
+                publisher.send(encode(sent, time.perf_counter(), time.perf_counter(), image, None, stream="one"))
+            time.sleep(0.02)
+        return done()
+
+    app.start()
+    try:
+        assert until(lambda: receiver.frames > 0, resend=True)
+        publisher.send(b"CCV1" + bytes(FrameLimit(640, 480).packet_bytes + 1))
+        assert until(lambda: receiver.disconnects == 1, resend=False)
+        before = receiver.frames
+        assert until(lambda: receiver.frames > before, resend=True), "nothing after the connection broke"
+    finally:
+        assert app.stop()
+        publisher.close(0)
+
+
 def test_a_frame_whose_intrinsics_came_beside_its_images_keeps_them_through_the_stream():
     """A bag's RGB-D frames carry their intrinsics on the frame (from camera_info), not on the depth
     image: the packet took the depth image's, so every receiver got frames without intrinsics and
