@@ -3,7 +3,7 @@
 ``config/palpation_replay.xml`` (the paper's section 6.1) on a generated session, run by the
 installed ``coco-launch`` twice per round on the same session with the same arguments (the hand at
 half speed, as the app's tests run it): as written
-(six processes: launcher, hand, remote, haptics, local, view) and with its ``<process>`` elements removed
+(seven processes: launcher, hand, remote, haptics, stream, local, view) and with its ``<process>`` elements removed
 (every activity in the launcher's process). Rounds alternate the order, so that the shared machine's
 noise falls on both alike; by default at the paper's 60 Hz display (``display_period`` 16 ms) and at
 the app's default 50 ms, and with ``stride`` 1 (every depth pixel meshed and put in the KD-tree: the
@@ -14,8 +14,8 @@ Per run, from the app's own ``summary.json`` (PalpationSummary) and its ``--prof
   remote process) to the view's pixels read back (GLManager.latency), and the same split by step,
   from the stamps the frame carries: *sent* (acquisition -> StreamingServer began the packet: the
   hand-over in the remote activity; the packet's header takes this time before the encoding),
-  *received* (-> StreamingReceiver decoded it: JPEG + Zstandard encoding, TCP, the receiver's 10 ms
-  poll, decoding), *frame start* (-> the view's update began and the scene
+  *received* (-> StreamingReceiver decoded it: JPEG + Zstandard encoding, TCP, the receiver's
+  wake-up by its socket, decoding), *frame start* (-> the view's update began and the scene
   took the frame: the hand-off across processes and the wait for the display period), *drawn* (->
   every peer read its input, uploaded and drew, and the context finished: the renderer), *read back*
   (-> the pixels copied out of the framebuffer);
@@ -454,8 +454,8 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
         "cores' share used by processes other than the benchmark and the app",
     ]
     steps.notes += [
-        "sent: the hand-over to the server in the remote process; received: encoding, TCP, the receiver's 10 ms "
-        "poll, decoding; frame start: "
+        "sent: the hand-over to the server in the remote process; received: encoding, TCP, the receiver's "
+        "wake-up by its socket, decoding; frame start: "
         "hand-off to the view and the wait for its period; drawn: peers' input, upload, draw and the finished "
         "rasterisation; read back: pixels out; meshed: hand-off to and meshing by MeshReconstructor; built: "
         "hand-off to and the structure by KDTreeBuilder",

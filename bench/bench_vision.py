@@ -12,8 +12,10 @@
    anchor is Open3D at its best (glibc told to keep freed memory: ``mallopt``); the fresh-process
    figure is shown beside it, measured in a child process.
 4. Streaming packets for 640x480 RGB-D: bytes per frame and encode + decode time for JPEG / raw
-   colour and Zstandard / PNG / raw depth; a 30 Hz run over ZeroMQ TCP loopback between two threads with the
-   receiver's latency, and the same frames as rclpy Image / CompressedImage over DDS.
+   colour and Zstandard / PNG / raw depth, and the default packet's colour and depth coded on two
+   threads at once against one; a 30 Hz run over ZeroMQ TCP loopback with the receiver in a
+   triggered activity woken by its socket against the same in a periodic 10 ms activity (a poll),
+   and the same frames as rclpy Image / CompressedImage over DDS.
 
 Run: ``python bench/bench_vision.py --json bench/results/bench_vision.json`` (about a minute).
 """
@@ -26,7 +28,6 @@ import importlib.util
 import json
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -290,56 +291,133 @@ def bench_streaming() -> tuple[Table, Table, dict]:
                     fmt_time_ns(samples["decode"].median))
         results[f"{color_encoding}+{depth_encoding}"] = {"bytes": len(packet), "encode": samples["encode"].to_json(),
                                                         "decode": samples["decode"].to_json()}
+    packets.add(*two_threads(frame, results))
+    packets.notes.append("on two threads: the colour (JPEG) in the calling thread and the depth (Zstandard) "
+                         "on a worker thread at once (both release the GIL); in brackets the ratio to the same "
+                         "packet on one thread, measured interleaved with it (>1: the threads pay)")
     live = Table("Streaming 640x480 RGB-D at 30 Hz over ZeroMQ TCP loopback (server and receiver threads)",
-                 ["encoding", "frames", "dropped", "latency p50", "latency max", "CPU (process)"])
+                 ["encoding", "receiver", "frames", "dropped", "latency p50", "latency p90", "latency max",
+                  "cycles", "CPU (process)"])
     from coco_mr_vision.streaming import StreamingReceiver, StreamingServer
-    for port, (ce, de) in enumerate((("jpeg", "zstd"), ("jpeg", "png"), ("raw", "raw")), start=5701):
-        app = Application("stream")
-        src = app.add(Source("src"))
-        server = app.add(StreamingServer("server", address=f"tcp://127.0.0.1:{port}", color_encoding=ce,
-                                         depth_encoding=de))
-        receiver = app.add(StreamingReceiver("receiver", address=f"tcp://127.0.0.1:{port}"))
-        sink = app.add(Sink("sink"))
-        app.connect(src.out, server.rgbd)
-        app.connect(receiver.rgbd, sink.inp)
-        server.on_config()
-        receiver.on_config()
-        latencies: list[float] = []
-        stop = threading.Event()
-
-        def receive(receiver=receiver, sink=sink) -> None:
-            while not stop.is_set():
-                receiver.on_update()
-                status, value = sink.inp.read()
-                if value is not None and status.name == "NEW_DATA":
-                    latencies.append(receiver.latency_last)
-                time.sleep(0.002)
-        thread = threading.Thread(target=receive)
-        thread.start()
-        time.sleep(0.3)  # the subscription is up before the measured frames
-        cpu0 = time.process_time()
-        wall0 = time.perf_counter()
-        for seq in range(1, 151):
-            src.out.write(Stamped(frame, Stamp.now(seq, "camera")))
-            server.on_update()
-            time.sleep(max(0.0, wall0 + seq / 30 - time.perf_counter()))
-        time.sleep(0.2)
-        stop.set()
-        thread.join()
-        cpu = (time.process_time() - cpu0) / (time.perf_counter() - wall0)
-        server.on_stop()
-        receiver.on_stop()
-        counters = receiver.counters()
-        lat = np.array(latencies) * 1e9
-        live.add(f"{ce} + {de}", counters["frames"], counters["dropped"], fmt_time_ns(float(np.median(lat))),
-                 fmt_time_ns(float(lat.max())), f"{cpu * 100:.0f}% of a core")
-        results[f"live {ce}+{de}"] = {"counters": counters, "latency_ns": lat.tolist(), "cpu_cores": cpu}
+    port = 5701
+    for ce, de in (("jpeg", "zstd"), ("jpeg", "png"), ("raw", "raw")):
+        for mode in RECEIVER_MODES:  # the triggered receiver and its anchor, one after the other
+            port += 1
+            row = stream_live(frame, port, ce, de, mode, StreamingServer, StreamingReceiver)
+            lat = np.array(row["latency_ns"])
+            live.add(f"{ce} + {de}", mode, row["counters"]["frames"], row["counters"]["dropped"],
+                     fmt_time_ns(float(np.median(lat))), fmt_time_ns(float(np.percentile(lat, 90))),
+                     fmt_time_ns(float(lat.max())), row["cycles"], f"{row['cpu_cores'] * 100:.0f}% of a core")
+            results[f"live {ce}+{de}, {mode}"] = row
     results.update(bench_dds(frame, live))
     live.notes.append("latency: from the frame's acquisition stamp to its delivery on the receiver's port "
-                      "(encode, TCP, decode, newest-frame selection); the rclpy rows: from before the "
+                      "(encode, TCP, the wait for the receiver's cycle, decode, newest-frame selection), the "
+                      "stamp's 'received' step; receiver: in a triggered activity woken by its socket "
+                      "(DescriptorTrigger), or, the anchor, in a periodic 10 ms activity that looks at each "
+                      "cycle (the palpation app's stream before issue 34); cycles: the receiver activity's; "
+                      "the rclpy rows: from before the "
                       "conversion to messages to both messages decoded in the subscriber (publish + spin "
                       "in one thread, Fast DDS in the same process, shared-memory transport allowed)")
     return packets, live, results
+
+
+def two_threads(frame: RGBDFrame, results: dict) -> list[str]:
+    """The default packet (JPEG q90 + Zstandard) with its colour and depth encoded, and decoded, on
+    two threads at once, against the same on one thread, interleaved: whether issue 34's parallel
+    coding pays on this machine. A row of the packets table."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    color_packet, depth_packet = encode(1, 0.0, 0.0, frame.color, None), encode(1, 0.0, 0.0, None, frame.depth)
+    whole = encode(1, 0.0, 0.0, frame.color, frame.depth)
+    with ThreadPoolExecutor(1) as worker:
+        def enc_two(n: int) -> None:
+            for _ in range(n):
+                depth = worker.submit(encode, 1, 0.0, 0.0, None, frame.depth)
+                encode(1, 0.0, 0.0, frame.color, None)
+                depth.result()
+
+        def dec_two(n: int) -> None:
+            for _ in range(n):
+                depth = worker.submit(decode, depth_packet)
+                decode(color_packet)
+                depth.result()
+
+        def enc_one(n: int) -> None:
+            for _ in range(n):
+                encode(1, 0.0, 0.0, frame.color, frame.depth)
+
+        def dec_one(n: int) -> None:
+            for _ in range(n):
+                decode(whole)
+        samples = measure({"encode, one thread": enc_one, "encode, two threads": enc_two,
+                           "decode, one thread": dec_one, "decode, two threads": dec_two}, repeats=5, target_s=0.2)
+    results["jpeg+zstd, two threads"] = {name: sample.to_json() for name, sample in samples.items()}
+    enc = samples["encode, two threads"]
+    dec = samples["decode, two threads"]
+    return ["jpeg q90 (thread 1)", "zstd (thread 2)", f"{len(color_packet) + len(depth_packet):,}", "-",
+            f"{fmt_time_ns(enc.median)} ({fmt_ratio(enc.ratio_to(samples['encode, one thread']))})",
+            f"{fmt_time_ns(dec.median)} ({fmt_ratio(dec.ratio_to(samples['decode, one thread']))})"]
+
+
+RECEIVER_MODES = ("triggered", "periodic 10 ms")
+"""How the receiver's activity runs: woken by its socket, or the anchor, a 10 ms period (a poll)."""
+
+
+class Taken(Component):
+    """Collects what the receiver delivers, in the receiver's activity (after it, in the same cycle)."""
+
+    inp = InputPort(object)
+
+    def init(self) -> None:
+        self.latencies: list[float] = []
+
+    def on_update(self) -> None:
+        for value in self.inp.read_all():
+            self.latencies.append(dict(value.stamp.steps)["received"] - value.stamp.time)
+
+
+def stream_live(frame: RGBDFrame, port: int, ce: str, de: str, mode: str, server_class, receiver_class) -> dict:
+    """150 frames at 30 Hz from a server driven by this thread to a receiver in its own activity
+    (``mode``, one of :data:`RECEIVER_MODES`); the latencies and the receiver's counters."""
+    from coco_core import PeriodicActivity, TriggeredActivity
+
+    sender = Application("send")  # driven by this thread, never started
+    src = sender.add(Source("src"))
+    server = sender.add(server_class("server", address=f"tcp://127.0.0.1:{port}", color_encoding=ce,
+                                     depth_encoding=de))
+    sender.connect(src.out, server.rgbd)
+    app = Application("receive")
+    activity = TriggeredActivity("receive") if mode == "triggered" else PeriodicActivity("receive", 0.010)
+    receiver = app.add(receiver_class("receiver", address=f"tcp://127.0.0.1:{port}"), activity)
+    taken = app.add(Taken("taken"), activity)
+    app.connect(receiver.rgbd, taken.inp, ConnectionPolicy(BufferPolicy.BUFFER, size=200))
+    server.on_config()
+    app.start()
+    try:
+        deadline = time.perf_counter() + 10
+        seq = 0
+        while receiver.frames == 0 and time.perf_counter() < deadline:  # the subscription is up
+            seq += 1
+            src.out.write(Stamped(frame, Stamp.now(seq, "camera")))
+            server.on_update()
+            time.sleep(0.05)
+        first = len(taken.latencies)
+        cycles0 = activity.stats.cycles
+        cpu0 = time.process_time()
+        wall0 = time.perf_counter()
+        for index in range(1, 151):
+            seq += 1
+            src.out.write(Stamped(frame, Stamp.now(seq, "camera")))
+            server.on_update()
+            time.sleep(max(0.0, wall0 + index / 30 - time.perf_counter()))
+        time.sleep(0.2)  # the last frame's way (the server is gone after this)
+        cpu = (time.process_time() - cpu0) / (time.perf_counter() - wall0)
+        cycles = activity.stats.cycles - cycles0
+    finally:
+        app.stop()
+        server.on_stop()
+    lat = np.array(taken.latencies[first:]) * 1e9
+    return {"counters": receiver.counters(), "latency_ns": lat.tolist(), "cpu_cores": cpu, "cycles": cycles}
 
 
 def bench_dds(frame: RGBDFrame, live: Table) -> dict:
@@ -397,7 +475,8 @@ def bench_dds(frame: RGBDFrame, live: Table) -> dict:
             color_link.destroy()
             depth_link.destroy()
             lat = np.array(latencies)
-            live.add(name, 150, 0, fmt_time_ns(float(np.median(lat))), fmt_time_ns(float(lat.max())),
+            live.add(name, "publish + spin", 150, 0, fmt_time_ns(float(np.median(lat))),
+                     fmt_time_ns(float(np.percentile(lat, 90))), fmt_time_ns(float(lat.max())), "-",
                      f"{cpu * 100:.0f}% of a core")
             results[name] = {"latency_ns": latencies, "bytes": int(np.mean(sizes)), "cpu_cores": cpu}
     return results

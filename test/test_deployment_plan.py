@@ -39,7 +39,7 @@ generated one, since a fresh clone has none at the default path."""
 PALPATION_WITHOUT_BAGS = {"hand": "topic", "scene": "redwood", "scene_path": str(SHARED_DATA / "rgbd" / "redwood"),
                           "registration": "fixed"}
 """config/palpation_replay.xml without its generated session (the hand from a topic, a real RGB-D
-folder as the scene): the same six processes and activities."""
+folder as the scene): the same seven processes and activities."""
 FILES = sorted((ROOT / "config").glob("*.xml")) + sorted((ROOT / "test" / "data").glob("*.xml")) + [
     ROOT / "test" / "data" / "coco_original" / name for name in ("config_farm.xml", "config_latency.xml",
                                                                  "kinect_streamer.xml")

@@ -151,7 +151,7 @@ def test_palpation_app_end_to_end(documented_run) -> None:
     assert f"Palpation summary ({output}/summary.json" in report and "registration: residual" in report, report
     assert f"Contact sheet:  {output}/contact_sheet.png" in report, report
     assert "registered from" in result.stderr, result.stderr[-4000:]
-    for process in ("hand", "remote", "haptics", "local", "view"):
+    for process in ("hand", "remote", "haptics", "stream", "local", "view"):
         assert re.search(rf"^{process}\s+\d+\s", report, re.M), f"process {process} missing:\n{report}"
     rows = haptic_rows(output)
     expected = places_after_the_registration(output)

@@ -79,7 +79,7 @@ def test_a_stream_that_stops_and_a_surface_stiffer_than_the_device(palpation_ses
     assert summary["input_damage"] == [] and summary["registration_residual_mm"] is not None, summary
     printed = describe(summary)
     assert f"STREAM STALLED {stream['stalls']} time" in printed, printed
-    for process, component in (("haptics", "device"), ("haptics", "renderer"), ("local", "receiver"),
+    for process, component in (("haptics", "device"), ("haptics", "renderer"), ("stream", "receiver"),
                                ("local", "mesh"), ("local", "tree"), ("local", "summary")):
         assert profile_row(result.stdout, process, component)["errors"] == 0, (process, component)
     # The force limit, whatever the surface asks.

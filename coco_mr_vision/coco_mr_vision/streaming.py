@@ -5,6 +5,9 @@ The server binds a PUB socket and sends one packet per frame; a slow or absent r
 blocks it (ZeroMQ drops beyond the high-water mark). The receiver connects a SUB socket and, each
 activation, drains every packet that arrived and delivers only the newest ("newest frame only",
 what live use wants); the older ones are counted as dropped, as are gaps in the sequence numbers.
+In a triggered activity its sockets wake it (:class:`~coco_core.descriptor_trigger.DescriptorTrigger`
+on their ``ZMQ_FD``): a packet is read as soon as it has arrived, not at the next tick of a period,
+and nothing polls; in a periodic one it looks at each cycle.
 Garbage, truncated and out-of-order packets are counted by kind, and together in the profile's
 refused column, and skipped: a bad packet is never a crash. Each server run names itself in its packets, so a server that starts again (its sequence
 numbers from 1) is counted once as a restart and its frames delivered, not taken for stale ones.
@@ -37,6 +40,7 @@ import zmq
 
 from coco_core.attributes import Attribute
 from coco_core.component import Component
+from coco_core.descriptor_trigger import DescriptorTrigger
 from coco_core.errors import PacketError
 from coco_core.ports import InputPort, OutputPort
 from coco_core.stamps import Stamp, Stamped, unstamped
@@ -188,6 +192,13 @@ class StreamingReceiver(Component):
         self._socket.setsockopt(zmq.MAXMSGSIZE, self._limit.packet_bytes)
         self._monitor: zmq.Socket[bytes] = self._socket.get_monitor_socket(zmq.EVENT_DISCONNECTED)
         self._socket.connect(self.address)
+        self._trigger: DescriptorTrigger | None = None
+        activity = self.activity
+        if activity is not None and activity.wakes_on_data:
+            # Woken by the sockets, not by a period: a packet is read as soon as it is whole.
+            self._trigger = DescriptorTrigger(f"coco:{self.name} (socket)", [self._socket.getsockopt(zmq.FD),
+                                              self._monitor.getsockopt(zmq.FD)], activity.wake)
+            self._trigger.start()
 
     def _reconnect_after_disconnects(self) -> None:
         """ZeroMQ connects again after a server went away, but not after a protocol error (a message
@@ -242,12 +253,24 @@ class StreamingReceiver(Component):
         return True
 
     def on_update(self) -> None:
+        more = False
+        try:
+            more = self._receive()
+        finally:  # whatever happened, the sockets are watched again
+            if self._trigger is not None:
+                self._trigger.rearm(more)
+
+    def _receive(self) -> bool:
+        """Take what arrived, deliver the newest; whether packets were left for the next activation
+        (``MAX_DRAIN`` reached before the socket was empty)."""
         self._reconnect_after_disconnects()
         newest: OpenedPacket | None = None
+        more = True
         for _ in range(MAX_DRAIN):  # only headers are read here (~10 us): the newest alone is decoded
             try:
                 packet = self._socket.recv(zmq.NOBLOCK, copy=False)
             except zmq.Again:
+                more = False
                 break
             self.bytes += len(packet.buffer)
             try:
@@ -261,12 +284,12 @@ class StreamingReceiver(Component):
                 self.dropped += 1
             newest = opened
         if newest is None:
-            return
+            return more
         try:
             frame = decode_opened(newest)
         except PacketError as error:
             self._refuse(error)
-            return
+            return more
         received = time.perf_counter()
         from_app = self.host_clock.from_app
         acquired, sent = from_app(frame.acquired), from_app(frame.sent)
@@ -284,8 +307,11 @@ class StreamingReceiver(Component):
                                               frame.depth_scale), stamp))
         elif frame.color is not None:
             self.image.write(Stamped(frame.color, stamp))
+        return more
 
     def on_stop(self) -> None:
+        if self._trigger is not None:
+            self._trigger.close()
         self._socket.disable_monitor()
         self._monitor.close(0)
         self._socket.close(0)

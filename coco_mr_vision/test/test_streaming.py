@@ -11,6 +11,7 @@ import struct
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -21,7 +22,8 @@ import pytest
 cv2 = pytest.importorskip("cv2")
 zmq = pytest.importorskip("zmq")
 
-from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort  # noqa: E402
+from coco_core import (Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort,  # noqa: E402
+                       TriggeredActivity)
 from coco_core.errors import CocoError, PacketError  # noqa: E402
 from coco_mr_vision.image import CameraIntrinsics  # noqa: E402
 from coco_mr_vision.rgbd import RGBDFrame  # noqa: E402
@@ -265,6 +267,88 @@ def test_a_server_that_starts_again_is_one_restart_and_its_frames_are_delivered(
     assert after["out_of_order"] == before["out_of_order"] and after["dropped"] == before["dropped"]
     assert after["frames"] - before["frames"] == 3
     assert [stamped.stamp.seq for stamped in sink.image.read_all()[-3:]] == [1, 2, 3]
+
+
+def test_a_receiver_in_a_triggered_activity_is_woken_by_its_socket():
+    """No period: the receiver's activity cycles when a packet has arrived (its socket's descriptor
+    became readable), once per arrival, never in a loop; its stop ends the thread that watches."""
+    frame = redwood()
+    address = f"tcp://127.0.0.1:{free_port()}"
+    publisher = zmq.Context.instance().socket(zmq.PUB)
+    publisher.setsockopt(zmq.LINGER, 0)
+    publisher.bind(address)
+    app = Application("receive")
+    activity = TriggeredActivity("stream")
+    receiver = app.add(StreamingReceiver("receiver", address=address), activity)
+    sink = app.add(Sink("sink"))
+    app.connect(receiver.image, sink.image, ConnectionPolicy(BufferPolicy.BUFFER, size=1000))
+    sent = 0
+
+    def send() -> None:
+        nonlocal sent
+        sent += 1
+        publisher.send(encode(sent, time.perf_counter(), time.perf_counter(), frame.color, None, stream="one"))
+
+    app.start()
+    try:
+        deadline = time.monotonic() + 10
+        while receiver.frames == 0 and time.monotonic() < deadline:  # until the subscription is up
+            send()
+            time.sleep(0.02)
+        assert receiver.frames, "nothing received"
+        for _ in range(5):  # one at a time: each is delivered without anyone activating the receiver
+            send()
+            deadline = time.monotonic() + 10
+            while receiver.last_seq < sent and time.monotonic() < deadline:
+                time.sleep(0.002)
+            assert receiver.last_seq == sent
+    finally:
+        assert app.stop()
+        publisher.close(0)
+    counters = receiver.counters()
+    assert counters["frames"] + counters["dropped"] == sent and counters["garbage"] == 0
+    assert [stamped.stamp.seq for stamped in sink.image.read_all()][-5:] == list(range(sent - 4, sent + 1))
+    # A cycle per wake-up of the socket (packets, ZeroMQ's own commands), not a polling loop's.
+    assert activity.stats.cycles <= sent + 10, (activity.stats.cycles, sent)
+    assert not any(thread.name == "coco:receiver (socket)" for thread in threading.enumerate())
+
+
+def test_a_triggered_receiver_is_woken_by_a_broken_connection_and_connects_again():
+    """A message over the largest packet makes ZeroMQ drop the connection for good: the monitor's
+    descriptor wakes the receiver's activity (nobody activates it), which counts the disconnection and
+    connects again, and the next packet is delivered."""
+    from coco_mr_vision.image import Image, ImageFormat
+    from coco_mr_vision.stream_header import FrameLimit
+
+    address = f"tcp://127.0.0.1:{free_port()}"
+    publisher = zmq.Context.instance().socket(zmq.PUB)
+    publisher.setsockopt(zmq.LINGER, 0)
+    publisher.bind(address)
+    app = Application("receive")
+    receiver = app.add(StreamingReceiver("receiver", address=address, max_frame=[640, 480]), TriggeredActivity("s"))
+    image = Image(np.full((48, 64, 3), 9, np.uint8), ImageFormat.RGB8, 1.0, "camera")
+    sent = 0
+
+    def until(done, resend: bool) -> bool:
+        nonlocal sent
+        deadline = time.monotonic() + 10
+        while not done() and time.monotonic() < deadline:
+            if resend:
+                sent += 1
+                publisher.send(encode(sent, time.perf_counter(), time.perf_counter(), image, None, stream="one"))
+            time.sleep(0.02)
+        return done()
+
+    app.start()
+    try:
+        assert until(lambda: receiver.frames > 0, resend=True)
+        publisher.send(b"CCV1" + bytes(FrameLimit(640, 480).packet_bytes + 1))
+        assert until(lambda: receiver.disconnects == 1, resend=False)
+        before = receiver.frames
+        assert until(lambda: receiver.frames > before, resend=True), "nothing after the connection broke"
+    finally:
+        assert app.stop()
+        publisher.close(0)
 
 
 def test_a_frame_whose_intrinsics_came_beside_its_images_keeps_them_through_the_stream():
