@@ -265,9 +265,12 @@ class KDTreeBuilder(Component):
                 raise StructureError(f"{self.name}: an array cloud must be N x 3, got {cloud.shape}")
             frame_id, stamp = "", None
             structure = self._of_points(cloud, None)
-        else:
+        elif isinstance(cloud, PointCloud):
             frame_id, stamp = cloud.frame_id, cloud.stamp
             structure = self._of_points(cloud.points, cloud.organized)
+        else:  # a Stamped value of another type reaches here: the port cannot tell what a Stamped holds
+            raise StructureError(f"{self.name}: a structure is built of a PointCloud, an N x 3 array, an RGB-D "
+                                 f"frame or a mesh slot, got {type(cloud).__name__}")
         end = time.perf_counter()
         return CloudStructure(**structure, frame_id=frame_id, stamp=stamp, build_seconds=end - start,
                               origin=origin.step("built", end) if origin is not None else None)

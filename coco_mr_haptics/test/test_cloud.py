@@ -490,7 +490,7 @@ def test_an_rgbd_frame_is_its_own_structure():
     depth image is the structure, copied, with the frame's intrinsics (halved at stride 2) and its
     way from the acquisition plus ``built``; every pixel with depth is a point, the filters make the
     others unknown, and its fit is the projective fit of the same points as an organised cloud."""
-    from coco_core.stamps import Stamp, Stamped
+    from coco_core.stamps import Stamp, Stamped, unstamped
     from coco_mr_vision.image import Image, ImageFormat
     from coco_mr_vision.rgbd import RGBDFrame
 
@@ -536,6 +536,8 @@ def test_an_rgbd_frame_is_its_own_structure():
     voxel.configure()
     with pytest.raises(StructureError, match="voxel decimation makes a cloud unorganised"):
         voxel.build(frame)
+    with pytest.raises(StructureError, match="got Image"):
+        builder.build(*unstamped(Stamped(frame.depth, acquired)))
 
 
 def load_frame(name):
