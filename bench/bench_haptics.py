@@ -2,11 +2,13 @@
 
 1. One proxy step (goal <= 50 us, i.e. >= 20x headroom at 1 kHz): HapticImplicitSurf on a CSG scene
    of 10 primitives with the device stroking it in contact, HapticCloud on the 640x480 Redwood frame
-   (projective structure, uniform grid, cKDTree), the whole HapticRenderer cycle around a step; floors: one
+   (projective structure, the frame's depth image, uniform grid, cKDTree), the whole HapticRenderer
+   cycle around a step; floors: one
    scene evaluation and one local-surface fit.
 2. Structure build for 307,200 points (goal <= 15 ms for the chosen one): pykdtree, SciPy cKDTree
    (balanced, and unbalanced as KDTreeBuilder builds it), KDTreeBuilder's projective structure (for
-   organised clouds) and uniform grid (for any cloud),
+   organised clouds), its depth-image structure (for RGB-D frames, issue 34) and uniform grid (for any
+   cloud),
    Open3D's KDTreeFlann when it can be imported (its 0.20 wheel imports plotly and dash, which the
    workspace does not install).
 3. The 1 kHz haptic activity (SimulatedDevice + HapticRenderer on the CSG scene) alone and with a
@@ -88,14 +90,19 @@ def step_loop(god: GodObject, path: np.ndarray):
     return loop
 
 
-def redwood_cloud():
+def redwood_frame():
     from coco_mr_vision.image import CameraIntrinsics
-    from coco_mr_vision.pointcloud import PointCloud
     from coco_mr_vision.rgbd import RGBDFrame
 
     intrinsics = CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
-    frame = RGBDFrame.load(REDWOOD / "color" / "00000.jpg", REDWOOD / "depth" / "00000.png", intrinsics)
-    return PointCloud.from_depth(frame.depth, intrinsics, organized=True)
+    return RGBDFrame.load(REDWOOD / "color" / "00000.jpg", REDWOOD / "depth" / "00000.png", intrinsics)
+
+
+def redwood_cloud(frame):
+    from coco_mr_vision.pointcloud import PointCloud
+
+    assert frame.intrinsics is not None  # given by redwood_frame
+    return PointCloud.from_depth(frame.depth, frame.intrinsics, organized=True)
 
 
 def cloud_renderer(structure, refit_distance: float) -> HapticCloud:
@@ -175,13 +182,14 @@ def proxy_steps() -> tuple[Table, dict[str, Any]]:
         renderer_state["i"] = i
 
     variants["implicit: whole HapticRenderer cycle (1 peer)"] = renderer_loop
-    cloud = redwood_cloud() if REDWOOD.is_dir() else None
-    if cloud is not None:
+    frame = redwood_frame() if REDWOOD.is_dir() else None
+    cloud = None if frame is None else redwood_cloud(frame)
+    if frame is not None and cloud is not None:
         builder = KDTreeBuilder("builder")
         builder.configure()
         structure = builder.build(cloud)
         path_cloud = floor_path(cloud)
-        others = {}
+        others = {"depth image": builder.build(frame)}
         for kind, label in (("grid", "uniform grid"), ("kdtree", "cKDTree")):
             other = KDTreeBuilder(kind, structure_kind=kind, cell=0.015)
             other.configure()
@@ -228,6 +236,17 @@ def organised_cloud() -> np.ndarray:
     return np.stack([(u - 319.5) * z / 525, (v - 239.5) * z / 525, z], -1).reshape(-1, 3).astype(np.float32)
 
 
+def depth_frame(points: np.ndarray) -> Any:
+    """The organised cloud's depth as the RGB-D frame a stream delivers: 16-bit millimetres."""
+    from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
+    from coco_mr_vision.rgbd import RGBDFrame
+
+    intrinsics = CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
+    depth = np.round(points[:, 2].reshape(480, 640) * 1000).astype(np.uint16)
+    return RGBDFrame(Image(np.zeros((480, 640, 3), np.uint8), ImageFormat.BGR8, 0.0, "camera"),
+                     Image(depth, ImageFormat.DEPTH16, 0.0, "camera"), intrinsics)
+
+
 def builds() -> tuple[Table, dict[str, Any]]:
     from pykdtree.kdtree import KDTree
     from scipy.spatial import cKDTree
@@ -241,8 +260,10 @@ def builds() -> tuple[Table, dict[str, Any]]:
     builder.build(cloud)  # the stream's first cloud: intrinsics estimated once
     grid_builder = KDTreeBuilder("grid", structure_kind="grid")
     grid_builder.configure()
+    frame = depth_frame(points)
     candidates: dict[str, Any] = {
         "projective (KDTreeBuilder, organised cloud)": lambda: builder.build(cloud),
+        "depth image (KDTreeBuilder, RGB-D frame)": lambda: builder.build(frame),
         "uniform grid (KDTreeBuilder, any cloud)": lambda: grid_builder.build(points),
         "cKDTree, unbalanced (KDTreeBuilder kdtree)": lambda: cKDTree(points, leafsize=16, balanced_tree=False,
                                                                       compact_nodes=False),
@@ -272,11 +293,13 @@ def builds() -> tuple[Table, dict[str, Any]]:
     for name, values in times.items():
         median = statistics.median(values)
         ratio = statistics.median(a / v for a, v in zip(anchor, values))  # per-round ratios, as everywhere
-        chosen = name.startswith(("projective", "uniform grid"))
+        chosen = name.startswith(("projective", "depth image", "uniform grid"))
         table.add(name, fmt_time_ns(median), fmt_ratio(ratio), verdict(median <= GOAL_BUILD_NS if chosen else None))
         results[name] = {"median_ns": median, "ns": values}
     table.notes.append("The projective structure reuses the organised cloud (no copy without a distance filter); "
-                       "its cost is checking the stream's intrinsics on 64 pixels and counting valid points.")
+                       "its cost is checking the stream's intrinsics on 64 pixels and counting valid points. "
+                       "The depth image structure (the same wall as a 16-bit depth frame, millimetres, as "
+                       "streamed) is a copy of the depth and a count of its valid pixels.")
     if missing:
         table.notes.append(missing)
     results["queries"] = query_results

@@ -7,7 +7,9 @@ keeps rendering on the previous one until then. Nothing is built inside the hapt
 
 The structure is chosen by measurement (bench/bench_haptics.py, docs/benchmarks.md): an organised
 cloud from a depth camera is searched *projectively* (its pixel grid is the structure: nothing to
-build, a few microseconds per query); a cloud without a pixel grid gets a compiled *uniform grid*
+build, a few microseconds per query), and an RGB-D frame is its own structure the same way (its
+depth image, searched projectively with the frame's intrinsics: a copy of the depth to build, a
+depth image's bytes to pass to the haptic process); a cloud without a pixel grid gets a compiled *uniform grid*
 (a counting sort by cell, ~15 ms for 307,200 points; cells found by binary search inside the fit).
 SciPy's cKDTree (unbalanced) stays available: it builds 3x slower, and a query from Python costs tens
 of microseconds, too many to refit at every haptic cycle; pykdtree builds faster than cKDTree but its
@@ -28,13 +30,15 @@ from coco_core.errors import SetupError, StructureError
 from coco_core.policy import NEW_DATA
 from coco_core.pool import Slot
 from coco_core.ports import InputPort, OutputPort
-from coco_core.stamps import Stamp
+from coco_core.stamps import Stamp, Stamped, unstamped
+from coco_mr_vision.image import ImageFormat
 from coco_mr_vision.mesh import MeshInfo, TriangleMesh
 from coco_mr_vision.pointcloud import PointCloud
+from coco_mr_vision.rgbd import RGBDFrame
 
 from . import kernel
 from .implicit import Plane
-from .local_surface import bounds, fit_grid, fit_points, fit_projective, kept_points, sort_into_cells, warm_up
+from .local_surface import bounds, fit_depth, fit_grid, fit_points, fit_projective, kept_points, sort_into_cells, warm_up
 from .proxy import GodObject
 from .renderer import FrameLink, SurfaceRenderer
 from .scene import Scene
@@ -87,7 +91,10 @@ class CloudStructure:
     """A finished search structure over one cloud, in the cloud's frame; never changed once written.
 
     ``kind`` is ``projective`` (``grid`` is the H x W x 3 organised cloud, ``intrinsics`` fx fy cx cy),
-    ``grid`` (``points`` N x 3 sorted by cell, ``cells``) or ``kdtree`` (``points`` N x 3 and ``tree``)."""
+    ``depth`` (an RGB-D frame's: ``depth`` is its H x W depth image, metres = value x ``depth_scale``,
+    0 or NaN where unknown, ``intrinsics`` fx fy cx cy and ``skew``; no ``points``: the fit
+    back-projects the pixels it reads), ``grid`` (``points`` N x 3 sorted by cell, ``cells``) or
+    ``kdtree`` (``points`` N x 3 and ``tree``)."""
 
     kind: str
     points: np.ndarray
@@ -97,6 +104,9 @@ class CloudStructure:
     intrinsics: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     tree: Any = None
     cells: UniformGrid | None = None
+    depth: np.ndarray | None = None
+    depth_scale: float = 1.0
+    skew: float = 0.0
     build_seconds: float = 0.0
     valid: int = 0
     """Points that survived the filters."""
@@ -111,6 +121,10 @@ class CloudStructure:
         if self.kind == "projective":
             fx, fy, cx, cy = self.intrinsics
             return fit_projective(self.grid, fx, fy, cx, cy, qx, qy, qz, support, vx, vy, vz, moments, out)
+        if self.kind == "depth":
+            fx, fy, cx, cy = self.intrinsics
+            return fit_depth(self.depth, self.depth_scale, fx, fy, cx, cy, self.skew, qx, qy, qz, support,
+                             vx, vy, vz, moments, out)
         if self.kind == "grid":
             g = self.cells
             assert g is not None  # built with the structure of kind "grid"
@@ -173,24 +187,41 @@ def mesh_cloud(slot: Slot) -> PointCloud:
         slot.release()
 
 
+def frame_cloud(frame: RGBDFrame) -> PointCloud:
+    """The valid pixels of an RGB-D frame's depth, back-projected through its intrinsics (skew
+    included), as an unorganised cloud: what a grid or a kd-tree is built from."""
+    k = frame.intrinsics
+    if k is None:
+        raise StructureError("an RGB-D frame without intrinsics cannot be back-projected into a cloud")
+    z = frame.depth_metres()
+    rows, cols = np.nonzero(z > 0)
+    depth = z[rows, cols]
+    ray_y = (rows - np.float32(k.cy)) / np.float32(k.fy)
+    ray_x = (cols - np.float32(k.cx) - np.float32(k.skew) * ray_y) / np.float32(k.fx)
+    points = np.stack([ray_x * depth, ray_y * depth, depth], axis=1).astype(np.float32)
+    return PointCloud(points, None, frame.stamp, frame.frame_id)
+
+
 class KDTreeBuilder(Component):
     """Filters each cloud and builds its search structure in its own activity; the newest finished
     structure is on ``structure`` (the front buffer) while the next is being built."""
 
-    structure_kind = Attribute(str, "auto", "auto (projective for organised clouds, else grid), "
-                               "projective, grid or kdtree", choices=STRUCTURES)
+    structure_kind = Attribute(str, "auto", "auto (projective for organised clouds and RGB-D frames, else "
+                               "grid), projective, grid or kdtree", choices=STRUCTURES)
     min_distance = Attribute(float, 0.0, "m: points nearer the camera (depth) are dropped", min=0.0)
     max_distance = Attribute(float, 0.0, "m: points farther from the camera (depth) are dropped; 0: none",
                              min=0.0)
-    stride = Attribute(int, 1, "keep every stride-th row and column (organised) or point", min=1)
+    stride = Attribute(int, 1, "keep every stride-th row and column (organised, RGB-D) or point", min=1)
     voxel = Attribute(float, 0.0, "m: one point per voxel of this size (makes the cloud unorganised); "
                       "0: off", min=0.0)
-    intrinsics: Attribute[list[float]] = Attribute(list[float], [], "fx fy cx cy of an organised cloud; empty: estimated from it")
+    intrinsics: Attribute[list[float]] = Attribute(list[float], [], "fx fy cx cy of an organised cloud; empty: "
+                                                   "estimated from it (an RGB-D frame carries its own)")
     cell = Attribute(float, 0.01, "m: cell of the uniform grid (about HapticCloud's support); a cloud "
                      "too large for it gets the smallest larger cell that bounds the grid", min=1e-4)
 
-    cloud = InputPort(PointCloud | np.ndarray | Slot, event=True,
-                      doc="PointCloud, an N x 3 array, or a MeshReconstructor's mesh slot (its vertices)")
+    cloud = InputPort(PointCloud | np.ndarray | Slot | RGBDFrame | Stamped, event=True,
+                      doc="PointCloud, an N x 3 array, a MeshReconstructor's mesh slot (its vertices), or an "
+                          "RGB-D frame, Stamped or not (its depth image's valid pixels)")
     structure = OutputPort(CloudStructure, doc="the newest finished search structure")
 
     def on_config(self) -> None:
@@ -211,42 +242,55 @@ class KDTreeBuilder(Component):
             origin = cloud.stamp.stamp if isinstance(cloud.stamp, MeshInfo) else None
             self.structure.write(self.build(mesh_cloud(cloud), origin))
         else:
-            self.structure.write(self.build(cloud))
+            self.structure.write(self.build(*unstamped(cloud)))
         self.built += 1
 
     def on_stop(self) -> None:
         log.info("%s: %d structures built", self.name, self.built)
 
-    def build(self, cloud: PointCloud | np.ndarray, origin: Stamp | None = None) -> CloudStructure:
+    def build(self, cloud: PointCloud | np.ndarray | RGBDFrame, origin: Stamp | None = None) -> CloudStructure:
         """The structure of one cloud after the filters; ``origin``: the acquisition stamp of the
         cloud's frame, passed on with the step ``built``."""
         import time
 
         start = time.perf_counter()
-        if isinstance(cloud, np.ndarray):
+        if isinstance(cloud, RGBDFrame):
+            frame_id, stamp = cloud.frame_id, cloud.stamp
+            if self.structure_kind == "projective" or (self.structure_kind == "auto" and not self.voxel):
+                structure = self._depth(cloud)
+            else:
+                structure = self._of_points(frame_cloud(cloud).points, None)
+        elif isinstance(cloud, np.ndarray):
             if cloud.ndim != 2 or cloud.shape[1] != 3:
                 raise StructureError(f"{self.name}: an array cloud must be N x 3, got {cloud.shape}")
-            points, organized, frame_id, stamp = cloud, None, "", None
-        else:
-            points, organized, frame_id, stamp = cloud.points, cloud.organized, cloud.frame_id, cloud.stamp
+            frame_id, stamp = "", None
+            structure = self._of_points(cloud, None)
+        elif isinstance(cloud, PointCloud):
+            frame_id, stamp = cloud.frame_id, cloud.stamp
+            structure = self._of_points(cloud.points, cloud.organized)
+        else:  # a Stamped value of another type reaches here: the port cannot tell what a Stamped holds
+            raise StructureError(f"{self.name}: a structure is built of a PointCloud, an N x 3 array, an RGB-D "
+                                 f"frame or a mesh slot, got {type(cloud).__name__}")
+        end = time.perf_counter()
+        return CloudStructure(**structure, frame_id=frame_id, stamp=stamp, build_seconds=end - start,
+                              origin=origin.step("built", end) if origin is not None else None)
+
+    def _of_points(self, points: np.ndarray, organized: tuple[int, int] | None) -> dict[str, Any]:
+        """The fields of the structure of ``points`` (organised: ``organized`` is the grid's shape)."""
         kind = self.structure_kind
         if kind == "auto":
             kind = "projective" if organized is not None and not self.voxel else "grid"
         if kind == "projective":
-            structure = self._projective(points, organized)
-        elif kind == "grid":
-            points = self._unorganised(points)
-            cells, points = UniformGrid.of(points, self.cell)
-            if cells.cell != self.cell and not self._enlarged:
-                self._enlarged = True
-                log.info("%s: a grid of %g m cells would be too large for this cloud's extent: built with "
-                         "%.3g m cells", self.name, self.cell, cells.cell)
-            structure = {"kind": "grid", "points": points, "cells": cells, "valid": len(points)}
-        else:
-            structure = self._kdtree(self._unorganised(points))
-        end = time.perf_counter()
-        return CloudStructure(**structure, frame_id=frame_id, stamp=stamp, build_seconds=end - start,
-                              origin=origin.step("built", end) if origin is not None else None)
+            return self._projective(points, organized)
+        if kind == "kdtree":
+            return self._kdtree(self._unorganised(points))
+        points = self._unorganised(points)
+        cells, points = UniformGrid.of(points, self.cell)
+        if cells.cell != self.cell and not self._enlarged:
+            self._enlarged = True
+            log.info("%s: a grid of %g m cells would be too large for this cloud's extent: built with "
+                     "%.3g m cells", self.name, self.cell, cells.cell)
+        return {"kind": "grid", "points": points, "cells": cells, "valid": len(points)}
 
     def _projective(self, points: np.ndarray, organized: tuple[int, int] | None) -> dict[str, Any]:
         if organized is None:
@@ -273,6 +317,29 @@ class KDTreeBuilder(Component):
         valid = int(np.count_nonzero(grid[:, :, 2] > 0))
         return {"kind": "projective", "points": grid.reshape(-1, 3), "grid": np.ascontiguousarray(grid),
                 "intrinsics": (fx, fy, cx, cy), "valid": valid}
+
+    def _depth(self, frame: RGBDFrame) -> dict[str, Any]:
+        """The frame's depth image as the structure: copied (a structure outlives the frame and is
+        never changed), every stride-th pixel both ways, the pixels outside the distances unknown (0)."""
+        k = frame.intrinsics
+        if k is None:
+            raise StructureError(f"{self.name}: the RGB-D frame carries no intrinsics, so its depth cannot be "
+                                 "searched projectively")
+        if self.voxel:
+            raise StructureError(f"{self.name}: voxel decimation makes a cloud unorganised; use stride "
+                                 "with a projective structure")
+        s = self.stride
+        depth = np.array(frame.depth.data[::s, ::s])  # pixel (s*i, s*j) becomes (i, j)
+        scale = 1.0 if frame.depth.format is ImageFormat.DEPTH32F else 1.0 / frame.depth_scale
+        if self.min_distance or self.max_distance:
+            z = depth * scale
+            keep = z > self.min_distance
+            if self.max_distance:
+                keep &= z <= self.max_distance
+            depth[~keep] = 0
+        return {"kind": "depth", "points": np.empty((0, 3), np.float32), "depth": depth, "depth_scale": scale,
+                "intrinsics": (k.fx / s, k.fy / s, k.cx / s, k.cy / s), "skew": k.skew / s,
+                "valid": int(np.count_nonzero(depth > 0))}
 
     def _estimated(self, grid: np.ndarray) -> tuple[float, float, float, float]:
         """The intrinsics of the stream: estimated on its first cloud, then only checked on a few

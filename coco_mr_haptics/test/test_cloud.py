@@ -483,3 +483,122 @@ def test_a_haptic_loop_that_never_received_a_structure_is_not_a_perfect_run(tmp_
     assert cloud_renderer.blind_cycles == 500
     assert app.damage and "no cloud structure ever arrived on cloud.structure" in app.damage[0]
     assert stopped_by_a_failure(app)
+
+
+def test_an_rgbd_frame_is_its_own_structure():
+    """A stamped RGB-D frame straight from a stream (TUM's 16-bit depth, 5000 units a metre): its
+    depth image is the structure, copied, with the frame's intrinsics (halved at stride 2) and its
+    way from the acquisition plus ``built``; every pixel with depth is a point, the filters make the
+    others unknown, and its fit is the projective fit of the same points as an organised cloud."""
+    from coco_core.stamps import Stamp, Stamped, unstamped
+    from coco_mr_vision.image import Image, ImageFormat
+    from coco_mr_vision.rgbd import RGBDFrame
+
+    app = Application("rgbd_structure")
+    sensor, builder, haptics = RgbdSource("sensor"), KDTreeBuilder("builder"), StructureSink("haptics")
+    for component in (sensor, builder, haptics):
+        app.add(component)
+    app.connect("sensor.rgbd", "builder.cloud")
+    app.connect("builder.structure", "haptics.structure")
+    builder.configure()
+    intrinsics = CameraIntrinsics(64, 48, 60.0, 62.0, 31.5, 23.5)
+    depth = np.full((48, 64), 5000, np.uint16)  # a wall 1 m away ...
+    depth[:, 32:] = np.linspace(5000, 7000, 32).astype(np.uint16)  # ... turning away to 1.4 m
+    depth[:5, :5] = 0  # a corner without depth
+    frame = RGBDFrame(Image(np.zeros((48, 64, 3), np.uint8), ImageFormat.RGB8, 10.0, "cam"),
+                      Image(depth, ImageFormat.DEPTH16, 10.0, "cam"), intrinsics, depth_scale=5000.0)
+    acquired = Stamp.now(5, "camera").step("received")
+    sensor.rgbd.write(Stamped(frame, acquired))
+    builder.step()
+    structure = haptics.structure.read()[1]
+    assert structure.kind == "depth" and structure.valid == 48 * 64 - 25
+    assert (structure.frame_id, structure.stamp) == ("cam", 10.0) and len(structure.points) == 0
+    assert [name for name, _ in structure.origin.steps] == ["received", "built"]
+    depth[10, 10] = 0  # the frame's array, not the structure's
+    assert structure.depth[10, 10] == 5000 and structure.depth_scale == pytest.approx(1 / 5000)
+    # The same points as an organised cloud, searched projectively: the same plane.
+    z = depth.astype(np.float64) / 5000
+    z[10, 10], z[:5, :5] = 1.0, np.nan
+    v, u = np.mgrid[0:48, 0:64]
+    grid = np.stack([(u - 31.5) / 60.0 * z, (v - 23.5) / 62.0 * z, z], axis=-1).astype(np.float32)
+    organised = builder.build(PointCloud(grid.reshape(-1, 3), organized=(48, 64)))
+    for q in ((0.01, 0.02, 0.99), (0.12, -0.05, 1.1), (-0.4, -0.3, 1.0)):  # the last one beside the hole
+        fits = [np.zeros(7), np.zeros(7)]
+        found = [s.fit(*q, 0.05, (0.0, 0.0, 0.0), fit, np.zeros(11)) for s, fit in zip((structure, organised), fits)]
+        assert found[0] == found[1] >= 6 and np.allclose(fits[0], fits[1], atol=1e-6), (q, found, fits)
+    # Every second pixel both ways; the pixels beyond 1.2 m unknown.
+    halved = KDTreeBuilder("halved", stride=2, max_distance=1.2)
+    halved.configure()
+    half = halved.build(frame)
+    assert half.depth.shape == (24, 32) and half.intrinsics == (30.0, 31.0, 15.75, 11.75)
+    assert half.valid == int(np.count_nonzero((depth[::2, ::2] > 0) & (depth[::2, ::2] <= 6000)))
+    voxel = KDTreeBuilder("voxel", structure_kind="projective", voxel=0.01)
+    voxel.configure()
+    with pytest.raises(StructureError, match="voxel decimation makes a cloud unorganised"):
+        voxel.build(frame)
+    with pytest.raises(StructureError, match="got Image"):
+        builder.build(*unstamped(Stamped(frame.depth, acquired)))
+
+
+def load_frame(name):
+    """A real RGB-D frame of the shared data (PrimeSense intrinsics): Redwood's 0 and 1, TUM's."""
+    from coco_mr_vision.rgbd import RGBDFrame
+
+    intrinsics = CameraIntrinsics(640, 480, FX, FY, CX, CY)
+    if name == "tum":
+        folder = RGBD / "tum"
+        paths, scale = (folder / "color.png", folder / "depth.png"), 5000.0
+    else:
+        folder = RGBD / "redwood"
+        paths, scale = (folder / "color" / f"{name}.jpg", folder / "depth" / f"{name}.png"), 1000.0
+    if not folder.is_dir():
+        pytest.skip(f"the RGB-D test data is not at {folder}")
+    return RGBDFrame.load(*paths, intrinsics, depth_scale=scale)
+
+
+@pytest.mark.parametrize("name", ["00000", "00001", "tum"])
+def test_the_depth_structure_touches_like_the_grid_on_real_frames(name):
+    """Issue 34: the frame's depth image as the structure (what the palpation app now touches)
+    against the uniform grid over the same valid points (what it touched before, over the mesh's
+    vertices), through the same contact query (HapticCloud's): a hand that presses 5 mm into the
+    surface at pixels spread over the image and slides 3 cm along it, and a drag across the whole
+    image 3 mm under the surfaces the camera sees. The same contacts at every step, and the proxies
+    within 0.5 mm of each other."""
+    from coco_mr_haptics.cloud import frame_cloud
+
+    frame = load_frame(name)
+    points = frame_cloud(frame)
+    assert len(points) > 0.6 * 640 * 480
+    structures = []
+    for kind in ("auto", "grid"):
+        builder = KDTreeBuilder(f"builder_{kind}", structure_kind=kind)
+        builder.configure()
+        structures.append(builder.build(frame))
+    assert [s.kind for s in structures] == ["depth", "grid"] and structures[0].valid == structures[1].valid
+    z = frame.depth_metres()
+    organised = PointCloud(np.stack([(np.arange(640) - CX)[None, :] / FX * z, (np.arange(480) - CY)[:, None] / FY * z,
+                                     z], axis=-1).reshape(-1, 3).astype(np.float32), organized=(480, 640))
+    contacts, gaps = [], []
+    for row, col in ((120, 160), (120, 480), (240, 320), (360, 160), (360, 480), (420, 240)):
+        target = organised.points.reshape(480, 640, 3)[row, col].astype(float)
+        if not np.isfinite(target).all():
+            continue
+        normal = patch_plane(organised, target, radius=0.03)[0]
+        along = np.cross(normal, [0.0, 1.0, 0.0])
+        path = stroke(target + 0.02 * normal, -normal, along / np.linalg.norm(along), 0.005, 0.03,
+                      steps_in=40, steps_along=200)
+        renderers = []  # each press a new approach: a hand that came from the free side
+        for structure in structures:
+            renderer = Application(f"touch_{structure.kind}").add(HapticCloud("cloud", stiffness=500.0, damping=0.0))
+            renderer.configure()
+            renderer.use(structure)
+            renderers.append(renderer)
+        for p in path:
+            touching = [renderer.render(*p, 0.0, 0.0, 0.0) for renderer in renderers]
+            contacts.append(touching)
+            if all(touching):
+                gaps.append(np.linalg.norm(np.subtract(*(r.proxy_object.proxy for r in renderers))))
+    contacts = np.array(contacts)
+    assert len(contacts) >= 5 * 240 and contacts[:, 0].sum() > 0.6 * len(contacts), "the presses touch"
+    assert np.array_equal(contacts[:, 0], contacts[:, 1]), np.nonzero(contacts[:, 0] != contacts[:, 1])
+    assert max(gaps) < 5e-4, max(gaps)

@@ -10,7 +10,8 @@ structures, draining the haptic samples at each wake-up) and reads:
   at what rate (arrival times here), how long each took to build (``build_seconds``), how many points,
   and, for those built from a streamed frame, the sensor-to-touchable latency (acquisition to the
   structure built) split by the steps its stamp passed: ``sent`` (taken by the remote server,
-  before its encoding), ``received`` (decoded by the receiver), ``meshed``, ``built``;
+  before its encoding), ``received`` (decoded by the receiver), ``built`` (the steps it carries: a
+  structure built from a mesh has a ``meshed`` step before it);
 - ``frames`` (``StreamingReceiver.rgbd``): the frames the stream delivered, and the frames the
   server sent that never arrived (gaps in the server's sequence numbers: dropped by ZeroMQ or
   superseded in the receiver); its stalls: gaps longer than ``stall`` between the acquisition
