@@ -143,7 +143,7 @@ def test_frames_of_the_wrong_size_or_encoding_and_hand_poses_with_nan(palpation_
     assert profile_row(report, "hand", "replay")["refused"] == len(NAN_POSES), report
     assert profile_row(report, "haptics", "device")["refused"] == 0, "a NaN pose reached the device"
     for process, component in (("remote", "camera"), ("hand", "replay"), ("haptics", "device"),
-                               ("haptics", "renderer"), ("local", "tree")):
+                               ("haptics", "renderer"), ("stream", "tree")):
         assert profile_row(report, process, component)["errors"] == 0, (process, component, report)
 
     summary = json.loads((output / "summary.json").read_text())
