@@ -37,10 +37,8 @@ class Driving(str, enum.Enum):
 
     THREAD = "own thread"
     MAIN = "main thread"
-    WAIT_SET = "wait set"
-    """The ROS host: a thread of the activity's own waiting on its callback group's entities only."""
-    EXECUTOR = "executor"
-    """The ROS host: a callback group of the node's executor, run by its shared threads."""
+    HOSTED = "hosted"
+    """The launch host's own driver (the plan's words for the activity say which)."""
 
 
 class Driver(Protocol):
@@ -49,7 +47,7 @@ class Driver(Protocol):
 
     @property
     def driving(self) -> Driving:
-        """What kind of driver this is (checked against the deployment plan)."""
+        """What kind of driver this is, in the deployment plan's words."""
 
     @property
     def eventfd(self) -> int | None:

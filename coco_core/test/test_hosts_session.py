@@ -21,7 +21,7 @@ from coco_core.application import Application
 from coco_core.builder import build_application
 from coco_core.errors import HostError, RemoteError
 from coco_core.hosts.clock import ClockOffset, best, exchange
-from coco_core.hosts.part import host_part
+from coco_core.deployment import plan_deployment
 from coco_core.hosts.session import HostSession
 from coco_core.processes.messages import Call, Message, Outcome
 from coco_core.wire import Decoder, Encoder
@@ -107,7 +107,7 @@ class Hosts:
         self.apps: dict[str, Application] = {}
         self.sessions: dict[str, HostSession] = {}
         for name in ("robot", "graphics"):
-            part = host_part(spec, name)
+            part = plan_deployment(spec, host=name).host(name).spec
             app = self.apps[name] = build_application(part)
             session = self.sessions[name] = HostSession(part, app, timeout=20, lost_after=lost_after)
             app.router = session

@@ -61,11 +61,11 @@ class RosChildProcess(ChildProcess):
                                     automatically_declare_parameters_from_overrides=True)
             # The launcher resolved the args (its -p values included) and reported the -p values no arg
             # takes: a child's node shows the args and refuses changes as the launcher's does.
-            ArgParameters(node, config.spec).declare({})
+            ArgParameters(node, config.deployment.spec).declare({})
             ComponentParameters(node, app).declare()
             host, executor = host_in_node(node, app, config.deployment)
             with (RosoutLogging(node),  # this process's log lines on /rosout, under its node's name
-                  PortMirrors(node, app, config.spec, config.host.get("expose", []))):
+                  PortMirrors(node, app, config.deployment.spec, config.host.get("expose", []))):
                 clean = run_hosted(app, host, executor)
             self.host = host if clean else None  # else a hung callback may still use it: left to the exit
             return clean
