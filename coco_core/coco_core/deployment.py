@@ -12,12 +12,12 @@ again (so there is nothing left to disagree, and no cross-check at run time)::
         ├── placement             every activity's and component's process (Placement)
         ├── crossings             the connections between processes, with the activity each wakes
         └── ProcessPlan           one process: affinity, nice, memory lock, GC, its wake set,
-            │                     what its launch host runs beside it (an executor's threads)
+            │                     what its launch host runs beside it (its own threads)
             └── ActivityDeployment  one activity: its schedule (ActivityFacts) and its driver, and why
 
 Who consumes which part:
 
-- the launchers (:mod:`coco_core.launcher`, ``coco_ros.launcher``): the whole tree; ``--check``
+- the launchers (:mod:`coco_core.launcher` and every launch host's): the whole tree; ``--check``
   prints :meth:`Deployment.render`, a run executes :meth:`Deployment.host` of ``--host``;
 - the builder (:func:`coco_core.builder.build_application`): a host's ``placement`` (which
   components and activities a process builds, which connections cross);
@@ -25,10 +25,10 @@ Who consumes which part:
 - the process level (:mod:`coco_core.processes`): the supervisor makes one eventfd for each activity
   of a ``woken`` set and plans the shared-memory channels of the ``crossings``; each child applies
   its :class:`ProcessPlan`'s settings and drives its activities with :func:`drive`;
-- a launch host's own driver (``coco_ros.hosting``): the activities planned ``HOSTED`` and its
-  process's :attr:`ProcessPlan.host` settings (the threads of its executor).
+- a launch host's own driver: the activities planned ``HOSTED`` and its process's
+  :attr:`ProcessPlan.host` settings (whatever the host runs beside the activities).
 
-The rules, in order (``docs/processes.md`` and ``docs/ros.md`` have the measurements behind them):
+The rules, in order (``docs/processes.md`` has the measurements behind them):
 
 - an activity of another process is that process's: the launcher holds a stand-in of it;
 - the main activity runs in the launcher's main thread (some GUI toolkits need it);
@@ -36,8 +36,8 @@ The rules, in order (``docs/processes.md`` and ``docs/ros.md`` have the measurem
   the writer's process increments), so it needs a thread of its own that waits on it;
 - every other activity: the launch host's rules (:meth:`LaunchRules.decide`) say whether the host
   runs it with a driver of its own (``HOSTED``) or it has a thread of its own. The plain host
-  (``coco-launch``, :class:`PlainRules`) gives every activity a thread; other hosts plug their
-  rules in (``coco_ros.deployment`` for the ROS launcher).
+  (``coco-launch``, :class:`PlainRules`) gives every activity a thread; another launch host plugs
+  its own rules in, from its own package, with its own words for what it hosts.
 """
 
 from __future__ import annotations
@@ -132,7 +132,8 @@ class Decision:
 
 
 class HostSettings(Protocol):
-    """What a launch host plans for one process beyond its activities (the ROS host: its executor).
+    """What a launch host plans for one process beyond its activities (say, the threads that run
+    what it hosts).
     Travels to the process with the plan: a frozen dataclass of the host's own package."""
 
     def describe(self) -> str:
@@ -140,7 +141,7 @@ class HostSettings(Protocol):
 
 
 class LaunchRules(Protocol):
-    """What a launch host supplies to the planner, as rclpy's executors offer one extension point:
+    """What a launch host supplies to the planner, one extension point:
     the core plans processes, the main thread and eventfds; the host decides the rest of each
     activity and what runs beside a process's activities. Pure, like the planner."""
 
@@ -357,7 +358,7 @@ def _place(facts: ActivityFacts, woken: bool, rules: LaunchRules) -> ActivityDep
 def of_application(app: Application, rules: LaunchRules = PLAIN) -> HostDeployment:
     """The deployment of an application built in code (no file: one process, nothing woken from
     another), from its activities' own facts: for a program that hosts an application it built
-    itself (``coco_ros.hosting.ExecutorHost`` in a script, a benchmark)."""
+    itself (a launch host's driver in a script, a benchmark)."""
     facts = [ActivityFacts.of_activity(a) for a in app.activities.values()]
     rules.check([f.name for f in facts])
     planned = {f.name: _place(f, False, rules) for f in facts}

@@ -4,12 +4,12 @@ An :class:`~coco_core.activity.Activity` is what runs (components, operation que
 ``cycle`` / ``finish``, stats, its schedule); a *driver* decides when and in which thread. This is
 OROCOS RTT's split of ``RunnableInterface`` (the activity's steps) from ``ActivityInterface`` (a
 thread, a slave driven by another, ...): the same activity runs unchanged under every driver, and a
-host (``coco_ros`` runs activities as callback groups of an rclpy executor) brings its own driver
-instead of changing the activity. Every driver has the protocol of :class:`Driver`.
+launch host with its own way of running activities brings its own driver (``HOSTED`` in the
+deployment plan) instead of changing the activity. Every driver has the protocol of :class:`Driver`.
 
 The thread drivers sleep coarsely and then spin to each periodic deadline: the architecture notes
 measured that a plain thread doing so holds a 1 kHz period to a few microseconds at p99, far better
-than an rclpy timer.
+than a middleware's timer.
 """
 
 from __future__ import annotations
