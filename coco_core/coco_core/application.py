@@ -26,7 +26,7 @@ from .operations import Operation
 from .ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
 from .profiling import MessageAges
 from .processes.remote import RemoteOperation, Router
-from .scheduling import available_cores
+from .thread_placement import available_cores
 from .stamps import Stamp
 from .transforms.graph import TransformGraph
 

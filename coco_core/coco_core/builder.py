@@ -23,7 +23,7 @@ from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterS
 from .policy import ConnectionPolicy
 from .ports import InputPort, Port, type_name
 from .processes.placement import LAUNCHER, Placement
-from .scheduling import SchedulingRequest
+from .thread_placement import SchedulingRequest
 from .xml.composite import context_of, scope_of
 
 log = logging.getLogger("coco")

@@ -53,7 +53,7 @@ from .model import ActivitySpec, AppSpec, ComponentSpec, ProcessSpec
 from .processes.channels import Crossing, crossings
 from .processes.placement import LAUNCHER, Placement
 from .schedule import DEFAULT_SPIN, Schedule
-from .scheduling import SchedulingRequest
+from .thread_placement import SchedulingRequest
 
 if TYPE_CHECKING:
     from .activity import Activity

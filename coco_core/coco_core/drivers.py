@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Protocol
 
 from .operations import set_current_activity
 from .period import PeriodGrid
-from .scheduling import apply_to_current_thread
+from .thread_placement import apply_to_current_thread
 
 if TYPE_CHECKING:
     from .activity import Activity

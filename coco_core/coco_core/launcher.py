@@ -369,7 +369,7 @@ def launch(deployment: HostDeployment, app: Application, options: argparse.Names
     with host_level(spec, app, options.host_timeout, key, signals.check) as hosts:
         link = HostsLink(hosts.clock, key, options.host_timeout) if hosts is not None and key is not None else None
         with process_level(app, deployment, level, child_module=host.child_module,
-                           child_config=host.child_config(), hosts_link=link) as processes:
+                           child_config=host.child_config(), hosts_link=link, hosts=hosts) as processes:
             if hosts is not None:
                 hosts.built(processes)
             clean = host.run(app, deployment, options, processes, signals)

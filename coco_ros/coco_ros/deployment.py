@@ -18,7 +18,7 @@ from typing import Sequence
 
 from coco_core.deployment import ActivityDeployment, ActivityFacts, Decision, Driving
 from coco_core.errors import CommandLineError, did_you_mean
-from coco_core.scheduling import SchedulingRequest
+from coco_core.thread_placement import SchedulingRequest
 
 THREAD_PERIOD = 5e-3
 """Periodic activities faster than this (seconds) keep a thread of their own: an rclpy timer's p99

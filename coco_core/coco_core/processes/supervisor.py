@@ -61,7 +61,7 @@ from .placement import LAUNCHER
 from .remote import call_over, serve_call
 
 if TYPE_CHECKING:
-    from ..hosts.session import HostSession
+    from ..levels import OtherHosts
     from ..shm import Arena
 
 log = logging.getLogger("coco")
@@ -163,7 +163,7 @@ class ProcessSupervisor:
 
     def __init__(self, app: Application, deployment: HostDeployment, log_level: int = logging.INFO,
                  child_module: str = "coco_core.processes.child", child_config: dict[str, Any] | None = None,
-                 hosts_link: HostsLink | None = None) -> None:
+                 hosts_link: HostsLink | None = None, hosts: OtherHosts | None = None) -> None:
         self.child_module = child_module
         """The module a child runs (``python -m``): the ROS launcher's children host an rclpy node."""
         self.child_config = child_config or {}
@@ -187,9 +187,9 @@ class ProcessSupervisor:
         self._lock = threading.Lock()
         self.failure = ""
         """Why the application failed because of a child (its death), for the exit status."""
-        self.hosts: HostSession | None = None
+        self.hosts = hosts
         """The other hosts of the application, when it has several: the calls to their components
-        go there (:mod:`coco_core.hosts`)."""
+        and the damage this host's children find go there (:class:`~coco_core.levels.OtherHosts`)."""
 
     # --- start ----------------------------------------------------------------------------------
     def launch(self) -> None:
@@ -223,7 +223,6 @@ class ProcessSupervisor:
                 ProcessDriver(self, child, self.app.activities[name], self.deployment.activities[name].driving,
                               self._wakes.get(name))
             threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True).start()
-        self.app.router = self
         self.app.add_damage_listener(self.pass_on_damage)
 
     def _spawn(self, name: str) -> Child:
@@ -251,6 +250,8 @@ class ProcessSupervisor:
                 return
             if isinstance(message, BuildFailed):
                 raise ProcessError(f"process {child.name}: {message.text}")
+            if message is not None:  # a child says nothing else before it built
+                child.link.refuse(message)
             code = child.popen.poll()
             if code is not None:
                 raise ProcessError(f"process {child.name} ended while building its components "
