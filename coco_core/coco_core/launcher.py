@@ -15,7 +15,7 @@ import contextlib
 import logging
 import sys
 import threading
-from typing import Any, Callable, Iterator, Mapping, Protocol, Sequence
+from typing import Callable, Iterator, Mapping, Protocol, Sequence
 
 from . import registry
 from .applications import find_application
@@ -31,7 +31,7 @@ from .hosts.session import START_TIMEOUT
 from .model import AppSpec
 from .ports import InputPort
 from .processes.level import process_level
-from .processes.messages import HostsLink
+from .processes.messages import HostConfig, HostsLink
 from .processes.placement import LAUNCHER
 from .processes.supervisor import ProcessSupervisor
 from .report import profile_report
@@ -256,7 +256,7 @@ class LaunchHost(Protocol):
         """The host's rules for the deployment plan, with what of the command line decides where
         activities run (:class:`~coco_core.deployment.LaunchRules`)."""
 
-    def child_config(self) -> dict[str, Any]:
+    def child_config(self) -> HostConfig:
         """What every child's host needs beyond the plan (:attr:`~.processes.messages.Config.host`)."""
 
     def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
@@ -277,8 +277,8 @@ class PlainHost:
     def rules(self, options: argparse.Namespace) -> LaunchRules:
         return PLAIN
 
-    def child_config(self) -> dict[str, Any]:
-        return {}
+    def child_config(self) -> HostConfig:
+        return HostConfig()
 
     def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
         return [f"<topics>: {len(spec.topics)} port mirror(s) left to the ROS launcher"] if spec.topics else []

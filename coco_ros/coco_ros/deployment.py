@@ -18,6 +18,7 @@ from typing import Sequence
 
 from coco_core.deployment import ActivityDeployment, ActivityFacts, Decision, Driving
 from coco_core.errors import CommandLineError, did_you_mean
+from coco_core.processes.messages import HostConfig
 from coco_core.thread_placement import SchedulingRequest
 
 THREAD_PERIOD = 5e-3
@@ -37,6 +38,18 @@ class ExecutorPlan:
     def describe(self) -> str:
         hosting = "a wait set per hosted activity" if self.wait_sets else "hosted activities in the executor"
         return f"rclpy node: {hosting}, executor with {self.threads} thread{'s' if self.threads > 1 else ''}"
+
+
+@dataclass(frozen=True)
+class RosChildConfig(HostConfig):
+    """What every child of the ROS launcher needs beyond the plan (:mod:`.child`)."""
+
+    node: str
+    """The launcher's node's name: a child's node is ``<node>_<process>``."""
+    ros_args: tuple[str, ...] = ()
+    """The launcher's ROS arguments (the child drops its node renames)."""
+    expose: tuple[str, ...] = ()
+    """``--expose`` patterns: the ports every process mirrors on topics."""
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ import re
 import sys
 from functools import partial
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 from coco_core import Application, CocoError
 from coco_core.errors import Interrupted
@@ -59,7 +59,7 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 
 from .fastdds_segments import remove_abandoned
-from .deployment import RosRules
+from .deployment import RosChildConfig, RosRules
 from .hosting import ExecutorHost, ExecutorThread
 from .managed import ManagedApplication, ManagedLauncherNode
 from .mirror import PortMirrors, check_mirrors
@@ -243,9 +243,9 @@ class RosHost:
         return RosRules(tuple(_threads(options.threads)), options.all_threads,
                         wait_sets=options.executor_threads is None, executor_threads=options.executor_threads)
 
-    def child_config(self) -> dict[str, Any]:
+    def child_config(self) -> RosChildConfig:
         assert self.node is not None
-        return {"node": self.node.get_name(), "ros_args": self.ros_args, "expose": self.expose}
+        return RosChildConfig(self.node.get_name(), tuple(self.ros_args), tuple(self.expose))
 
     def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
         return check_mirrors(spec, app, options.expose, options.allow_unknown)

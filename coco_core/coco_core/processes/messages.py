@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from ..deployment import HostDeployment
     from ..hosts.clock import ClockOffset
     from ..hosts.key import AppKey
+    from ..report import ProfileSnapshot
     from .channels import ChannelPlan
 
 
@@ -72,6 +73,13 @@ class Result(Message):
 
 # --- launcher -> child ------------------------------------------------------------------------
 @dataclass(frozen=True)
+class HostConfig:
+    """What every child of a launch host needs beyond the plan: nothing for the plain host; another
+    launch host sends a frozen subclass with its own typed fields (the ROS launcher: the node's
+    name, the ROS arguments)."""
+
+
+@dataclass(frozen=True)
 class HostsLink:
     """What a child of one host of an application over several needs to reach the others."""
 
@@ -99,8 +107,8 @@ class Config(Message):
     deployment: HostDeployment
     """This host's part of the launch's one deployment plan (the file's part included)."""
     log_level: int
-    host: dict[str, Any] = field(default_factory=dict)
-    """What the child's host needs beyond the plan (the ROS launcher's node name and ROS arguments)."""
+    host: HostConfig = field(default_factory=HostConfig)
+    """What the child's launch host needs beyond the plan (its own subclass of :class:`HostConfig`)."""
     hosts: HostsLink | None = None
     """The other hosts, when the application has several; None otherwise."""
     measure_ages: bool = False
@@ -173,7 +181,7 @@ class Stopped(Message):
 
     clean: bool
     failed: bool
-    snapshot: Any
+    snapshot: ProfileSnapshot
 
 
 # --- both ways --------------------------------------------------------------------------------

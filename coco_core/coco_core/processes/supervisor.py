@@ -43,6 +43,7 @@ from .messages import (
     Built,
     Call,
     Config,
+    HostConfig,
     HostsLink,
     Configured,
     Damage,
@@ -162,11 +163,11 @@ class ProcessSupervisor:
     ``deployment``)."""
 
     def __init__(self, app: Application, deployment: HostDeployment, log_level: int = logging.INFO,
-                 child_module: str = "coco_core.processes.child", child_config: dict[str, Any] | None = None,
+                 child_module: str = "coco_core.processes.child", child_config: HostConfig = HostConfig(),
                  hosts_link: HostsLink | None = None, hosts: OtherHosts | None = None) -> None:
         self.child_module = child_module
         """The module a child runs (``python -m``): the ROS launcher's children host an rclpy node."""
-        self.child_config = child_config or {}
+        self.child_config = child_config
         """Extra configuration every child receives (the ROS launcher's node name and ROS arguments)."""
         self.hosts_link = hosts_link
         """What every child needs to reach the other hosts, when the application has several."""
