@@ -21,7 +21,7 @@ from .filters import (FILTERS, Cull, Filter, Gather, GatherGroup, MaxFrequency, 
 from .iteration import IterationPorts, port_of
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
 from .policy import ConnectionPolicy
-from .ports import InputPort, Port, type_name
+from .ports import InputPort, OutputPort, Port, type_name
 from .processes.placement import LAUNCHER, Placement
 from .thread_placement import SchedulingRequest
 from .xml.composite import context_of, scope_of
@@ -252,9 +252,9 @@ class _Builder:
                 connection = app.connect(_port(app, connection_spec.src), _port(app, connection_spec.dest), policy,
                                          event=connection_spec.wakes(), connection=made,
                                          stamps_only=connection_spec.stamps_only)
-                if isinstance(connection, Merge) and connection.sink is not None:
+                if isinstance(connection, Merge) and isinstance(connection.sink, InputPort):
                     _check_merged(connection.sink)
-                if connection_spec.shared and connection.source is not None:
+                if connection_spec.shared and isinstance(connection.source, OutputPort):
                     connection.source.share(connection)
             except (CocoError, ValueError, KeyError) as error:
                 self.fail(error, connection_spec, self.inside(connection_spec))
