@@ -444,7 +444,7 @@ def haptic_loop_in_its_own_process(seconds: float) -> dict[str, Any]:
     text = PROCESS_APP.format(trajectory=REPO / "config" / "haptic_hand_stroke.csv", scene=SCENE)
     spec = parse_application_string(text, "haptic_loop_processes.xml")
     app = build_application(spec)
-    with process_level(spec, app, plan_deployment(spec)) as processes:
+    with process_level(app, plan_deployment(spec).host()) as processes:
         assert processes is not None
         app.run(seconds + WARMUP_PROCESS)
         shots = processes.snapshots()

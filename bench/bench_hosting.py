@@ -11,7 +11,7 @@ writing to its event port (the *wake latency*: that write to the cycle that read
   MultiThreadedExecutor with one thread per activity and one more, as ``executor_threads`` says);
 - *thread*: CoCo's own activity loop (``--threads``), what an activity below 5 ms gets.
 
-To host a 1 ms activity by rclpy at all, the 5 ms rule (``coco_core.deployment.THREAD_PERIOD``) is
+To host a 1 ms activity by rclpy at all, the 5 ms rule (``coco_ros.deployment.THREAD_PERIOD``) is
 switched off in the deployment plans made here: measuring why it exists is the point. Goal: none; this backs the
 hosting rule in docs/ros.md.
 
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import threading
 import time
-from dataclasses import replace
 from typing import Any, Callable
 
 import _report
@@ -31,9 +30,9 @@ from _table import Table, fmt_ratio, fmt_time_ns
 
 import numpy as np
 from coco_core import Application, Component, InputPort, OutputPort, PeriodicActivity, TriggeredActivity
-from coco_core.deployment import Host, LaunchOptions, of_application
-from coco_core.drivers import Driving
+from coco_core.deployment import of_application
 from coco_core.policy import BufferPolicy, ConnectionPolicy
+from coco_ros.deployment import RosRules
 from coco_ros.hosting import ExecutorHost, ExecutorThread
 from rclpy.node import Node
 
@@ -74,12 +73,9 @@ def run(context: Any, host: str, period_ms: int, seconds: float) -> dict[str, An
     waker = app.add(Waker("waker"), TriggeredActivity("triggered"))
     app.connect("source.out", "waker.stamps", ConnectionPolicy(data=BufferPolicy.BUFFER, size=64))
     node = Node(app.name, context=context)
-    options = LaunchOptions(Host.ROS, tuple(app.activities) if host == "thread" else (), wait_sets=host == "wait set")
-    plan = of_application(app, options)
-    if host != "thread":  # the 5 ms rule switched off: rclpy hosts the 1 ms activity too
-        hosted = Driving.WAIT_SET if options.wait_sets else Driving.EXECUTOR
-        plan = replace(plan, activities={name: replace(placed, driving=hosted, reason="")
-                                         for name, placed in plan.activities.items()})
+    # The 5 ms rule switched off (thread_period 0): rclpy hosts the 1 ms activity too.
+    plan = of_application(app, RosRules(tuple(app.activities) if host == "thread" else (), wait_sets=host == "wait set",
+                                         thread_period=0.0))
     rclpy_host = ExecutorHost(node, app, plan)
     executor = rclpy_host.create_executor(context=context)
     executor.add_node(node)

@@ -39,7 +39,7 @@ from rclpy.task import Future
 from coco_core.activity import PeriodicActivity, TriggeredActivity
 from coco_core.application import Application
 from coco_core.component import Component
-from coco_core.scheduling import SchedulingRequest
+from coco_core.thread_placement import SchedulingRequest
 
 PERIOD_NS = 1_000_000
 WARMUP_S = 0.5

@@ -89,7 +89,7 @@ CONDITIONS = {
 def run(condition: str, seconds: float) -> dict[str, Any]:
     spec = parse_application_string(APP.format(**CONDITIONS[condition]), "bench_processes.xml")
     app = build_application(spec)
-    with process_level(spec, app, plan_deployment(spec)):
+    with process_level(app, plan_deployment(spec).host()):
         app.run(seconds)
     haptic = app.activities["haptic"]
     summary = haptic.stats.error_summary()
@@ -230,7 +230,7 @@ def loaded_run(settings: str, burners: int, seconds: float) -> dict[str, Any]:
     spec = parse_application_string(LOADED_APP.format(**SETTINGS[settings]), "bench_processes_loaded.xml")
     app = build_application(spec)
     with _report.other_processes(burners), _report.LoadMeter() as load:
-        with process_level(spec, app, plan_deployment(spec)) as processes:
+        with process_level(app, plan_deployment(spec).host()) as processes:
             assert processes is not None
             app.run(seconds)
             shots = processes.snapshots()
@@ -298,7 +298,7 @@ def wakeups(other_process: bool, seconds: float) -> dict[str, Any]:
         wrap = ('<process name="reader">', "</process>") if other_process else ("", "")
         spec = parse_application_string(WAKE_APP.format(path=path, open=wrap[0], close=wrap[1]), "bench_wakeup.xml")
         app = build_application(spec)
-        with process_level(spec, app, plan_deployment(spec)):
+        with process_level(app, plan_deployment(spec).host()):
             app.run(seconds)
         values = np.loadtxt(path, dtype=np.int64, ndmin=1)[50:]  # after the start
     return {"samples": int(values.size), "p50_ns": float(np.percentile(values, 50)),

@@ -2,11 +2,12 @@
 
 Two levels. In-process, for every application file of the workspace (``config/``, the test
 applications, the original CoCo samples) and both hosts (plain, ROS): each process's part is built
-as its process builds it, given the drivers the launchers give it (the process level's eventfds from
-the real channel plan, the ROS host's wait sets on a real node), and checked against the plan
-(``coco_core.deployment.verify``), and ``--check``'s tree shows the plan's line for every activity.
+as its process builds it from the plan, given the drivers the launchers give it (the eventfds of the
+plan's wake sets, the ROS host's wait sets on a real node), and checked against the plan, and
+``Deployment.render`` (``--check``'s tree) shows the plan's line for every activity of every host.
 End to end, on applications with child processes: both launchers' ``--check`` lines equal the lines
-each process logs when it runs (with ``--executor-threads`` and ``--threads`` too).
+each process logs when it runs (with ``--executor-threads`` and ``--threads`` too), and with
+``--host`` they print that host's part of the plan.
 """
 
 from __future__ import annotations
@@ -21,15 +22,11 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 from coco_core.builder import build_application
-from coco_core.deployment import Deployment, Host, LaunchOptions, deployed, drive, plan_deployment, verify
-from coco_core.errors import DeploymentError
-from coco_core.launcher import describe
+from coco_core.application import Application
+from coco_core.deployment import PLAIN, ActivityFacts, HostDeployment, drive, plan_deployment
 from coco_core.model import AppSpec
-from coco_core.processes.channels import plan_channels, wake_targets
-from coco_core.processes.placement import LAUNCHER, Placement
-from coco_core.shm import Arena
-from coco_core.hosts.part import host_part
 from coco_core.xml import load_application
+from coco_ros.deployment import ExecutorPlan, RosRules
 from coco_ros.hosting import ExecutorHost
 from conftest import ROOT, SHARED_DATA, run_launcher
 
@@ -44,7 +41,7 @@ FILES = sorted((ROOT / "config").glob("*.xml")) + sorted((ROOT / "test" / "data"
     ROOT / "test" / "data" / "coco_original" / name for name in ("config_farm.xml", "config_latency.xml",
                                                                  "kinect_streamer.xml")
 ] + sorted((SHARED_DATA / "coco_xml").glob("*.xml"))
-HOSTS = {"plain": LaunchOptions(), "ros": LaunchOptions(Host.ROS)}
+HOSTS = {"plain": PLAIN, "ros": RosRules()}
 """The ROS host with wait sets: with ``--executor-threads`` the same rule gives the executor what it
 gives wait sets here (the end-to-end tests run that option)."""
 
@@ -99,28 +96,28 @@ def load(path: Path, request: pytest.FixtureRequest) -> AppSpec:
     return load_application(path, {})
 
 
-def execute(spec: AppSpec, deployment: Deployment, node: Node, process: str) -> None:
-    """Build ``process``'s part of ``spec`` and give it its drivers as its process does, then check
-    them against ``deployment``; nothing runs."""
-    part = build_application(spec, process, allow_unknown=True)
-    placement = Placement.of(spec)
-    eventfds: dict[str, int] = {}
-    arena = Arena(f"{os.getpid()}-plan") if placement.crossing(spec) else None
+def execute(deployment: HostDeployment, node: Node, process: str) -> Application:
+    """Build ``process``'s part of the host's plan and give it its drivers as its process does (the
+    eventfds of the plan's wake sets, the ROS host's wait sets or executor on a real node), then
+    check them and the built activities against the plan; nothing runs. The part, for ``--check``."""
+    part = build_application(deployment.spec, process, allow_unknown=True, placement=deployment.placement)
+    eventfds = {name: os.eventfd(0) for name in deployment.woken}
     try:
-        if arena is not None:
-            eventfds = {name: os.eventfd(0) for name in wake_targets(plan_channels(arena, spec, placement))}
         drive(part, deployment, eventfds)
-        host = ExecutorHost(node, part, deployment) if deployment.options.host is Host.ROS else None
+        host = ExecutorHost(node, part, deployment) if isinstance(deployment.process(process).host, ExecutorPlan) else None
         try:
-            verify(part, deployment)
+            for name in deployment.process(process).activities:
+                planned, activity = deployment.activities[name], part.activities[name]
+                assert ActivityFacts.of_activity(activity) == planned.facts, planned.line()
+                driver = activity.driver
+                assert (driver.driving, driver.eventfd is not None) == (planned.driving, planned.eventfd), planned.line()
         finally:
             if host is not None:
                 host.close()
     finally:
         for fd in eventfds.values():
             os.close(fd)
-        if arena is not None:
-            arena.close()
+    return part
 
 
 @pytest.mark.parametrize("host", HOSTS)
@@ -129,31 +126,14 @@ def test_every_process_executes_the_plan_check_prints(path: Path, host: str, nod
                                                       request: pytest.FixtureRequest) -> None:
     if not path.exists():
         pytest.skip(f"{path} is not available")
-    whole = load(path, request)
-    # An application over several hosts: each host plans and runs its own part (coco_core.hosts.part).
-    for spec in [host_part(whole, machine.name) for machine in whole.hosts] or [whole]:
-        deployment = plan_deployment(spec, HOSTS[host])
-        for process in [LAUNCHER, *(p.name for p in spec.processes)]:
-            execute(spec, deployment, node, process)
-        if host == "plain":  # what --check prints (it builds every part again: once is enough)
-            printed = describe(spec, build_application(spec, allow_unknown=True), deployment, allow_unknown=True)
-            lines = [line.strip() for line in printed.splitlines() if line.strip().startswith("activity ")]
-            assert sorted(lines) == sorted(a.line() for a in deployment.activities.values())
-
-
-def test_a_run_that_differs_from_its_plan_is_refused(tmp_path: Path) -> None:
-    """The guard itself: a launcher that gave a driver the plan does not name stops before the run."""
-    app = tmp_path / "woken.xml"
-    app.write_text(WOKEN_APP)
-    spec = load_application(app, {})
-    part = build_application(spec)
-    ros = plan_deployment(spec, LaunchOptions(Host.ROS))
-    with pytest.raises(DeploymentError, match=r"wake \[\], the deployment plan \['filtering'\]"):
-        drive(part, plan_deployment(spec, LaunchOptions()), {})  # the eventfd of 'filtering' is missing
-    drive(part, ros, {"filtering": os.eventfd(0)})
-    with pytest.raises(DeploymentError, match="activity filtering: planned .*woken by an eventfd"):
-        part.activities["filtering"].driver.eventfd = None  # type: ignore[misc]  # a driver gone astray
-        deployed(part, ros)
+    spec = load(path, request)
+    # An application over several hosts: each host (--host) runs its own part of the one plan.
+    deployment = plan_deployment(spec, HOSTS[host])
+    parts = {name: {process: execute(planned, node, process) for process in planned.processes}
+             for name, planned in deployment.hosts.items()}
+    printed = deployment.render(parts)  # what --check prints, from the parts built and driven here
+    assert planned_lines(printed) == {(process or "launcher", placed.line()) for planned in deployment.hosts.values()
+                                      for process in planned.processes for placed in planned.of_process(process)}, printed
 
 
 def planned_lines(check_output: str) -> set[tuple[str, str]]:
@@ -161,7 +141,9 @@ def planned_lines(check_output: str) -> set[tuple[str, str]]:
     lines, process = set(), "launcher"
     for line in check_output.splitlines():
         words = line.strip()
-        if words.startswith("process "):
+        if words.startswith("application "):  # the next host's tree
+            process = "launcher"
+        elif words.startswith("process "):
             process = words.split()[1]
         elif words.startswith("activity "):
             lines.add((process, words))
@@ -203,3 +185,19 @@ def test_the_real_time_haptic_application_runs_as_checked(coco_launch: Path, tmp
     run = run_launcher(coco_launch, "haptic_implicit", f"out:={tmp_path}", "--duration", "0.5", timeout=120)
     assert run.returncode == 0, run.stderr
     assert run_lines(run.stdout + run.stderr) == planned_lines(check.stdout), run.stderr
+
+
+@pytest.mark.parametrize("launcher", ["coco-launch", "ros"])
+def test_check_with_host_prints_that_hosts_part_of_the_plan(launcher: str, coco_launch: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("ROS_DOMAIN_ID", "152")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    script = coco_launch if launcher == "coco-launch" else ROOT / "install" / "coco_ros" / "lib" / "coco_ros" / "launcher"
+    path = ROOT / "config" / "hosts_demo_pipeline.xml"
+    spec = load_application(path, {})
+    host = spec.hosts[-1].name
+    check = run_launcher(script, str(path), "--check", "--host", host)
+    assert check.returncode == 0, check.stderr
+    planned = plan_deployment(spec, HOSTS["plain" if launcher == "coco-launch" else "ros"], host).host(host)
+    assert planned_lines(check.stdout) == {(process or "launcher", placed.line()) for process in planned.processes
+                                           for placed in planned.of_process(process)}, check.stdout

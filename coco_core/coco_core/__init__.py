@@ -30,7 +30,7 @@ _EXPORTS = {
     "FramePool": "pool", "LocalFramePool": "pool", "Slot": "pool", "SlotState": "pool",
     "InputPort": "ports", "OutputPort": "ports", "PooledOutputPort": "ports",
     "register": "registry",
-    "SchedulingRequest": "scheduling",
+    "SchedulingRequest": "thread_placement",
     "Message": "stamps", "Stamp": "stamps", "Stamped": "stamps",
 }
 
@@ -60,5 +60,5 @@ if TYPE_CHECKING:
     from .pool import FramePool, LocalFramePool, Slot, SlotState
     from .ports import InputPort, OutputPort, PooledOutputPort
     from .registry import register
-    from .scheduling import SchedulingRequest
+    from .thread_placement import SchedulingRequest
     from .stamps import Message, Stamp, Stamped

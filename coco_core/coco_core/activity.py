@@ -28,7 +28,7 @@ from .garbage import GarbageBetweenCycles
 from .lifecycle import StartGate
 from .profiling import ActivityStats
 from .schedule import DEFAULT_SPIN, Schedule
-from .scheduling import SchedulingRequest
+from .thread_placement import SchedulingRequest
 
 if TYPE_CHECKING:
     from .iteration import IterationPorts

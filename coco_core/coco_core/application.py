@@ -14,7 +14,7 @@ from types import UnionType
 from typing import Callable, Protocol, Union, get_args, get_origin
 from .activity import Activity
 from .component import Component, ErrorPolicy, UnknownNameError
-from .connections import Connection, make_connection
+from .connections import Connection, End, make_connection
 from .filters import Filter
 from .filters import Router as RoutingFilter
 from .hosts.auth import Refusals
@@ -26,7 +26,7 @@ from .operations import Operation
 from .ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
 from .profiling import MessageAges
 from .processes.remote import RemoteOperation, Router
-from .scheduling import available_cores
+from .thread_placement import available_cores
 from .stamps import Stamp
 from .transforms.graph import TransformGraph
 
@@ -64,6 +64,12 @@ def types_compatible(source: object, sink: object) -> bool:
     if isinstance(source, type) and isinstance(sink, type):
         return issubclass(source, sink)
     return source == sink
+
+
+def activity_of(end: End | None) -> Activity | None:
+    """The activity that runs the owner of the port at ``end`` of a connection; None without a port
+    (the other process's side of a channel) or an activity."""
+    return end.owner.activity if isinstance(end, Port) and end.owner is not None else None
 
 
 class ApplicationHost(Protocol):
@@ -313,8 +319,7 @@ class Application:
         for connection in self.connections:
             if connection.policy.sync is not SyncPolicy.UNSYNC:
                 continue
-            writer = connection.source.owner.activity if connection.source and connection.source.owner else None
-            reader = connection.sink.owner.activity if connection.sink and connection.sink.owner else None
+            writer, reader = activity_of(connection.source), activity_of(connection.sink)
             if writer is None or writer is not reader:
                 names = (writer.name if writer else "none", reader.name if reader else "none")
                 found.append((connection, f"UNSYNC connection {connection.source.qualified_name} -> "  # type: ignore[union-attr]
@@ -459,9 +464,7 @@ class Application:
         feeders: dict[str, set[str]] = {activity.name: set() for activity in activities}
         outside = self.fed_from_outside()
         for connection in self.connections:
-            source, sink = connection.source, connection.sink
-            writer = source.owner.activity if source is not None and source.owner is not None else None
-            reader = sink.owner.activity if sink is not None and sink.owner is not None else None
+            writer, reader = activity_of(connection.source), activity_of(connection.sink)
             if writer is not None and reader is not None and writer is not reader and {id(writer), id(reader)} <= known:
                 feeders[reader.name].add(writer.name)
         order: list[Activity] = []
@@ -485,8 +488,7 @@ class Application:
         a value left unread there is not lost data, and they may close a loop between processes."""
         outside: dict[str, list[Connection]] = {}
         for connection in self.connections:
-            sink = connection.sink
-            activity = sink.owner.activity if sink is not None and sink.owner is not None else None
+            activity = activity_of(connection.sink)
             if (connection.source is None and activity is not None
                     and connection.policy.data in (BufferPolicy.BUFFER, BufferPolicy.CIRCULAR)):
                 outside.setdefault(activity.name, []).append(connection)

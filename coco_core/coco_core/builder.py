@@ -21,17 +21,18 @@ from .filters import (FILTERS, Cull, Filter, Gather, GatherGroup, MaxFrequency, 
 from .iteration import IterationPorts, port_of
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, LogSpec, PortRef
 from .policy import ConnectionPolicy
-from .ports import InputPort, Port, type_name
+from .ports import InputPort, OutputPort, Port, type_name
 from .processes.placement import LAUNCHER, Placement
-from .scheduling import SchedulingRequest
+from .thread_placement import SchedulingRequest
 from .xml.composite import context_of, scope_of
 
 log = logging.getLogger("coco")
 
 
 class _Builder:
-    def __init__(self, spec: AppSpec, allow_unknown: bool = False) -> None:
+    def __init__(self, spec: AppSpec, placement: Placement, allow_unknown: bool = False) -> None:
         self.spec = spec
+        self.placement = placement
         self.errors: list[ConfigError] = []
         self.allow_unknown = allow_unknown
         self.missing: set[str] = set()
@@ -179,8 +180,7 @@ class _Builder:
                 and placement.process_of_ref(connection.src) == process]
 
     def build(self, process: str = LAUNCHER) -> Application:
-        spec = self.spec
-        placement = Placement.of(spec)
+        spec, placement = self.spec, self.placement
         if process and process not in placement.processes:
             raise ConfigError(f"no process {process!r} in the application; "
                               f"{did_you_mean(process, placement.processes)}")
@@ -252,9 +252,9 @@ class _Builder:
                 connection = app.connect(_port(app, connection_spec.src), _port(app, connection_spec.dest), policy,
                                          event=connection_spec.wakes(), connection=made,
                                          stamps_only=connection_spec.stamps_only)
-                if isinstance(connection, Merge) and connection.sink is not None:
+                if isinstance(connection, Merge) and isinstance(connection.sink, InputPort):
                     _check_merged(connection.sink)
-                if connection_spec.shared and connection.source is not None:
+                if connection_spec.shared and isinstance(connection.source, OutputPort):
                     connection.source.share(connection)
             except (CocoError, ValueError, KeyError) as error:
                 self.fail(error, connection_spec, self.inside(connection_spec))
@@ -345,7 +345,8 @@ def _check_merged(port: InputPort) -> None:
                           f"port takes {type_name(port.type)}; merge into a port of type tuple or object")
 
 
-def build_application(spec: AppSpec, process: str = LAUNCHER, allow_unknown: bool = False) -> Application:
+def build_application(spec: AppSpec, process: str = LAUNCHER, allow_unknown: bool = False,
+                      placement: Placement | None = None) -> Application:
     """Instantiate, configure and wire ``spec``; raise :class:`ConfigErrors` listing every problem.
 
     With ``<process>`` elements, only the part of ``process`` (the launcher's: ``""``) is built: its
@@ -357,8 +358,12 @@ def build_application(spec: AppSpec, process: str = LAUNCHER, allow_unknown: boo
     warning in ``spec.warnings`` each, so that the structure of an application can be checked
     without its components (the original CoCo's files name C++ components); such an application
     is for ``--check`` only, not for running.
+
+    ``placement``: the deployment plan's (:attr:`coco_core.deployment.HostDeployment.placement`),
+    which every launch passes; an application built outside a launch (a test, a script) has its own
+    worked out here.
     """
-    return _Builder(spec, allow_unknown).build(process)
+    return _Builder(spec, placement if placement is not None else Placement.of(spec), allow_unknown).build(process)
 
 
 def configure_logging(spec: LogSpec | None, default_level: int = logging.INFO) -> None:

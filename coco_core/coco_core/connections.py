@@ -17,16 +17,31 @@ import logging
 import sys
 import threading
 from collections import deque
-from typing import TYPE_CHECKING, Any, Callable, ClassVar
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Protocol
 
 from .errors import PolicyError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 
 if TYPE_CHECKING:
-    from .ports import InputPort, OutputPort
     from .profiling import MessageAges
 
 log = logging.getLogger("coco")
+
+
+class End(Protocol):
+    """What a connection knows of the port at one of its ends (an input or output port of
+    :mod:`coco_core.ports`, which sets it): its name. A protocol, not the port classes, so that this
+    module stays out of the ports' import circle; code that needs the port itself narrows it."""
+
+    @property
+    def qualified_name(self) -> str: ...
+
+
+class SourceEnd(End, Protocol):
+    """The output port a connection starts at: it also says whether the connection carries the
+    messages' stamps only."""
+
+    def carries_stamps_only(self, connection: Connection) -> bool: ...
 
 
 class _Empty:
@@ -73,8 +88,8 @@ class Connection(abc.ABC):
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         self.policy = policy
-        self.source: OutputPort | None = None
-        self.sink: InputPort | None = None
+        self.source: SourceEnd | None = None
+        self.sink: End | None = None
         self.trigger: Callable[[], None] | None = None
         self.age: MessageAges | None = None
         """The age of each message the reader takes, in a profiled run (None: not measured)."""

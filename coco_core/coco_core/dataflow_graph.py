@@ -20,14 +20,17 @@ import shutil
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import CocoError, GraphError
 from .files import check_writable_file
 from .iteration import BEGIN, END
 from .model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec, FilterSpec, PortRef
 from .policy import ConnectionPolicy
-from .hosts.part import Where
-from .processes.placement import LAUNCHER, Placement
+from .processes.placement import LAUNCHER
+
+if TYPE_CHECKING:
+    from .deployment import Deployment
 
 DOT_SUFFIXES = (".dot", ".gv")
 RENDERED_SUFFIXES = (".svg", ".png", ".pdf")
@@ -61,11 +64,11 @@ def dot_companion(path: str) -> str:
     return str(Path(path).with_suffix(".dot"))
 
 
-def write_graph(spec: AppSpec, path: str) -> list[str]:
-    """Write ``spec``'s data-flow graph to ``path`` (DOT; SVG, PNG or PDF rendered by ``dot``, with
+def write_graph(deployment: Deployment, path: str) -> list[str]:
+    """Write the data-flow graph of ``deployment``'s file to ``path`` (DOT; SVG, PNG or PDF rendered by ``dot``, with
     the DOT beside it); returns the files written."""
     check_graph_file(path)
-    text = dataflow_dot(spec)
+    text = dataflow_dot(deployment)
     suffix = Path(path).suffix.lower()
     if suffix in DOT_SUFFIXES:
         _write(path, text)
@@ -104,18 +107,19 @@ def activity_port_node(activity: str, port: str) -> str:
     return quote(f"activity:{activity}.{port}")
 
 
-def dataflow_dot(spec: AppSpec) -> str:
-    """The DOT text of ``spec``'s data-flow graph (see the module)."""
-    return "\n".join(_Drawing(spec).lines()) + "\n"
+def dataflow_dot(deployment: Deployment) -> str:
+    """The DOT text of the data-flow graph of ``deployment``'s file (see the module), drawn where
+    the plan places each part (:attr:`~coco_core.deployment.Deployment.placement` and ``where``)."""
+    return "\n".join(_Drawing(deployment).lines()) + "\n"
 
 
 class _Drawing:
     """One graph being drawn: which process and activity each part is in, and the filters' ids."""
 
-    def __init__(self, spec: AppSpec) -> None:
-        self.spec = spec
-        self.placement = Placement.of(spec)
-        self.where = Where.of(spec) if spec.hosts else None
+    def __init__(self, deployment: Deployment) -> None:
+        self.spec = spec = deployment.spec
+        self.placement = deployment.placement
+        self.where = deployment.where
         """The host of every activity and component, when the application has several."""
         self.scheduled = {name: activity for activity in spec.activities for name in activity.components}
         self.definitions = {component.name: component for component in spec.components}

@@ -1,93 +1,72 @@
-"""The one deployment plan: for every process and activity of an application, what drives it and why.
+"""The one deployment plan: hosts > processes > activities > drivers, planned once, executed everywhere.
 
-Where an activity runs used to be decided in several modules, one after the other (the activity's
-default thread, the process level's eventfd threads, the ROS host's executor or thread), and
-``--check`` re-derived it its own way: it once printed a wait set where the run used an eventfd
-thread. Now one pure function, :func:`plan_deployment`, computes it from the parsed application
-(:class:`~coco_core.model.AppSpec`) and the launch options (:class:`LaunchOptions`); ``--check``
-prints it, and every launcher and child process executes it (:func:`drive`, and the ROS host for
-what it drives) and then checks the drivers it gave against it (:func:`verify`). Nothing else
-decides or re-decides.
+Where and how everything of an application runs is settled here, once per launch, by one pure
+function, :func:`plan_deployment`, from the parsed file (:class:`~coco_core.model.AppSpec`) and the
+rules of the launch host (:class:`LaunchRules`). The result is one tree, :class:`Deployment`, as
+OROCOS's DeploymentComponent holds one: its :meth:`Deployment.render` is what ``--check`` prints,
+for every host, and each part of the run takes its branch of it instead of working anything out
+again (so there is nothing left to disagree, and no cross-check at run time)::
 
-The rules (``docs/processes.md`` and ``docs/ros.md`` have the measurements behind them):
+    Deployment                    the file, the launch host's rules, the hosts' Where
+    └── HostDeployment            one host's part (the file's whole when it declares no host)
+        ├── placement             every activity's and component's process (Placement)
+        ├── crossings             the connections between processes, with the activity each wakes
+        └── ProcessPlan           one process: affinity, nice, memory lock, GC, its wake set,
+            │                     what its launch host runs beside it (its own threads)
+            └── ActivityDeployment  one activity: its schedule (ActivityFacts) and its driver, and why
+
+Who consumes which part:
+
+- the launchers (:mod:`coco_core.launcher` and every launch host's): the whole tree; ``--check``
+  prints :meth:`Deployment.render`, a run executes :meth:`Deployment.host` of ``--host``;
+- the builder (:func:`coco_core.builder.build_application`): a host's ``placement`` (which
+  components and activities a process builds, which connections cross);
+- the data-flow graph (:mod:`coco_core.dataflow_graph`): the whole tree (placement, hosts' Where);
+- the process level (:mod:`coco_core.processes`): the supervisor makes one eventfd for each activity
+  of a ``woken`` set and plans the shared-memory channels of the ``crossings``; each child applies
+  its :class:`ProcessPlan`'s settings and drives its activities with :func:`drive`;
+- a launch host's own driver: the activities planned ``HOSTED`` and its process's
+  :attr:`ProcessPlan.host` settings (whatever the host runs beside the activities).
+
+The rules, in order (``docs/processes.md`` has the measurements behind them):
 
 - an activity of another process is that process's: the launcher holds a stand-in of it;
+- the main activity runs in the launcher's main thread (some GUI toolkits need it);
 - an activity that a write in another process wakes is woken through an eventfd (a kernel counter
   the writer's process increments), so it needs a thread of its own that waits on it;
-- the main activity runs in the launcher's main thread (some GUI toolkits need it);
-- with the plain host (``coco-launch``) every other activity has a thread of its own;
-- with the ROS host, an activity keeps a thread of its own when it asks the OS for anything about
-  its thread (affinity, real-time class, priority, nice), is periodic faster than
-  :data:`THREAD_PERIOD`, runs a thread-bound component (an OpenGL context), or the command line
-  names it (``--threads``, ``--all-threads``); the others are hosted by rclpy: each in a wait set on a
-  thread of its own by default, or in the node's executor with ``--executor-threads N``.
+- every other activity: the launch host's rules (:meth:`LaunchRules.decide`) say whether the host
+  runs it with a driver of its own (``HOSTED``) or it has a thread of its own. The plain host
+  (``coco-launch``, :class:`PlainRules`) gives every activity a thread; another launch host plugs
+  its own rules in, from its own package, with its own words for what it hosts.
 """
 
 from __future__ import annotations
 
-import enum
 import logging
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterable, Mapping
+from typing import TYPE_CHECKING, Iterable, Mapping, Protocol, Sequence
 
 from . import registry
 from .drivers import Driving, MainThreadDriver, ThreadDriver
-from .errors import CocoError, CommandLineError, DeploymentError, did_you_mean
+from .errors import CocoError
 from .model import ActivitySpec, AppSpec, ComponentSpec, ProcessSpec
-from .processes.channels import woken_by_other_processes
+from .processes.channels import Crossing, crossings
 from .processes.placement import LAUNCHER, Placement
 from .schedule import DEFAULT_SPIN, Schedule
-from .scheduling import SchedulingRequest
+from .thread_placement import SchedulingRequest
 
 if TYPE_CHECKING:
     from .activity import Activity
     from .application import Application
+    from .hosts.part import Where
 
 log = logging.getLogger("coco")
-
-THREAD_PERIOD = 5e-3
-"""With the ROS host, periodic activities faster than this (seconds) keep a thread of their own: an
-rclpy timer's p99 period error (233 us SingleThreaded, 500 us MultiThreaded at 1 kHz, idle) is a
-tenth of such a period."""
-
-
-class Host(str, enum.Enum):
-    """What runs the processes of an application: plain threads, or an rclpy node per process."""
-
-    PLAIN = "plain"
-    ROS = "ros"
-
-
-@dataclass(frozen=True)
-class LaunchOptions:
-    """The parts of a launcher's command line that decide where activities run."""
-
-    host: Host = Host.PLAIN
-    threads: tuple[str, ...] = ()
-    """Activities the command line puts on threads of their own (``--threads``; the ROS host)."""
-    all_threads: bool = False
-    """Every activity on a thread of its own (``--all-threads``; the ROS host)."""
-    wait_sets: bool = True
-    """The ROS host: each activity it hosts in a wait set of its own (the default), or all of them in
-    the node's executor (``--executor-threads``)."""
-    executor_threads: int | None = None
-    """The ROS host: the executor's threads (``--executor-threads N``); None: as many as the host
-    needs (``ExecutorHost.executor_threads``)."""
-
-    def describe(self) -> str:
-        if self.host is Host.PLAIN:
-            return "plain (coco-launch: a thread per activity)"
-        if self.wait_sets:
-            return "ROS (an rclpy node per process, a wait set per hosted activity)"
-        threads = "as many threads as needed" if self.executor_threads is None else f"{self.executor_threads} thread(s)"
-        return f"ROS (an rclpy node per process, hosted activities in one executor with {threads})"
 
 
 @dataclass(frozen=True)
 class ActivityFacts:
-    """What the plan needs to know of one activity. Read from the file when planning
-    (:meth:`of_spec`) and from the built activity when executing (:meth:`of_activity`): the two must
-    be equal, or the run would not be what ``--check`` printed (:func:`verify`)."""
+    """What the plan needs to know of one activity: read from the file when planning
+    (:meth:`of_spec`), or from an activity built in code that has no file (:meth:`of_activity`)."""
 
     name: str
     process: str
@@ -142,15 +121,75 @@ def _thread_bound(component: ComponentSpec) -> bool:
 
 
 @dataclass(frozen=True)
+class Decision:
+    """A launch host's word on one activity that neither the main thread nor an eventfd claims."""
+
+    hosted: bool
+    """The host runs it with a driver of its own; else CoCo's thread driver, a thread of its own."""
+    words: str = ""
+    """Hosted: how the host runs it (``--check``'s words after the arrow); else why a thread of its
+    own when that is not the host's default (empty when it is)."""
+
+
+class HostSettings(Protocol):
+    """What a launch host plans for one process beyond its activities (say, the threads that run
+    what it hosts).
+    Travels to the process with the plan: a frozen dataclass of the host's own package."""
+
+    def describe(self) -> str:
+        """``--check``'s words for it, after the process's own settings."""
+
+
+class LaunchRules(Protocol):
+    """What a launch host supplies to the planner, one extension point:
+    the core plans processes, the main thread and eventfds; the host decides the rest of each
+    activity and what runs beside a process's activities. Pure, like the planner."""
+
+    def describe(self) -> str:
+        """The ``deployment:`` line of ``--check``: which host, and how it runs what it hosts."""
+
+    def check(self, activities: Sequence[str]) -> None:
+        """Refuse options that name no activity of ``activities`` (a :class:`CommandLineError`)."""
+
+    def decide(self, facts: ActivityFacts) -> Decision:
+        """Host the activity of ``facts``, or give it a thread of its own (and why)."""
+
+    def settings(self, activities: Sequence[ActivityDeployment], stand_ins: int) -> HostSettings | None:
+        """What the host runs beside one process's ``activities`` (its own, planned), where the
+        application also holds ``stand_ins`` activities of other processes; None: nothing."""
+
+
+class PlainRules:
+    """``coco-launch``: every activity on a thread of its own (:class:`LaunchRules`)."""
+
+    def describe(self) -> str:
+        return "plain (coco-launch: a thread per activity)"
+
+    def check(self, activities: Sequence[str]) -> None:
+        """The plain host takes no option that names activities."""
+
+    def decide(self, facts: ActivityFacts) -> Decision:
+        return Decision(False)
+
+    def settings(self, activities: Sequence[ActivityDeployment], stand_ins: int) -> HostSettings | None:
+        return None
+
+
+PLAIN = PlainRules()
+
+
+@dataclass(frozen=True)
 class ActivityDeployment:
     """Where one activity runs, and why."""
 
     facts: ActivityFacts
     driving: Driving
-    reason: str
+    reason: str = ""
     """Why this driver (empty when it is the host's default)."""
-    eventfd: bool
+    eventfd: bool = False
     """Woken through an eventfd by writes in another process."""
+    words: str = ""
+    """A hosted activity: how the launch host runs it, in the host's own words."""
 
     @property
     def name(self) -> str:
@@ -162,146 +201,186 @@ class ActivityDeployment:
 
     def line(self) -> str:
         """``activity NAME: SCHEDULE -> DRIVER (WHY)``: what ``--check`` prints and each process logs."""
-        if self.driving in (Driving.WAIT_SET, Driving.EXECUTOR):
-            entity = "guard condition" if self.facts.period is None else "rclpy timer"
-            where = "wait set on its own thread" if self.driving is Driving.WAIT_SET else "executor"
-            return f"activity {self.name}: {self.facts.describe()} -> {where} ({entity} in its callback group)"
+        if self.driving is Driving.HOSTED:
+            return f"activity {self.name}: {self.facts.describe()} -> {self.words}"
         driver = self.driving.value + (", woken by an eventfd" if self.eventfd else "")
         return f"activity {self.name}: {self.facts.describe()} -> {driver}" + (f" ({self.reason})" if self.reason else "")
 
 
 @dataclass(frozen=True)
-class Deployment:
-    """The plan of one launch: every process (the launcher's is ``""``) and activity, in file order."""
+class ProcessPlan:
+    """One process of a host: the launcher's (``""``, no ``<process>``) or a child. Its settings are
+    applied by the child itself (:mod:`coco_core.processes.child`), from here, not from the file."""
 
-    application: str
-    options: LaunchOptions
-    processes: Mapping[str, ProcessSpec | None]
-    """Every process; the launcher's own has no ``<process>`` (None)."""
+    name: str
+    activities: tuple[str, ...] = ()
+    """Its activities, in file order."""
+    affinity: tuple[int, ...] = ()
+    """Cores the whole process may run on; empty: any."""
+    nice: int | None = None
+    lock_memory: bool = False
+    gc: str = "auto"
+    """``auto`` or ``between_cycles`` (:mod:`coco_core.garbage`)."""
+    woken: frozenset[str] = frozenset()
+    """Its activities that a write in another process wakes: each gets an eventfd and a thread."""
+    host: HostSettings | None = None
+    """What the launch host runs beside the activities (:meth:`LaunchRules.settings`)."""
+
+    @classmethod
+    def of(cls, spec: ProcessSpec | None, name: str, activities: Iterable[str], woken: Iterable[str],
+           host: HostSettings | None) -> ProcessPlan:
+        if spec is None:
+            return cls(name, tuple(activities), woken=frozenset(woken), host=host)
+        return cls(name, tuple(activities), tuple(spec.affinity), spec.nice, spec.lock_memory, spec.gc,
+                   frozenset(woken), host)
+
+    def describe(self) -> str:
+        """``affinity 2,3, nice -5, memory locked, gc between cycles, ...``: what it asks beyond the
+        defaults, the launch host's settings last."""
+        words = [f"affinity {','.join(map(str, self.affinity))}" if self.affinity else "",
+                 f"nice {self.nice}" if self.nice is not None else "",
+                 "memory locked" if self.lock_memory else "",
+                 "gc between cycles" if self.gc == "between_cycles" else "",
+                 self.host.describe() if self.host is not None else ""]
+        return ", ".join(word for word in words if word)
+
+
+@dataclass(frozen=True)
+class HostDeployment:
+    """One host's part of the plan: what one launch (and each of its child processes) executes."""
+
+    spec: AppSpec
+    """The host's part of the file (:func:`coco_core.hosts.part.host_part`), or the whole file."""
+    rules: str
+    """The launch host's :meth:`LaunchRules.describe`."""
+    placement: Placement
+    crossings: tuple[Crossing, ...]
+    """The connections between two of its processes, in file order, each with the activity it wakes."""
+    processes: Mapping[str, ProcessPlan]
+    """The launcher's (``""``) first, then the children in file order."""
     activities: Mapping[str, ActivityDeployment]
 
+    @property
+    def name(self) -> str:
+        """The host's name; empty when the file declares no host."""
+        return self.spec.part_of
+
+    @property
+    def woken(self) -> frozenset[str]:
+        """Every activity of the host that a write in another process wakes (one eventfd each)."""
+        return frozenset(name for process in self.processes.values() for name in process.woken)
+
+    def process(self, name: str) -> ProcessPlan:
+        return self.processes[name]
+
     def of_process(self, process: str) -> list[ActivityDeployment]:
-        return [activity for activity in self.activities.values() if activity.process == process]
-
-    def threads(self, process: str) -> int:
-        """How many of ``process``'s activities have a thread of their own (not hosted by rclpy)."""
-        return sum(1 for a in self.of_process(process) if a.driving in (Driving.THREAD, Driving.MAIN))
+        return [self.activities[name] for name in self.processes[process].activities]
 
 
+@dataclass(frozen=True)
+class Deployment:
+    """The plan of one launch: every host (one, named ``""``, when the file declares none), its
+    processes and activities. What ``--check`` prints (:meth:`render`) and what every process runs."""
 
-def plan_deployment(spec: AppSpec, options: LaunchOptions = LaunchOptions()) -> Deployment:
-    """The deployment of ``spec`` under ``options``: pure (the file and the options only), so that
-    ``--check`` and every process of the run compute or receive the same."""
+    spec: AppSpec
+    """The whole file."""
+    hosts: Mapping[str, HostDeployment]
+    placement: Placement
+    """The process of every activity and component of the whole file."""
+    where: Where | None = None
+    """The host and process of everything, when the file declares hosts."""
+
+    @property
+    def application(self) -> str:
+        return self.spec.name
+
+    def host(self, name: str | None = None) -> HostDeployment:
+        """The part that host ``name`` runs (``--host``); None: the file's, which declares no host."""
+        return self.hosts[name or ""]
+
+    def render(self, parts: Mapping[str, Mapping[str, Application]] | None = None,
+               notes: Mapping[str, Sequence[str]] | None = None) -> str:
+        """What ``--check`` prints, every host in turn: processes with their settings, activities
+        with their drivers and why, and with ``parts`` (every host's built processes: host ->
+        process -> part) the components and connections; ``notes``: lines the launch host adds
+        under a host (:mod:`coco_core.scheduling_tree`)."""
+        from .scheduling_tree import render
+
+        return render(self, parts or {}, notes or {})
+
+
+def plan_deployment(spec: AppSpec, rules: LaunchRules = PLAIN, host: str | None = None) -> Deployment:
+    """The deployment of ``spec`` under the launch host's ``rules``: every host's part, or only
+    ``host``'s (a run with ``--host``; ``--check`` plans all). Pure (the file and the rules only)."""
+    from .hosts.part import Where, host_part
+
+    placement = Placement.of(spec)
+    if not spec.hosts:
+        return Deployment(spec, {"": plan_host(spec, rules, placement)}, placement)
+    where = Where.of(spec, placement)
+    names = [host] if host is not None else [machine.name for machine in spec.hosts]
+    parts = [host_part(spec, name, where) for name in names]
+    return Deployment(spec, {part.part_of: plan_host(part, rules, Placement.of(part)) for part in parts}, placement,
+                      where)
+
+
+def plan_host(spec: AppSpec, rules: LaunchRules, placement: Placement) -> HostDeployment:
+    """One host's part of the plan (``spec``: the host's part, or a file without hosts, whose
+    ``placement`` the caller has)."""
     components = {component.name: component for component in spec.all_components()}
+    crossed = tuple(crossings(spec, placement))
+    woken = {crossing.wakes for crossing in crossed if crossing.wakes}
     facts = [ActivityFacts.of_spec(activity, components) for activity in spec.activities]
-    woken = woken_by_other_processes(spec, Placement.of(spec))
-    processes: dict[str, ProcessSpec | None] = {LAUNCHER: None}
-    processes.update((process.name, process) for process in spec.processes)
-    return plan(spec.name, facts, woken, options, processes)
+    rules.check([f.name for f in facts])
+    planned = {f.name: _place(f, f.name in woken, rules) for f in facts}
+    children = {process.name: process for process in spec.processes}
+    processes = {}
+    for name in [LAUNCHER, *children]:
+        own = [a for a in planned.values() if a.process == name]
+        stand_ins = len(planned) - len(own) if name == LAUNCHER else 0
+        processes[name] = ProcessPlan.of(children.get(name), name, (a.name for a in own),
+                                         (a.name for a in own if a.eventfd), rules.settings(own, stand_ins))
+    return HostDeployment(spec, rules.describe(), placement, crossed, processes, planned)
 
 
-def plan(application: str, facts: Iterable[ActivityFacts], woken: Iterable[str], options: LaunchOptions,
-         processes: Mapping[str, ProcessSpec | None] | None = None) -> Deployment:
-    """The deployment of activities described by ``facts`` (``woken``: those a write in another
-    process wakes); :func:`plan_deployment` for an application file, and for an application built in
-    code (which has one process and no file) its activities' own facts."""
-    facts = list(facts)
-    woken = frozenset(woken)
-    names = [f.name for f in facts]
-    unknown = sorted(set(options.threads) - set(names))
-    if unknown:
-        raise CommandLineError(f"--threads: no activity {', '.join(map(repr, unknown))} in application {application}; "
-                        f"{did_you_mean(unknown[0], names)}")
-    planned = {f.name: _place(f, f.name in woken, options) for f in facts}
-    return Deployment(application, options, dict(processes or {LAUNCHER: None}), planned)
-
-
-def _place(facts: ActivityFacts, woken: bool, options: LaunchOptions) -> ActivityDeployment:
+def _place(facts: ActivityFacts, woken: bool, rules: LaunchRules) -> ActivityDeployment:
     """The rules of the module's docstring, for one activity."""
-    driving = Driving.MAIN if facts.main else Driving.THREAD
-    if options.host is Host.PLAIN:
-        return ActivityDeployment(facts, driving, "main activity" if facts.main else "", woken)
-    reason = _own_thread_reason(facts, woken, options)
-    if reason is None:
-        return ActivityDeployment(facts, Driving.WAIT_SET if options.wait_sets else Driving.EXECUTOR, "", False)
-    return ActivityDeployment(facts, driving, reason, woken)
-
-
-def _own_thread_reason(facts: ActivityFacts, woken: bool, options: LaunchOptions) -> str | None:
-    """Why the ROS host leaves ``facts``'s activity a thread of its own; None: rclpy hosts it."""
     if facts.main:
-        return "main activity"
+        return ActivityDeployment(facts, Driving.MAIN, "main activity", woken)
     if woken:
-        return "woken by another process"
-    if options.all_threads or facts.name in options.threads:
-        return "asked on the command line"
-    request = facts.scheduling
-    if request != SchedulingRequest():
-        asked = [name for name, value in (("affinity", request.affinity), ("realtime", request.realtime != "none"),
-                                          ("priority", request.priority is not None),
-                                          ("nice", request.nice is not None)) if value]
-        return f"thread placement: {', '.join(asked) or 'scheduling request'}"
-    if facts.period is not None and facts.period < THREAD_PERIOD:
-        return f"period {facts.period * 1e3:g} ms < {THREAD_PERIOD * 1e3:g} ms"
-    if facts.thread_bound:
-        plural = "s" if len(facts.thread_bound) > 1 else ""
-        return f"thread-bound component{plural} {', '.join(facts.thread_bound)}"
-    return None
+        return ActivityDeployment(facts, Driving.THREAD, "", True)
+    decision = rules.decide(facts)
+    if decision.hosted:
+        return ActivityDeployment(facts, Driving.HOSTED, words=decision.words)
+    return ActivityDeployment(facts, Driving.THREAD, decision.words)
 
 
-def of_application(app: Application, options: LaunchOptions = LaunchOptions()) -> Deployment:
+def of_application(app: Application, rules: LaunchRules = PLAIN) -> HostDeployment:
     """The deployment of an application built in code (no file: one process, nothing woken from
     another), from its activities' own facts: for a program that hosts an application it built
-    itself (``coco_ros.hosting.ExecutorHost`` in a script, a benchmark)."""
-    return plan(app.name, (ActivityFacts.of_activity(a) for a in app.activities.values()), (), options)
+    itself (a launch host's driver in a script, a benchmark)."""
+    facts = [ActivityFacts.of_activity(a) for a in app.activities.values()]
+    rules.check([f.name for f in facts])
+    planned = {f.name: _place(f, False, rules) for f in facts}
+    own = [a for a in planned.values() if a.process == app.process]
+    process = ProcessPlan(app.process, tuple(a.name for a in own), host=rules.settings(own, len(planned) - len(own)))
+    return HostDeployment(AppSpec(name=app.name), rules.describe(), Placement(), (), {app.process: process}, planned)
 
 
-def verify(app: Application, deployment: Deployment) -> None:
-    """Check that this process's activities are those the plan was made for and are driven as
-    planned; a :class:`~coco_core.errors.DeploymentError` says what differs. It guards against the
-    plan and the run drifting apart again: a difference is a bug of CoCo, not of the file."""
-    problems = []
-    for name, activity in app.activities.items():
-        planned = deployment.activities.get(name)
-        if planned is None:
-            problems.append(f"activity {name} is not in the deployment plan")
-            continue
-        if activity.process != app.process:
-            continue  # another process's: it verifies its own
-        built = ActivityFacts.of_activity(activity)
-        if built != planned.facts:
-            problems.append(f"activity {name}: planned from {planned.facts}, built as {built}")
-        driver = activity.driver
-        if (driver.driving, driver.eventfd is not None) != (planned.driving, planned.eventfd):
-            problems.append(f"activity {name}: planned {planned.line()!r}, driven by {type(driver).__name__} "
-                            f"({driver.driving.value}{', eventfd' if driver.eventfd is not None else ''})")
-    if problems:
-        raise DeploymentError("the run differs from the deployment plan (a bug of CoCo): " + "; ".join(problems))
-
-
-def drive(app: Application, deployment: Deployment, eventfds: Mapping[str, int]) -> None:
+def drive(app: Application, deployment: HostDeployment, eventfds: Mapping[str, int]) -> None:
     """Give this process's activities of ``app`` the thread drivers the plan names (own thread, main
-    thread; woken by the eventfd of ``eventfds`` when the plan says another process wakes it), before
-    the application starts. The ROS host drives the activities it hosts (wait set, executor) itself.
-    A wake-up eventfd the process level made for an activity that the plan does not wake so, or the
-    reverse, is a :class:`~coco_core.errors.DeploymentError`."""
-    mine = {name for name, activity in app.activities.items() if activity.process == app.process}
-    made = set(eventfds) & mine
-    planned = {name for name in mine if name in deployment.activities and deployment.activities[name].eventfd}
-    if made != planned:
-        raise DeploymentError(f"process {app.process or 'launcher'}: the channels between processes wake "
-                              f"{sorted(made)}, the deployment plan {sorted(planned)} (a bug of CoCo)")
-    for name in sorted(mine):
-        placed = deployment.activities.get(name)
-        if placed is None or placed.driving not in (Driving.THREAD, Driving.MAIN):
-            continue  # not planned (verify says so), or the ROS host's
+    thread; woken by their eventfd of ``eventfds``, made for the plan's ``woken`` set), before the
+    application starts. The launch host drives the activities the plan hosts itself."""
+    for name in deployment.processes[app.process].activities:
+        placed = deployment.activities[name]
+        if placed.driving is Driving.HOSTED:
+            continue
         driver = MainThreadDriver if placed.driving is Driving.MAIN else ThreadDriver
-        app.activities[name].drive_with(driver(eventfds.get(name)))
+        app.activities[name].drive_with(driver(eventfds[name] if placed.eventfd else None))
 
 
-def deployed(app: Application, deployment: Deployment) -> None:
-    """Check this process's drivers against the plan (:func:`verify`), then log where each of its
-    activities runs, in the words ``--check`` printed: ``process P: activity A: ... -> ...``."""
-    verify(app, deployment)
+def deployed(app: Application, deployment: HostDeployment) -> None:
+    """Log where each of this process's activities runs, in the words ``--check`` printed:
+    ``process P: activity A: ... -> ...``."""
     for placed in deployment.of_process(app.process):
         log.info("process %s: %s", app.process or "launcher", placed.line())

@@ -4,12 +4,12 @@ An :class:`~coco_core.activity.Activity` is what runs (components, operation que
 ``cycle`` / ``finish``, stats, its schedule); a *driver* decides when and in which thread. This is
 OROCOS RTT's split of ``RunnableInterface`` (the activity's steps) from ``ActivityInterface`` (a
 thread, a slave driven by another, ...): the same activity runs unchanged under every driver, and a
-host (``coco_ros`` runs activities as callback groups of an rclpy executor) brings its own driver
-instead of changing the activity. Every driver has the protocol of :class:`Driver`.
+launch host with its own way of running activities brings its own driver (``HOSTED`` in the
+deployment plan) instead of changing the activity. Every driver has the protocol of :class:`Driver`.
 
 The thread drivers sleep coarsely and then spin to each periodic deadline: the architecture notes
 measured that a plain thread doing so holds a 1 kHz period to a few microseconds at p99, far better
-than an rclpy timer.
+than a middleware's timer.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Protocol
 from .cpu import CpuUse
 from .operations import set_current_activity
 from .period import PeriodGrid
-from .scheduling import apply_to_current_thread
+from .thread_placement import apply_to_current_thread
 
 if TYPE_CHECKING:
     from .activity import Activity
@@ -38,10 +38,8 @@ class Driving(str, enum.Enum):
 
     THREAD = "own thread"
     MAIN = "main thread"
-    WAIT_SET = "wait set"
-    """The ROS host: a thread of the activity's own waiting on its callback group's entities only."""
-    EXECUTOR = "executor"
-    """The ROS host: a callback group of the node's executor, run by its shared threads."""
+    HOSTED = "hosted"
+    """The launch host's own driver (the plan's words for the activity say which)."""
 
 
 class Driver(Protocol):
@@ -50,7 +48,7 @@ class Driver(Protocol):
 
     @property
     def driving(self) -> Driving:
-        """What kind of driver this is (checked against the deployment plan)."""
+        """What kind of driver this is, in the deployment plan's words."""
 
     @property
     def eventfd(self) -> int | None:

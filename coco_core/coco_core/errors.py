@@ -92,10 +92,6 @@ class GraphError(CocoError):
     to render it."""
 
 
-class DeploymentError(CocoError):
-    """A run that would differ from its deployment plan (``coco_core.deployment``): a bug guard."""
-
-
 class RemoteError(CocoError):
     """An operation that ran in another process raised: its type, message and traceback come along
     as text (the exception itself may not exist, or not be picklable, in the caller's process)."""

@@ -15,26 +15,24 @@ import contextlib
 import logging
 import sys
 import threading
-from typing import Any, Callable, Iterator, Mapping, Protocol, Sequence
+from typing import Callable, Iterator, Mapping, Protocol, Sequence
 
 from . import registry
 from .applications import find_application
 from .application import Application
 from .builder import build_application, configure_logging
-from .connections import Connection
 from .dataflow_graph import check_graph_file, write_graph
-from .deployment import Deployment, LaunchOptions, deployed, plan_deployment
+from .deployment import PLAIN, HostDeployment, LaunchRules, deployed, plan_deployment
 from .errors import CocoError, CommandLineError, ConfigError, ConfigErrors, Interrupted
 from .hosts.crossing import crossing_problems
 from .hosts.key import launch_key
 from .hosts.level import host_level
-from .hosts.part import host_part
 from .hosts.session import START_TIMEOUT
 from .model import AppSpec
-from .policy import ConnectionPolicy
 from .ports import InputPort
 from .processes.level import process_level
-from .processes.placement import LAUNCHER, Placement
+from .processes.messages import HostConfig, HostsLink
+from .processes.placement import LAUNCHER
 from .processes.supervisor import ProcessSupervisor
 from .report import profile_report
 from .signals import INTERRUPTED, LaunchSignals, leave
@@ -113,111 +111,6 @@ def list_components() -> str:
         for op in cls._operation_decls:
             lines.append(f"    operation {op}")
     return "\n".join(lines)
-
-
-def _activity_lines(app: Application, deployment: Deployment, indent: str) -> list[str]:
-    lines = []
-    for activity, components in app.schedule_tree():
-        if activity is not None and activity.process != app.process:
-            continue  # the launcher's stand-in of a child's activity: the child's part shows it
-        lines.append(f"{indent}{deployment.activities[activity.name].line()}" if activity else f"{indent}(no activity)")
-        for top in components:
-            for component in top.walk():
-                depth = 0
-                owner = component.owner
-                while owner is not None:
-                    depth, owner = depth + 1, owner.owner
-                lines.append(f"{indent}  {'  ' * depth}{component.name} ({type(component).__name__})")
-    return lines
-
-
-def _connection_line(connection: Connection, indent: str) -> str:
-    return f"{indent}{connection.source.qualified_name} -> {connection.sink.qualified_name}  {connection.describe()}"  # type: ignore[union-attr]
-
-
-def _composite_lines(spec: AppSpec) -> list[str]:
-    """The composite instances (FlowVR's hierarchy): each with its file, where it is made, its args,
-    exposed ports and own parts, indented under the instance it is in."""
-    if not spec.composites:
-        return []
-    lines = ["  composites:"]
-    for composite in spec.composites:
-        indent = "    " + "  " * composite.name.count("/")
-        args = ", ".join(f"{name}={value}" for name, value in composite.args.items())
-        lines.append(f"{indent}{composite.name}: {composite.file} (at {composite.location})")
-        if args:
-            lines.append(f"{indent}  args: {args}")
-        for name, target in composite.ports.items():
-            lines.append(f"{indent}  port {name} -> {target}" + (" (activity)" if target.activity else ""))
-        if composite.components:
-            lines.append(f"{indent}  components: {', '.join(composite.components)}")
-        if composite.activities:
-            lines.append(f"{indent}  activities: {', '.join(composite.activities)}")
-    return lines
-
-
-def describe(spec: AppSpec, launcher_part: Application, deployment: Deployment, allow_unknown: bool = False) -> str:
-    """The scheduling tree for ``--check``: processes (when the file has any), activities with what
-    drives each and why (the deployment plan every process of the run executes), components and
-    connections. Every child's part is built here too (``init`` only, nothing runs), so a wrong
-    component in any process is reported now."""
-    lines = [f"application {launcher_part.name}" + _host_words(spec), f"  deployment: {deployment.options.describe()}",
-             *_composite_lines(spec)]
-    if not spec.processes:
-        lines += _activity_lines(launcher_part, deployment, "  ")
-        lines += [_connection_line(connection, "  ") for connection in launcher_part.connections]
-        return "\n".join(lines + _between_hosts_lines(spec))
-    placement = Placement.of(spec)
-    parts = {LAUNCHER: launcher_part}
-    errors: list[ConfigError] = []
-    for name in placement.processes:
-        try:
-            parts[name] = build_application(spec, name, allow_unknown)
-        except ConfigErrors as error:
-            errors += error.errors
-    if errors:
-        raise ConfigErrors(errors)
-    for name, part in parts.items():
-        process = deployment.processes.get(name)
-        placed = [f"affinity {','.join(map(str, process.affinity))}" if process and process.affinity else "",
-                  f"nice {process.nice}" if process and process.nice is not None else "",
-                  "memory locked" if process and process.lock_memory else "",
-                  "gc between cycles" if process and process.gc == "between_cycles" else ""]
-        details = ", ".join(word for word in placed if word)
-        lines.append(f"  process {name or 'launcher'}" + (f" ({details})" if details else ""))
-        lines += _activity_lines(part, deployment, "    ")
-        lines += [_connection_line(connection, "    ") for connection in part.connections]
-    crossing = placement.crossing(spec)
-    if crossing:
-        lines.append("  between processes (shared memory):")
-        for connection in crossing:
-            src, dest = placement.process_of_ref(connection.src), placement.process_of_ref(connection.dest)
-            policy = ConnectionPolicy(connection.data, connection.policy, max(1, connection.buffersize))
-            lines.append(f"    {connection.src} -> {connection.dest}  {policy}  "
-                         f"({src or 'launcher'} -> {dest or 'launcher'})")
-    return "\n".join(lines + _between_hosts_lines(spec))
-
-
-def _host_words(spec: AppSpec) -> str:
-    """``, host H of A, B`` for one host's part (the first host's clock is the application's)."""
-    if not spec.part_of:
-        return ""
-    first = spec.hosts[0].name
-    clock = " (the application's clock)" if spec.part_of == first else f" (on {first}'s clock)"
-    return f", host {spec.part_of} of {', '.join(h.name for h in spec.hosts)}{clock}"
-
-
-def _between_hosts_lines(spec: AppSpec) -> list[str]:
-    """The connections between this host and the others, with their DDS topics."""
-    if not spec.between_hosts:
-        return []
-    lines = ["  between hosts (DDS):"]
-    for channel in spec.between_hosts:
-        ends = (f"{channel.src_host}/{channel.src_process or 'launcher'} -> "
-                f"{channel.dest_host}/{channel.dest_process or 'launcher'}")
-        extra = ", stamps only" if channel.stamps_only else f", {channel.codec}"
-        lines.append(f"    {channel.src} -> {channel.dest}  {channel.policy}{extra}  ({ends}, topic {channel.topic})")
-    return lines
 
 
 def start_profile_printer(report: Callable[[], str], every: float) -> threading.Event:
@@ -312,19 +205,23 @@ def log_warnings(spec: AppSpec) -> None:
         log.warning("%s", warning)
 
 
-def load_and_build(options: argparse.Namespace, signals: LaunchSignals,
-                   parameters: Mapping[str, str] | None = None) -> tuple[AppSpec, Application]:
-    """The application of ``options`` (this host's part, with ``--host``) loaded (:func:`load_spec`)
-    and built, its warnings logged; the building stops at its end on a signal."""
-    spec = select_host(load_spec(options, signals, parameters), options)
-    app = build_application(spec, allow_unknown=options.allow_unknown)
-    log_warnings(spec)
-    return spec, app
+def load_and_build(options: argparse.Namespace, signals: LaunchSignals, host: LaunchHost,
+                   parameters: Mapping[str, str] | None = None) -> tuple[HostDeployment, Application]:
+    """The application of ``options`` loaded (:func:`load_spec`), planned by ``host``'s rules (this
+    host's part, with ``--host``) and the launcher's part built, its warnings logged; the building
+    stops at its end on a signal."""
+    spec = load_spec(options, signals, parameters)
+    name = selected_host(spec, options, required=True)
+    deployment = plan_deployment(spec, host.rules(options), name).host(name)
+    app = build_application(deployment.spec, allow_unknown=options.allow_unknown, placement=deployment.placement)
+    log_warnings(deployment.spec)
+    return deployment, app
 
 
-def select_host(spec: AppSpec, options: argparse.Namespace) -> AppSpec:
-    """The part of ``spec`` that ``--host`` names (:func:`coco_core.hosts.part.host_part`), or the
-    whole of an application that declares no host."""
+def selected_host(spec: AppSpec, options: argparse.Namespace, required: bool) -> str | None:
+    """The ``<host>`` that ``--host`` names, None for an application that declares no host (or,
+    unless ``required``, for every host of one that does: ``--check``); a
+    :class:`CommandLineError` for ``--host`` (or a key) without hosts, and for none when required."""
     if not spec.hosts:
         if options.host is not None:
             raise CommandLineError(f"--host {options.host}: application {spec.name} declares no <host>; it runs on one "
@@ -332,11 +229,11 @@ def select_host(spec: AppSpec, options: argparse.Namespace) -> AppSpec:
         if options.key is not None or options.key_env is not None:
             raise CommandLineError(f"--key and --key-env authenticate the hosts of an application; {spec.name} "
                                    "declares no <host>")
-        return spec
-    if options.host is None:
+        return None
+    if options.host is None and required:
         raise CommandLineError(f"application {spec.name} runs on several hosts ({', '.join(h.name for h in spec.hosts)}): "
                         "say which one this machine is with --host NAME")
-    return host_part(spec, options.host)
+    return str(options.host) if options.host is not None else None
 
 
 HUNG = 3
@@ -355,17 +252,18 @@ class LaunchHost(Protocol):
     child_module: str
     """The module a child process runs (``python -m``): it hosts its part as this host does."""
 
-    def launch_options(self, options: argparse.Namespace) -> LaunchOptions:
-        """What of the command line decides where activities run (the deployment plan's options)."""
+    def rules(self, options: argparse.Namespace) -> LaunchRules:
+        """The host's rules for the deployment plan, with what of the command line decides where
+        activities run (:class:`~coco_core.deployment.LaunchRules`)."""
 
-    def child_config(self) -> dict[str, Any]:
+    def child_config(self) -> HostConfig:
         """What every child's host needs beyond the plan (:attr:`~.processes.messages.Config.host`)."""
 
     def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
         """``--check``: what the host adds to a built part of the application (lines to print), or a
         :class:`CocoError` naming what it cannot host (the ROS launcher: a port no topic can mirror)."""
 
-    def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
+    def run(self, app: Application, deployment: HostDeployment, options: argparse.Namespace,
             processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
         """Host and run the launcher's part until a stop; whether the stop was clean."""
 
@@ -376,16 +274,16 @@ class PlainHost:
     prog = "coco-launch"
     child_module = "coco_core.processes.child"
 
-    def launch_options(self, options: argparse.Namespace) -> LaunchOptions:
-        return LaunchOptions()
+    def rules(self, options: argparse.Namespace) -> LaunchRules:
+        return PLAIN
 
-    def child_config(self) -> dict[str, Any]:
-        return {}
+    def child_config(self) -> HostConfig:
+        return HostConfig()
 
     def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
         return [f"<topics>: {len(spec.topics)} port mirror(s) left to the ROS launcher"] if spec.topics else []
 
-    def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
+    def run(self, app: Application, deployment: HostDeployment, options: argparse.Namespace,
             processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
         deployed(app, deployment)
         signals.attach(app)
@@ -409,40 +307,57 @@ def begin(options: argparse.Namespace, prog: str) -> int | None:
 
 def check(options: argparse.Namespace, signals: LaunchSignals, host: LaunchHost,
           parameters: Mapping[str, str] | None = None) -> int:
-    """``--check``: load and build (``parameters``: values for the file's args below the command
-    line's, the ROS launcher's node parameters), print the tree with the deployment plan, run nothing.
-    An application over several hosts is printed host by host (the one ``--host`` names, or all)."""
+    """``--check``: load, plan by ``host``'s rules and build every process's part (``parameters``:
+    values for the file's args below the command line's, the ROS launcher's node parameters), print
+    the plan (:meth:`~coco_core.deployment.Deployment.render`), run nothing. An application over
+    several hosts is planned and printed host by host (the one ``--host`` names, or all)."""
     try:
         spec = load_spec(options, signals, parameters)
-        parts = ([host_part(spec, h.name) for h in spec.hosts] if spec.hosts and options.host is None
-                 else [select_host(spec, options)])
-        trees = []
-        for part in parts:
-            app = build_application(part, allow_unknown=options.allow_unknown)
-            crossing = crossing_problems(part) if not options.allow_unknown else []
+        deployment = plan_deployment(spec, host.rules(options), selected_host(spec, options, required=False))
+        parts: dict[str, dict[str, Application]] = {}
+        notes: dict[str, list[str]] = {}
+        for name, planned in deployment.hosts.items():
+            parts[name] = built = build_parts(planned, options.allow_unknown)
+            crossing = crossing_problems(planned.spec) if not options.allow_unknown else []
             if crossing:
                 raise ConfigErrors([ConfigError(problem) for problem in crossing])
-            trees.append("\n".join([describe(part, app, plan_deployment(part, host.launch_options(options)),
-                                              options.allow_unknown), *host.checked(part, app, options)]))
+            notes[name] = host.checked(planned.spec, built[LAUNCHER], options)
         log_warnings(spec)  # the parts share the file's list of warnings
         signals.check()
-        print("\n".join(trees))
+        print(deployment.render(parts, notes))
         if options.graph is not None:
-            print(f"data-flow graph written to {', '.join(write_graph(spec, options.graph))}")
+            print(f"data-flow graph written to {', '.join(write_graph(deployment, options.graph))}")
     except CocoError as error:
         return failure(host.prog, error)
     return 0
 
 
-def launch(spec: AppSpec, app: Application, options: argparse.Namespace, signals: LaunchSignals,
+def build_parts(deployment: HostDeployment, allow_unknown: bool) -> dict[str, Application]:
+    """Every process's part of one host (``init`` only, nothing runs), so that ``--check`` reports a
+    wrong component in any process: a :class:`ConfigErrors` with all of them."""
+    parts = {LAUNCHER: build_application(deployment.spec, allow_unknown=allow_unknown,
+                                         placement=deployment.placement)}
+    errors: list[ConfigError] = []
+    for name in deployment.processes:
+        if name != LAUNCHER:
+            try:
+                parts[name] = build_application(deployment.spec, name, allow_unknown, deployment.placement)
+            except ConfigErrors as error:
+                errors += error.errors
+    if errors:
+        raise ConfigErrors(errors)
+    return parts
+
+
+def launch(deployment: HostDeployment, app: Application, options: argparse.Namespace, signals: LaunchSignals,
            host: LaunchHost) -> int:
-    """Run a built application with ``host``: plan its deployment, join the other hosts when it is
-    one host's part (:mod:`coco_core.hosts`), start its child processes, let the host run the
-    launcher's part to its stop; the exit code: 0 after a clean stop, 1 when a component stopped the
-    application, damage was found, a child died or another host failed, :data:`HUNG` when an
-    activity did not stop in time, 128 + the signal number after a second Ctrl-C
-    (:mod:`coco_core.signals`)."""
-    deployment = plan_deployment(spec, host.launch_options(options))
+    """Run a built application with ``host`` by ``deployment`` (this host's part of the plan): join
+    the other hosts when it is one host's part (:mod:`coco_core.hosts`), start its child processes,
+    let the host run the launcher's part to its stop; the exit code: 0 after a clean stop, 1 when a
+    component stopped the application, damage was found, a child died or another host failed,
+    :data:`HUNG` when an activity did not stop in time, 128 + the signal number after a second
+    Ctrl-C (:mod:`coco_core.signals`)."""
+    spec = deployment.spec
     app.measure_ages = bool(options.profile)  # the profile's age column, in every process
     level = logging.getLevelName(options.log_level)
     configure_logging(spec.log, level)  # may open the file's log
@@ -452,12 +367,12 @@ def launch(spec: AppSpec, app: Application, options: argparse.Namespace, signals
                                "the application's key: give --key FILE or --key-env NAME (coco-keygen FILE makes one; "
                                "copy it to every host)")
     with host_level(spec, app, options.host_timeout, key, signals.check) as hosts:
-        with process_level(spec, app, deployment, level, child_module=host.child_module,
-                           child_config=host.child_config(), clock=hosts.clock if hosts else None,
-                           key=key, host_timeout=options.host_timeout) as processes:
+        link = HostsLink(hosts.clock, key, options.host_timeout) if hosts is not None and key is not None else None
+        with process_level(app, deployment, level, child_module=host.child_module,
+                           child_config=host.child_config(), hosts_link=link, hosts=hosts) as processes:
             if hosts is not None:
                 hosts.built(processes)
-            clean = host.run(spec, app, deployment, options, processes, signals)
+            clean = host.run(app, deployment, options, processes, signals)
     if signals.forced:
         return INTERRUPTED
     if not clean:
@@ -477,9 +392,9 @@ def run(options: argparse.Namespace, signals: LaunchSignals | None = None) -> in
     if options.check:
         return check(options, signals, host)
     try:
-        spec, app = load_and_build(options, signals)
+        deployment, app = load_and_build(options, signals, host)
         signals.check()
-        code = launch(spec, app, options, signals, host)
+        code = launch(deployment, app, options, signals, host)
     except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(host.prog, error)
     if code in (HUNG, INTERRUPTED):  # an activity that did not stop, or a second Ctrl-C: leave now

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from coco_core.dataflow_graph import GraphError, check_graph_file, dataflow_dot, quote
+from coco_core.deployment import plan_deployment
 from coco_core.xml import load_application
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
@@ -49,7 +50,7 @@ def edges(graph: dict) -> set[tuple[str, str, str]]:
 @needs_dot
 def test_the_haptic_graph_has_a_cluster_per_process_and_activity_and_every_component_and_connection():
     spec = load_application(CONFIG / "haptic_implicit.xml")
-    graph = parsed(dataflow_dot(spec))
+    graph = parsed(dataflow_dot(plan_deployment(spec)))
     groups = clusters(graph)
     assert groups["process haptics"] == {"component:device", "component:renderer", "component:scene",
                                          "component:ball"}
@@ -69,7 +70,7 @@ def test_the_haptic_graph_has_a_cluster_per_process_and_activity_and_every_compo
 
 @needs_dot
 def test_a_filter_is_a_node_on_its_connections_path_between_activity_ports():
-    graph = parsed(dataflow_dot(load_application(CONFIG / "flowvr_b_demand_driven.xml")))
+    graph = parsed(dataflow_dot(plan_deployment(load_application(CONFIG / "flowvr_b_demand_driven.xml"))))
     groups = clusters(graph)
     assert groups["activity produce\\ntriggered"] == {"activity:produce.beginit", "component:producer"}
     assert groups["activity consume\\ntriggered"] == {"activity:consume.endit", "component:consumer"}
@@ -84,7 +85,7 @@ def test_a_filter_is_a_node_on_its_connections_path_between_activity_ports():
 
 @needs_dot
 def test_composite_instances_appear_under_their_scoped_names():
-    graph = parsed(dataflow_dot(load_application(CONFIG / "composite_signals.xml")))
+    graph = parsed(dataflow_dot(plan_deployment(load_application(CONFIG / "composite_signals.xml"))))
     assert clusters(graph)["activity fast/filtering\\ntriggered"] == {"component:fast/filter"}
     assert ("component:fast/filter", "component:fast_recorder", "filtered -> values\\nBUFFER/LOCKED[256]") in edges(graph)
 

@@ -241,9 +241,9 @@ def test_a_max_frequency_from_another_process_times_the_messages_on_the_readers_
     this side, fed from the ring when asked; its first token at once, the next message from the ring
     no earlier than 1/hz after the token was taken (the gated activity's clock), and the counters of
     one connection (the token + what the writer offered)."""
+    from coco_core.deployment import plan_deployment
     from coco_core.processes.channels import attach, plan_channels
     from coco_core.processes.filtered import FedFilter
-    from coco_core.processes.placement import Placement
     from coco_core.shm import Arena, ShmWriter
 
     text = APP.format(data_filter="", attributes='buffersize="4"', src='activity="consume" port="endit"',
@@ -255,7 +255,7 @@ def test_a_max_frequency_from_another_process_times_the_messages_on_the_readers_
     app = build_application(spec)
     arena = Arena(f"maxfreq{time.monotonic_ns()}")
     try:
-        plans = plan_channels(arena, spec, Placement.of(spec))
+        plans = plan_channels(arena, plan_deployment(spec).host())
         [loop] = [plan for plan in plans if plan.dest_activity]
         assert (loop.src_process, loop.dest_process, loop.wakes) == ("worker", "", "produce")
         consume = os.eventfd(0)  # what the launcher makes for the reader of producer.out, in worker
@@ -281,9 +281,9 @@ def test_a_merge_joins_inputs_from_another_process_and_from_its_own(tmp_path):
     """One Merge input from another process (its ring fed into the Merge filter on the reader's
     side, in its file place), one from the reader's own: one tuple once each has a message, stamped
     as the first's message, which crossed with its stamp."""
+    from coco_core.deployment import plan_deployment
     from coco_core.processes.channels import attach, plan_channels
     from coco_core.processes.filtered import FedFilter
-    from coco_core.processes.placement import Placement
     from coco_core.shm import Arena, ShmWriter
 
     text = MERGE.format(sink="relay", task="Relay", port="input").replace(
@@ -294,7 +294,7 @@ def test_a_merge_joins_inputs_from_another_process_and_from_its_own(tmp_path):
     app = build_application(spec)
     arena = Arena(f"merge{time.monotonic_ns()}")
     try:
-        plans = plan_channels(arena, spec, Placement.of(spec))
+        plans = plan_channels(arena, plan_deployment(spec).host())
         attach(app, plans, {})
         relay = app.component("relay")
         near, far = relay.input.connections  # type: ignore[attr-defined]  # the channel is attached after the build
@@ -400,8 +400,8 @@ def test_a_pooled_output_between_processes_cannot_pass_through_a_filter_either(m
     from pathlib import Path
 
     from coco_core.errors import ConfigError
+    from coco_core.deployment import plan_deployment
     from coco_core.processes.channels import plan_channels
-    from coco_core.processes.placement import Placement
     from coco_core.shm import Arena
 
     monkeypatch.syspath_prepend(str(Path(__file__).parent / "data"))
@@ -426,7 +426,7 @@ def test_a_pooled_output_between_processes_cannot_pass_through_a_filter_either(m
     try:
         with pytest.raises(ConfigError, match="camera.frames is a pooled output: .* cannot pass through a Greedy") \
                 as raised:
-            plan_channels(arena, spec, Placement.of(spec))
+            plan_channels(arena, plan_deployment(spec).host())
         assert str(raised.value).startswith("app.xml:7:"), str(raised.value)  # the <connection>
     finally:
         arena.close()

@@ -30,6 +30,7 @@ from coco_core import (
 )
 from coco_core.builder import build_application
 from coco_core.dataflow_graph import dataflow_dot
+from coco_core.deployment import plan_deployment
 from coco_core.demo.routing import box_of
 from coco_core.errors import ConfigErrors
 from coco_core.filters import Cull, Split
@@ -310,7 +311,7 @@ def test_the_routing_file_builds_its_filters_in_file_order_and_draws_them():
     assert isinstance(left, Cull) and (left.low, left.high) == ((0.0, 0.0), (5.0, 1.0))
     assert isinstance(worker1, Split) and (worker1.index, worker1.count, worker1.by) == (1, 2, "")
     assert by_label["emitter.out -> monitor.item"].describe().endswith("stamps only")
-    dot = dataflow_dot(spec)
+    dot = dataflow_dot(plan_deployment(spec))
     assert dot.count("shape=diamond") == 4
     assert '"Cull\\nbbox meets 0 0 5 1"' in dot and '"Split\\nin turn"' in dot
     assert re.search(r'"component:emitter" -> "component:monitor" \[label="[^"]*stamps only", style="dashed"\]', dot)
@@ -345,7 +346,7 @@ def test_a_cull_frustum_from_the_xml_is_the_camera_or_its_view_projection_matrix
     assert isinstance(by_matrix, Cull) and by_matrix.frustum is not None
     assert np.allclose(by_matrix.frustum.planes, cull.frustum.planes)
     assert by_matrix.describe() == "Cull(bbox in view_projection), routed away 0"
-    assert '"Cull\\nbbox in view_projection"' in dataflow_dot(spec)
+    assert '"Cull\\nbbox in view_projection"' in dataflow_dot(plan_deployment(spec))
     defaults = ROUTED.format(attributes="", filter='<filter type="Cull" position="3 0 1" look_at="0 0 0.5"/>')
     [default] = build_application(parse_application_string(defaults, filename="app.xml")).connections
     assert default.describe().startswith("Cull(bbox in frustum from 3 0 1 to 0 0 0.5, fov_y 45, aspect 1.33333, "
@@ -451,7 +452,6 @@ def test_split_and_cull_decide_on_the_writers_side_so_what_is_routed_away_never_
     filter, counted as in one process."""
     from coco_core.processes.channels import attach, plan_channels
     from coco_core.processes.filtered import FedRouter
-    from coco_core.processes.placement import Placement
     from coco_core.processes.routed import RoutingEnd
 
     text, wrapped = re.subn(r'(<activity name="view">.*?</activity>)', r'<process name="apart">\1</process>',
@@ -464,7 +464,7 @@ def test_split_and_cull_decide_on_the_writers_side_so_what_is_routed_away_never_
     arena = Arena(f"writerroute{os.getpid()}x{os.urandom(3).hex()}")
     view = os.eventfd(0)
     try:
-        plans = plan_channels(arena, spec, Placement.of(spec))
+        plans = plan_channels(arena, plan_deployment(spec).host())
         attach(writer_app, plans, {"view": view})
         attach(reader_app, plans, {"view": view})
         out = writer_app.component("emitter").out
@@ -598,7 +598,6 @@ def test_a_gather_joins_leaves_from_another_process_and_from_its_own():
     from coco_core.filters import Gather
     from coco_core.processes.channels import attach, plan_channels
     from coco_core.processes.filtered import FedFilter
-    from coco_core.processes.placement import Placement
     from coco_core.stamps import Message
 
     far = ('<activities><process name="far"><activity name="making"><schedule type="triggered"/>'
@@ -607,7 +606,7 @@ def test_a_gather_joins_leaves_from_another_process_and_from_its_own():
     app = build_application(spec)
     arena = Arena(f"gather{os.getpid()}")
     try:
-        plans = plan_channels(arena, spec, Placement.of(spec))
+        plans = plan_channels(arena, plan_deployment(spec).host())
         attach(app, plans, {})
         root = app.component("root")
         b, c, fed = root.input.connections  # type: ignore[attr-defined]  # the channel is attached after the build

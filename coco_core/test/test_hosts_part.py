@@ -12,7 +12,9 @@ from coco_core.builder import build_application
 from coco_core.dataflow_graph import dataflow_dot
 from coco_core.errors import ConfigErrors
 from coco_core.filters import Cull, MaxFrequency
-from coco_core.hosts.part import host_part, split_address
+from coco_core.deployment import plan_deployment
+from coco_core.hosts.part import split_address
+from coco_core.model import AppSpec
 from coco_core.policy import BufferPolicy
 from coco_core.xml import load_application
 
@@ -48,6 +50,11 @@ APP = """<package name="spread">
 """
 
 
+def part_of(spec: AppSpec, host: str) -> AppSpec:
+    """``host``'s part of ``spec``, as the deployment plan cuts it."""
+    return plan_deployment(spec, host=host).host(host).spec
+
+
 def write(tmp_path: Path, text: str = APP, filter: str = "") -> Path:
     path = tmp_path / "spread.xml"
     path.write_text(text.format(tmp=tmp_path, filter=filter))
@@ -64,7 +71,7 @@ def test_every_activity_and_process_is_on_a_host_the_first_takes_the_rest(tmp_pa
 
 def test_each_host_builds_its_own_part_and_knows_the_connections_between_hosts(tmp_path: Path) -> None:
     spec = load_application(str(write(tmp_path)))
-    robot, graphics = host_part(spec, "robot"), host_part(spec, "graphics")
+    robot, graphics = part_of(spec, "robot"), part_of(spec, "graphics")
     assert [c.name for c in robot.components] == ["generator", "idle", "outsider"]  # no activity runs idle: the first host's
     assert [c.name for c in graphics.components] == ["filter", "recorder"]
     assert robot.connections == [] and [str(c.dest) for c in graphics.connections] == ["recorder.values"]
@@ -83,9 +90,9 @@ def test_each_host_builds_its_own_part_and_knows_the_connections_between_hosts(t
 def test_a_filter_on_a_connection_from_another_host_is_made_on_the_readers_side(tmp_path: Path) -> None:
     text = APP.replace('data="BUFFER" buffersize="16">', 'buffersize="16">')
     spec = load_application(str(write(tmp_path, text, filter='<filter type="MaxFrequency" hz="20"/>')))
-    child = build_application(host_part(spec, "graphics"), "work")
+    child = build_application(part_of(spec, "graphics"), "work")
     assert isinstance(child.incoming_filters["generator.sample->filter.sample"], MaxFrequency)
-    assert not build_application(host_part(spec, "robot")).incoming_filters
+    assert not build_application(part_of(spec, "robot")).incoming_filters
 
 
 def test_a_cull_to_another_host_is_made_on_the_writers_side_too(tmp_path: Path) -> None:
@@ -93,10 +100,10 @@ def test_a_cull_to_another_host_is_made_on_the_writers_side_too(tmp_path: Path) 
     writer's host makes it for its end, the reader's host for its side (the profile, unroutables)."""
     text = APP.replace('data="BUFFER" buffersize="16">', 'buffersize="16">')
     spec = load_application(str(write(tmp_path, text, filter='<filter type="Cull" region="0 0 1 1"/>')))
-    writer = build_application(host_part(spec, "robot"))
+    writer = build_application(part_of(spec, "robot"))
     assert isinstance(writer.outgoing_routers["generator.sample->filter.sample"], Cull)
     assert not writer.incoming_filters
-    reader = build_application(host_part(spec, "graphics"), "work")
+    reader = build_application(part_of(spec, "graphics"), "work")
     assert isinstance(reader.incoming_filters["generator.sample->filter.sample"], Cull)
     assert not reader.outgoing_routers
 
@@ -115,7 +122,7 @@ def test_wrong_hosts_are_reported_with_file_and_line(tmp_path: Path, text: str, 
     path = write(tmp_path, text)
     with pytest.raises(ConfigErrors) as raised:
         spec = load_application(str(path))
-        host_part(spec, "robot")
+        part_of(spec, "robot")
     assert message in str(raised.value)
     assert "UNSYNC" in message or f"{path}:" in str(raised.value)
 
@@ -123,7 +130,7 @@ def test_wrong_hosts_are_reported_with_file_and_line(tmp_path: Path, text: str, 
 def test_an_unknown_host_lists_the_valid_ones(tmp_path: Path) -> None:
     spec = load_application(str(write(tmp_path)))
     with pytest.raises(ConfigErrors, match="no such host.*graphics"):
-        host_part(spec, "grapics")
+        part_of(spec, "grapics")
 
 
 def test_check_prints_every_hosts_part_and_the_connections_between_them(tmp_path: Path) -> None:
@@ -144,7 +151,7 @@ def test_check_prints_every_hosts_part_and_the_connections_between_them(tmp_path
 
 
 def test_the_data_flow_graph_draws_each_host_around_its_processes(tmp_path: Path) -> None:
-    dot = dataflow_dot(load_application(str(write(tmp_path))))
+    dot = dataflow_dot(plan_deployment(load_application(str(write(tmp_path)))))
     robot, graphics = dot.index('label="host robot"'), dot.index('label="host graphics"')
     assert robot < dot.index('"activity acquisition') < graphics < dot.index('label="process work"')
     assert dot.index('"activity outside') < graphics  # outside any <host>: the first host's

@@ -21,9 +21,9 @@ from coco_core.application import Application
 from coco_core.builder import build_application
 from coco_core.errors import HostError, RemoteError
 from coco_core.hosts.clock import ClockOffset, best, exchange
-from coco_core.hosts.part import host_part
+from coco_core.deployment import plan_deployment
 from coco_core.hosts.session import HostSession
-from coco_core.processes.messages import Call, Message, Outcome
+from coco_core.processes.messages import Call, Message, Outcome, Stop
 from coco_core.wire import Decoder, Encoder
 from coco_core.xml import load_application
 
@@ -107,7 +107,7 @@ class Hosts:
         self.apps: dict[str, Application] = {}
         self.sessions: dict[str, HostSession] = {}
         for name in ("robot", "graphics"):
-            part = host_part(spec, name)
+            part = plan_deployment(spec, host=name).host(name).spec
             app = self.apps[name] = build_application(part)
             session = self.sessions[name] = HostSession(part, app, timeout=20, lost_after=lost_after)
             app.router = session
@@ -263,3 +263,15 @@ def test_a_host_that_disappears_is_reported_and_on_error_decides(tmp_path: Path,
                 call.result(5)
     finally:
         made.close()
+
+
+def test_a_message_the_hosts_do_not_send_each_other_is_counted_and_logged(tmp_path: Path,
+                                                                          caplog: pytest.LogCaptureFixture) -> None:
+    """The link between hosts has one dispatcher: an unknown message type is never dropped silently."""
+    path = tmp_path / "pair.xml"
+    path.write_text(APP.format(on_error="continue"))
+    part = plan_deployment(load_application(str(path)), host="robot").host("robot").spec
+    session = HostSession(part, build_application(part))
+    session.receive("graphics", Stop("a child's word, not a host's"))
+    assert session.unexpected == 1
+    assert "unexpected Stop from host graphics" in caplog.text

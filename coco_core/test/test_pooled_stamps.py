@@ -343,8 +343,8 @@ def test_pooled_frames_stamps_reach_a_frame_reader_and_a_culled_stamps_only_conn
 def test_a_stamps_only_connection_between_processes_from_a_pooled_output_carries_no_frames():
     """data=POOL on it is refused at planning, with file:line."""
     from coco_core.errors import ConfigError
+    from coco_core.deployment import plan_deployment
     from coco_core.processes.channels import plan_channels
-    from coco_core.processes.placement import Placement
 
     text = APP.format(frames=1, out="").replace('buffersize="256"', 'data="POOL"')
     text = re.sub(r'\s*<filter type="Cull"[^>]*/>', "", text)
@@ -354,7 +354,7 @@ def test_a_stamps_only_connection_between_processes_from_a_pooled_output_carries
         spec = parse_application_string(text, filename="app.xml")
         with pytest.raises(ConfigError, match="a stamps-only connection from camera.frames carries the messages' "
                                               "stamps, not frames") as raised:
-            plan_channels(arena, spec, Placement.of(spec))
+            plan_channels(arena, plan_deployment(spec).host())
         assert str(raised.value).startswith("app.xml:12:"), str(raised.value)  # the <connection>
     finally:
         sys.path.remove(str(DATA))

@@ -52,13 +52,15 @@ def test_a_request_is_answered_through_the_other_ends_dispatcher(pair) -> None:
     assert not server.is_alive()
 
 
-def test_a_message_without_a_handler_is_logged_and_a_closed_peer_fails_requests(pair, caplog) -> None:
+def test_a_message_without_a_handler_is_counted_and_logged_and_a_closed_peer_fails_requests(pair, caplog) -> None:
     launcher, child = pair
+    launcher.send(Run())
     launcher.send(Run())
     launcher.send(Stop("end"))
     with caplog.at_level(logging.ERROR, logger="coco"):
         assert child.serve({}, until=(Stop,)) == Stop("end")
-    assert "control link with the launcher: unexpected Run()" in caplog.text
+    assert "control link with the launcher: unexpected Run() (2 so far)" in caplog.text
+    assert child.unexpected == 2 and launcher.unexpected == 0
     child.close()
     failures: list[Outcome] = []
     launcher.request(ProfileRequest(), failures.append)

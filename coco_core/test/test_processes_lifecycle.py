@@ -278,7 +278,7 @@ def test_an_operation_called_before_the_start_is_answered() -> None:
 
     spec = parse_application_string(EARLY, "early_call.xml")
     app = build_application(spec)
-    with process_level(spec, app, plan_deployment(spec)) as processes:
+    with process_level(app, plan_deployment(spec).host()) as processes:
         assert app.operation("avg", "set_window")(3).result(10) == 4
         app.start()  # the running activity has the new window
         assert app.operation("avg", "get_attribute")("window").result(10) == 3

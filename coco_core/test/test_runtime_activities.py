@@ -87,6 +87,17 @@ class Ticker(Lifecycle):
             time.sleep(self.work)
 
 
+def settled(activity) -> bool:
+    """Neither in a cycle nor woken for one: a write that wakes it sets its wake-up before it
+    returns, so once this holds after a write, every cycle that write caused has run."""
+    return activity.current is None and not activity.wake_pending
+
+
+def rate(starts: list[float]) -> float:
+    """Cycles a second over the cycles that started at ``starts``."""
+    return (len(starts) - 1) / (starts[-1] - starts[0])
+
+
 def event_rig(make_app, **connect):
     app = make_app("events")
     source = app.add(Source("source"))
@@ -104,18 +115,19 @@ def test_triggered_activity_runs_once_per_event_and_never_for_plain_ports(make_a
     app, source, other, sink = event_rig(make_app)
     app.start()
     assert sink.configured.wait(1.0)
-    time.sleep(0.1)
+    triggered = app.activity("triggered")
+    assert wait_until(lambda: settled(triggered))
     assert sink.updates == 0, "a triggered activity must not run without a trigger"
 
     other.out.write(10)  # plain port: stored, but nobody is woken
-    time.sleep(0.15)
+    assert wait_until(lambda: settled(triggered))
     assert sink.updates == 0
     assert sink.values == []
 
     source.out.write(1)
     assert wait_until(lambda: sink.updates == 1)
     assert sink.values == [1, 10], "the update sees the event and whatever else is waiting"
-    time.sleep(0.1)
+    assert wait_until(lambda: settled(triggered))
     assert sink.updates == 1, "one event, one update"
 
     for expected in (2, 3):
@@ -137,7 +149,7 @@ def test_event_flag_can_be_overridden_per_connection(make_app, wait_until):
     app.start()
     assert sink.configured.wait(1.0)
     muted.out.write(5)
-    time.sleep(0.15)
+    assert wait_until(lambda: settled(app.activity("triggered")))
     assert sink.updates == 0, "event=False on the connection: the event port stays quiet"
     source.out.write(6)
     assert wait_until(lambda: sink.updates == 1)
@@ -212,19 +224,18 @@ def grid_errors(starts: list[float], period: float) -> list[float]:
     return [abs((t - t0) / period - round((t - t0) / period)) for t in starts[1:]]
 
 
-def test_periodic_activity_cycles_about_period_wise_on_a_fixed_grid(make_app):
+def test_periodic_activity_cycles_about_period_wise_on_a_fixed_grid(make_app, wait_until):
     period = 0.02
     app = make_app("periodic")
     ticker = app.add(Ticker("ticker"), PeriodicActivity("periodic", period))
     ticker.work = 0.004  # a relative sleep would drift by this much every cycle
     app.start()
-    time.sleep(0.5)
+    assert wait_until(lambda: len(ticker.starts) >= 20, timeout=10.0)
     app.stop()
     starts = ticker.starts
     elapsed = starts[-1] - starts[0]
     expected = elapsed / period
     assert len(starts) - 1 <= expected + 1, "a periodic activity never runs faster than its period"
-    assert len(starts) >= 8, f"only {len(starts)} cycles in 0.5 s at 20 ms"
     # Drift-free: the starts stay on the grid of absolute deadlines (median within a fifth of a period).
     assert statistics.median(grid_errors(starts, period)) < 0.2
     assert elapsed / (len(starts) - 1) >= period * 0.95
@@ -234,13 +245,13 @@ def test_periodic_activity_cycles_about_period_wise_on_a_fixed_grid(make_app):
     assert summary is not None and summary.samples >= len(starts) - 1
 
 
-def test_overruns_are_counted_and_missed_deadlines_skipped(make_app):
+def test_overruns_are_counted_and_missed_deadlines_skipped(make_app, wait_until):
     period = 0.01
     app = make_app("overrun")
     ticker = app.add(Ticker("ticker"), PeriodicActivity("periodic", period))
     ticker.work = 0.025
     app.start()
-    time.sleep(0.35)
+    assert wait_until(lambda: len(ticker.starts) >= 8, timeout=10.0)
     app.stop()
     activity = app.activity("periodic")
     cycles = activity.stats.cycles
@@ -252,11 +263,11 @@ def test_overruns_are_counted_and_missed_deadlines_skipped(make_app):
     assert statistics.median(grid_errors(ticker.starts, period)) < 0.25
 
 
-def test_periodic_activity_without_overrun_counts_none(make_app):
+def test_periodic_activity_without_overrun_counts_none(make_app, wait_until):
     app = make_app("no-overrun")
-    app.add(Ticker("ticker"), PeriodicActivity("periodic", 0.02))
+    ticker = app.add(Ticker("ticker"), PeriodicActivity("periodic", 0.02))
     app.start()
-    time.sleep(0.2)
+    assert wait_until(lambda: len(ticker.starts) >= 10, timeout=10.0)
     app.stop()
     activity = app.activity("periodic")
     assert activity.stats.cycles >= 3
@@ -268,23 +279,19 @@ def test_set_period_at_run_time_changes_the_rate(make_app, wait_until):
     app = make_app("set-period")
     ticker = app.add(Ticker("ticker"), PeriodicActivity("periodic", 0.05))
     app.start()
-    assert wait_until(lambda: ticker.updates >= 1)
-    before = ticker.updates
-    time.sleep(0.25)
-    slow_count = ticker.updates - before
+    assert wait_until(lambda: ticker.updates >= 6)
+    slow_rate = rate(ticker.starts[-6:])
     app.set_period("periodic", 0.005)
     assert app.activity("periodic").period == 0.005
-    time.sleep(0.06)  # let the old sleep end
-    before = ticker.updates
-    time.sleep(0.2)
-    fast_count = ticker.updates - before
-    assert slow_count <= 0.25 / 0.05 + 2
-    assert fast_count >= 10 and fast_count >= 3 * slow_count, (slow_count, fast_count)
+    changed = len(ticker.starts) + 1  # the cycle that ends the old period's sleep comes first
+    assert wait_until(lambda: len(ticker.starts) >= changed + 20)
+    fast_rate = rate(ticker.starts[changed:])
+    assert slow_rate <= 1 / 0.05 * 1.1, slow_rate
+    assert fast_rate >= 3 * slow_rate, (slow_rate, fast_rate)
     app.set_period("periodic", 0.05)
-    time.sleep(0.02)
-    before = ticker.updates
-    time.sleep(0.25)
-    assert ticker.updates - before <= 0.25 / 0.05 + 2, "the period can be made longer again"
+    changed = len(ticker.starts) + 1
+    assert wait_until(lambda: len(ticker.starts) >= changed + 5)
+    assert rate(ticker.starts[changed:]) <= 1 / 0.05 * 1.1, "the period can be made longer again"
 
 
 def test_set_period_from_a_long_period_takes_effect_promptly(make_app, wait_until):
@@ -359,7 +366,7 @@ def test_periodic_activity_with_an_event_port_does_not_busy_spin(make_app, wait_
     source.out.write(1)  # an event port in a periodic activity: the data is simply polled
     time.sleep(0.05)
     first = len(polled.samples)
-    time.sleep(0.4)
+    assert wait_until(lambda: len(polled.samples) >= first + 20, timeout=10.0)
     (cpu0, wall0), (cpu1, wall1) = polled.samples[first - 1], polled.samples[-1]
     ratio = (cpu1 - cpu0) / (wall1 - wall0)
     # Sleeping until each 20 ms deadline costs well under 1% of a core; busy waiting costs up to 100%
@@ -585,7 +592,7 @@ def test_a_pipeline_in_one_triggered_activity_runs_one_cycle_per_input(make_app,
     for value in (0, 10, 20):
         source.out.write(value)
         assert wait_until(lambda: second.seen[-1:] == [value + 1])
-    time.sleep(0.1)
+    assert wait_until(lambda: settled(activity))
     assert activity.stats.cycles == 3, "one cycle per input: the stage-to-stage write is read in it"
     assert first.seen == [0, 10, 20] and second.seen == [1, 11, 21]
 
@@ -594,7 +601,7 @@ def test_data_for_a_stage_the_cycle_already_ran_gets_a_cycle_of_its_own(make_app
     source, first, second, activity = two_stages(make_app, feedback=True)
     source.out.write(95)
     assert wait_until(lambda: second.seen[-1:] == [100])
-    time.sleep(0.1)
+    assert wait_until(lambda: settled(activity))
     assert first.seen == [95, 97, 99] and second.seen == [96, 98, 100]
     assert activity.stats.cycles == 3
 

@@ -128,7 +128,7 @@ def test_check_prints_what_each_activity_asks_of_the_os() -> None:
         <activity name="plain"><schedule period="10"/><components/></activity>
       </activities>
     </package>""", filename="asks.xml")
-    lines = [activity.line() for activity in plan_deployment(spec).activities.values()]
+    lines = [activity.line() for activity in plan_deployment(spec).host().activities.values()]
     assert lines == ["activity haptics: periodic 1 ms, spin 0.6 ms, SCHED_FIFO priority 80 -> own thread",
                      "activity pinned: periodic 10 ms, nice 5, exclusive cores 1 -> own thread",
                      "activity shared: triggered, cores 0,1 -> own thread",

@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import sys
 
-from coco_core import Application
+from coco_core import Application, CocoError
 from coco_core.processes.child import ChildProcess, main
 from coco_core.processes.messages import Config
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from .deployment import RosChildConfig
 from .hosting import ExecutorHost
 
 from .component_parameters import ComponentParameters
@@ -54,18 +55,22 @@ class RosChildProcess(ChildProcess):
     def run_app(self, app: Application, config: Config) -> bool:
         import rclpy
 
-        rclpy.init(args=["launcher", *without_node_renames(config.host["ros_args"])],
+        given = config.host
+        if not isinstance(given, RosChildConfig):
+            raise CocoError(f"process {app.process}: the launcher sent {type(given).__name__}, not the ROS launcher's "
+                            "RosChildConfig (a coco_ros child of another launcher)")
+        rclpy.init(args=["launcher", *without_node_renames(list(given.ros_args))],
                    signal_handler_options=SignalHandlerOptions.NO)
         try:
-            node = self.node = Node(f"{config.host['node']}_{node_name(app.process)}",
+            node = self.node = Node(f"{given.node}_{node_name(app.process)}",
                                     automatically_declare_parameters_from_overrides=True)
             # The launcher resolved the args (its -p values included) and reported the -p values no arg
             # takes: a child's node shows the args and refuses changes as the launcher's does.
-            ArgParameters(node, config.spec).declare({})
+            ArgParameters(node, config.deployment.spec).declare({})
             ComponentParameters(node, app).declare()
             host, executor = host_in_node(node, app, config.deployment)
             with (RosoutLogging(node),  # this process's log lines on /rosout, under its node's name
-                  PortMirrors(node, app, config.spec, config.host.get("expose", []))):
+                  PortMirrors(node, app, config.deployment.spec, list(given.expose))):
                 clean = run_hosted(app, host, executor)
             self.host = host if clean else None  # else a hung callback may still use it: left to the exit
             return clean

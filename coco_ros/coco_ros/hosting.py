@@ -63,11 +63,11 @@ import time
 from typing import TYPE_CHECKING, Callable
 
 from coco_core import Activity, Application, CocoError, Component
-from coco_core.deployment import Deployment
-from coco_core.drivers import Driving
+from coco_core.deployment import Driving, HostDeployment
 from coco_core.errors import did_you_mean
 from coco_core.period import PeriodGrid
 from coco_core.operations import set_current_activity
+from .deployment import ExecutorPlan
 from .wait_set import ActivityWaitSet, WaitSetGroup
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType
@@ -113,7 +113,7 @@ class ExecutorDriver:
         self.server = server
         """The thread that waits on this activity's entities (a :class:`WaitSetGroup`), or None when
         the node's executor runs the group's callbacks."""
-        self.driving = Driving.EXECUTOR if server is None else Driving.WAIT_SET
+        self.driving = Driving.HOSTED
         self.started = False
         self.configured = False
         self.running = False
@@ -381,7 +381,7 @@ class ExecutorHost:
     application runs (the executor runs what no wait
     set does: the node's parameter services, the entities of components in no activity or in an
     activity on its own thread, and without wait sets the hosted activities, which then need as many
-    threads to run in parallel: :meth:`executor_threads`). After ``app.stop()``, stop spinning and
+    threads to run in parallel: the plan's :class:`~coco_ros.deployment.ExecutorPlan`). After ``app.stop()``, stop spinning and
     call :meth:`close`, which also ends the wait sets' threads.
 
     Every activity, hosted or not, gets a mutually exclusive callback group (:meth:`callback_group`):
@@ -391,22 +391,25 @@ class ExecutorHost:
     (:func:`ros_node`, :func:`callback_group`).
     """
 
-    def __init__(self, node: Node, app: Application, deployment: Deployment) -> None:
+    def __init__(self, node: Node, app: Application, deployment: HostDeployment) -> None:
         self.node = node
         self.app = app
         self.deployment = deployment
-        self.wait_sets = deployment.options.wait_sets
-        """Whether each hosted activity has a wait set on a thread of its own (an
-        :class:`ActivityWaitSet`) rather than a callback group in the executor's shared threads."""
+        plan = deployment.process(app.process).host
+        if not isinstance(plan, ExecutorPlan):
+            raise CocoError(f"process {app.process or 'launcher'} of application {app.name} was not planned for an "
+                            "rclpy node (coco_ros.deployment.RosRules)")
+        self.plan = plan
+        """The process's executor as planned: a wait set per hosted activity (an
+        :class:`ActivityWaitSet`) or callback groups in the executor's shared threads, and how many."""
         self.clock = Clock(clock_type=ClockType.STEADY_TIME)
         """Activity timers run on the steady clock, like the activities' own threads (not /clock)."""
         self.groups: dict[str, MutuallyExclusiveCallbackGroup] = {}
         self.hosted: dict[str, ExecutorDriver] = {}
         for name, activity in app.activities.items():
-            driving = deployment.activities[name].driving
-            if activity.process != app.process or driving not in (Driving.WAIT_SET, Driving.EXECUTOR):
+            if activity.process != app.process or deployment.activities[name].driving is not Driving.HOSTED:
                 self.groups[name] = MutuallyExclusiveCallbackGroup()  # its components' ROS entities
-            elif driving is Driving.WAIT_SET:
+            elif plan.wait_sets:
                 group = self.groups[name] = WaitSetGroup()
                 server = ActivityWaitSet(group, node.context, name,
                                          on_error=functools.partial(app.request_stop, hard=True))
@@ -425,26 +428,10 @@ class ExecutorHost:
             raise CocoError(f"no activity {name!r} in application {self.app.name}; "
                             f"{did_you_mean(name, self.groups)}") from None
 
-    def executor_threads(self) -> int:
-        """Executor threads. With wait sets (the default) the executor runs no hosted activity, only
-        the ROS entities of the activities on threads of their own (one executor thread each, so
-        they run in parallel) and of the node's default group (one more): 1 when there are none of
-        the former. Otherwise one per hosted activity and one more for the ROS entities in other
-        groups, at least two; but 1 when the executor hosts every activity and there is at most one:
-        every callback is then in that activity's group, except those of components in no activity
-        (the node's default group), so there is next to nothing to run in parallel, and
-        :meth:`create_executor` makes it a ``SingleThreadedExecutor``."""
-        if self.wait_sets:
-            threaded = self.deployment.threads(self.app.process)
-            return threaded + 1 if threaded else 1
-        if len(self.hosted) <= 1 and len(self.hosted) == len(self.app.activities):
-            return 1
-        return max(2, len(self.hosted) + 1)
-
     def create_executor(self, threads: int | None = None, context: Context | None = None) -> Executor:
         """The executor to add the node to: a ``MultiThreadedExecutor`` with ``threads`` workers
-        (default: the deployment's ``--executor-threads``, else :meth:`executor_threads`), or for one
-        thread a ``SingleThreadedExecutor``.
+        (default: the plan's, :meth:`coco_ros.deployment.RosRules.settings`), or for one thread a
+        ``SingleThreadedExecutor``.
 
         One thread is not a ``MultiThreadedExecutor(num_threads=1)``: that one still hands every
         callback to its worker while its spinning thread polls the wait set again, which costs (rclpy
@@ -454,7 +441,7 @@ class ExecutorHost:
         """
         from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 
-        threads = threads or self.deployment.options.executor_threads or self.executor_threads()
+        threads = threads or self.plan.threads
         if threads == 1:
             return SingleThreadedExecutor(context=context)
         return MultiThreadedExecutor(num_threads=threads, context=context)

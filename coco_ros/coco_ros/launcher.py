@@ -32,13 +32,13 @@ import re
 import sys
 from functools import partial
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 from coco_core import Application, CocoError
 from coco_core.errors import Interrupted
-from coco_core.model import AppSpec
 from coco_core.applications import find_application
-from coco_core.deployment import Deployment, Host, LaunchOptions, deployed
+from coco_core.model import AppSpec
+from coco_core.deployment import HostDeployment, deployed
 from coco_core.launcher import (
     HUNG,
     USAGE,
@@ -59,6 +59,7 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 
 from .fastdds_segments import remove_abandoned
+from .deployment import RosChildConfig, RosRules
 from .hosting import ExecutorHost, ExecutorThread
 from .managed import ManagedApplication, ManagedLauncherNode
 from .mirror import PortMirrors, check_mirrors
@@ -165,7 +166,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         if options.check:
             return check(options, signals, RosHost(), HOST_ARGS)
         try:
-            built = load_and_build(options, signals, HOST_ARGS)
+            built = load_and_build(options, signals, RosHost(), HOST_ARGS)
         except CocoError as error:
             return failure(_NAME, error)
     if options.host is not None:  # before the node: Fast DDS reads its profiles at the first participant
@@ -184,7 +185,7 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
     node = None
     try:
         # With -p / --params-file, the node comes first: its values are the file's args too.
-        name = built[0].name if built else application_name(options, signals)
+        name = built[0].spec.name if built else application_name(options, signals)
         if options.host is not None:  # every host of one application has a launcher node: each its own name
             name = f"{name}_{options.host}"
         node_type = ManagedLauncherNode if options.managed else Node
@@ -193,11 +194,12 @@ def run(options: argparse.Namespace, ros_args: Sequence[str] = (), signals: Laun
         if options.check:
             return check(options, signals, RosHost(), {**HOST_ARGS, **given})
         with RosoutLogging(node):  # CoCo's log lines on /rosout too, from here on
-            spec, app = built or load_and_build(options, signals, {**HOST_ARGS, **given})
-            ArgParameters(node, spec).declare(given)
+            host = RosHost(node, ros_args, options.expose)
+            deployment, app = built or load_and_build(options, signals, host, {**HOST_ARGS, **given})
+            ArgParameters(node, deployment.spec).declare(given)
             ComponentParameters(node, app).declare()
             signals.check()
-            return launch(spec, app, options, signals, RosHost(node, ros_args, options.expose))
+            return launch(deployment, app, options, signals, host)
     except CocoError as error:  # a wrong file, interrupted while the children started, a child not built
         return failure(_NAME, error)
     finally:
@@ -237,19 +239,20 @@ class RosHost:
         self.expose = list(expose)
         """``--expose`` patterns: the ports every process mirrors on topics (:mod:`.mirror`)."""
 
-    def launch_options(self, options: argparse.Namespace) -> LaunchOptions:
-        return LaunchOptions(Host.ROS, tuple(_threads(options.threads)), options.all_threads,
-                             wait_sets=options.executor_threads is None, executor_threads=options.executor_threads)
+    def rules(self, options: argparse.Namespace) -> RosRules:
+        return RosRules(tuple(_threads(options.threads)), options.all_threads,
+                        wait_sets=options.executor_threads is None, executor_threads=options.executor_threads)
 
-    def child_config(self) -> dict[str, Any]:
+    def child_config(self) -> RosChildConfig:
         assert self.node is not None
-        return {"node": self.node.get_name(), "ros_args": self.ros_args, "expose": self.expose}
+        return RosChildConfig(self.node.get_name(), tuple(self.ros_args), tuple(self.expose))
 
     def checked(self, spec: AppSpec, app: Application, options: argparse.Namespace) -> list[str]:
         return check_mirrors(spec, app, options.expose, options.allow_unknown)
 
-    def run(self, spec: AppSpec, app: Application, deployment: Deployment, options: argparse.Namespace,
+    def run(self, app: Application, deployment: HostDeployment, options: argparse.Namespace,
             processes: ProcessSupervisor | None, signals: LaunchSignals) -> bool:
+        spec = deployment.spec
         node = self.node
         assert node is not None
         host, executor = host_in_node(node, app, deployment)
@@ -271,10 +274,9 @@ class RosHost:
         return clean
 
 
-def host_in_node(node: Node, app: Application, deployment: Deployment) -> tuple[ExecutorHost, Executor]:
+def host_in_node(node: Node, app: Application, deployment: HostDeployment) -> tuple[ExecutorHost, Executor]:
     """Host this process's part of ``app`` in ``node`` by ``deployment`` (the launcher's process and
-    every child's alike), check its drivers against the plan and log where each activity runs;
-    the host and the executor to spin."""
+    every child's alike) and log where each activity runs; the host and the executor to spin."""
     host = ExecutorHost(node, app, deployment)
     executor = host.create_executor()
     executor.add_node(node)

@@ -32,7 +32,8 @@ from coco_core import (
     current_activity,
     operation,
 )
-from coco_core.deployment import THREAD_PERIOD, Deployment, Host, LaunchOptions, of_application
+from coco_core.deployment import HostDeployment, of_application
+from coco_ros.deployment import RosRules
 from coco_ros.hosting import (
     ExecutorHost,
     ExecutorThread,
@@ -132,9 +133,9 @@ class Hosting:
         self.host = ExecutorHost(self.node, app, self.plan(app, threads))
         return self.host
 
-    def plan(self, app: Application, threads: tuple[str, ...] = ()) -> Deployment:
+    def plan(self, app: Application, threads: tuple[str, ...] = ()) -> HostDeployment:
         """The ROS host's deployment of ``app`` (``threads``: as ``--threads`` names them)."""
-        return of_application(app, LaunchOptions(Host.ROS, threads, wait_sets=self.wait_sets))
+        return of_application(app, RosRules(threads, wait_sets=self.wait_sets))
 
     def spin(self) -> None:
         assert self.host is not None
@@ -477,7 +478,7 @@ def test_one_hosted_activity_gets_a_single_threaded_executor_and_more_get_worker
     recorder = app.add(Recorder("recorder"), TriggeredActivity("events"))
     app.add(Counter("source"))  # in no activity: its entities would be in the node's default group
     host = hosting.host_app(app)
-    assert host.executor_threads() == 1
+    assert host.plan.threads == 1
     executor = host.create_executor(context=hosting.context)
     assert isinstance(executor, SingleThreadedExecutor)
     assert isinstance(host.create_executor(3, context=hosting.context), MultiThreadedExecutor)
@@ -487,9 +488,9 @@ def test_one_hosted_activity_gets_a_single_threaded_executor_and_more_get_worker
     assert wait_until(lambda: recorder.updates == 1), "the activity never ran"
     two, _, _ = pipeline()
     # With wait sets the executor runs no hosted activity: one thread is enough for the rest.
-    assert ExecutorHost(hosting.node, two, hosting.plan(two)).executor_threads() == (1 if hosting.wait_sets else 3)
+    assert ExecutorHost(hosting.node, two, hosting.plan(two)).plan.threads == (1 if hosting.wait_sets else 3)
     threaded, _, _ = pipeline()
-    assert ExecutorHost(hosting.node, threaded, hosting.plan(threaded, ("ticks",))).executor_threads() == 2, \
+    assert ExecutorHost(hosting.node, threaded, hosting.plan(threaded, ("ticks",))).plan.threads == 2, \
         "an activity on its own thread may have entities in its group: they get a worker of their own"
 
 

@@ -10,7 +10,8 @@ import time
 import numpy as np
 import pytest
 from coco_core import Application, AttributeValueError, PeriodicActivity
-from coco_core.deployment import Host, LaunchOptions, of_application
+from coco_core.deployment import of_application
+from coco_ros.deployment import RosRules
 from coco_core.transforms import se3
 from coco_core.transforms.edges import DynamicEdge
 from coco_ros.tf.bridge import TFBridge
@@ -84,7 +85,7 @@ def test_in_one_process_tf_in_and_tf_static_out(ros) -> None:
     app = app_with_graph()
     bridge = app.add(TFBridge("tf", root="world"), PeriodicActivity("broadcast", period=0.02))
     # The test spins the executor that runs its callbacks: no wait set of its own.
-    host = ExecutorHost(launcher_node, app, of_application(app, LaunchOptions(Host.ROS, wait_sets=False)))
+    host = ExecutorHost(launcher_node, app, of_application(app, RosRules(wait_sets=False)))
     try:
         assert bridge.configure()
         bridge.step()  # the first update: the static set goes out (latched)

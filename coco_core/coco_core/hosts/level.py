@@ -43,7 +43,6 @@ def host_level(spec: AppSpec, app: Application, timeout: float, key: AppKey | No
     try:
         session.join(transport.bus(spec, session.receive, key, app.network_refusals))
         app.clock = session.clock
-        app.router = session  # the process level's supervisor takes over, passing other hosts' calls on
         ends = session.ends = ends_between_hosts(app, spec, session.clock, key)
         yield session
     finally:

@@ -51,11 +51,10 @@ class Where:
     """Every component, peers included."""
 
     @classmethod
-    def of(cls, spec: AppSpec) -> Where:
-        """The process level's :class:`~coco_core.processes.placement.Placement` of ``spec`` (every
-        component's process, through the activity that runs its top-level owner) with each one's
-        host: the host of that activity, or the first host for what no activity runs."""
-        placement = Placement.of(spec)
+    def of(cls, spec: AppSpec, placement: Placement) -> Where:
+        """The process level's ``placement`` of ``spec`` (every component's process, through the
+        activity that runs its top-level owner) with each one's host: the host of that activity, or
+        the first host for what no activity runs."""
         hosts = tuple(host.name for host in spec.hosts)
         host_of = {activity.name: activity.host for activity in spec.activities}
         runs = {name: activity.host for activity in spec.activities for name in activity.components}
@@ -70,11 +69,11 @@ class Where:
         return table.get(ref.component, (self.hosts[0], ""))
 
 
-def host_part(spec: AppSpec, host: str) -> AppSpec:
-    """``host``'s part of ``spec``, which declares hosts (:attr:`AppSpec.part_of`); a
+def host_part(spec: AppSpec, host: str, where: Where) -> AppSpec:
+    """``host``'s part of ``spec``, which declares hosts (:attr:`AppSpec.part_of`), whose ``where``
+    the deployment plan computed once (:func:`coco_core.deployment.plan_deployment`); a
     :class:`ConfigErrors` for an unknown host or a connection that cannot join two hosts (UNSYNC:
     it is only valid inside one activity)."""
-    where = Where.of(spec)
     if host not in where.hosts:
         raise ConfigErrors([ConfigError(f"--host {host}: the application declares no such host; "
                                         f"{did_you_mean(host, where.hosts)}")])

@@ -24,7 +24,7 @@ import threading
 import time
 from concurrent.futures import Future
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Protocol
+from typing import TYPE_CHECKING, Any, Callable
 
 from ..component import ErrorPolicy
 from ..errors import HostError, WrongTypeError
@@ -33,12 +33,12 @@ from ..processes.remote import serve_call, settle
 from .clock import EXCHANGES, ClockOffset, best, exchange
 from .messages import ClockRequest, Heartbeat, Stage
 from .part import split_address
-from .transport import Ends
+from .transport import Bus, Ends
 
 if TYPE_CHECKING:
     from ..application import Application
+    from ..levels import LocalProcesses
     from ..model import AppSpec
-    from ..processes.supervisor import ProcessSupervisor
 
 log = logging.getLogger("coco")
 
@@ -55,17 +55,6 @@ REPORT_EVERY = 2.0
 """Seconds between two lines saying which hosts a host still waits for."""
 SIGNAL_CHECK = 0.1
 """Seconds between two looks for a signal while a host waits for the others."""
-
-
-class Bus(Protocol):
-    """How the hosts of one application reach each other (``coco_ros.hosts``: a DDS topic). It calls
-    the session's :meth:`HostSession.receive` with each message for this host."""
-
-    def send(self, recipient: str, message: Message) -> None:
-        """Send ``message`` to host ``recipient`` ("": every other host)."""
-
-    def close(self) -> None:
-        """Deliver what was sent (bounded), then release the network resources."""
 
 
 @dataclass
@@ -99,14 +88,12 @@ class HostSession:
         self.stage = Stage.JOINED
         self.bus: Bus | None = None
         self.clock = ClockOffset()
-        self.processes: ProcessSupervisor | None = None
-        """This host's child processes (the damage another host found is passed on to them)."""
+        self.processes: LocalProcesses | None = None
+        """This host's child processes (:class:`~coco_core.levels.LocalProcesses`): the calls of other
+        hosts to them, and the damage other hosts found, go there; None: this host has no child
+        process, the launcher's components serve the calls."""
         self.ends: Ends | None = None
         """The launcher's process's ends of connections between hosts (:mod:`.level` attaches them)."""
-        self.local: Callable[[Call, Callable[[Outcome], None]], None] | None = None
-        """Routes a call to a process of this host and passes its outcome on as it came (the process
-        level's :meth:`~coco_core.processes.supervisor.ProcessSupervisor.route`); None: this host
-        has no child process, the launcher's components serve it."""
         self.failure = ""
         """Why this host's run failed because of another host (one disappeared), for the exit status."""
         self._stop: Heartbeat | None = None
@@ -115,6 +102,12 @@ class HostSession:
         self._ids = itertools.count(1)
         self._waiting: dict[int, tuple[str, Callable[[Outcome], None]]] = {}
         """Request id -> (the host asked, what gets its answer)."""
+        self.unexpected = 0
+        """Messages from other hosts of a type the protocol does not send between hosts (logged)."""
+        self._handlers: dict[type, Callable[[str, Any], None]] = {
+            Heartbeat: self._heard, ClockRequest: self._clock_asked, Call: self._serve_call, Damage: self._damaged,
+            Result: self._answered}
+        """The one dispatcher of the link between hosts: the handler of each message type."""
         self._done = threading.Event()
         self._beater = threading.Thread(target=self._beat, name="coco:hosts", daemon=True)
 
@@ -136,16 +129,13 @@ class HostSession:
             self.clock = self._measure_clock()
         log.info("host %s: clock %s", self.host, self.clock.describe())
 
-    def built(self, processes: ProcessSupervisor | None) -> None:
+    def built(self, processes: LocalProcesses | None) -> None:
         """This host's part is built, ``processes`` (its child processes, if any) too: wait for every
         host to be, then let the start go on; once every activity of this host is configured, wait
         for every host's to be before any cycle runs (the start gate is held until then). The calls
-        of other hosts reach this host's child processes through ``processes``, and theirs go out
-        through this session."""
-        if processes is not None:
-            processes.hosts = self
-            self.local = processes.route
-            self.processes = processes
+        of other hosts reach this host's child processes through ``processes`` (theirs go out
+        through this session, which the launch gave the process level)."""
+        self.processes = processes
         if self.ends is not None:  # a sample written before its reader subscribed would be lost
             matched(self.ends, self.timeout, self.interrupted, self.app)
         self._enter(Stage.BUILT)
@@ -209,23 +199,32 @@ class HostSession:
 
     # --- running --------------------------------------------------------------------------------
     def receive(self, sender: str, message: Message) -> None:
-        """A message from host ``sender`` (the bus's thread)."""
-        if isinstance(message, Heartbeat):
-            self._heard(sender, message)
-        elif isinstance(message, ClockRequest):
-            received = time.perf_counter()
-            self._answer(sender, message, Outcome(True, (received, time.perf_counter())))
-        elif isinstance(message, Call):
-            self._serve_call(sender, message)
-        elif isinstance(message, Damage):
-            self.app.report_damage(message.what, here=False)
-            if self.processes is not None:
-                self.processes.pass_on_damage(message.what)
-        elif isinstance(message, Result):
+        """A message from host ``sender`` (the bus's thread): the link's one dispatcher, by the
+        message's type; one of a type the protocol does not send between hosts is counted
+        (:attr:`unexpected`) and logged, never dropped silently."""
+        handler = self._handlers.get(type(message))
+        if handler is None:
             with self._lock:
-                waiting = self._waiting.pop(message.id, None)
-            if waiting is not None:
-                waiting[1](message.outcome)
+                self.unexpected += 1
+            log.error("host %s: unexpected %s from host %s (%d so far)", self.host, type(message).__name__, sender,
+                      self.unexpected)
+            return
+        handler(sender, message)
+
+    def _clock_asked(self, sender: str, request: ClockRequest) -> None:
+        received = time.perf_counter()
+        self._answer(sender, request, Outcome(True, (received, time.perf_counter())))
+
+    def _damaged(self, sender: str, damage: Damage) -> None:
+        self.app.report_damage(damage.what, here=False)
+        if self.processes is not None:
+            self.processes.pass_on_damage(damage.what)
+
+    def _answered(self, sender: str, result: Result) -> None:
+        with self._lock:
+            waiting = self._waiting.pop(result.id, None)
+        if waiting is not None:
+            waiting[1](result.outcome)
 
     def _heard(self, sender: str, beat: Heartbeat) -> None:
         peer = self.peers.get(sender)
@@ -333,8 +332,8 @@ class HostSession:
         def reply(outcome: Outcome) -> None:
             self._answer(sender, call, outcome)
 
-        if self.local is not None:
-            self.local(call, reply)
+        if self.processes is not None:
+            self.processes.route(call, reply)
         elif call.process:
             reply(Outcome.failure("ProcessError", f"no process {call.process!r} on host {self.host}"))
         else:

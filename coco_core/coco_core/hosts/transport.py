@@ -21,9 +21,19 @@ if TYPE_CHECKING:
     from .auth import Refusals
     from .clock import ClockOffset
     from .key import AppKey
-    from .session import Bus
 
 GROUP = "coco.host_transports"
+
+
+class Bus(Protocol):
+    """How the hosts of one application reach each other (``coco_ros.hosts``: a DDS topic). It calls
+    the session's ``receive`` with each message for this host."""
+
+    def send(self, recipient: str, message: Message) -> None:
+        """Send ``message`` to host ``recipient`` ("": every other host)."""
+
+    def close(self) -> None:
+        """Deliver what was sent (bounded), then release the network resources."""
 
 
 class Ends(Protocol):

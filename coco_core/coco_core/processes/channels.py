@@ -41,6 +41,7 @@ from .routed import RoutingEnd
 
 if TYPE_CHECKING:
     from ..application import Application
+    from ..deployment import HostDeployment
     from ..shm import Arena
 
 
@@ -91,9 +92,24 @@ def declared_port(spec: ComponentSpec | None, port: str) -> Any:
     return cls._port_decls.get(port)
 
 
+@dataclass(frozen=True)
+class Crossing:
+    """One connection between two processes of a host, as the deployment plan settles it once:
+    its ends' processes and the activity a write on it wakes."""
+
+    connection: ConnectionSpec
+    src_process: str
+    dest_process: str
+    wakes: str
+    """The reader's triggered activity that a write may wake (through its eventfd); empty: none."""
+    event: bool | None
+    """Whether the reader's input is an event port: None when the reader's process must say (an
+    input made in ``init()``, which the launcher cannot see)."""
+
+
 def _woken_by(connection: ConnectionSpec, components: dict[str, ComponentSpec],
               activity_of: dict[str, ActivitySpec], placement: Placement,
-              activities: dict[str, ActivitySpec]) -> tuple[str, Any]:
+              activities: dict[str, ActivitySpec]) -> tuple[str, bool | None]:
     """(the activity a write on the crossing ``connection`` wakes, "" for none; whether its input is an
     event port: True, False, or None when the reader's process must say, the port being made in init).
     An activity's ``beginit`` is an event port of the activity itself."""
@@ -110,42 +126,43 @@ def _woken_by(connection: ConnectionSpec, components: dict[str, ComponentSpec],
     return (activity.name if triggered and event is not False and activity is not None else ""), event
 
 
-def woken_by_other_processes(spec: AppSpec, placement: Placement) -> set[str]:
-    """The activities that a write in another process may wake: each gets an eventfd thread
-    (a :class:`~coco_core.drivers.ThreadDriver` on its eventfd) in the run. Pure, so that ``--check`` and the run
-    agree (the ROS launcher hosts no such activity in its executor)."""
+def crossings(spec: AppSpec, placement: Placement) -> list[Crossing]:
+    """The connections of ``spec`` between two processes, each with the activity a write on it may
+    wake: computed once, by the deployment plan (:func:`coco_core.deployment.plan_host`), whose
+    ``woken`` sets get eventfd threads and whose channels :func:`plan_channels` makes."""
     components = {component.name: component for component in spec.all_components()}
     activity_of = {name: activity for activity in spec.activities for name in activity.components}
     activities = {activity.name: activity for activity in spec.activities}
-    return {woken for connection in placement.crossing(spec)
-            if (woken := _woken_by(connection, components, activity_of, placement, activities)[0])}
+    return [Crossing(connection, placement.process_of_ref(connection.src), placement.process_of_ref(connection.dest),
+                     *_woken_by(connection, components, activity_of, placement, activities))
+            for connection in placement.crossing(spec)]
 
 
-def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[ChannelPlan]:
-    """One channel for every connection of ``spec`` that crosses processes; one frame pool for
+def plan_channels(arena: Arena, deployment: HostDeployment) -> list[ChannelPlan]:
+    """One channel for every connection of the plan's ``crossings``; one frame pool for
     every pooled output read from another process, with the slots the port declares, shared by all
     its readers (as in one process, where they all read the port's one pool); a ring for a
     stamps-only connection from a pooled output (it carries the frames' stamps, never a slot)."""
-    components = {component.name: component for component in spec.all_components()}
-    activity_of = {name: activity for activity in spec.activities for name in activity.components}
-    activities = {activity.name: activity for activity in spec.activities}
-    crossing = placement.crossing(spec)
-    outputs = {str(c.src): declared_port(components.get(c.src.component), c.src.port) for c in crossing}
+    components = {component.name: component for component in deployment.spec.all_components()}
+    crossing = deployment.crossings
+    outputs = {str(c.connection.src): declared_port(components.get(c.connection.src.component), c.connection.src.port)
+               for c in crossing}
     # The connections that read frames from a pool: a stamps-only one reads the frames' stamps from a
     # ring of its own and holds no slot.
-    pooled = [c for c in crossing if not c.stamps_only
-              and (isinstance(outputs[str(c.src)], PooledOutputPort) or c.data is BufferPolicy.POOL)]
-    readers = Counter(str(c.src) for c in pooled)
+    pooled = [c for c in crossing if not c.connection.stamps_only
+              and (isinstance(outputs[str(c.connection.src)], PooledOutputPort)
+                   or c.connection.data is BufferPolicy.POOL)]
+    readers = Counter(str(c.connection.src) for c in pooled)
     pools: dict[str, Any] = {}
     taken: Counter[str] = Counter()
     plans = []
     asks = 0
-    for connection in crossing:
+    for crossed in crossing:
+        connection = crossed.connection
         label = f"{connection.src}->{connection.dest}"
-        frames = connection in pooled
-        wakes, event = _woken_by(connection, components, activity_of, placement, activities)
+        frames = crossed in pooled
         ask = -1
-        if wakes and event is None:  # an input made in init(): the reader's process says
+        if crossed.wakes and crossed.event is None:  # an input made in init(): the reader's process says
             ask, asks = asks, asks + 1
         if frames:
             if connection.filter is not None:
@@ -168,11 +185,10 @@ def plan_channels(arena: Arena, spec: AppSpec, placement: Placement) -> list[Cha
                               "frames: connect it with data=DATA, BUFFER or CIRCULAR, not POOL", connection.location)
         else:
             channel = replace(arena.channel(ring_policy(connection), label), stamps_only=connection.stamps_only)
-        plans.append(ChannelPlan(str(connection.src), str(connection.dest),
-                                 placement.process_of_ref(connection.src),
-                                 placement.process_of_ref(connection.dest), channel, frames,
-                                 connection.wakes(), wakes, ask, connection.src.activity, connection.dest.activity,
-                                 connection.filter is not None, connection.stamps_only))
+        plans.append(ChannelPlan(str(connection.src), str(connection.dest), crossed.src_process,
+                                 crossed.dest_process, channel, frames,
+                                 connection.wakes(), crossed.wakes, ask, connection.src.activity,
+                                 connection.dest.activity, connection.filter is not None, connection.stamps_only))
     if asks:
         arena.flags(asks)
     return plans
@@ -300,8 +316,3 @@ def reader_stats(plans: list[ChannelPlan], process: str) -> list[Connection]:
 
     return [FrameStats(plan.channel) if plan.frames else ChannelStats(plan.channel)
             for plan in plans if plan.dest_process == process]
-
-
-def wake_targets(plans: list[ChannelPlan]) -> set[str]:
-    """The activities that a write in another process may wake."""
-    return {plan.wakes for plan in plans if plan.wakes}

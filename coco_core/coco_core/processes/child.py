@@ -24,7 +24,7 @@ import sys
 import threading
 import time
 from concurrent.futures import Future
-from typing import Any
+from typing import Any, Sequence
 
 from ..application import Application
 from ..builder import build_application
@@ -89,7 +89,7 @@ def name_process(process: str) -> None:
     prctl(PR_SET_NAME, f"coco:{process}".encode()[:15])
 
 
-def apply_process_placement(affinity: list[int], nice: int | None) -> None:
+def apply_process_placement(affinity: Sequence[int], nice: int | None) -> None:
     """The ``<process>``'s cores and nice value, for every thread of the process."""
     if affinity:
         try:
@@ -140,26 +140,27 @@ class ChildProcess:
         name_process(process)
         self.launch = config.launch
         logging.basicConfig(level=config.log_level, format=f"[%(levelname)s] %(name)s[{process}]: %(message)s")
-        spec = config.spec
-        placement = next(p for p in spec.processes if p.name == process)
-        apply_process_placement(placement.affinity, placement.nice)
-        if placement.lock_memory and (refused := lock_memory()):
+        deployment = config.deployment
+        spec = deployment.spec
+        settings = deployment.process(process)
+        apply_process_placement(settings.affinity, settings.nice)
+        if settings.lock_memory and (refused := lock_memory()):
             log.warning("process %s: %s", process, refused)
         try:
-            app = self.app = build_application(spec, process)
+            app = self.app = build_application(spec, process, placement=deployment.placement)
             app.measure_ages = config.measure_ages
             drive(app, config.deployment, config.wakes)
             attach(app, config.plans, config.wakes)
-            if config.clock is not None:
-                app.clock = config.clock
-                self.ends = ends_between_hosts(app, spec, config.clock, config.key)
+            if config.hosts is not None:
+                app.clock = config.hosts.clock
+                self.ends = ends_between_hosts(app, spec, config.hosts.clock, config.hosts.key)
                 if self.ends is not None:
-                    matched(self.ends, config.host_timeout, lambda: None, app)
+                    matched(self.ends, config.hosts.timeout, lambda: None, app)
         except CocoError as error:
             self.link.send(BuildFailed(str(error)))
             return 1
         app.add_stop_listener(self._stop_requested_here)
-        if placement.gc == "between_cycles":
+        if settings.gc == "between_cycles":
             self.garbage = collect_between_cycles(app)
         app.add_damage_listener(self._damage_found_here)
         app.gate.hold(self._configured)  # the launcher's word (Run) opens it

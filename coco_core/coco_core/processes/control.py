@@ -39,6 +39,8 @@ class ControlLink:
         self._next = 0
         self._pending: dict[int, Callable[[Outcome], None]] = {}
         """What to do with the ``result`` of each request sent, by request id."""
+        self.unexpected = 0
+        """Messages of a type the protocol does not send this way (each logged)."""
 
     @classmethod
     def pair(cls, peer: str) -> tuple[ControlLink, int]:
@@ -102,12 +104,14 @@ class ControlLink:
         """The one dispatcher of both ends: read messages and run the handler of each one's type,
         until a message of a type in ``until`` (returned, after its handler if it has one) or the
         other side closes the link (None). Results go to the requests that wait for them; any other
-        message without a handler here is logged (the protocol does not send it this way)."""
+        message without a handler here is counted (:attr:`unexpected`) and logged (the protocol does
+        not send it this way)."""
         while True:
             try:
                 message = self.receive()
             except EOFError:
                 return None
+            assert message is not None  # no timeout: a message, or the end of the link
             if isinstance(message, Result):
                 self.answered(message)
                 continue
@@ -115,9 +119,14 @@ class ControlLink:
             if handler is not None:
                 handler(message)
             elif not isinstance(message, until):
-                log.error("control link with %s: unexpected %r", self.peer, message)
+                self.refuse(message)
             if isinstance(message, until):
                 return message
+
+    def refuse(self, message: Message) -> None:
+        """A message that the protocol does not send this way: counted and logged, never silent."""
+        self.unexpected += 1
+        log.error("control link with %s: unexpected %r (%d so far)", self.peer, message, self.unexpected)
 
     def close(self) -> None:
         self._connection.close()

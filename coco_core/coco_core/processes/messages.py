@@ -21,8 +21,16 @@ answered by a :class:`Result` with the request's ``id``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
 from ..wire import value_type
+
+if TYPE_CHECKING:
+    from ..deployment import HostDeployment
+    from ..hosts.clock import ClockOffset
+    from ..hosts.key import AppKey
+    from ..report import ProfileSnapshot
+    from .channels import ChannelPlan
 
 
 @dataclass(frozen=True)
@@ -65,32 +73,44 @@ class Result(Message):
 
 # --- launcher -> child ------------------------------------------------------------------------
 @dataclass(frozen=True)
+class HostConfig:
+    """What every child of a launch host needs beyond the plan: nothing for the plain host; another
+    launch host sends a frozen subclass with its own typed fields (the ROS launcher: the node's
+    name, the ROS arguments)."""
+
+
+@dataclass(frozen=True)
+class HostsLink:
+    """What a child of one host of an application over several needs to reach the others."""
+
+    clock: ClockOffset
+    """This host's clock against the application's: a child with ends of connections between hosts
+    puts its stamps on the application's clock."""
+    key: AppKey
+    """The application's key (:mod:`coco_core.hosts.key`): the child's ends of connections between
+    hosts seal and check their samples with it (this pipe is inside one host: one trust domain)."""
+    timeout: float
+    """Seconds a child waits for the readers of its connections to other hosts (``--host-timeout``)."""
+
+
+@dataclass(frozen=True)
 class Config(Message):
     """Everything a child needs to build and run its part: sent first, once."""
 
-    spec: Any
-    """The parsed application (:class:`~coco_core.model.AppSpec`)."""
     process: str
     launch: str
     """The launch's id (its shared-memory segments' names start with it)."""
     wakes: dict[str, int]
-    """Activity -> the eventfd that wakes it (inherited descriptors)."""
-    plans: list[Any]
-    """The channels between processes (:class:`~coco_core.processes.channels.ChannelPlan`)."""
-    deployment: Any
-    """The launch's one deployment plan (:class:`~coco_core.deployment.Deployment`)."""
+    """Activity -> the eventfd that wakes it (inherited descriptors), for the plan's wake sets."""
+    plans: list[ChannelPlan]
+    """The channels between processes, made from the plan's crossings."""
+    deployment: HostDeployment
+    """This host's part of the launch's one deployment plan (the file's part included)."""
     log_level: int
-    host: dict[str, Any] = field(default_factory=dict)
-    """What the child's host needs beyond the plan (the ROS launcher's node name and ROS arguments)."""
-    clock: Any = None
-    """This host's clock against the application's (:class:`~coco_core.hosts.clock.ClockOffset`),
-    when the application has several hosts; None otherwise."""
-    key: Any = None
-    """The application's key (:class:`~coco_core.hosts.key.AppKey`), when it has several hosts:
-    the child's ends of connections between hosts seal and check their samples with it (this
-    pipe is inside one host: one trust domain)."""
-    host_timeout: float = 60.0
-    """Seconds a child waits for the readers of its connections to other hosts (``--host-timeout``)."""
+    host: HostConfig = field(default_factory=HostConfig)
+    """What the child's launch host needs beyond the plan (its own subclass of :class:`HostConfig`)."""
+    hosts: HostsLink | None = None
+    """The other hosts, when the application has several; None otherwise."""
     measure_ages: bool = False
     """Whether the child's readers record the age of what they take (a profiled launch)."""
 
@@ -161,7 +181,7 @@ class Stopped(Message):
 
     clean: bool
     failed: bool
-    snapshot: Any
+    snapshot: ProfileSnapshot
 
 
 # --- both ways --------------------------------------------------------------------------------

@@ -32,11 +32,10 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from ..activity import Activity
 from ..application import Application
-from ..deployment import Deployment, drive
+from ..deployment import HostDeployment, drive
 from ..drivers import Driving, eventfd_pending
 from ..errors import ProcessError
 from ..lifecycle import STOP_TIMEOUT
-from ..model import AppSpec
 from ..report import ProfileSnapshot, connection_rows, render, snapshot
 from .control import ControlLink
 from .messages import (
@@ -44,6 +43,8 @@ from .messages import (
     Built,
     Call,
     Config,
+    HostConfig,
+    HostsLink,
     Configured,
     Damage,
     Outcome,
@@ -56,14 +57,12 @@ from .messages import (
     Stopped,
     StopRequest,
 )
-from .channels import ChannelPlan, attach, plan_channels, reader_stats, wake_targets
-from .placement import LAUNCHER, Placement
+from .channels import ChannelPlan, attach, plan_channels, reader_stats
+from .placement import LAUNCHER
 from .remote import call_over, serve_call
 
 if TYPE_CHECKING:
-    from ..hosts.clock import ClockOffset
-    from ..hosts.key import AppKey
-    from ..hosts.session import HostSession
+    from ..levels import OtherHosts
     from ..shm import Arena
 
 log = logging.getLogger("coco")
@@ -160,61 +159,56 @@ class ProcessDriver:
 
 
 class ProcessSupervisor:
-    """Starts, watches and stops the child processes of ``app`` (the launcher's part of ``spec``)."""
+    """Starts, watches and stops the child processes of ``app`` (the launcher's part of the host's
+    ``deployment``)."""
 
-    def __init__(self, spec: AppSpec, app: Application, deployment: Deployment, log_level: int = logging.INFO,
-                 child_module: str = "coco_core.processes.child", child_config: dict[str, Any] | None = None,
-                 clock: ClockOffset | None = None, key: AppKey | None = None, host_timeout: float = 60.0) -> None:
+    def __init__(self, app: Application, deployment: HostDeployment, log_level: int = logging.INFO,
+                 child_module: str = "coco_core.processes.child", child_config: HostConfig = HostConfig(),
+                 hosts_link: HostsLink | None = None, hosts: OtherHosts | None = None) -> None:
         self.child_module = child_module
         """The module a child runs (``python -m``): the ROS launcher's children host an rclpy node."""
-        self.child_config = child_config or {}
+        self.child_config = child_config
         """Extra configuration every child receives (the ROS launcher's node name and ROS arguments)."""
-        self.clock = clock
-        """This host's clock against the application's, when the application has several hosts: a
-        child with ends of connections between hosts puts its stamps on the application's clock."""
-        self.key = key
-        """The application's key, when it has several hosts (:mod:`coco_core.hosts.key`)."""
-        self.host_timeout = host_timeout
-        """Seconds a child waits for the readers of its connections to other hosts."""
-        self.spec = spec
+        self.hosts_link = hosts_link
+        """What every child needs to reach the other hosts, when the application has several."""
         self.app = app
         self.deployment = deployment
-        """The launch's plan, which every child receives and executes (:mod:`coco_core.deployment`)."""
-        self.placement = Placement.of(spec)
+        """This host's part of the launch's plan, which every child receives and executes
+        (:mod:`coco_core.deployment`): the processes, their wake sets, the channels' crossings."""
         self.log_level = log_level
         self.launch_id = f"{os.getpid()}-{secrets.token_hex(3)}"
         self.children: dict[str, Child] = {}
         self._fds: list[int] = []
         """Descriptors the launcher made for the children (eventfds), closed at the end."""
         self._wakes: dict[str, int] = {}
-        """activity -> eventfd, for every activity that a write in another process wakes."""
+        """activity -> eventfd, for every activity of the plan's wake sets."""
         self.arena: Arena | None = None
         """The launch's shared-memory segments (when a connection crosses processes)."""
         self.plans: list[ChannelPlan] = []
         self._lock = threading.Lock()
         self.failure = ""
         """Why the application failed because of a child (its death), for the exit status."""
-        self.hosts: HostSession | None = None
+        self.hosts = hosts
         """The other hosts of the application, when it has several: the calls to their components
-        go there (:mod:`coco_core.hosts`)."""
+        and the damage this host's children find go there (:class:`~coco_core.levels.OtherHosts`)."""
 
     # --- start ----------------------------------------------------------------------------------
     def launch(self) -> None:
         """Start every child and wait until each has built its part; raises :class:`ProcessError`
         (after stopping the others) when one could not."""
         try:
-            if self.placement.crossing(self.spec):
+            if self.deployment.crossings:
                 from ..shm import Arena
 
                 self.arena = Arena(self.launch_id)
-                self.plans = plan_channels(self.arena, self.spec, self.placement)
-            for name in wake_targets(self.plans):
+                self.plans = plan_channels(self.arena, self.deployment)
+            for name in sorted(self.deployment.woken):
                 fd = os.eventfd(0, os.EFD_CLOEXEC)
                 self._fds.append(fd)
                 self._wakes[name] = fd
             drive(self.app, self.deployment, self._wakes)
             attach(self.app, self.plans, self._wakes)
-            for name in self.placement.processes:
+            for name in self.deployment.placement.processes:
                 self.children[name] = self._spawn(name)
                 self.app.progress.pids.append(self.children[name].popen.pid)  # a natural stop sees its work
             for child in self.children.values():
@@ -230,12 +224,11 @@ class ProcessSupervisor:
                 ProcessDriver(self, child, self.app.activities[name], self.deployment.activities[name].driving,
                               self._wakes.get(name))
             threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True).start()
-        self.app.router = self
         self.app.add_damage_listener(self.pass_on_damage)
 
     def _spawn(self, name: str) -> Child:
         link, theirs = ControlLink.pair(f"process {name}")
-        activities = [a for a, process in self.placement.of_activity.items() if process == name]
+        activities = list(self.deployment.process(name).activities)
         try:  # every child gets every wake-up eventfd: it may write to any process's reader
             popen = subprocess.Popen(
                 [sys.executable, "-m", self.child_module, str(theirs), str(os.getpid())],
@@ -243,8 +236,8 @@ class ProcessSupervisor:
                 start_new_session=True)  # a terminal's Ctrl-C reaches the launcher, which stops them
         finally:
             os.close(theirs)
-        link.send(Config(self.spec, name, self.launch_id, self._wakes, self.plans, self.deployment, self.log_level,
-                         self.child_config, self.clock, self.key, self.host_timeout, self.app.measure_ages))
+        link.send(Config(name, self.launch_id, self._wakes, self.plans, self.deployment, self.log_level,
+                         self.child_config, self.hosts_link, self.app.measure_ages))
         return Child(name, link, popen, activities)
 
     def _wait_built(self, child: Child) -> None:
@@ -258,6 +251,8 @@ class ProcessSupervisor:
                 return
             if isinstance(message, BuildFailed):
                 raise ProcessError(f"process {child.name}: {message.text}")
+            if message is not None:  # a child says nothing else before it built
+                child.link.refuse(message)
             code = child.popen.poll()
             if code is not None:
                 raise ProcessError(f"process {child.name} ended while building its components "
