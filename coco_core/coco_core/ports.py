@@ -16,7 +16,7 @@ from .connections import EMPTY, Connection
 from .errors import PolicyError, PoolError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
 from .pool import DEFAULT_SLOTS, FramePool, LocalFramePool, PoolConnection, PoolReader, Slot, frame_stamp
-from .stamps import NO_USER_STAMPS, Message, Stamp, Stamped, user_stamps
+from .stamps import NO_USER_STAMPS, Message, Record, Stamp, Stamped, item_of, user_stamps
 
 if TYPE_CHECKING:
     from .activity import Activity
@@ -29,7 +29,13 @@ def type_name(tp: Any) -> str:
 
 
 class Port:
-    """What input and output ports share: a name, a Python type, an owner and connections."""
+    """What input and output ports share: a name, a Python type, an owner and connections.
+
+    Ports have slots: a write and a read touch a few of their fields each time, which a slot serves
+    faster than an instance dictionary (a bound port is a copy, whose dictionary Python keeps in its
+    slowest form)."""
+
+    __slots__ = ("type", "doc", "name", "owner", "connections")
 
     def __init__(self, type_: Any = object, doc: str = "") -> None:
         self.type = type_
@@ -70,13 +76,19 @@ class OutputPort(Port):
     Every write is stamped (FlowVR's stamp list, :attr:`stamp`): the message's number on this port,
     this port as its source, the iteration of the writing activity, and the acquisition time (a
     :class:`~coco_core.stamps.Stamped` value's own, else the time of the write). The connections
-    inside the process carry the stamp beside the value. A write may attach user stamps
+    inside the process carry the stamp beside the value, as the write's
+    :data:`~coco_core.stamps.Record` (a tuple: the :class:`~coco_core.stamps.Message` and its
+    :class:`~coco_core.stamps.Stamp` are made only for the reader, filter or channel to another
+    process that reads them, :meth:`Connection.put <coco_core.connections.Connection.put>`; the
+    ages only in a profiled run). A write may attach user stamps
     (``write(value, stamps={"bbox": box})``, FlowVR's user stamps), which travel in the stamp.
 
     A *stamps-only* connection (FlowVR's dashed ones, :meth:`add_connection`) gets each message
     without its payload: its reader reads the :class:`~coco_core.stamps.Stamp` as the value, and
     between processes the payload does not travel.
     """
+
+    __slots__ = ("_every", "_shared", "_stamps_only", "_turn", "_written", "_source", "activity", "_last")
 
     def __init__(self, type_: Any = object, doc: str = "") -> None:
         super().__init__(type_, doc)
@@ -89,16 +101,19 @@ class OutputPort(Port):
         self._written = 0
         self._source = ""
         """``component.port``, the source of this port's messages (set by :meth:`bind`)."""
-        self._activity: Activity | None = None
-        self.last: Message | None = None
-        """The last message written; None before the first."""
+        self.activity: Activity | None = None
+        """The activity whose cycle number stamps this port's messages: its component's, which the
+        component keeps here (:attr:`Component.activity <coco_core.component.Component.activity>`)
+        so that a write reads one field instead of asking the component (and its owner) each time."""
+        self._last: Record | None = None
+        """The record of the last write (:attr:`last` is its message); None before the first."""
 
     def bind(self, owner: Component, name: str | None = None) -> OutputPort:
         port = super().bind(owner, name)
         assert isinstance(port, OutputPort)
-        port._every, port._shared, port._turn, port._written, port.last = [], [], 0, 0, None
+        port._every, port._shared, port._turn, port._written, port._last = [], [], 0, 0, None
         port._stamps_only = []
-        port._activity = None
+        port.activity = None  # its component gives it its own (Component._add_port)
         port._source = port.qualified_name
         return port
 
@@ -106,36 +121,44 @@ class OutputPort(Port):
         """Offer ``value`` to every connection, and to one of the shared ones; never blocks.
         ``stamps``: user stamps (small named values, e.g. ``{"bbox": (x0, y0, x1, y1)}``) the
         message carries in its stamp, which readers and filters read without the payload."""
-        message = self._message(value, stamps)
+        self._written += 1  # _record, inlined: a call would cost the write a tenth of the floor
+        activity = self.activity
+        self._last = record = (value, perf_counter(), self._written, self._source,
+                               -1 if activity is None else activity.stats.cycles,
+                               NO_USER_STAMPS if stamps is None else user_stamps(stamps))
         for connection in self._every:
-            connection.push(message if connection.carries_stamps else value)
+            connection.put(record)
         if self._stamps_only:
-            stamp_message = message.stamps_only()
-            for connection in self._stamps_only:
-                connection.push(stamp_message if connection.carries_stamps else stamp_message.value)
+            self._put_stamps_only(record)
         if self._shared:
-            self._hand_over(message)
+            self._hand_over(record)
 
-    def _message(self, value: Any, stamps: Mapping[str, Any] | None = None) -> Message:
-        """``value`` with the stamp of this write (kept as :attr:`last`)."""
-        user = NO_USER_STAMPS if stamps is None else user_stamps(stamps)
+    def _record(self, value: Any, stamps: Mapping[str, Any] | None = None) -> Record:
+        """The record of a write of ``value`` (kept as the last): the fields of its stamp."""
         self._written += 1
-        activity = self._activity or self._find_activity()
-        message = Message(value, perf_counter(), self._written, self._source,
-                          activity.stats.cycles if activity is not None else -1, user)
-        self.last = message
-        return message
+        activity = self.activity
+        self._last = record = (value, perf_counter(), self._written, self._source,
+                               -1 if activity is None else activity.stats.cycles,
+                               NO_USER_STAMPS if stamps is None else user_stamps(stamps))
+        return record
 
-    def _find_activity(self) -> Activity | None:
-        """The activity of the owner (kept once there is one: a component never changes activity),
-        whose cycle number stamps the messages."""
-        self._activity = self.owner.activity if self.owner is not None else None
-        return self._activity
+    def _put_stamps_only(self, record: Record) -> None:
+        """Give the stamps-only connections the message of ``record`` without its payload."""
+        stamp_message = Message(*record).stamps_only()
+        for connection in self._stamps_only:
+            connection.push(stamp_message if connection.carries_stamps else stamp_message.value)
+
+    @property
+    def last(self) -> Message | None:
+        """The last message written (made from its record when asked); None before the first."""
+        record = self._last
+        return None if record is None else Message(*record)
 
     @property
     def stamp(self) -> Stamp | None:
         """The stamp of the last message written; None before the first."""
-        return None if self.last is None else self.last.stamp
+        last = self.last
+        return None if last is None else last.stamp
 
     def add_connection(self, connection: Connection, stamps_only: bool = False) -> None:
         """Attach a connection; ``stamps_only``: it gets each message's stamp, not its payload."""
@@ -165,10 +188,10 @@ class OutputPort(Port):
         self._every.remove(connection)
         self._shared.append(connection)
 
-    def _hand_over(self, message: Message) -> None:
-        """Give ``message`` to the next shared connection with nothing pending (a worker that is free,
-        as the original CoCo's farm prefers), or else to the next in turn, whose policy then
-        decides (a full buffer refuses it, which its counters show as a drop)."""
+    def _hand_over(self, record: Record) -> None:
+        """Give the write of ``record`` to the next shared connection with nothing pending (a worker
+        that is free, as the original CoCo's farm prefers), or else to the next in turn, whose
+        policy then decides (a full buffer refuses it, which its counters show as a drop)."""
         shared = self._shared
         count = len(shared)
         chosen = shared[self._turn % count]
@@ -178,7 +201,7 @@ class OutputPort(Port):
                 chosen = candidate
                 break
         self._turn = (shared.index(chosen) + 1) % count
-        chosen.push(message if chosen.carries_stamps else message.value)
+        chosen.put(record)
 
 
 class PooledOutputPort(OutputPort):
@@ -192,6 +215,8 @@ class PooledOutputPort(OutputPort):
     pool in shared memory, when a reader runs in another process, through :meth:`use_pool`, the one
     way a port's pool changes, before any frame went through it.
     """
+
+    __slots__ = ("slots", "_pool")
 
     def __init__(self, slots: int = DEFAULT_SLOTS, doc: str = "") -> None:
         super().__init__(Slot, doc)
@@ -240,14 +265,13 @@ class PooledOutputPort(OutputPort):
         :class:`~coco_core.stamps.Stamp` (:func:`~coco_core.pool.frame_stamp`) is timed from it, as
         a ``Stamped`` value is. A stamps-only connection gets the stamp, never the slot: no reader
         holds a slot for it."""
-        slot.message = message = self._message(frame_stamp(slot.stamp), stamps)
+        record = self._record(frame_stamp(slot.stamp), stamps)
+        slot.message = Message(*record)
         self.pool.publish(slot)
         for connection in self._every:
             connection.push(slot)
         if self._stamps_only:
-            stamp_message = message.stamps_only()
-            for connection in self._stamps_only:
-                connection.push(stamp_message if connection.carries_stamps else stamp_message.value)
+            self._put_stamps_only(record)
 
     def share(self, connection: Connection) -> None:
         """Refused: a pooled frame is published to every reader of the pool."""
@@ -265,14 +289,17 @@ class InputPort(Port):
     An *event* input wakes the triggered activity of its component whenever a value arrives.
     """
 
+    __slots__ = ("event", "_next", "_last", "_has_last", "_taken", "_keeps_last", "_wake", "_triggering")
+
     def __init__(self, type_: Any = object, event: bool = False, doc: str = "") -> None:
         super().__init__(type_, doc)
         self.event = event
         self._next = 0
         self._last: Any = None
         self._has_last = False
-        self._taken: Any = None
-        """What the last new value came as: a :class:`~coco_core.stamps.Message`, or the bare value."""
+        self._taken: Record | None = None
+        """What the last new value came as: the record its connection gave
+        (:meth:`Connection.take <coco_core.connections.Connection.take>`); None before the first."""
         self._keeps_last = True
         self._wake: Callable[[], None] | None = None
         self._triggering: list[Connection] = []
@@ -329,12 +356,14 @@ class InputPort(Port):
         count = len(connections)
         if count == 1:
             connection = connections[0]
-            item = connection.pop()
-            if item is not EMPTY:  # _took, inlined: the common case
+            record = connection.take()
+            if record is not EMPTY:  # _took, inlined: the common case
                 if connection.age is not None:
-                    connection.age.took(item)
-                self._taken = item
-                value = item.value if type(item) is Message else item
+                    connection.age.took(item_of(record))
+                self._taken = record
+                value = record[0]
+                if type(value) is Message:  # pushed as a message (a filter's, another process's)
+                    value = value.value
                 if self._keeps_last:
                     self._last, self._has_last = value, True
                 return NEW_DATA, value
@@ -343,21 +372,24 @@ class InputPort(Port):
             for offset in range(count):
                 index = (start + offset) % count
                 connection = connections[index]
-                item = connection.pop()
-                if item is not EMPTY:
+                record = connection.take()
+                if record is not EMPTY:
                     if connection.age is not None:
-                        connection.age.took(item)
+                        connection.age.took(item_of(record))
                     self._next = (index + 1) % count
-                    return NEW_DATA, self._took(item)
+                    return NEW_DATA, self._took(record)
         if self._has_last:
             return OLD_DATA, self._last
         return NO_DATA, None
 
-    def _took(self, item: Any) -> Any:
-        """The value of ``item`` (a :class:`~coco_core.stamps.Message` or a bare value) taken from a
-        connection, its stamp kept as :attr:`stamp` and the value as the last one."""
-        self._taken = item
-        value = item.value if type(item) is Message else item
+    def _took(self, record: Record) -> Any:
+        """The value of ``record`` (see :meth:`Connection.take
+        <coco_core.connections.Connection.take>`) taken from a connection, the record kept for
+        :attr:`stamp` and the value as the last one."""
+        self._taken = record
+        value = record[0]
+        if type(value) is Message:
+            value = value.value
         if self._keeps_last:
             self._last, self._has_last = value, True
         return value
@@ -369,13 +401,9 @@ class InputPort(Port):
         stamps included; its time and steps the frame's own acquisition stamp's, when its
         :attr:`Slot.stamp <coco_core.pool.Slot.stamp>` has one), a
         :class:`~coco_core.stamps.Stamped` value's own otherwise (a value pushed into a connection
-        without a port); None for a plain value that came without one."""
-        item = self._taken
-        if type(item) is Message:
-            return item.stamp
-        if type(item) is Slot:
-            return None if item.message is None else item.message.stamp
-        return item.stamp if isinstance(item, Stamped) else None
+        without a port); None for a plain value that came without one. Made when asked, from what
+        the read kept."""
+        return None if self._taken is None else _stamp_of(item_of(self._taken))
 
     @property
     def origin(self) -> Stamp | None:
@@ -390,13 +418,15 @@ class InputPort(Port):
         It differs from :attr:`stamp` only in the fields FlowVR's stamp list gives the carrying
         message: ``seq`` and ``source`` stay the acquisition's, as the latency split by source
         (the sensor-to-display figures) needs; the time and the steps are the same."""
-        item = self._taken
+        if self._taken is None:
+            return None
+        item = item_of(self._taken)
         value = item.value if type(item) is Message else item
         if isinstance(value, Stamped):
             return value.stamp
         if type(value) is Slot and value.message is not None and type(value.message.value) is Stamp:
             return value.message.value  # the frame's own acquisition stamp (frame_stamp)
-        return self.stamp
+        return _stamp_of(item)
 
     def read_all_origins(self) -> list[tuple[Any, Stamp | None]]:
         """Like :meth:`read_all`, each value with its :attr:`origin`: a reader that takes the whole
@@ -434,7 +464,7 @@ class InputPort(Port):
         if newest_connection is not None:
             if newest_connection.age is not None:
                 newest_connection.age.took(newest)
-            return NEW_DATA, self._took(newest)
+            return NEW_DATA, self._took((newest,))
         if self._has_last:
             return OLD_DATA, self._last
         return NO_DATA, None
@@ -447,3 +477,12 @@ class InputPort(Port):
             if status is not NEW_DATA:
                 return values
             values.append(value)
+
+
+def _stamp_of(item: Any) -> Stamp | None:
+    """The stamp of what an input port took (see :attr:`InputPort.stamp`)."""
+    if type(item) is Message:
+        return item.stamp
+    if type(item) is Slot:
+        return None if item.message is None else item.message.stamp
+    return item.stamp if isinstance(item, Stamped) else None
