@@ -253,32 +253,35 @@ class PolicyConnection(CountedConnection):
 
 
 class DataConnection(PolicyConnection):
-    """DATA, LOCK_FREE / UNSYNC: the latest record and its sequence number, swapped as one tuple."""
+    """DATA, LOCK_FREE / UNSYNC: the latest record, swapped as one reference. The reader tells a new
+    one from the one it took by identity: every write is a new record (a port's, or ``(value,)``
+    made by :meth:`push`), and the one taken stays referenced here, so no other record can be
+    made at its address."""
 
     __slots__ = ("_cell", "_seen")
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
-        self._cell: tuple[int, Record] = (0, ())
-        self._seen = 0
+        self._cell: Record = ()
+        self._seen: Record = ()
 
     def put(self, record: Record) -> None:
         self.written += 1
-        self._cell = (self.written, record)
+        self._cell = record
         if self.trigger is not None:
             self.trigger()
 
     def take(self) -> Any:
-        seq, record = self._cell
-        if seq == self._seen:
+        record = self._cell
+        if record is self._seen:
             return EMPTY
-        self._seen = seq
+        self._seen = record
         self.read += 1
         return record
 
     @property
     def pending(self) -> int:
-        return 0 if self._cell[0] == self._seen else 1
+        return 0 if self._cell is self._seen else 1
 
 
 class LockedDataConnection(DataConnection):
@@ -295,7 +298,7 @@ class LockedDataConnection(DataConnection):
         try:
             lock.acquire()
             self.written += 1
-            self._cell = (self.written, record)
+            self._cell = record
         finally:
             lock.release()
         if self.trigger is not None:
@@ -305,10 +308,10 @@ class LockedDataConnection(DataConnection):
         lock = self._lock
         try:
             lock.acquire()
-            seq, record = self._cell
-            if seq == self._seen:
+            record = self._cell
+            if record is self._seen:
                 return EMPTY
-            self._seen = seq
+            self._seen = record
             self.read += 1
             return record
         finally:
