@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 from .errors import PolicyError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
-from .stamps import Message, Record, item_of
+from .stamps import Message, Record, item_of, record_of
 
 if TYPE_CHECKING:
     from .ports import InputPort, OutputPort
@@ -108,12 +108,12 @@ class Connection(abc.ABC):
         self.push(Message(*record) if self.carries_stamps else record[0])
 
     def take(self) -> Any:
-        """What an input port reads: the next item as a record, :data:`EMPTY` when there is
-        nothing new; ``(item,)`` for what :meth:`pop` gives (a bare value, a message, a pooled
-        frame), or the record of a port's write as :meth:`put` stored it, whose message nobody
-        made (the port makes it if its reader asks for the stamp)."""
+        """What an input port reads: the next item as a record (:func:`~coco_core.stamps.record_of`
+        what :meth:`pop` gives: a message's fields, else ``(item,)``), :data:`EMPTY` when there is
+        nothing new. A :class:`PolicyConnection` gives the record of a port's write as :meth:`put`
+        stored it, whose message nobody made (the port makes it if its reader asks for the stamp)."""
         item = self.pop()
-        return EMPTY if item is EMPTY else (item,)
+        return EMPTY if item is EMPTY else record_of(item)
 
     @property
     @abc.abstractmethod
@@ -229,7 +229,8 @@ class CountedConnection(Connection):
 
 class PolicyConnection(CountedConnection):
     """A connection of one process whose storage is its policy's (DATA, BUFFER, CIRCULAR): it keeps
-    records, a port's write as it came (:meth:`put`) and anything else pushed as ``(item,)``, and
+    records, a port's write as it came (:meth:`put`) and what was pushed as its record (a message's
+    fields, else ``(item,)``: :func:`~coco_core.stamps.record_of`), and
     gives them to the input port as they are (:meth:`take`); :meth:`pop` makes the message of a
     record for the other readers (a ROS topic's mirror, an activity's ``beginit``)."""
 
@@ -237,7 +238,7 @@ class PolicyConnection(CountedConnection):
     carries_stamps = True
 
     def push(self, value: Any) -> None:
-        self.put((value,))
+        self.put(record_of(value))
 
     @abc.abstractmethod
     def put(self, record: Record) -> None:
@@ -254,9 +255,9 @@ class PolicyConnection(CountedConnection):
 
 class DataConnection(PolicyConnection):
     """DATA, LOCK_FREE / UNSYNC: the latest record, swapped as one reference. The reader tells a new
-    one from the one it took by identity: every write is a new record (a port's, or ``(value,)``
-    made by :meth:`push`), and the one taken stays referenced here, so no other record can be
-    made at its address."""
+    one from the one it took by identity: every write is a new record (a port's, or the one
+    :meth:`push` makes), and the one taken stays referenced here, so no other record can be made
+    at its address."""
 
     __slots__ = ("_cell", "_seen")
 

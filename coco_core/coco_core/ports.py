@@ -16,7 +16,7 @@ from .connections import EMPTY, Connection
 from .errors import PolicyError, PoolError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
 from .pool import DEFAULT_SLOTS, FramePool, LocalFramePool, PoolConnection, PoolReader, Slot, frame_stamp
-from .stamps import NO_USER_STAMPS, Message, Record, Stamp, Stamped, item_of, user_stamps
+from .stamps import NO_USER_STAMPS, Message, Record, Stamp, Stamped, item_of, record_of, user_stamps
 
 if TYPE_CHECKING:
     from .activity import Activity
@@ -88,7 +88,7 @@ class OutputPort(Port):
     between processes the payload does not travel.
     """
 
-    __slots__ = ("_every", "_shared", "_stamps_only", "_turn", "_written", "_source", "activity", "_last")
+    __slots__ = ("_every", "_shared", "_stamps_only", "_route", "_turn", "_written", "_source", "activity", "_last")
 
     def __init__(self, type_: Any = object, doc: str = "") -> None:
         super().__init__(type_, doc)
@@ -97,6 +97,10 @@ class OutputPort(Port):
         self._shared: list[Connection] = []
         self._stamps_only: list[Connection] = []
         """The connections that receive each message's stamp only."""
+        self._route: Connection | None = None
+        """The connection a write goes straight to while it is the port's only one (the common case,
+        where walking the lists would cost a write a tenth of the bench's floor); None: through
+        the lists (:meth:`_plan`)."""
         self._turn = 0
         self._written = 0
         self._source = ""
@@ -112,7 +116,7 @@ class OutputPort(Port):
         port = super().bind(owner, name)
         assert isinstance(port, OutputPort)
         port._every, port._shared, port._turn, port._written, port._last = [], [], 0, 0, None
-        port._stamps_only = []
+        port._stamps_only, port._route = [], None
         port.activity = None  # its component gives it its own (Component._add_port)
         port._source = port.qualified_name
         return port
@@ -126,12 +130,24 @@ class OutputPort(Port):
         self._last = record = (value, perf_counter(), self._written, self._source,
                                -1 if activity is None else activity.stats.cycles,
                                NO_USER_STAMPS if stamps is None else user_stamps(stamps))
+        route = self._route
+        if route is not None:
+            route.put(record)
+            return
         for connection in self._every:
             connection.put(record)
         if self._stamps_only:
             self._put_stamps_only(record)
         if self._shared:
             self._hand_over(record)
+
+    def _plan(self) -> None:
+        """Let writes go straight to the port's one connection while it is the only one given every
+        write (none stamps-only or shared beside it; a muted one is given nothing), else through
+        the lists."""
+        every = self._every
+        alone = len(every) == 1 and not self._stamps_only and not self._shared
+        self._route = every[0] if alone else None
 
     def _record(self, value: Any, stamps: Mapping[str, Any] | None = None) -> Record:
         """The record of a write of ``value`` (kept as the last): the fields of its stamp."""
@@ -165,6 +181,7 @@ class OutputPort(Port):
         connection.source = self
         self.connections.append(connection)
         (self._stamps_only if stamps_only else self._every).append(connection)
+        self._plan()
 
     def carries_stamps_only(self, connection: Connection) -> bool:
         """Whether ``connection`` (one of this port's) gets the messages' stamps only."""
@@ -174,12 +191,15 @@ class OutputPort(Port):
         """Stop (``muted``) or resume giving ``connection`` (one of this port's, given every message)
         this port's writes. A reader that wants the values only at times (a ROS topic's mirror while
         nobody subscribes, :mod:`coco_ros.mirror`) then costs a write nothing, where an idle
-        connection would still cost a push. The list is replaced, never changed in place: a write
-        in another thread keeps the list it took, and the other connections miss nothing."""
+        connection would still cost a push. The list is replaced, never changed in place, and the
+        direct route is cleared first (:meth:`_plan`): a write in another thread keeps the route or
+        the list it took, and the other connections miss nothing."""
         if connection not in self.connections or connection in self._stamps_only or connection in self._shared:
             raise PolicyError(f"{connection!r} is not a connection of {self.qualified_name} given every message")
         every = [other for other in self._every if other is not connection]
+        self._route = None
         self._every = every if muted else [*every, connection]
+        self._plan()
 
     def share(self, connection: Connection) -> None:
         """Let ``connection`` (one of this port's) take turns with the other shared connections."""
@@ -187,6 +207,7 @@ class OutputPort(Port):
             raise PolicyError(f"{connection!r} is not a connection of {self.qualified_name}")
         self._every.remove(connection)
         self._shared.append(connection)
+        self._plan()
 
     def _hand_over(self, record: Record) -> None:
         """Give the write of ``record`` to the next shared connection with nothing pending (a worker
@@ -289,7 +310,7 @@ class InputPort(Port):
     An *event* input wakes the triggered activity of its component whenever a value arrives.
     """
 
-    __slots__ = ("event", "_next", "_last", "_has_last", "_taken", "_keeps_last", "_wake", "_triggering")
+    __slots__ = ("event", "_next", "_last", "_has_last", "_taken", "_keeps_last", "_wake", "_triggering", "_only")
 
     def __init__(self, type_: Any = object, event: bool = False, doc: str = "") -> None:
         super().__init__(type_, doc)
@@ -304,6 +325,9 @@ class InputPort(Port):
         self._wake: Callable[[], None] | None = None
         self._triggering: list[Connection] = []
         """The connections whose writes wake this port's activity."""
+        self._only: Connection | None = None
+        """The connection while it is the only one (the common case, which :meth:`read` takes
+        without counting and indexing the list); None with none or several."""
 
     def bind(self, owner: Component, name: str | None = None) -> InputPort:
         port = super().bind(owner, name)
@@ -311,6 +335,7 @@ class InputPort(Port):
         port._next, port._last, port._has_last, port._keeps_last, port._wake = 0, None, False, True, None
         port._taken = None
         port._triggering = []
+        port._only = None
         return port
 
     def add_connection(self, connection: Connection, event: bool | None = None) -> None:
@@ -323,6 +348,7 @@ class InputPort(Port):
             connection.trigger = self._wake
             self._triggering.append(connection)
         self.connections.append(connection)
+        self._only = connection if len(self.connections) == 1 else None
 
     def set_wake(self, wake: Callable[[], None] | None) -> None:
         """Install the function that wakes this port's activity on its triggering connections."""
@@ -352,22 +378,19 @@ class InputPort(Port):
         With several connections, reading starts after the connection that delivered last time, so
         every source gets its turn.
         """
-        connections = self.connections
-        count = len(connections)
-        if count == 1:
-            connection = connections[0]
+        connection = self._only
+        if connection is not None:
             record = connection.take()
             if record is not EMPTY:  # _took, inlined: the common case
                 if connection.age is not None:
                     connection.age.took(item_of(record))
                 self._taken = record
                 value = record[0]
-                if type(value) is Message:  # pushed as a message (a filter's, another process's)
-                    value = value.value
                 if self._keeps_last:
                     self._last, self._has_last = value, True
                 return NEW_DATA, value
-        elif count:
+        elif connections := self.connections:
+            count = len(connections)
             start = self._next
             for offset in range(count):
                 index = (start + offset) % count
@@ -388,8 +411,6 @@ class InputPort(Port):
         :attr:`stamp` and the value as the last one."""
         self._taken = record
         value = record[0]
-        if type(value) is Message:
-            value = value.value
         if self._keeps_last:
             self._last, self._has_last = value, True
         return value
@@ -464,7 +485,7 @@ class InputPort(Port):
         if newest_connection is not None:
             if newest_connection.age is not None:
                 newest_connection.age.took(newest)
-            return NEW_DATA, self._took((newest,))
+            return NEW_DATA, self._took(record_of(newest))
         if self._has_last:
             return OLD_DATA, self._last
         return NO_DATA, None

@@ -137,12 +137,21 @@ Record = tuple[Any, ...]
 arguments of its :class:`Message`, ``(value, time, seq, source, it, user)``, in one tuple, which is
 made in a fraction of a message's time (:meth:`OutputPort.write <coco_core.ports.OutputPort.write>`,
 :meth:`Connection.put <coco_core.connections.Connection.put>`); ``Message(*record)`` is the message.
-A connection that stores records holds what was pushed to it otherwise as ``(item,)``."""
+A message pushed whole becomes its record again (:func:`record_of`), anything else ``(item,)``:
+the first field of a record is always the value a reader gets."""
 
 
 def item_of(record: Record) -> Any:
     """What ``record`` stands for: the message of a port's write, or the item pushed as ``(item,)``."""
     return record[0] if len(record) == 1 else Message(*record)
+
+
+def record_of(item: Any) -> Record:
+    """The record of what a connection gives (:func:`item_of` undone): a message's fields, or
+    ``(item,)`` for anything else (a bare value, a pooled frame)."""
+    if type(item) is Message:
+        return item.value, item.time, item.seq, item.source, item.it, item.user
+    return (item,)
 
 
 class Message:
