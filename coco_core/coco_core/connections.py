@@ -13,8 +13,8 @@ one tuple), which they store as it is: the :class:`~coco_core.stamps.Message` (a
 :class:`~coco_core.stamps.Stamp`) is made only for whoever asks for it, most reads asking for neither.
 
 The LOCKED classes take their lock as the first thing in a ``try`` whose ``finally`` releases it
-rather than in a ``with`` block: that costs half as much (no bound ``__enter__``/``__exit__`` to
-look up and call at each access: about half the bench's floor per write and read) and an exception
+rather than in a ``with`` block: no bound ``__enter__``/``__exit__`` to look up and call at each
+access, which saves about half the bench's floor per write and read, and an exception
 raised after the acquisition (a signal's, between two bytecodes) still releases it. Only an
 exception raised by ``acquire`` itself while it waits for the other side would release a lock not
 held; Python raises there only from a signal handler, and CoCo's handlers only record
@@ -230,9 +230,9 @@ class CountedConnection(Connection):
 class PolicyConnection(CountedConnection):
     """A connection of one process whose storage is its policy's (DATA, BUFFER, CIRCULAR): it keeps
     records, a port's write as it came (:meth:`put`) and what was pushed as its record (a message's
-    fields, else ``(item,)``: :func:`~coco_core.stamps.record_of`), and
-    gives them to the input port as they are (:meth:`take`); :meth:`pop` makes the message of a
-    record for the other readers (a ROS topic's mirror, an activity's ``beginit``)."""
+    fields, else ``(item,)``: :func:`~coco_core.stamps.record_of`), and gives them to the input
+    port as they are (:meth:`take`); :meth:`pop` makes the message of a record for the other
+    readers (a ROS topic's mirror, an activity's ``beginit``)."""
 
     __slots__ = ()
     carries_stamps = True
