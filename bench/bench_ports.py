@@ -4,7 +4,12 @@ A *round* is one ``OutputPort.write`` followed by one ``InputPort.read`` on two 
 ``Application.connect``: 3 buffer policies x 3 sync policies. The anchor is rclpy in one process:
 publish a sensor_msgs/JointState with 19 joints, then ``spin_once`` until the subscriber's callback
 has fired. The floor is the least a latest-value hand-off can cost in Python: ``deque(maxlen=1)``
-append and read, each under a ``threading.Lock``. Goal: every port round >= 100x cheaper than rclpy.
+append and read, each under a ``threading.Lock``. Goals (issue 34): every port round >= 200x
+cheaper than rclpy and <= 1.5x the floor, its messages still stamped (the stamp is made when read).
+
+The port rounds and the floor run in this thread alone, so they are measured a second time on the
+thread's CPU clock, which the other processes of a shared machine do not inflate; the floor goal is
+judged on that ratio, the rclpy goal (whose round waits for Fast DDS's threads) on wall time.
 
 With ``--expose`` every variant is measured a second time beside itself, its writer's port
 mirrored on a ROS topic (``coco_ros.mirror``, as the ROS launcher's ``--expose all`` does) that no
@@ -24,7 +29,7 @@ from typing import Any
 import _report
 from _ros import Loopback, RosContext  # sets ROS_DOMAIN_ID before rclpy is imported
 from _table import Table, fmt_ratio, fmt_time_ns, verdict
-from _timing import Loop, Samples, measure
+from _timing import Loop, Samples, measure, measure_cpu
 
 import numpy as np
 from sensor_msgs.msg import JointState
@@ -35,8 +40,10 @@ from coco_core.policy import NEW_DATA, BufferPolicy, ConnectionPolicy, SyncPolic
 from coco_core.ports import InputPort, OutputPort
 
 JOINTS = 19
-GOAL = 100.0
+GOAL = 200.0
 """Each port round must be at least this many times cheaper than the rclpy round."""
+FLOOR_GOAL = 1.5
+"""Each port round may cost at most this many times the floor's round."""
 BUFFER_SIZE = 8
 ANCHOR, FLOOR = "rclpy JointState", "deque(maxlen=1) + Lock"
 
@@ -131,19 +138,30 @@ def mirrored_variants(payload: JointSample, context: Any) -> tuple[dict[str, Loo
     return variants, (mirrors, node)
 
 
-def table(samples: dict[str, Samples]) -> tuple[Table, dict[str, Any]]:
-    anchor, floor = samples[ANCHOR], samples[FLOOR]
+def table(samples: dict[str, Samples], cpu: dict[str, Samples]) -> tuple[Table, dict[str, Any]]:
+    anchor, floor, cpu_floor = samples[ANCHOR], samples[FLOOR], cpu[FLOOR]
     t = Table("Figure 1 - one 19-joint message, write + read (per round, median of repeats)",
-              ["variant", "time/round", "vs rclpy (x cheaper)", "vs floor (x dearer)", f"goal >= {GOAL:g}x"])
+              ["variant", "time/round", "vs rclpy (x cheaper)", "vs floor (x dearer)", "thread CPU/round",
+               "vs floor, CPU", f"goal >= {GOAL:g}x rclpy, <= {FLOOR_GOAL:g}x floor (CPU)"])
     results: dict[str, Any] = {}
     for name, s in samples.items():
         cheaper, dearer = s.ratio_to(anchor), floor.ratio_to(s)
-        ok = None if name in (ANCHOR, FLOOR) else cheaper >= GOAL
+        on_cpu = cpu.get(name)
+        dearer_cpu = cpu_floor.ratio_to(on_cpu) if on_cpu is not None else float("nan")
+        ok = None if name in (ANCHOR, FLOOR) else cheaper >= GOAL and dearer_cpu <= FLOOR_GOAL
         label = name if name in (ANCHOR, FLOOR) else f"CoCo {name}"
-        t.add(label, fmt_time_ns(s.median), fmt_ratio(cheaper), fmt_ratio(dearer), verdict(ok))
-        results[name] = {**s.to_json(), "x_cheaper_than_rclpy": cheaper, "x_floor": dearer, "goal_met": ok}
+        t.add(label, fmt_time_ns(s.median), fmt_ratio(cheaper), fmt_ratio(dearer),
+              "-" if on_cpu is None else fmt_time_ns(on_cpu.median), "-" if on_cpu is None else fmt_ratio(dearer_cpu),
+              verdict(ok))
+        results[name] = {**s.to_json(), "x_cheaper_than_rclpy": cheaper, "x_floor": dearer, "goal_met": ok,
+                         "rclpy_goal_met": None if ok is None else cheaper >= GOAL,
+                         "floor_goal_met": None if ok is None else dearer_cpu <= FLOOR_GOAL}
+        if on_cpu is not None:
+            results[name].update(cpu_per_op_ns=on_cpu.per_op_ns, cpu_median_ns=on_cpu.median, x_floor_cpu=dearer_cpu)
     t.notes += [f"BUFFER and CIRCULAR have size {BUFFER_SIZE}; ratios are medians of per-round ratios "
                 "(every variant measured in each round, side by side).",
+                "thread CPU: the same rounds again on this thread's CPU clock (the rclpy round, whose work "
+                "is in Fast DDS's threads too, is not); the floor goal is judged on it.",
                 "CoCo hands the payload over by reference; rclpy serialises, sends it through DDS "
                 "and deserialises a new message."]
     return t, results
@@ -160,6 +178,8 @@ def draw(samples: dict[str, Samples]):
         ax.invert_yaxis()
         ax.axvline(samples[ANCHOR].median / 1e3 / GOAL, color="tab:green", linestyle="--",
                    label=f"goal: rclpy / {GOAL:g}")
+        ax.axvline(samples[FLOOR].median / 1e3 * FLOOR_GOAL, color="tab:purple", linestyle=":",
+                   label=f"goal: floor x {FLOOR_GOAL:g}")
         for y, v in enumerate(values):
             ax.text(v * 1.08, y, f"{v:.3g} us", va="center", fontsize=8)
         ax.set_xlabel("time per write + read round (us, log scale)")
@@ -192,12 +212,14 @@ def main() -> None:
         variants[ANCHOR] = lambda n: ros.rounds(msg, n)
         try:
             samples = measure(variants, repeats=7, target_s=0.05)
+            alone = {name: loop for name, loop in variants.items() if name != ANCHOR}
+            cpu = measure_cpu(alone, {name: samples[name].ops_per_repeat for name in alone}, repeats=7)
         finally:
             ros.destroy()
             if mirrored is not None:
                 mirrored[0].__exit__(None, None, None)
                 mirrored[1].destroy_node()
-    t, results = table(samples)
+    t, results = table(samples, cpu)
     _report.emit("bench_ports", args, [t], results)
     _report.save_plot(args, draw(samples))
 

@@ -162,6 +162,8 @@ class Component:
         target[port.name] = port
         if isinstance(port, InputPort) and self.activity is not None and self.activity.wakes_on_data:
             port.set_wake(self.activity.wake)
+        if isinstance(port, OutputPort):
+            port.activity = self.activity
         # Declared ports shadow the class-level declaration of the same name.
         self.__dict__[port.name] = port
 
@@ -177,6 +179,7 @@ class Component:
             raise CocoError(f"component {peer.name} is already a peer of {peer.owner.name}")
         peer.owner = self
         self.peers.append(peer)
+        peer._stamp_outputs()
         return peer
 
     # --- lookups with errors that list the valid names ------------------------------------------
@@ -270,6 +273,14 @@ class Component:
     @activity.setter
     def activity(self, activity: Activity | None) -> None:
         self._activity = activity
+        self._stamp_outputs()
+
+    def _stamp_outputs(self) -> None:
+        """Give the output ports of this component and its peers the activity that runs each, whose
+        cycle number stamps their messages: a write then reads its port's field, not this property."""
+        for component in self.walk():
+            for port in component.outputs.values():
+                port.activity = component.activity
 
     def walk(self) -> list[Component]:
         """This component and its peers, depth first."""

@@ -7,7 +7,18 @@ reader only ever pops / reads it, and each of those is a single atomic bytecode-
 
 The hot path is kept to a handful of bytecodes: each combination of buffering and sync policy is its
 own small class instead of one class with branches, and the dropped-item counter is derived
-(``written - read - pending``) rather than maintained, so neither side pays for it.
+(``written - read - pending``) rather than maintained, so neither side pays for it. A port's write
+reaches these classes as its *record* (:meth:`Connection.put`: the value and its stamp's fields in
+one tuple), which they store as it is: the :class:`~coco_core.stamps.Message` (and the
+:class:`~coco_core.stamps.Stamp`) is made only for whoever asks for it, most reads asking for neither.
+
+The LOCKED classes take their lock as the first thing in a ``try`` whose ``finally`` releases it
+rather than in a ``with`` block: no bound ``__enter__``/``__exit__`` to look up and call at each
+access, which saves about half the bench's floor per write and read, and an exception
+raised after the acquisition (a signal's, between two bytecodes) still releases it. Only an
+exception raised by ``acquire`` itself while it waits for the other side would release a lock not
+held; Python raises there only from a signal handler, and CoCo's handlers only record
+(:mod:`coco_core.signals`).
 """
 
 from __future__ import annotations
@@ -21,6 +32,7 @@ from typing import TYPE_CHECKING, Any, Callable, ClassVar, Protocol
 
 from .errors import PolicyError
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from .stamps import Message, Record, item_of, record_of
 
 if TYPE_CHECKING:
     from .profiling import MessageAges
@@ -103,6 +115,20 @@ class Connection(abc.ABC):
     @abc.abstractmethod
     def pop(self) -> Any:
         """Take the next value, or :data:`EMPTY` when there is nothing new; never blocks."""
+
+    def put(self, record: Record) -> None:
+        """Store a port's write, given as its record (:data:`~coco_core.stamps.Record`): a connection
+        that carries stamps gets it as a :class:`~coco_core.stamps.Message`, another the bare value.
+        The connections of one process (:class:`PolicyConnection`) store the record itself."""
+        self.push(Message(*record) if self.carries_stamps else record[0])
+
+    def take(self) -> Any:
+        """What an input port reads: the next item as a record (:func:`~coco_core.stamps.record_of`
+        what :meth:`pop` gives: a message's fields, else ``(item,)``), :data:`EMPTY` when there is
+        nothing new. A :class:`PolicyConnection` gives the record of a port's write as :meth:`put`
+        stored it, whose message nobody made (the port makes it if its reader asks for the stamp)."""
+        item = self.pop()
+        return EMPTY if item is EMPTY else record_of(item)
 
     @property
     @abc.abstractmethod
@@ -216,34 +242,62 @@ class CountedConnection(Connection):
         self.read -= count
 
 
-class DataConnection(CountedConnection):
-    """DATA, LOCK_FREE / UNSYNC: the latest value and its sequence number, swapped as one tuple."""
+class PolicyConnection(CountedConnection):
+    """A connection of one process whose storage is its policy's (DATA, BUFFER, CIRCULAR): it keeps
+    records, a port's write as it came (:meth:`put`) and what was pushed as its record (a message's
+    fields, else ``(item,)``: :func:`~coco_core.stamps.record_of`), and gives them to the input
+    port as they are (:meth:`take`); :meth:`pop` makes the message of a record for the other
+    readers (a ROS topic's mirror, an activity's ``beginit``)."""
+
+    __slots__ = ()
+    carries_stamps = True
+
+    def push(self, value: Any) -> None:
+        self.put(record_of(value))
+
+    @abc.abstractmethod
+    def put(self, record: Record) -> None:
+        """Store ``record`` (see :meth:`Connection.put`), or count it dropped as the policy says."""
+
+    @abc.abstractmethod
+    def take(self) -> Any:
+        """The next record stored, or :data:`EMPTY`."""
+
+    def pop(self) -> Any:
+        record = self.take()
+        return EMPTY if record is EMPTY else item_of(record)
+
+
+class DataConnection(PolicyConnection):
+    """DATA, LOCK_FREE / UNSYNC: the latest record, swapped as one reference. The reader tells a new
+    one from the one it took by identity: every write is a new record (a port's, or the one
+    :meth:`push` makes), and the one taken stays referenced here, so no other record can be made
+    at its address."""
 
     __slots__ = ("_cell", "_seen")
-    carries_stamps = True
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
-        self._cell: tuple[int, Any] = (0, None)
-        self._seen = 0
+        self._cell: Record = ()
+        self._seen: Record = ()
 
-    def push(self, value: Any) -> None:
+    def put(self, record: Record) -> None:
         self.written += 1
-        self._cell = (self.written, value)
+        self._cell = record
         if self.trigger is not None:
             self.trigger()
 
-    def pop(self) -> Any:
-        seq, value = self._cell
-        if seq == self._seen:
+    def take(self) -> Any:
+        record = self._cell
+        if record is self._seen:
             return EMPTY
-        self._seen = seq
+        self._seen = record
         self.read += 1
-        return value
+        return record
 
     @property
     def pending(self) -> int:
-        return 0 if self._cell[0] == self._seen else 1
+        return 0 if self._cell is self._seen else 1
 
 
 class LockedDataConnection(DataConnection):
@@ -255,24 +309,32 @@ class LockedDataConnection(DataConnection):
         super().__init__(policy)
         self._lock = threading.Lock()
 
-    def push(self, value: Any) -> None:
-        with self._lock:
+    def put(self, record: Record) -> None:
+        lock = self._lock
+        try:
+            lock.acquire()
             self.written += 1
-            self._cell = (self.written, value)
+            self._cell = record
+        finally:
+            lock.release()
         if self.trigger is not None:
             self.trigger()
 
-    def pop(self) -> Any:
-        with self._lock:
-            seq, value = self._cell
-            if seq == self._seen:
+    def take(self) -> Any:
+        lock = self._lock
+        try:
+            lock.acquire()
+            record = self._cell
+            if record is self._seen:
                 return EMPTY
-            self._seen = seq
+            self._seen = record
             self.read += 1
-            return value
+            return record
+        finally:
+            lock.release()
 
 
-class BufferConnection(CountedConnection):
+class BufferConnection(PolicyConnection):
     """BUFFER, LOCK_FREE / UNSYNC: bounded FIFO that refuses new data when full.
 
     Only the reader shrinks the deque, so the writer's length check can only be pessimistic: the buffer
@@ -280,21 +342,20 @@ class BufferConnection(CountedConnection):
     """
 
     __slots__ = ("_queue", "_size")
-    carries_stamps = True
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
-        self._queue: deque[Any] = deque()
+        self._queue: deque[Record] = deque()
         self._size = policy.size
 
-    def push(self, value: Any) -> None:
+    def put(self, record: Record) -> None:
         self.written += 1
         if len(self._queue) < self._size:
-            self._queue.append(value)
+            self._queue.append(record)
             if self.trigger is not None:
                 self.trigger()
 
-    def pop(self) -> Any:
+    def take(self) -> Any:
         if self._queue:
             self.read += 1
             return self._queue.popleft()
@@ -314,40 +375,47 @@ class LockedBufferConnection(BufferConnection):
         super().__init__(policy)
         self._lock = threading.Lock()
 
-    def push(self, value: Any) -> None:
-        with self._lock:
+    def put(self, record: Record) -> None:
+        lock = self._lock
+        try:
+            lock.acquire()
             self.written += 1
             if len(self._queue) >= self._size:
                 return
-            self._queue.append(value)
+            self._queue.append(record)
+        finally:
+            lock.release()
         if self.trigger is not None:
             self.trigger()
 
-    def pop(self) -> Any:
-        with self._lock:
+    def take(self) -> Any:
+        lock = self._lock
+        try:
+            lock.acquire()
             if self._queue:
                 self.read += 1
                 return self._queue.popleft()
             return EMPTY
+        finally:
+            lock.release()
 
 
-class CircularConnection(CountedConnection):
+class CircularConnection(PolicyConnection):
     """CIRCULAR, LOCK_FREE / UNSYNC: bounded FIFO whose append pushes the oldest item out atomically."""
 
     __slots__ = ("_queue",)
-    carries_stamps = True
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
-        self._queue: deque[Any] = deque(maxlen=policy.size)
+        self._queue: deque[Record] = deque(maxlen=policy.size)
 
-    def push(self, value: Any) -> None:
+    def put(self, record: Record) -> None:
         self.written += 1
-        self._queue.append(value)
+        self._queue.append(record)
         if self.trigger is not None:
             self.trigger()
 
-    def pop(self) -> Any:
+    def take(self) -> Any:
         if self._queue:
             self.read += 1
             return self._queue.popleft()
@@ -367,22 +435,30 @@ class LockedCircularConnection(CircularConnection):
         super().__init__(policy)
         self._lock = threading.Lock()
 
-    def push(self, value: Any) -> None:
-        with self._lock:
+    def put(self, record: Record) -> None:
+        lock = self._lock
+        try:
+            lock.acquire()
             self.written += 1
-            self._queue.append(value)
+            self._queue.append(record)
+        finally:
+            lock.release()
         if self.trigger is not None:
             self.trigger()
 
-    def pop(self) -> Any:
-        with self._lock:
+    def take(self) -> Any:
+        lock = self._lock
+        try:
+            lock.acquire()
             if self._queue:
                 self.read += 1
                 return self._queue.popleft()
             return EMPTY
+        finally:
+            lock.release()
 
 
-_CLASSES: dict[tuple[BufferPolicy, bool], type[CountedConnection]] = {
+_CLASSES: dict[tuple[BufferPolicy, bool], type[PolicyConnection]] = {
     (BufferPolicy.DATA, False): DataConnection,
     (BufferPolicy.DATA, True): LockedDataConnection,
     (BufferPolicy.BUFFER, False): BufferConnection,
@@ -401,7 +477,7 @@ def _gil_enabled() -> bool:
 GIL = _gil_enabled()
 
 
-def make_connection(policy: ConnectionPolicy) -> CountedConnection:
+def make_connection(policy: ConnectionPolicy) -> PolicyConnection:
     """The connection class for a copying policy (POOL connections are made by pooled ports).
 
     Without a GIL, appends and swaps are no longer atomic: LOCK_FREE then falls back to LOCKED.

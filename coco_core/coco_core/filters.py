@@ -38,28 +38,58 @@ filter adds counts as written; a message it discards, as dropped), so the profil
 from __future__ import annotations
 
 import math
+import threading
 import time
+from collections import deque
 from typing import Any, Callable, ClassVar
 
-from .connections import EMPTY, LockedBufferConnection
+from .connections import EMPTY, CountedConnection
 from .errors import PolicyError
 from .frustum import Frustum
 from .policy import ConnectionPolicy
 from .stamps import Message
 
 
-class Filter(LockedBufferConnection):
-    """A connection whose storage is a filter: by default a LOCKED BUFFER's bounded FIFO, which the
-    filters below change where they hold back, add, drop or pick messages.
+class Filter(CountedConnection):
+    """A connection whose storage is a filter: by default a LOCKED BUFFER's bounded FIFO of
+    messages, which the filters below change where they hold back, add, drop or pick messages.
 
     ``policy.size`` bounds the buffer (a message written to a full one is refused and counted as
-    dropped, as a BUFFER connection's); writer and reader may be in any two threads."""
+    dropped, as a BUFFER connection's); writer and reader may be in any two threads. A filter reads
+    the stamps of what it holds: a port's write comes to it as a :class:`Message`
+    (:meth:`~coco_core.connections.Connection.put`), not as the record a policy's connection keeps."""
 
-    __slots__ = ()
+    __slots__ = ("_queue", "_size", "_lock")
 
     carries_stamps = True
     name: ClassVar[str] = ""
     """The filter's name in the XML's ``<filter type="...">``."""
+
+    def __init__(self, policy: ConnectionPolicy) -> None:
+        super().__init__(policy)
+        self._queue: deque[Any] = deque()
+        self._size = policy.size
+        self._lock = threading.Lock()
+
+    def push(self, value: Any) -> None:
+        with self._lock:
+            self.written += 1
+            if len(self._queue) >= self._size:
+                return
+            self._queue.append(value)
+        if self.trigger is not None:
+            self.trigger()
+
+    def pop(self) -> Any:
+        with self._lock:
+            if self._queue:
+                self.read += 1
+                return self._queue.popleft()
+            return EMPTY
+
+    @property
+    def pending(self) -> int:
+        return len(self._queue)
 
     def ready_at(self) -> float | None:
         return 0.0 if self._queue else None

@@ -16,7 +16,7 @@ from .connections import EMPTY, Connection
 from .errors import PolicyError, PoolError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
 from .pool import DEFAULT_SLOTS, FramePool, LocalFramePool, PoolConnection, PoolReader, Slot, frame_stamp
-from .stamps import NO_USER_STAMPS, Message, Stamp, Stamped, user_stamps
+from .stamps import NO_USER_STAMPS, Message, Record, Stamp, Stamped, item_of, record_of, user_stamps
 
 if TYPE_CHECKING:
     from .activity import Activity
@@ -29,7 +29,13 @@ def type_name(tp: Any) -> str:
 
 
 class Port:
-    """What input and output ports share: a name, a Python type, an owner and connections."""
+    """What input and output ports share: a name, a Python type, an owner and connections.
+
+    Ports have slots: a write and a read touch a few of their fields each time, which a slot serves
+    faster than an instance dictionary (a bound port is a copy, whose dictionary Python keeps in its
+    slowest form)."""
+
+    __slots__ = ("type", "doc", "name", "owner", "connections")
 
     def __init__(self, type_: Any = object, doc: str = "") -> None:
         self.type = type_
@@ -70,13 +76,19 @@ class OutputPort(Port):
     Every write is stamped (FlowVR's stamp list, :attr:`stamp`): the message's number on this port,
     this port as its source, the iteration of the writing activity, and the acquisition time (a
     :class:`~coco_core.stamps.Stamped` value's own, else the time of the write). The connections
-    inside the process carry the stamp beside the value. A write may attach user stamps
+    inside the process carry the stamp beside the value, as the write's
+    :data:`~coco_core.stamps.Record` (a tuple: the :class:`~coco_core.stamps.Message` and its
+    :class:`~coco_core.stamps.Stamp` are made only for the reader, filter or channel to another
+    process that reads them, :meth:`Connection.put <coco_core.connections.Connection.put>`; the
+    ages only in a profiled run). A write may attach user stamps
     (``write(value, stamps={"bbox": box})``, FlowVR's user stamps), which travel in the stamp.
 
     A *stamps-only* connection (FlowVR's dashed ones, :meth:`add_connection`) gets each message
     without its payload: its reader reads the :class:`~coco_core.stamps.Stamp` as the value, and
     between processes the payload does not travel.
     """
+
+    __slots__ = ("_every", "_shared", "_stamps_only", "_route", "_turn", "_written", "_source", "activity", "_last")
 
     def __init__(self, type_: Any = object, doc: str = "") -> None:
         super().__init__(type_, doc)
@@ -85,20 +97,27 @@ class OutputPort(Port):
         self._shared: list[Connection] = []
         self._stamps_only: list[Connection] = []
         """The connections that receive each message's stamp only."""
+        self._route: Connection | None = None
+        """The connection a write goes straight to while it is the port's only one (the common case,
+        where walking the lists would cost a write a tenth of the bench's floor); None: through
+        the lists (:meth:`_plan`)."""
         self._turn = 0
         self._written = 0
         self._source = ""
         """``component.port``, the source of this port's messages (set by :meth:`bind`)."""
-        self._activity: Activity | None = None
-        self.last: Message | None = None
-        """The last message written; None before the first."""
+        self.activity: Activity | None = None
+        """The activity whose cycle number stamps this port's messages: its component's, which the
+        component keeps here (:attr:`Component.activity <coco_core.component.Component.activity>`)
+        so that a write reads one field instead of asking the component (and its owner) each time."""
+        self._last: Record | None = None
+        """The record of the last write (:attr:`last` is its message); None before the first."""
 
     def bind(self, owner: Component, name: str | None = None) -> OutputPort:
         port = super().bind(owner, name)
         assert isinstance(port, OutputPort)
-        port._every, port._shared, port._turn, port._written, port.last = [], [], 0, 0, None
-        port._stamps_only = []
-        port._activity = None
+        port._every, port._shared, port._turn, port._written, port._last = [], [], 0, 0, None
+        port._stamps_only, port._route = [], None
+        port.activity = None  # its component gives it its own (Component._add_port)
         port._source = port.qualified_name
         return port
 
@@ -106,42 +125,63 @@ class OutputPort(Port):
         """Offer ``value`` to every connection, and to one of the shared ones; never blocks.
         ``stamps``: user stamps (small named values, e.g. ``{"bbox": (x0, y0, x1, y1)}``) the
         message carries in its stamp, which readers and filters read without the payload."""
-        message = self._message(value, stamps)
+        self._written += 1  # _record, inlined: a call would cost the write a tenth of the floor
+        activity = self.activity
+        self._last = record = (value, perf_counter(), self._written, self._source,
+                               -1 if activity is None else activity.stats.cycles,
+                               NO_USER_STAMPS if stamps is None else user_stamps(stamps))
+        route = self._route
+        if route is not None:
+            route.put(record)
+            return
         for connection in self._every:
-            connection.push(message if connection.carries_stamps else value)
+            connection.put(record)
         if self._stamps_only:
-            stamp_message = message.stamps_only()
-            for connection in self._stamps_only:
-                connection.push(stamp_message if connection.carries_stamps else stamp_message.value)
+            self._put_stamps_only(record)
         if self._shared:
-            self._hand_over(message)
+            self._hand_over(record)
 
-    def _message(self, value: Any, stamps: Mapping[str, Any] | None = None) -> Message:
-        """``value`` with the stamp of this write (kept as :attr:`last`)."""
-        user = NO_USER_STAMPS if stamps is None else user_stamps(stamps)
+    def _plan(self) -> None:
+        """Let writes go straight to the port's one connection while it is the only one given every
+        write (none stamps-only or shared beside it; a muted one is given nothing), else through
+        the lists."""
+        every = self._every
+        alone = len(every) == 1 and not self._stamps_only and not self._shared
+        self._route = every[0] if alone else None
+
+    def _record(self, value: Any, stamps: Mapping[str, Any] | None = None) -> Record:
+        """The record of a write of ``value`` (kept as the last): the fields of its stamp."""
         self._written += 1
-        activity = self._activity or self._find_activity()
-        message = Message(value, perf_counter(), self._written, self._source,
-                          activity.stats.cycles if activity is not None else -1, user)
-        self.last = message
-        return message
+        activity = self.activity
+        self._last = record = (value, perf_counter(), self._written, self._source,
+                               -1 if activity is None else activity.stats.cycles,
+                               NO_USER_STAMPS if stamps is None else user_stamps(stamps))
+        return record
 
-    def _find_activity(self) -> Activity | None:
-        """The activity of the owner (kept once there is one: a component never changes activity),
-        whose cycle number stamps the messages."""
-        self._activity = self.owner.activity if self.owner is not None else None
-        return self._activity
+    def _put_stamps_only(self, record: Record) -> None:
+        """Give the stamps-only connections the message of ``record`` without its payload."""
+        stamp_message = Message(*record).stamps_only()
+        for connection in self._stamps_only:
+            connection.push(stamp_message if connection.carries_stamps else stamp_message.value)
+
+    @property
+    def last(self) -> Message | None:
+        """The last message written (made from its record when asked); None before the first."""
+        record = self._last
+        return None if record is None else Message(*record)
 
     @property
     def stamp(self) -> Stamp | None:
         """The stamp of the last message written; None before the first."""
-        return None if self.last is None else self.last.stamp
+        last = self.last
+        return None if last is None else last.stamp
 
     def add_connection(self, connection: Connection, stamps_only: bool = False) -> None:
         """Attach a connection; ``stamps_only``: it gets each message's stamp, not its payload."""
         connection.source = self
         self.connections.append(connection)
         (self._stamps_only if stamps_only else self._every).append(connection)
+        self._plan()
 
     def carries_stamps_only(self, connection: Connection) -> bool:
         """Whether ``connection`` (one of this port's) gets the messages' stamps only."""
@@ -151,12 +191,15 @@ class OutputPort(Port):
         """Stop (``muted``) or resume giving ``connection`` (one of this port's, given every message)
         this port's writes. A reader that wants the values only at times (a ROS topic's mirror while
         nobody subscribes, :mod:`coco_ros.mirror`) then costs a write nothing, where an idle
-        connection would still cost a push. The list is replaced, never changed in place: a write
-        in another thread keeps the list it took, and the other connections miss nothing."""
+        connection would still cost a push. The list is replaced, never changed in place, and the
+        direct route is cleared first (:meth:`_plan`): a write in another thread keeps the route or
+        the list it took, and the other connections miss nothing."""
         if connection not in self.connections or connection in self._stamps_only or connection in self._shared:
             raise PolicyError(f"{connection!r} is not a connection of {self.qualified_name} given every message")
         every = [other for other in self._every if other is not connection]
+        self._route = None
         self._every = every if muted else [*every, connection]
+        self._plan()
 
     def share(self, connection: Connection) -> None:
         """Let ``connection`` (one of this port's) take turns with the other shared connections."""
@@ -164,11 +207,12 @@ class OutputPort(Port):
             raise PolicyError(f"{connection!r} is not a connection of {self.qualified_name}")
         self._every.remove(connection)
         self._shared.append(connection)
+        self._plan()
 
-    def _hand_over(self, message: Message) -> None:
-        """Give ``message`` to the next shared connection with nothing pending (a worker that is free,
-        as the original CoCo's farm prefers), or else to the next in turn, whose policy then
-        decides (a full buffer refuses it, which its counters show as a drop)."""
+    def _hand_over(self, record: Record) -> None:
+        """Give the write of ``record`` to the next shared connection with nothing pending (a worker
+        that is free, as the original CoCo's farm prefers), or else to the next in turn, whose
+        policy then decides (a full buffer refuses it, which its counters show as a drop)."""
         shared = self._shared
         count = len(shared)
         chosen = shared[self._turn % count]
@@ -178,7 +222,7 @@ class OutputPort(Port):
                 chosen = candidate
                 break
         self._turn = (shared.index(chosen) + 1) % count
-        chosen.push(message if chosen.carries_stamps else message.value)
+        chosen.put(record)
 
 
 class PooledOutputPort(OutputPort):
@@ -192,6 +236,8 @@ class PooledOutputPort(OutputPort):
     pool in shared memory, when a reader runs in another process, through :meth:`use_pool`, the one
     way a port's pool changes, before any frame went through it.
     """
+
+    __slots__ = ("slots", "_pool")
 
     def __init__(self, slots: int = DEFAULT_SLOTS, doc: str = "") -> None:
         super().__init__(Slot, doc)
@@ -240,14 +286,13 @@ class PooledOutputPort(OutputPort):
         :class:`~coco_core.stamps.Stamp` (:func:`~coco_core.pool.frame_stamp`) is timed from it, as
         a ``Stamped`` value is. A stamps-only connection gets the stamp, never the slot: no reader
         holds a slot for it."""
-        slot.message = message = self._message(frame_stamp(slot.stamp), stamps)
+        record = self._record(frame_stamp(slot.stamp), stamps)
+        slot.message = Message(*record)
         self.pool.publish(slot)
         for connection in self._every:
             connection.push(slot)
         if self._stamps_only:
-            stamp_message = message.stamps_only()
-            for connection in self._stamps_only:
-                connection.push(stamp_message if connection.carries_stamps else stamp_message.value)
+            self._put_stamps_only(record)
 
     def share(self, connection: Connection) -> None:
         """Refused: a pooled frame is published to every reader of the pool."""
@@ -265,18 +310,24 @@ class InputPort(Port):
     An *event* input wakes the triggered activity of its component whenever a value arrives.
     """
 
+    __slots__ = ("event", "_next", "_last", "_has_last", "_taken", "_keeps_last", "_wake", "_triggering", "_only")
+
     def __init__(self, type_: Any = object, event: bool = False, doc: str = "") -> None:
         super().__init__(type_, doc)
         self.event = event
         self._next = 0
         self._last: Any = None
         self._has_last = False
-        self._taken: Any = None
-        """What the last new value came as: a :class:`~coco_core.stamps.Message`, or the bare value."""
+        self._taken: Record | None = None
+        """What the last new value came as: the record its connection gave
+        (:meth:`Connection.take <coco_core.connections.Connection.take>`); None before the first."""
         self._keeps_last = True
         self._wake: Callable[[], None] | None = None
         self._triggering: list[Connection] = []
         """The connections whose writes wake this port's activity."""
+        self._only: Connection | None = None
+        """The connection while it is the only one (the common case, which :meth:`read` takes
+        without counting and indexing the list); None with none or several."""
 
     def bind(self, owner: Component, name: str | None = None) -> InputPort:
         port = super().bind(owner, name)
@@ -284,6 +335,7 @@ class InputPort(Port):
         port._next, port._last, port._has_last, port._keeps_last, port._wake = 0, None, False, True, None
         port._taken = None
         port._triggering = []
+        port._only = None
         return port
 
     def add_connection(self, connection: Connection, event: bool | None = None) -> None:
@@ -296,6 +348,7 @@ class InputPort(Port):
             connection.trigger = self._wake
             self._triggering.append(connection)
         self.connections.append(connection)
+        self._only = connection if len(self.connections) == 1 else None
 
     def set_wake(self, wake: Callable[[], None] | None) -> None:
         """Install the function that wakes this port's activity on its triggering connections."""
@@ -325,39 +378,39 @@ class InputPort(Port):
         With several connections, reading starts after the connection that delivered last time, so
         every source gets its turn.
         """
-        connections = self.connections
-        count = len(connections)
-        if count == 1:
-            connection = connections[0]
-            item = connection.pop()
-            if item is not EMPTY:  # _took, inlined: the common case
+        connection = self._only
+        if connection is not None:
+            record = connection.take()
+            if record is not EMPTY:  # _took, inlined: the common case
                 if connection.age is not None:
-                    connection.age.took(item)
-                self._taken = item
-                value = item.value if type(item) is Message else item
+                    connection.age.took(item_of(record))
+                self._taken = record
+                value = record[0]
                 if self._keeps_last:
                     self._last, self._has_last = value, True
                 return NEW_DATA, value
-        elif count:
+        elif connections := self.connections:
+            count = len(connections)
             start = self._next
             for offset in range(count):
                 index = (start + offset) % count
                 connection = connections[index]
-                item = connection.pop()
-                if item is not EMPTY:
+                record = connection.take()
+                if record is not EMPTY:
                     if connection.age is not None:
-                        connection.age.took(item)
+                        connection.age.took(item_of(record))
                     self._next = (index + 1) % count
-                    return NEW_DATA, self._took(item)
+                    return NEW_DATA, self._took(record)
         if self._has_last:
             return OLD_DATA, self._last
         return NO_DATA, None
 
-    def _took(self, item: Any) -> Any:
-        """The value of ``item`` (a :class:`~coco_core.stamps.Message` or a bare value) taken from a
-        connection, its stamp kept as :attr:`stamp` and the value as the last one."""
-        self._taken = item
-        value = item.value if type(item) is Message else item
+    def _took(self, record: Record) -> Any:
+        """The value of ``record`` (see :meth:`Connection.take
+        <coco_core.connections.Connection.take>`) taken from a connection, the record kept for
+        :attr:`stamp` and the value as the last one."""
+        self._taken = record
+        value = record[0]
         if self._keeps_last:
             self._last, self._has_last = value, True
         return value
@@ -369,13 +422,9 @@ class InputPort(Port):
         stamps included; its time and steps the frame's own acquisition stamp's, when its
         :attr:`Slot.stamp <coco_core.pool.Slot.stamp>` has one), a
         :class:`~coco_core.stamps.Stamped` value's own otherwise (a value pushed into a connection
-        without a port); None for a plain value that came without one."""
-        item = self._taken
-        if type(item) is Message:
-            return item.stamp
-        if type(item) is Slot:
-            return None if item.message is None else item.message.stamp
-        return item.stamp if isinstance(item, Stamped) else None
+        without a port); None for a plain value that came without one. Made when asked, from what
+        the read kept."""
+        return None if self._taken is None else _stamp_of(item_of(self._taken))
 
     @property
     def origin(self) -> Stamp | None:
@@ -390,13 +439,15 @@ class InputPort(Port):
         It differs from :attr:`stamp` only in the fields FlowVR's stamp list gives the carrying
         message: ``seq`` and ``source`` stay the acquisition's, as the latency split by source
         (the sensor-to-display figures) needs; the time and the steps are the same."""
-        item = self._taken
+        if self._taken is None:
+            return None
+        item = item_of(self._taken)
         value = item.value if type(item) is Message else item
         if isinstance(value, Stamped):
             return value.stamp
         if type(value) is Slot and value.message is not None and type(value.message.value) is Stamp:
             return value.message.value  # the frame's own acquisition stamp (frame_stamp)
-        return self.stamp
+        return _stamp_of(item)
 
     def read_all_origins(self) -> list[tuple[Any, Stamp | None]]:
         """Like :meth:`read_all`, each value with its :attr:`origin`: a reader that takes the whole
@@ -434,7 +485,7 @@ class InputPort(Port):
         if newest_connection is not None:
             if newest_connection.age is not None:
                 newest_connection.age.took(newest)
-            return NEW_DATA, self._took(newest)
+            return NEW_DATA, self._took(record_of(newest))
         if self._has_last:
             return OLD_DATA, self._last
         return NO_DATA, None
@@ -447,3 +498,12 @@ class InputPort(Port):
             if status is not NEW_DATA:
                 return values
             values.append(value)
+
+
+def _stamp_of(item: Any) -> Stamp | None:
+    """The stamp of what an input port took (see :attr:`InputPort.stamp`)."""
+    if type(item) is Message:
+        return item.stamp
+    if type(item) is Slot:
+        return None if item.message is None else item.message.stamp
+    return item.stamp if isinstance(item, Stamped) else None

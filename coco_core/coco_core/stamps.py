@@ -132,14 +132,38 @@ class UserStamped:
     user: UserStamps
 
 
+Record = tuple[Any, ...]
+"""A port's write as it travels inside one process, before anyone asks for its stamp: the
+arguments of its :class:`Message`, ``(value, time, seq, source, it, user)``, in one tuple, which is
+made in a fraction of a message's time (:meth:`OutputPort.write <coco_core.ports.OutputPort.write>`,
+:meth:`Connection.put <coco_core.connections.Connection.put>`); ``Message(*record)`` is the message.
+A message pushed whole becomes its record again (:func:`record_of`), anything else ``(item,)``:
+the first field of a record is always the value a reader gets."""
+
+
+def item_of(record: Record) -> Any:
+    """What ``record`` stands for: the message of a port's write, or the item pushed as ``(item,)``."""
+    return record[0] if len(record) == 1 else Message(*record)
+
+
+def record_of(item: Any) -> Record:
+    """The record of what a connection gives (:func:`item_of` undone): a message's fields, or
+    ``(item,)`` for anything else (a bare value, a pooled frame)."""
+    if type(item) is Message:
+        return item.value, item.time, item.seq, item.source, item.it, item.user
+    return (item,)
+
+
 class Message:
     """A value as it travels on a connection inside one process: the payload and the fields of the
     stamp the writing port gave it. The port wraps and the reading port unwraps, so components see
     the plain value (a :class:`Stamped` one included, unchanged) and the stamp is read beside it
     (:attr:`InputPort.stamp <coco_core.ports.InputPort.stamp>`), or alone by a filter.
 
-    The :class:`Stamp` object is made only when asked for (:attr:`stamp`): a write costs a few
-    slot stores, not a frozen dataclass, since most messages are read without their stamp."""
+    The :class:`Stamp` object is made only when asked for (:attr:`stamp`), and the message itself
+    only for whoever reads it as one (a filter, a channel to another process, the reader of a
+    stamp): a connection of one process carries the write's :data:`Record`, since most messages are
+    read without their stamp."""
 
     __slots__ = ("value", "time", "seq", "source", "it", "user")
 

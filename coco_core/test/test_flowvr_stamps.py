@@ -135,3 +135,39 @@ def test_a_plain_value_pushed_without_a_port_has_no_origin():
     stamped = Stamped(5, Stamp(1.0, 2, "elsewhere"))
     connection.push(stamped)
     assert port.read() == (NEW_DATA, stamped) and port.origin is stamped.stamp
+
+
+def test_a_peers_and_a_later_ports_messages_carry_their_activitys_iteration():
+    """The activity whose cycle stamps a write is given to the ports by their component: to those
+    of a peer nested after the owner was scheduled, and to a port added afterwards."""
+    owner, peer = Counter("owner"), Counter("peer")
+    activity = PeriodicActivity("producing", 0.01, [owner])
+    owner.add_peer(peer)
+    extra = peer.add_output("extra", int)
+    activity.stats.cycles = 7
+    for port in (owner.out, peer.out, extra):
+        port.write(1)
+        assert port.stamp is not None and port.stamp.it == 7, port
+
+
+def test_every_policy_gives_a_port_reader_and_a_popping_reader_the_same_stamp(make_app):
+    """A connection of one process keeps the write's record; the message a reader without a port
+    pops (a ROS mirror, ``beginit``) is made from it with the stamp the port's reader reads."""
+    for data in BufferPolicy.DATA, BufferPolicy.BUFFER, BufferPolicy.CIRCULAR:
+        for sync in SyncPolicy:
+            app = make_app()
+            writer, reader = app.add(Counter("writer")), app.add(Collector("reader"))
+            connection = app.connect("writer.out", "reader.sample", ConnectionPolicy(data, sync, 4))
+            writer.out.write(Stamped(1.5, Stamp(3.0, 9, "camera")), stamps={"bbox": (0, 1)})
+            assert reader.sample.read() == (NEW_DATA, Stamped(1.5, Stamp(3.0, 9, "camera")))
+            read_stamp = reader.sample.stamp
+            writer.out.write(2.5, stamps={"bbox": (0, 1)})
+            popped = connection.pop()
+            assert popped.value == 2.5 and popped.stamp == writer.out.stamp
+            assert read_stamp is not None
+            assert (read_stamp.time, read_stamp.seq, read_stamp.user) == (3.0, 1, {"bbox": (0, 1)})
+            connection.push(4)  # the same bare value twice is two values
+            assert reader.sample.read() == (NEW_DATA, 4) and reader.sample.stamp is None
+            connection.push(4)
+            assert reader.sample.read() == (NEW_DATA, 4)
+            assert connection.counters() == {"written": 4, "read": 4, "dropped": 0, "pending": 0}

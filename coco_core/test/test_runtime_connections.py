@@ -237,6 +237,37 @@ def test_one_output_to_many_inputs_has_independent_counters():
     assert counters(conns[2]) == (3, 0, 1, 2)
 
 
+def test_every_write_reaches_the_connections_given_it_as_they_come_muted_and_go():
+    """A port with one connection writes straight to it: a second one, muting either, a shared one
+    or a stamps-only one each change that route, and every write reaches exactly who is given it."""
+    app = Application("routes")
+    source = app.add(Source("source"))
+    sinks = [app.add(Sink(f"sink{i}")) for i in range(4)]
+    first = app.connect(source.out, sinks[0].inp)
+    source.out.write(1)
+    second = app.connect(source.out, sinks[1].inp)
+    source.out.write(2)
+    assert [sink.inp.read() for sink in sinks[:2]] == [(NEW_DATA, 2), (NEW_DATA, 2)]
+    source.out.mute(second, True)
+    source.out.write(3)
+    assert [sink.inp.read() for sink in sinks[:2]] == [(NEW_DATA, 3), (OLD_DATA, 2)]
+    source.out.mute(first, True)
+    source.out.mute(second, False)
+    source.out.write(4)
+    assert [sink.inp.read() for sink in sinks[:2]] == [(OLD_DATA, 3), (NEW_DATA, 4)]
+    stamps = app.connect(source.out, sinks[2].inp, stamps_only=True)
+    source.out.write(5)
+    assert sinks[1].inp.read() == (NEW_DATA, 5)
+    status, stamp = sinks[2].inp.read()
+    assert status is NEW_DATA and stamp.seq == 5
+    source.out.mute(first, False)
+    shared = app.connect(source.out, sinks[3].inp)
+    source.out.share(shared)
+    source.out.write(6)
+    assert [sink.inp.read()[1] for sink in sinks] == [6, 6, source.out.stamp, 6]
+    assert [counters(c)[0] for c in (first, second, stamps, shared)] == [4, 4, 2, 1]
+
+
 def test_write_with_no_connection_is_a_noop():
     source = Source("alone")
     assert not source.out.connected
