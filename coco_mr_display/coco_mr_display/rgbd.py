@@ -37,6 +37,7 @@ and OpenCV); its pose comes from the transformation graph (``frame``) or from ``
 
 from __future__ import annotations
 
+from functools import partial
 from typing import TYPE_CHECKING
 
 import moderngl
@@ -52,6 +53,7 @@ from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
 from coco_mr_vision.rgbd import RGBDFrame
 
 from .image_texture import ImageTexture
+from .layer_cache import LayerCache
 from .peer import GLPeer
 from .shown import ShownInputs
 from .uniforms import uniform
@@ -284,6 +286,10 @@ class GLRGBDImage(GLPeer):
         """Index buffer and vertex array of each stride drawn at the current depth size."""
         self._grid_size: tuple[int, int] | None = None
         self._samples = np.zeros((3, 0, 3), np.float32)
+        self._layers: LayerCache | None = None
+        """The surface as last drawn in each view: repainted when a frame arrives or the view moves."""
+        self._version = 0
+        """Counts the uploads: part of the layers' key."""
         self._ready = False
         self.shown = ShownInputs()
         """The origins of the (Stamped) frames and images the next frame shows first."""
@@ -319,6 +325,12 @@ class GLRGBDImage(GLPeer):
             # attributes may change at run time.
             self._pinhole = self.camera_intrinsics()
 
+    @property
+    def repaints(self) -> int:
+        """How many times the surface was drawn: a frame that brings it nothing new (no new depth or
+        colour, the same view) puts back its last drawing instead."""
+        return 0 if self._layers is None else self._layers.repaints
+
     def camera_intrinsics(self) -> tuple[float, float, float, float]:
         """``(fx, fy, cx, cy)`` in use; a clear error when no source gives them."""
         known = self._port_intrinsics or self._data_intrinsics
@@ -342,6 +354,7 @@ class GLRGBDImage(GLPeer):
         self._program["color_image"] = 1
         self._colors = ImageTexture(ctx)
         self._depths = _DepthRing(ctx)
+        self._layers = LayerCache(ctx)
 
     def upload(self, ctx: moderngl.Context) -> None:
         """Texture writes of what arrived since the last frame, and the sparse sample of the new depth
@@ -356,6 +369,7 @@ class GLRGBDImage(GLPeer):
             if self._pinhole is not None:
                 self._samples = sample_points(depth, scale, self._pinhole)
             self._depth = None
+        self._version += 1
         self._ready = self._depths.size is not None and self._colors.size is not None
 
     def _grid(self, ctx: moderngl.Context, stride: int) -> moderngl.VertexArray:
@@ -384,10 +398,19 @@ class GLRGBDImage(GLPeer):
             self.upload(ctx)
         if not self._ready or self._pinhole is None:
             return
-        assert self._colors is not None and self._depths is not None and self._depths.texture is not None
+        assert self._layers is not None
         model_view = view.view @ self.camera_pose(view.frame)
         stride = self.stride or automatic_stride(self._samples, view.projection @ model_view, view.viewport,
                                                  self.vertex_spacing)
+        # Everything the drawing depends on: the surface is repainted only when one of them changed.
+        key = (self._version, self._pinhole, model_view.tobytes(), view.projection.tobytes(), stride, self.max_edge)
+        self._layers.draw(ctx, view, key, partial(self._paint, ctx, model_view, view.projection, stride))
+        self.last_stride = stride
+
+    def _paint(self, ctx: moderngl.Context, model_view: np.ndarray, projection: np.ndarray, stride: int) -> None:
+        """Draw the surface: the grid at ``stride``, unprojected and filtered in the shaders."""
+        assert self._program is not None and self._colors is not None and self._depths is not None
+        assert self._depths.texture is not None
         program = self._program
         program["layers"] = self._depths.layers
         program["stride"] = stride
@@ -395,11 +418,10 @@ class GLRGBDImage(GLPeer):
         program["intrinsics"] = self._pinhole
         program["max_edge"] = self.max_edge
         uniform(program, "model_view").write(model_view.T.astype("f4").tobytes())
-        uniform(program, "projection").write(view.projection.T.astype("f4").tobytes())
+        uniform(program, "projection").write(projection.T.astype("f4").tobytes())
         self._depths.texture.use(0)
         self._colors.use(1)
         self._grid(ctx, stride).render(moderngl.TRIANGLES)
-        self.last_stride = stride
 
     def gl_release(self) -> None:
         self._release_grids()
@@ -408,5 +430,7 @@ class GLRGBDImage(GLPeer):
         for textures in (self._colors, self._depths):
             if textures is not None:
                 textures.release()
-        self._program = self._colors = self._depths = None
+        if self._layers is not None:
+            self._layers.release()
+        self._program = self._colors = self._depths = self._layers = None
         self._grid_size, self._ready = None, False
