@@ -27,7 +27,8 @@ from coco_mr_display.camera import GLCameraManager
 from coco_mr_display.entity import GLEntity
 from coco_mr_display.image_texture import ImageTexture
 from coco_mr_display.manager import GLManager
-from coco_mr_display.rgbd import GLRGBDImage, grid_indices
+from coco_mr_display.rgbd import GLRGBDImage
+from coco_mr_display.surface_triangles import grid_indices
 from coco_mr_display.view import RenderView
 from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
 from coco_mr_vision.rgbd import RGBDFrame
