@@ -20,7 +20,10 @@ is drawn and the colour image is read back (the render-to-texture output; it als
 
 Goal: Baxter + 640x480 RGB-D mesh at >= 30 fps. A second table gives the cost of taking in a new RGB-D
 frame, a third where the time of a CoCo frame goes (cProfile: draw calls, read-back, texture writes,
-Python). The tables name the renderer the GL context reports (``GL_RENDERER``): Mesa's llvmpipe on a
+Python). A fourth is the palpation app's view (config/palpation_replay.xml: the RGB-D surface seen
+from its display camera, the hand, the proxy, the force arrow): a frame for a new camera frame (the
+surface drawn) against a frame for a new pose only (the surface's kept drawing put back), measured
+side by side; the issue-34 goal is >= 30 fps for the view. The tables name the renderer the GL context reports (``GL_RENDERER``): Mesa's llvmpipe on a
 machine without a GPU (everything on the CPU), a GPU's driver elsewhere.
 
     .venv/bin/python bench/bench_display.py [--json PATH] [--no-plot]
