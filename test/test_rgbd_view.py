@@ -65,6 +65,7 @@ class Camera(Component):
 
 class Frames(Component):
     image = InputPort(Image)
+    depth = InputPort(Image)
 
 
 def redwood_frame() -> RGBDFrame:
@@ -90,29 +91,35 @@ class View:
     """The app's view: a headless GLManager with its camera, the scene surface and, optionally, a
     sphere (the hand's stand-in), drawn one frame at a time in the test's thread."""
 
-    def __init__(self, sphere_at: list[float] | None = None) -> None:
+    def __init__(self, sphere_at: list[float] | None = None, sphere_first: bool = False) -> None:
         self.app = Application("rgbd_view")
         self.camera = self.app.add(Camera("camera"))
         self.frames = self.app.add(Frames("frames"))
         self.manager = GLManager("display", width=SIZE[0], height=SIZE[1], world="camera",
-                                 background=[0.16, 0.17, 0.20])
+                                 background=[0.16, 0.17, 0.20], depth_output=True)
         rotation = DISPLAY_CAMERA[:3, :3]
         eye = DISPLAY_CAMERA[:3, 3]
         self.manager.add_peer(GLCameraManager("view_camera", position=list(eye), look_at=list(eye + rotation[:, 2]),
                                               up=list(-rotation[:, 1]), fov_y=45.0))
         self.scene = GLRGBDImage("scene", max_edge=MAX_EDGE, vertex_spacing=VERTEX_SPACING)
-        self.manager.add_peer(self.scene)
         self.sphere: GLEntity | None = None
         if sphere_at is not None:
             self.sphere = GLEntity("hand", mesh="sphere", size=[0.05], position=sphere_at, color=[0.9, 0.1, 0.1])
-            self.manager.add_peer(self.sphere)
+        # The scene first (its kept drawing copied in) or after the sphere (composited, depth-tested).
+        order = [self.scene] if self.sphere is None else [self.sphere, self.scene] if sphere_first else [
+            self.scene, self.sphere]
+        for peer in order:
+            self.manager.add_peer(peer)
         self.app.add(self.manager)
         self.app.connect("camera.rgbd", "scene.rgbd")
         self.app.connect("display.color", "frames.image")
+        self.app.connect("display.depth", "frames.depth")
         assert self.manager.configure()
 
     def draw(self) -> np.ndarray:
+        """One frame: its colour (its depth in ``self.depth``, metres, NaN where nothing was drawn)."""
         self.manager.step()
+        self.depth = np.array(self.frames.depth.read()[1].data)
         return np.array(self.frames.image.read()[1].data)
 
     def view(self) -> RenderView:
@@ -172,7 +179,7 @@ def test_the_views_surface_is_the_cpu_mesh_of_the_frame(source: str, tmp_path: P
     view = View()
     try:
         view.camera.rgbd.write(frame)
-        image = view.draw()
+        image, depth = view.draw(), view.depth
         stride = view.scene.last_stride
         reference = cpu_mesh_view(view.manager.surface.ctx, frame, stride, view.view())  # type: ignore[union-attr]
     finally:
@@ -180,16 +187,19 @@ def test_the_views_surface_is_the_cpu_mesh_of_the_frame(source: str, tmp_path: P
     assert stride > 1, "the app's vertex_spacing draws fewer vertices than depth pixels"
     drawn = np.abs(reference.astype(int) - np.array([41, 43, 51])).max(axis=2) > TOLERANCE
     assert drawn.mean() > 0.3, "the surface covers much of the view (else the comparison says little)"
+    assert np.isfinite(depth[drawn]).mean() > 0.99, "the surface's depth is in the frame's depth buffer"
     share = equal_share(image, reference)
     assert share >= 0.99, f"{source}: {100 * share:.2f}% of the pixels equal the CPU mesh's (goal 99%)"
 
 
-def test_a_frame_that_brings_the_surface_nothing_new_puts_its_drawing_back() -> None:
+@pytest.mark.parametrize("sphere_first", [False, True])
+def test_a_frame_that_brings_the_surface_nothing_new_puts_its_drawing_back(sphere_first: bool) -> None:
     """A sphere moves in front of the surface: the second frame repaints only the sphere, and its
-    pixels are those of a view that draws both anew."""
+    pixels are those of a view that draws both anew, and of one that draws them in the other order
+    (the kept surface, copied in or composited, keeps its depth)."""
     first, moved = [0.0, 0.0, 0.9], [0.15, 0.05, 0.8]
     frame = redwood_frame()
-    view = View(sphere_at=first)
+    view = View(sphere_at=first, sphere_first=sphere_first)
     try:
         view.camera.rgbd.write(frame)
         before = view.draw()
@@ -199,12 +209,16 @@ def test_a_frame_that_brings_the_surface_nothing_new_puts_its_drawing_back() -> 
         repaints = view.scene.repaints
     finally:
         view.close()
-    fresh = View(sphere_at=moved)
-    try:
-        fresh.camera.rgbd.write(frame)
-        reference = fresh.draw()
-    finally:
-        fresh.close()
+    references = []
+    for order in (sphere_first, not sphere_first):
+        fresh = View(sphere_at=moved, sphere_first=order)
+        try:
+            fresh.camera.rgbd.write(frame)
+            references.append(fresh.draw())
+        finally:
+            fresh.close()
+    reference, other_order = references
     assert repaints == 1, "the surface was drawn again though neither its frame nor the view changed"
     assert equal_share(before, after) < 0.99, "the sphere moved on screen"
     assert np.array_equal(after, reference), "the cached surface shows what drawing it again shows"
+    assert equal_share(after, other_order) > 0.999, "the surface and the sphere hide each other by depth"

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 from functools import partial
 
 import moderngl
@@ -187,8 +188,10 @@ class GLManager(Component):
         fbo.use()
         ctx.viewport = (0, 0, *surface.size)
         red, green, blue = self.background[:3]
-        fbo.clear(red, green, blue, self.background[3] if len(self.background) == 4 else 1.0, depth=1.0)
+        background = (red, green, blue, self.background[3] if len(self.background) == 4 else 1.0)
+        fbo.clear(*background, depth=1.0)
         for view in views:
+            blank = replace(view, background=background)  # for the first peer: nothing drawn there yet
             for peer in self._drawing:
                 if not peer.enabled:  # stopped by its error policy (or the application)
                     continue
@@ -196,9 +199,10 @@ class GLManager(Component):
                 ctx.enable_only(moderngl.DEPTH_TEST)
                 ctx.viewport = view.viewport
                 try:
-                    peer.render(ctx, view)
+                    peer.render(ctx, blank)
                 except Exception:
                     peer.report_error("render")
+                blank = view
         origin = self._frame_origin()
         if origin is not None:  # a frame to time: the drawing finished apart from its read-back
             ctx.finish()
