@@ -289,8 +289,8 @@ def palpation_table(samples: dict[str, Samples], repaints: dict[str, int], other
         "The view of config/palpation_replay.xml: the Redwood frame seen from the app's display camera (GLRGBDImage "
         "vertex_spacing 3, max_edge 5 cm: stride 2-3 here), the hand mesh, the proxy sphere and the force arrow; "
         "every frame moves the hand, the proxy and the arrow and reads the colour back. A camera frame: a new "
-        "RGB-D frame too, so the surface is drawn (into its cache, then put into the frame); a pose only: the "
-        "surface's last drawing is put back (one full-screen pass) and only the small meshes are drawn.",
+        "RGB-D frame too, so the surface is drawn (into its cache, then copied into the frame); a pose only: the "
+        "surface's kept drawing is copied in (a blit of colour and depth) and only the small meshes are drawn.",
         f"Other processes used {others} of the {os.cpu_count()} cores meanwhile.",
     ]
     return t, results
@@ -511,8 +511,8 @@ def profile_table(breakdown: dict[str, dict[str, float]], renderer: str) -> tupl
     for part in next(iter(breakdown.values())):
         t.add(part, *(f"{breakdown[name][part] * 1e3:.1f}" for name in names))
     if on_llvmpipe(renderer):
-        t.notes.append("Own time of the moderngl calls: a draw call returns once llvmpipe has run the vertex (and "
-                       "geometry) shaders and binned the triangles on the calling thread; the read-back waits for "
+        t.notes.append("Own time of the moderngl calls: a draw call returns once llvmpipe has run the vertex "
+                       "shaders and binned the triangles on the calling thread; the read-back waits for "
                        "the rasteriser threads. The Python row is everything else in the frame.")
     else:
         t.notes.append(f"Own time of the moderngl calls: a draw call returns once {renderer}'s driver has queued "
@@ -525,23 +525,27 @@ UPLOADS = ("CoCo GLRGBDImage upload", "CPU mesh (numpy)", "memcpy of the frame (
 
 
 def draw(frames: dict[str, Samples], triangles: dict[str, int],
-         quality: dict[str, dict[str, float]], renderer: str) -> Callable[[Any], Any]:
+         quality: dict[str, dict[str, float]], renderer: str, palpation: dict[str, Samples]) -> Callable[[Any], Any]:
     def figure(plt: Any) -> Any:
-        names = list(frames)
-        values = [fps(frames[name]) for name in names]
-        colors = ["tab:red" if name.startswith("pyrender") else "tab:blue" for name in names]
+        names = list(frames) + [f"palpation view: {name}" for name in palpation]
+        values = [fps(frames[name]) for name in frames] + [fps(s) for s in palpation.values()]
+        colors = ["tab:red" if name.startswith("pyrender") else "tab:orange" if name.startswith("palpation")
+                  else "tab:blue" for name in names]
         fig, ax = plt.subplots(figsize=(10, 4.4))
         ax.barh(names, values, color=colors)
         ax.invert_yaxis()
         ax.tick_params(axis="y", labelsize=8)
         ax.axvline(GOAL_FPS, color="tab:green", linestyle="--", label=f"goal: {GOAL_FPS:g} fps (Baxter + RGB-D)")
         for y, (name, value) in enumerate(zip(names, values)):
+            if name not in triangles:  # a palpation view row
+                ax.text(value + 0.3, y, f"{value:.1f} fps", va="center", fontsize=7)
+                continue
             q = quality.get(name)
             label = f"{value:.1f} fps, {triangles[name] / 1e3:.0f}k triangles" + (
                 f", IoU {q['iou']:.2f} vs full detail" if q and name not in (COCO_BAXTER, COCO_RGBD) else "")
             ax.text(value + 0.3, y, label, va="center", fontsize=7)
         ax.set_xlabel(f"frames per second, {SIZE[0]}x{SIZE[1]} headless, {renderer}")
-        ax.set_title("CoCo display (GLManager) vs pyrender, same scene")
+        ax.set_title("CoCo display (GLManager) vs pyrender, same scene; the palpation app's view")
         ax.legend(loc="lower right", fontsize=8)
         ax.set_xlim(0, max(max(values) * 1.6, GOAL_FPS * 1.1))
         return fig
@@ -618,7 +622,7 @@ def main() -> None:
     _report.emit("bench_display", args, [t1, t2, t3, t4],
                  {"frames": r1, "uploads": r2, "profile_s_per_frame": r3, "palpation_view": r4, "renderer": renderer,
                   "overlap_iou": overlap, "others_cpu": load.others})
-    _report.save_plot(args, draw(frame_samples, triangles, quality, renderer))
+    _report.save_plot(args, draw(frame_samples, triangles, quality, renderer, palpation_samples))
     # pyrender's renderers are left to the end of the process: they share EGL's default display with
     # moderngl's contexts, and once one side has released its contexts the other cannot make its current.
     for closing in (*scenes.values(), *palpation.values()):

@@ -66,6 +66,8 @@ class _Layer:
         self.depths.compare_func = ""  # sampled as values, not as a shadow comparison
         self.fbo = ctx.framebuffer([self.colors], self.depths)
         self.key: Hashable = _NOTHING
+        self.pending: Hashable = _NOTHING
+        """The key of the last drawing made straight into a frame (composited layers only)."""
 
     def release(self) -> None:
         self.fbo.release()
@@ -87,8 +89,8 @@ class LayerCache:
 
     def draw(self, ctx: moderngl.Context, view: RenderView, key: Hashable, paint: Callable[[], None]) -> None:
         """Put the peer's drawing of ``view`` into the current framebuffer; first call ``paint`` (it
-        draws the peer with the viewport at the layer's origin) when ``key``, everything that the
-        drawing depends on, differs from the key of the drawing kept for this view.
+        draws the peer in the current viewport) when ``key``, everything that the drawing depends on,
+        differs from the key of the drawing kept for this view.
 
         When nothing was drawn in the view yet (``view.background`` is set) and the view is the whole
         framebuffer, the layer is kept over that background and copied in (a blit, ~0.5 ms at 640x480
@@ -101,6 +103,13 @@ class LayerCache:
         if layer is None:
             layer = self._layers[view.viewport] = _Layer(ctx, (width, height))
         kept = (key, view.background if whole else None)
+        if layer.key != kept and not whole and layer.pending != kept:
+            # Changed since the last frame: drawn straight into the frame, as without a cache (content
+            # that changes every frame pays nothing); kept from the second frame it stays the same.
+            layer.pending = kept
+            paint()
+            self.repaints += 1
+            return
         if layer.key != kept:
             layer.fbo.use()
             layer.fbo.clear(*(view.background if view.background is not None and whole else (0.0, 0.0, 0.0, 0.0)),
