@@ -185,8 +185,8 @@ class CocoScene:
 
     @property
     def triangles(self) -> int:
-        """Triangles sent to OpenGL per frame (the RGB-D grid at the stride of the last frame, before
-        the geometry shader drops rubber sheets and holes)."""
+        """Triangles of the scene per frame (the RGB-D grid at the stride of the last frame, before the
+        rubber sheets and holes are left out)."""
         grid = 0
         if self.surface is not None:
             columns, rows = (-(-extent // self.surface.last_stride) for extent in SIZE)
@@ -472,8 +472,8 @@ def frame_table(samples: dict[str, Samples], triangles: dict[str, int], strides:
     t.notes += [
         "A frame: Baxter joints from the next row of shake_hand.dat, a new RGB-D frame (Redwood 0 and 1 in "
         "turn), draw, colour read-back. Triangles: Baxter's (culled back faces included) + the RGB-D grid at "
-        "the row's stride (612k at stride 1, 153k at 2, 68k at 3) before the geometry shader drops those with "
-        f"an unknown vertex or an edge > {MAX_EDGE * 100:g} cm. The automatic stride is chosen per "
+        "the row's stride (612k at stride 1, 153k at 2, 68k at 3) before those with "
+        f"an unknown vertex or an edge > {MAX_EDGE * 100:g} cm are left out. The automatic stride is chosen per "
         "frame from the surface's size on screen; the column shows the one of the last frame.",
         f"simplify {LIGHT}: GLUrdf keeps about {LIGHT:.0%} of Baxter's triangles (quadric decimation at load). "
         "spacing: GLRGBDImage's vertex_spacing, the most screen pixels between neighbouring vertices that the "
