@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 from functools import partial
 
 import moderngl
@@ -77,6 +78,9 @@ class GLManager(Component):
     title = Attribute(str, "CoCo", "window title")
     depth_output = Attribute(bool, False, "also read back the depth buffer to the depth port (metres)")
     vsync = Attribute(bool, False, "window: wait for the display's refresh (off: the activity sets the rate)")
+    min_period = Attribute(float, 0.0, "ms between the starts of two frames, at least (0: no bound): in a "
+                           "triggered activity, woken by its event inputs, the display draws as soon as something "
+                           "new arrives, at most this often", min=0.0)
     stamped = Attribute(bool, False, "write the images as Stamped(Image, frame stamp): the oldest input the "
                         "frame is the first to show (sensor-to-display latency downstream)")
 
@@ -93,6 +97,9 @@ class GLManager(Component):
         self.frames = 0
         self.last_stamp: Stamp | None = None
         """The stamp of the last frame rendered (see the module docstring)."""
+        self.frame_started: float | None = None
+        """When the current (or last) frame began, ``time.perf_counter()`` seconds: ``min_period``
+        counts from it."""
         self._drawing: list[GLPeer] = []
         """The drawing peers whose gl_init succeeded, in drawing order: only these render and release."""
 
@@ -120,17 +127,30 @@ class GLManager(Component):
     def on_update(self) -> None:
         surface = self.surface
         assert surface is not None, "on_update before a successful on_config"
+        self._pace()
         events = surface.poll()
         if events:
             dispatch(events, self.walk()[1:])
             if any(event.kind is EventKind.CLOSE for event in events):
                 self._close()
-        started = time.perf_counter()
+        started = self.frame_started = time.perf_counter()
         for peer in self.peers:
             peer.step()
         self.render_frame(started)
         surface.present()
         self.frames += 1
+
+    def _pace(self) -> None:
+        """Wait until ``min_period`` after the last frame began. A display woken by each new input (a
+        camera frame, a pose) starts its frame when the input arrives, not at the next tick of a
+        period (up to a period later); this bound keeps a stream of inputs (poses at 100 Hz and more)
+        from drawing faster than the display's rate. The frame then reads the newest of each input,
+        whatever came meanwhile."""
+        if self.frame_started is None or self.min_period <= 0.0:
+            return
+        wait = self.frame_started + self.min_period / 1e3 - time.perf_counter()
+        if wait > 0.0:
+            time.sleep(wait)
 
     def on_stop(self) -> None:
         if self.surface is None:
@@ -168,8 +188,10 @@ class GLManager(Component):
         fbo.use()
         ctx.viewport = (0, 0, *surface.size)
         red, green, blue = self.background[:3]
-        fbo.clear(red, green, blue, self.background[3] if len(self.background) == 4 else 1.0, depth=1.0)
+        background = (red, green, blue, self.background[3] if len(self.background) == 4 else 1.0)
+        fbo.clear(*background, depth=1.0)
         for view in views:
+            blank = replace(view, background=background)  # for the first peer: nothing drawn there yet
             for peer in self._drawing:
                 if not peer.enabled:  # stopped by its error policy (or the application)
                     continue
@@ -177,9 +199,10 @@ class GLManager(Component):
                 ctx.enable_only(moderngl.DEPTH_TEST)
                 ctx.viewport = view.viewport
                 try:
-                    peer.render(ctx, view)
+                    peer.render(ctx, blank)
                 except Exception:
                     peer.report_error("render")
+                blank = view
         origin = self._frame_origin()
         if origin is not None:  # a frame to time: the drawing finished apart from its read-back
             ctx.finish()

@@ -12,14 +12,18 @@ vertices. That keeps the upload off the render loop's critical path: at 640x480 
   Averaging depth along each pixel's ray is averaging the vertex positions, since x and y are
   proportional to depth.
 - **Rubber-sheet removal** (``max_edge``, metres): between a foreground and a background surface the
-  grid makes long, nearly edge-on triangles. A geometry shader drops every triangle with an edge
-  longer than ``max_edge``, and always those with a vertex of unknown depth. The limit is the same
-  at every stride: scaling it with the stride (edges of a sloped surface grow with it) fills walls
-  seen at a grazing angle that full detail leaves open, which differed more from the full-detail
-  picture than the few sloped triangles a fixed limit drops. (Measured on llvmpipe, the geometry
-  shader costs about a fifth of the surface's time; the same test done per vertex, fetching the
-  neighbours' depths in the vertex shader and discarding by ``gl_PrimitiveID`` in the fragment
-  shader, was slower.)
+  grid makes long, nearly edge-on triangles. Every triangle with an edge longer than ``max_edge`` is
+  left out of the index buffer, and always those with a vertex of unknown depth
+  (:mod:`.surface_triangles`: on the CPU, once per new depth frame and stride; edge lengths do not
+  depend on the view). The limit is the same at every stride: scaling it with the stride (edges of a
+  sloped surface grow with it) fills walls seen at a grazing angle that full detail leaves open,
+  which differed more from the full-detail picture than the few sloped triangles a fixed limit drops.
+  (Measured on llvmpipe: the same test in a geometry shader, run for every triangle of every frame,
+  made the draw call about twice as long; done per vertex, fetching the neighbours' depths in the
+  vertex shader and discarding by ``gl_PrimitiveID`` in the fragment shader, slower still.)
+- **Kept drawings**: the surface as drawn in each view is kept (:mod:`.layer_cache`) and put back
+  into frames that bring it nothing new (no new frame, the same view), so a display redrawn for
+  every pose of a hand draws the surface's triangles only when a camera frame arrives.
 - **Stride** (``stride`` = s): one vertex every s depth pixels, s^2 times fewer triangles, the colour
   still sampled at full resolution. On a software rasteriser (Mesa llvmpipe) vertex and primitive
   processing run on the drawing thread at roughly 0.1-0.2 us per triangle, so the full 640x480 grid
@@ -37,7 +41,8 @@ and OpenCV); its pose comes from the transformation graph (``frame``) or from ``
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from functools import partial
+from typing import TYPE_CHECKING, Hashable
 
 import moderngl
 import numpy as np
@@ -52,8 +57,10 @@ from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
 from coco_mr_vision.rgbd import RGBDFrame
 
 from .image_texture import ImageTexture
+from .layer_cache import LayerCache
 from .peer import GLPeer
 from .shown import ShownInputs
+from .surface_triangles import kept_triangles
 from .uniforms import uniform
 
 if TYPE_CHECKING:
@@ -73,8 +80,9 @@ uniform int layers;
 uniform float depth_unit;   // metres per (normalised) texel value
 uniform vec4 intrinsics;    // fx, fy, cx, cy of the depth image
 uniform mat4 model_view;    // camera optical frame -> eye
+uniform mat4 projection;
 uniform int stride;         // one vertex every `stride` pixels along x and y
-out Vertex { vec3 eye; vec2 uv; float valid; } vertex;
+out vec2 uv;
 void main() {
     ivec2 size = textureSize(depths, 0).xy;
     int columns = (size.x + stride - 1) / stride;
@@ -90,39 +98,8 @@ void main() {
     }
     float z = count > 0 ? sum / float(count) * depth_unit : 0.0;
     vec3 point = vec3((vec2(pixel) - intrinsics.zw) / intrinsics.xy * z, z);
-    vertex.eye = (model_view * vec4(point, 1.0)).xyz;
-    vertex.uv = (vec2(pixel) + 0.5) / vec2(size);  // row 0 of the colour texture is the top row
-    vertex.valid = count > 0 ? 1.0 : 0.0;
-}
-"""
-
-_GEOMETRY = """
-#version 330
-layout(triangles) in;
-layout(triangle_strip, max_vertices = 3) out;
-uniform mat4 projection;
-uniform float max_edge;  // metres; <= 0: keep every triangle of valid vertices
-in Vertex { vec3 eye; vec2 uv; float valid; } vertex[];
-out vec2 uv;
-void main() {
-    if (vertex[0].valid * vertex[1].valid * vertex[2].valid == 0.0) {
-        return;
-    }
-    if (max_edge > 0.0) {
-        vec3 a = vertex[1].eye - vertex[0].eye;
-        vec3 b = vertex[2].eye - vertex[1].eye;
-        vec3 c = vertex[0].eye - vertex[2].eye;
-        float longest = max(dot(a, a), max(dot(b, b), dot(c, c)));
-        if (longest > max_edge * max_edge) {
-            return;
-        }
-    }
-    for (int i = 0; i < 3; ++i) {
-        gl_Position = projection * vec4(vertex[i].eye, 1.0);
-        uv = vertex[i].uv;
-        EmitVertex();
-    }
-    EndPrimitive();
+    gl_Position = projection * (model_view * vec4(point, 1.0));
+    uv = (vec2(pixel) + 0.5) / vec2(size);  // row 0 of the colour texture is the top row
 }
 """
 
@@ -135,15 +112,6 @@ void main() {
     color = vec4(texture(color_image, uv).rgb, 1.0);
 }
 """
-
-
-def grid_indices(width: int, height: int) -> np.ndarray:
-    """Triangle indices of a ``width`` x ``height`` vertex grid, counter-clockwise as the camera sees
-    them: two triangles per square, ``(i, i+W, i+1)`` and ``(i+1, i+W, i+W+1)``."""
-    top_left = (np.arange(height - 1, dtype=np.uint32)[:, None] * width
-                + np.arange(width - 1, dtype=np.uint32)[None, :]).ravel()
-    below, right = top_left + width, top_left + 1
-    return np.stack([top_left, below, right, right, below, below + 1], axis=1).ravel()
 
 
 def sample_points(depth: Image, depth_scale: float, intrinsics: tuple[float, float, float, float]) -> np.ndarray:
@@ -192,7 +160,8 @@ def _three(value: tuple[float, ...]) -> str | None:
 
 
 class _DepthRing:
-    """``layers`` depth frames in a texture array, the newest overwriting the oldest."""
+    """``layers`` depth frames in a texture array, the newest overwriting the oldest, and their copies
+    on the CPU (which triangles to draw is decided there: :mod:`.surface_triangles`)."""
 
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
@@ -200,6 +169,8 @@ class _DepthRing:
         self.depth_unit = 1.0
         self._key: tuple[tuple[int, int], str, int] | None = None
         self._next = 0
+        self._frames: list[np.ndarray | None] = []
+        self._metres_per_unit = 1.0
 
     def write(self, depth: Image, depth_scale: float, layers: int) -> None:
         """Store ``depth`` (DEPTH16 as normalised 16 bit, DEPTH32F as float) as the newest layer.
@@ -215,13 +186,28 @@ class _DepthRing:
             self.texture = self.ctx.texture_array((width, height, layers), 1, dtype=dtype, alignment=1)
             self.texture.write(np.zeros((layers, height, width), depth.format.dtype), alignment=1)
             self.texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            self._key, self._next = key, 0
+            self._key, self._next, self._frames = key, 0, [None] * layers
         assert self.texture is not None
         self.depth_unit = 65535.0 / depth_scale if dtype == "nu2" else 1.0
+        self._metres_per_unit = 1.0 / depth_scale if dtype == "nu2" else 1.0
         width, height = depth.size
-        self.texture.write(np.ascontiguousarray(depth.data), viewport=(0, 0, self._next, width, height, 1),
-                           alignment=1)
+        data = np.array(depth.data)  # a copy: a pooled frame may be reused once read
+        self.texture.write(data, viewport=(0, 0, self._next, width, height, 1), alignment=1)
+        self._frames[self._next] = data
         self._next = (self._next + 1) % layers
+
+    def metres(self, stride: int) -> np.ndarray:
+        """The depth every ``stride`` pixels, in metres, averaged over the layers' known values (0:
+        unknown in every layer), as the vertex shader computes it."""
+        frames = [frame[::stride, ::stride] for frame in self._frames if frame is not None]
+        if len(frames) == 1:
+            return frames[0].astype(np.float32) * np.float32(self._metres_per_unit)
+        stack = np.stack(frames).astype(np.float32)
+        known = stack > 0.0  # False for 0 and NaN
+        count = known.sum(axis=0)
+        total = np.where(known, stack, 0.0).sum(axis=0)
+        return np.where(count > 0, total / np.maximum(count, 1), 0.0).astype(np.float32) * np.float32(
+            self._metres_per_unit)
 
     @property
     def layers(self) -> int:
@@ -234,7 +220,7 @@ class _DepthRing:
     def release(self) -> None:
         if self.texture is not None:
             self.texture.release()
-        self.texture, self._key = None, None
+        self.texture, self._key, self._frames = None, None, []
 
 
 class GLRGBDImage(GLPeer):
@@ -280,10 +266,14 @@ class GLRGBDImage(GLPeer):
         self._program: moderngl.Program | None = None
         self._colors: ImageTexture | None = None
         self._depths: _DepthRing | None = None
-        self._grids: dict[int, tuple[moderngl.Buffer, moderngl.VertexArray]] = {}
-        """Index buffer and vertex array of each stride drawn at the current depth size."""
-        self._grid_size: tuple[int, int] | None = None
+        self._grids: dict[int, tuple[Hashable, moderngl.Buffer, moderngl.VertexArray, int]] = {}
+        """Per stride drawn: what its triangles were chosen for (frame, intrinsics, max_edge), the index
+        buffer, its vertex array and how many indices it holds."""
         self._samples = np.zeros((3, 0, 3), np.float32)
+        self._layers: LayerCache | None = None
+        """The surface as last drawn in each view: repainted when a frame arrives or the view moves."""
+        self._version = 0
+        """Counts the uploads: part of the layers' key."""
         self._ready = False
         self.shown = ShownInputs()
         """The origins of the (Stamped) frames and images the next frame shows first."""
@@ -319,6 +309,12 @@ class GLRGBDImage(GLPeer):
             # attributes may change at run time.
             self._pinhole = self.camera_intrinsics()
 
+    @property
+    def repaints(self) -> int:
+        """How many times the surface was drawn: a frame that brings it nothing new (no new depth or
+        colour, the same view) puts back its last drawing instead."""
+        return 0 if self._layers is None else self._layers.repaints
+
     def camera_intrinsics(self) -> tuple[float, float, float, float]:
         """``(fx, fy, cx, cy)`` in use; a clear error when no source gives them."""
         known = self._port_intrinsics or self._data_intrinsics
@@ -337,11 +333,12 @@ class GLRGBDImage(GLPeer):
 
     # --- GL (render) ------------------------------------------------------------------------------
     def gl_init(self, ctx: moderngl.Context) -> None:
-        self._program = ctx.program(vertex_shader=_VERTEX, geometry_shader=_GEOMETRY, fragment_shader=_FRAGMENT)
+        self._program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
         self._program["depths"] = 0
         self._program["color_image"] = 1
         self._colors = ImageTexture(ctx)
         self._depths = _DepthRing(ctx)
+        self._layers = LayerCache(ctx)
 
     def upload(self, ctx: moderngl.Context) -> None:
         """Texture writes of what arrived since the last frame, and the sparse sample of the new depth
@@ -356,24 +353,32 @@ class GLRGBDImage(GLPeer):
             if self._pinhole is not None:
                 self._samples = sample_points(depth, scale, self._pinhole)
             self._depth = None
+        self._version += 1
         self._ready = self._depths.size is not None and self._colors.size is not None
 
-    def _grid(self, ctx: moderngl.Context, stride: int) -> moderngl.VertexArray:
-        """The vertex array drawing the grid of the current depth size at ``stride`` (index buffers are
-        built once per stride and kept: the automatic stride moves between a few values)."""
-        assert self._depths is not None and self._program is not None and self._depths.size is not None
-        if self._depths.size != self._grid_size:
-            self._release_grids()
-            self._grid_size = self._depths.size
-        if stride not in self._grids:
-            columns, rows = (-(-extent // stride) for extent in self._depths.size)
-            indices = ctx.buffer(grid_indices(columns, rows))
-            self._grids[stride] = (indices, ctx.vertex_array(self._program, [], index_buffer=indices,
-                                                             index_element_size=4))
-        return self._grids[stride][1]
+    def _triangles(self, ctx: moderngl.Context, stride: int) -> tuple[moderngl.VertexArray, int]:
+        """The vertex array drawing the grid at ``stride`` and its number of indices: the triangles
+        kept for the newest depth (:func:`.surface_triangles.kept_triangles`), chosen once per frame and
+        stride (each stride keeps its index buffer: the automatic stride moves between a few values)."""
+        assert self._depths is not None and self._program is not None and self._pinhole is not None
+        key = (self._version, self._pinhole, self.max_edge)
+        grid = self._grids.get(stride)
+        if grid is None or grid[0] != key:
+            indices = kept_triangles(self._depths.metres(stride), stride, self._pinhole, self.max_edge)
+            if grid is None or grid[1].size < max(indices.nbytes, 4):
+                if grid is not None:
+                    grid[2].release()
+                    grid[1].release()
+                buffer = ctx.buffer(reserve=max(indices.nbytes, 4))
+                mesh = ctx.vertex_array(self._program, [], index_buffer=buffer, index_element_size=4)
+            else:
+                buffer, mesh = grid[1], grid[2]
+            buffer.write(indices)
+            grid = self._grids[stride] = (key, buffer, mesh, indices.size)
+        return grid[2], grid[3]
 
     def _release_grids(self) -> None:
-        for indices, mesh in self._grids.values():
+        for _, indices, mesh, _ in self._grids.values():
             mesh.release()
             indices.release()
         self._grids = {}
@@ -384,22 +389,31 @@ class GLRGBDImage(GLPeer):
             self.upload(ctx)
         if not self._ready or self._pinhole is None:
             return
-        assert self._colors is not None and self._depths is not None and self._depths.texture is not None
+        assert self._layers is not None
         model_view = view.view @ self.camera_pose(view.frame)
         stride = self.stride or automatic_stride(self._samples, view.projection @ model_view, view.viewport,
                                                  self.vertex_spacing)
+        # Everything the drawing depends on: the surface is repainted only when one of them changed.
+        key = (self._version, self._pinhole, model_view.tobytes(), view.projection.tobytes(), stride, self.max_edge)
+        self._layers.draw(ctx, view, key, partial(self._paint, ctx, model_view, view.projection, stride))
+        self.last_stride = stride
+
+    def _paint(self, ctx: moderngl.Context, model_view: np.ndarray, projection: np.ndarray, stride: int) -> None:
+        """Draw the surface: the grid at ``stride``, unprojected and filtered in the shaders."""
+        assert self._program is not None and self._colors is not None and self._depths is not None
+        assert self._depths.texture is not None
         program = self._program
         program["layers"] = self._depths.layers
         program["stride"] = stride
         program["depth_unit"] = self._depths.depth_unit
         program["intrinsics"] = self._pinhole
-        program["max_edge"] = self.max_edge
         uniform(program, "model_view").write(model_view.T.astype("f4").tobytes())
-        uniform(program, "projection").write(view.projection.T.astype("f4").tobytes())
+        uniform(program, "projection").write(projection.T.astype("f4").tobytes())
         self._depths.texture.use(0)
         self._colors.use(1)
-        self._grid(ctx, stride).render(moderngl.TRIANGLES)
-        self.last_stride = stride
+        mesh, count = self._triangles(ctx, stride)
+        if count:
+            mesh.render(moderngl.TRIANGLES, vertices=count)
 
     def gl_release(self) -> None:
         self._release_grids()
@@ -408,5 +422,7 @@ class GLRGBDImage(GLPeer):
         for textures in (self._colors, self._depths):
             if textures is not None:
                 textures.release()
-        self._program = self._colors = self._depths = None
-        self._grid_size, self._ready = None, False
+        if self._layers is not None:
+            self._layers.release()
+        self._program = self._colors = self._depths = self._layers = None
+        self._ready = False

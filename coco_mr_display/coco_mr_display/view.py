@@ -40,6 +40,10 @@ class RenderView:
     """x, y, width, height in pixels of the framebuffer being drawn (y from the bottom, as GL)."""
     eye: Eye = Eye.MONO
     frame: str = "world"
+    background: tuple[float, float, float, float] | None = None
+    """The clear colour (r g b a) while nothing has been drawn into this view in this frame: a peer
+    given it may replace the view's pixels outright (a copy instead of a depth-tested pass, see
+    :mod:`.layer_cache`); None once a peer has drawn (or when the drawer does not say)."""
 
     @property
     def view_projection(self) -> np.ndarray:

@@ -25,8 +25,8 @@ from coco_mr_display.camera import GLCameraManager
 from coco_mr_display.image import GLImage
 from coco_mr_display.manager import GLManager
 from coco_mr_display.pinhole import optical_view, pinhole_projection
-from coco_mr_display.rgbd import (LOD_SAMPLE, MAX_STRIDE, GLRGBDImage, automatic_stride, grid_indices,
-                                  sample_points)
+from coco_mr_display.rgbd import LOD_SAMPLE, MAX_STRIDE, GLRGBDImage, automatic_stride, sample_points
+from coco_mr_display.surface_triangles import grid_indices, kept_triangles
 from coco_mr_display.view import RenderView
 from coco_mr_vision.image import CameraIntrinsics, Image, ImageFormat
 from coco_mr_vision.rgbd import RGBDFrame
@@ -258,7 +258,7 @@ def test_stride_keeps_the_surface_with_fewer_vertices(stage):
     scene.peer.set_attribute_now("stride", 2)
     assert scene.peer.last_stride == 1, "seen from its own camera the automatic stride keeps every pixel"
     rgb, depth = scene.frame(view)  # no new frame: the grid alone is rebuilt
-    assert scene.peer.last_stride == 2 and scene.peer._grids[2][0].size == grid_indices(320, 240).nbytes
+    assert scene.peer.last_stride == 2 and 0 < scene.peer._grids[2][3] <= grid_indices(320, 240).size
     both = np.isfinite(full_depth) & np.isfinite(depth)
     assert both.mean() > 0.75
     assert np.median(np.abs(depth - full_depth)[both]) < 2e-3
@@ -305,6 +305,21 @@ def test_automatic_stride_draws_the_same_surface_from_afar(stage):
     scene.peer.set_attribute_now("vertex_spacing", 2.0)
     scene.frame(view)
     assert scene.peer.last_stride >= 4
+
+
+def test_kept_triangles_leave_out_unknown_vertices_and_long_edges():
+    """A 3 x 3 grid (2 x 2 squares, 8 triangles) 1 m away, one depth pixel 1 m apart, one unknown."""
+    z = np.ones((3, 3), np.float32)
+    z[0, 2] = 2.0  # top right: the edges to it are ~1 m long
+    z[2, 0] = np.nan  # bottom left: unknown
+    all_of = grid_indices(3, 3).reshape(-1, 3).tolist()
+    kept = kept_triangles(z, 1, (100.0, 100.0, 1.0, 1.0), 0.5).reshape(-1, 3).tolist()
+    # Two triangles per square, squares row by row: the top right square's touch the far pixel, the
+    # bottom left square's the unknown one.
+    assert kept == [all_of[i] for i in (0, 1, 6, 7)]
+    without_limit = kept_triangles(z, 1, (100.0, 100.0, 1.0, 1.0), 0.0).reshape(-1, 3).tolist()
+    assert without_limit == [all_of[i] for i in (0, 1, 2, 3, 6, 7)], "no limit: only the unknown vertex drops"
+    assert kept_triangles(z[:1], 1, (100.0, 100.0, 1.0, 1.0), 0.5).size == 0
 
 
 def test_grid_triangles_are_counter_clockwise_from_the_camera():
