@@ -35,11 +35,12 @@ Per run, from the app's own ``summary.json`` (PalpationSummary) and its ``--prof
 - display frames per second: the view's display cycles over the run's time (the profile's);
 - CPU by process (the profile's ``cpu cores``: CPU time / time lived), the two cores' budget.
 
-Goals (issue 20, on this 2-core machine with its CPU renderer): median sensor-to-display latency
-<= 25 ms (a third of the paper's 75 ms); haptic p99 period error within 2x of the idle activity's,
-no deadline missed and the worst case within half a period;
-KD-tree updated at the camera's 30 Hz with every point; (issue 34) sensor-to-touchable median
-<= 40 ms. A GPU figure is not measured here.
+Goals (issue 34, on this 2-core machine with its CPU renderer; issue 20 asked a 25 ms median):
+sensor-to-display (camera acquisition to the view's pixels) median <= 60 ms, mean <= 75 ms (the
+paper's average, on twice the cores and a GPU), p99 <= 120 ms; the display >= 30 fps at the 16 ms
+period; the haptic p99 period error within 2x of the idle activity's, no deadline missed and the
+worst case within half a period; a structure for every camera frame (30 Hz) over every point, and
+sensor-to-touchable median <= 40 ms. A GPU figure is not measured here (no GPU on this machine).
 
     source install/setup.bash && .venv/bin/python bench/bench_palpation.py [--quick] [--rounds N] [--no-plot]
 """
@@ -70,7 +71,12 @@ DIAGNOSTICS = {"processes, stride 2": ["stride:=2"], "processes, no display": ["
 """Rows that say what bounds the figures, at the first display period: stride 2 (a quarter of the
 points into the touchable structure), and no view at all (what the renderer costs the
 rest). The launcher takes the last value of an argument: these override the benchmark's."""
-GOAL_LATENCY_MS = 25.0
+GOAL_LATENCY_MS = 60.0
+"""Issue 34: sensor-to-pixel median on this 2-core machine without a GPU (issue 20 asked 25 ms)."""
+GOAL_LATENCY_MEAN_MS = 75.0
+"""Issue 34: the mean, the paper's figure (an average, on a 4-core i7 with an embedded GPU)."""
+GOAL_LATENCY_P99_MS = 120.0
+GOAL_DISPLAY_FPS = 30.0
 GOAL_HAPTIC_RATIO = 2.0
 GOAL_TREE_HZ = 30.0
 GOAL_TOUCHABLE_MS = 40.0
@@ -183,7 +189,8 @@ def run_app(app: Path, bag: Path, period: int, stride: int, folder: Path, extra:
     haptics = facts["activities"].get("haptics", {})
     camera = summary["display_latency_ms"].get("camera", {})
     return {
-        "latency_ms": {"frames": camera.get("frames", 0), "median": camera.get("median"), "p99": camera.get("p99")},
+        "latency_ms": {"frames": camera.get("frames", 0), "median": camera.get("median"), "p99": camera.get("p99"),
+                       "mean": camera.get("mean")},
         "display_steps_ms": summary.get("display_steps_ms", {}).get("camera", {}),
         "touchable_ms": summary["kdtree"].get("latency_ms", {}),
         "touchable_steps_ms": summary["kdtree"].get("steps_ms", {}),
@@ -250,6 +257,7 @@ def combine(runs: list[dict[str, Any]]) -> dict[str, Any]:
     out["process_cores"] = {name: median(pick("process_cores", name)) for name in processes}
     out["latency_median"] = median(pick("latency_ms", "median"))
     out["latency_p99"] = median(pick("latency_ms", "p99"))
+    out["latency_mean"] = median(pick("latency_ms", "mean"))
     out["latency_frames"] = sum(v or 0 for v in pick("latency_ms", "frames"))
     out["touchable_median"] = median(pick("touchable_ms", "median"))
     out["display_steps"] = {step: median(pick("display_steps_ms", step, "median")) for step in DISPLAY_STEPS}
@@ -373,10 +381,12 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
     results: dict[str, Any] = {"idle": idle, "idle_p99_us": idle_p99, "stride": stride,
                                "session": str(bag), "conditions": {}}
     table = Table(f"Remote palpation app, {rounds} round(s), stride {stride} (medians over the rounds)",
-                  ["display", "layout", "latency p50", "p99", f"goal <= {GOAL_LATENCY_MS:.0f} ms",
+                  ["display", "layout", "latency p50", "mean", "p99",
+                   f"goal p50 <= {GOAL_LATENCY_MS:.0f}, mean <= {GOAL_LATENCY_MEAN_MS:.0f}, p99 <= {GOAL_LATENCY_P99_MS:.0f} ms",
                    "haptic rate", "haptic p99", "/ idle p99", "missed", "max",
                    f"goal <= {GOAL_HAPTIC_RATIO:.0f}x, none missed, max <= {bound_us:.0f} us",
-                   "KD-tree", "points", f"goal >= {GOAL_TREE_HZ:.0f} Hz", "display fps", "registered",
+                   "KD-tree", "points", f"goal >= {GOAL_TREE_HZ:.0f} Hz", "display fps", f"goal >= {GOAL_DISPLAY_FPS:.0f}",
+                   "registered",
                    "app CPU", "others' CPU"])
     anchor_table = Table("The haptic loop's anchors: an idle 1 kHz activity under the loop's scheduling, "
                          "alone, before each round's runs (medians over the anchors)",
@@ -408,21 +418,33 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
         cores = c["process_cores"]
         cpu_table.add(f"{period} ms", layout, *["-" if cores.get(n) is None else f"{cores[n]:.2f}" for n in cpu_names],
                       f"{sum(v for v in cores.values() if v is not None):.2f}")
-        lat = c["latency_median"]
-        table.add(f"{period} ms", layout, ms(lat), ms(c["latency_p99"]),
-                  verdict(None if lat is None else lat <= GOAL_LATENCY_MS),
+        lat, mean, p99 = c["latency_median"], c["latency_mean"], c["latency_p99"]
+        latency_ok = None if lat is None else (lat <= GOAL_LATENCY_MS and p99 is not None and p99 <= GOAL_LATENCY_P99_MS
+                                               and (mean is None or mean <= GOAL_LATENCY_MEAN_MS))
+        fps = c["display_fps"]
+        table.add(f"{period} ms", layout, ms(lat), ms(mean), ms(p99), verdict(latency_ok),
                   "-" if c["haptic_rate_hz"] is None else f"{c['haptic_rate_hz']:.0f} Hz", haptic_p99, fmt_ratio(ratio),
                   c["haptic_missed"], worst,
                   verdict(haptic_ok), f"{c['tree_hz'] or 0:.1f} Hz",
                   f"{c['tree_points'] or 0:,.0f}", verdict((c["tree_hz"] or 0) >= GOAL_TREE_HZ * 0.97),
-                  "-" if c["display_fps"] is None else f"{c['display_fps']:.1f}", c["registered"],
+                  "-" if fps is None else f"{fps:.1f}", verdict(None if fps is None else fps >= GOAL_DISPLAY_FPS * 0.97),
+                  c["registered"],
                   "n/a" if c["app_cores"] is None else f"{c['app_cores']:.2f} cores",
                   "n/a" if c["others"] is None else f"{100 * c['others']:.0f}%")
         if lat is not None:
-            verdicts.append(f"{period} ms display, {layout}: sensor-to-display median {lat:.0f} ms, "
-                            + ("PASS" if lat <= GOAL_LATENCY_MS else f"MISS by {lat / GOAL_LATENCY_MS:.1f}x")
-                            + f" (goal {GOAL_LATENCY_MS:.0f} ms; paper 75 ms: {lat / 75:.2f}x); bound by "
+            misses = [f"{name} {value:.0f} ms > {goal:.0f} ms ({value / goal:.2f}x)"
+                      for name, value, goal in (("median", lat, GOAL_LATENCY_MS), ("mean", mean, GOAL_LATENCY_MEAN_MS),
+                                                ("p99", p99, GOAL_LATENCY_P99_MS))
+                      if value is not None and value > goal]
+            verdicts.append(f"{period} ms display, {layout}: sensor-to-display median {lat:.0f} ms, mean {ms(mean, 0)}, "
+                            f"p99 {ms(p99, 0)}: " + ("PASS" if latency_ok else f"MISS ({', '.join(misses)})")
+                            + f" (goal median {GOAL_LATENCY_MS:.0f}, mean {GOAL_LATENCY_MEAN_MS:.0f}, p99 "
+                            f"{GOAL_LATENCY_P99_MS:.0f} ms; paper 75 ms average: mean {ms(mean, 0)}); bound by "
                             + bound(c["display_steps"], c["display_shares"]))
+        if fps is not None:
+            verdicts.append(f"{period} ms display, {layout}: display {fps:.1f} fps, "
+                            + ("PASS" if fps >= GOAL_DISPLAY_FPS * 0.97 else f"MISS by {GOAL_DISPLAY_FPS / max(fps, 1e-9):.2f}x")
+                            + f" (goal {GOAL_DISPLAY_FPS:.0f} fps at the {period} ms period)")
         verdicts.append(f"{period} ms display, {layout}: haptic p99 period error "
                         f"{haptic_p99} = {fmt_ratio(ratio)} the idle activity's ({fmt_time_ns(1e3 * anchor_us)}, "
                         f"{c['anchor']}, same rounds), {c['haptic_missed']} missed, worst {worst}: "
@@ -485,7 +507,7 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
                 axis.bar(range(len(names)), heights, bottom=bottom, label=step.replace("_", " "))
                 bottom = [b + h for b, h in zip(bottom, heights)]
             if key == "display_steps":
-                axis.axhline(GOAL_LATENCY_MS, color="k", linestyle="--", linewidth=1, label="goal 25 ms")
+                axis.axhline(GOAL_LATENCY_MS, color="k", linestyle="--", linewidth=1, label=f"goal {GOAL_LATENCY_MS:.0f} ms (median)")
                 axis.axhline(75, color="grey", linestyle=":", linewidth=1, label="paper 75 ms")
             axis.set_xticks(range(len(names)), names, fontsize=8)
             axis.set_ylabel("ms")

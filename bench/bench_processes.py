@@ -185,7 +185,7 @@ def anchor(scheduling: Scheduling, seconds: float) -> dict[str, Any]:
                              open=wrap[0], close=wrap[1])
     spec = parse_application_string(text, "bench_processes_anchor.xml")
     app = build_application(spec)
-    with process_level(spec, app, plan_deployment(spec)) as processes:
+    with process_level(app, plan_deployment(spec).host()) as processes:
         app.run(seconds)
         shots = processes.snapshots() if processes is not None else None
     if shots is not None:
