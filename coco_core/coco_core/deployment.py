@@ -312,16 +312,31 @@ class Deployment:
 def plan_deployment(spec: AppSpec, rules: LaunchRules = PLAIN, host: str | None = None) -> Deployment:
     """The deployment of ``spec`` under the launch host's ``rules``: every host's part, or only
     ``host``'s (a run with ``--host``; ``--check`` plans all). Pure (the file and the rules only)."""
-    from .hosts.part import Where, host_part
+    from .hosts.part import host_part
 
     placement = Placement.of(spec)
     if not spec.hosts:
         return Deployment(spec, {"": plan_host(spec, rules, placement)}, placement)
-    where = Where.of(spec, placement)
+    where = _where(spec, placement)
     names = [host] if host is not None else [machine.name for machine in spec.hosts]
     parts = [host_part(spec, name, where) for name in names]
     return Deployment(spec, {part.part_of: plan_host(part, rules, Placement.of(part)) for part in parts}, placement,
                       where)
+
+
+def _where(spec: AppSpec, placement: Placement) -> Where:
+    """The host and process of everything in ``spec``: the process level's ``placement`` (every
+    component's process, through the activity that runs its top-level owner) with each one's host,
+    the host of that activity, or the first host for what no activity runs. Here, above both levels,
+    since each level knows only its own."""
+    from .hosts.part import Where
+
+    hosts = tuple(host.name for host in spec.hosts)
+    host_of = {activity.name: activity.host for activity in spec.activities}
+    runs = {name: activity.host for activity in spec.activities for name in activity.components}
+    return Where(hosts, {name: (host_of[name], process) for name, process in placement.of_activity.items()},
+                 {name: (runs.get(placement.top_of[name], hosts[0]), process)
+                  for name, process in placement.of_component.items()})
 
 
 def plan_host(spec: AppSpec, rules: LaunchRules, placement: Placement) -> HostDeployment:
