@@ -26,7 +26,15 @@ Who consumes which part:
   of a ``woken`` set and plans the shared-memory channels of the ``crossings``; each child applies
   its :class:`ProcessPlan`'s settings and drives its activities with :func:`drive`;
 - a launch host's own driver: the activities planned ``HOSTED`` and its process's
-  :attr:`ProcessPlan.host` settings (whatever the host runs beside the activities).
+  :attr:`ProcessPlan.host` settings (whatever the host runs beside the activities);
+- :meth:`Application.start <coco_core.application.Application.start>`, for an application built in
+  code that no launch planned: the plan of its own activities (:func:`drive_unplanned`). An activity
+  has no driver of its own choosing, so these rules live here only.
+
+The host level and the process level take their branches without knowing each other
+(:mod:`coco_core.levels` has the protocols through which the launch joins them): the planner, above
+both, cuts the hosts' parts and gives the host level every component's host and process
+(:class:`~coco_core.hosts.part.Where`).
 
 The rules, in order (``docs/processes.md`` has the measurements behind them):
 
@@ -387,11 +395,29 @@ def drive(app: Application, deployment: HostDeployment, eventfds: Mapping[str, i
     thread; woken by their eventfd of ``eventfds``, made for the plan's ``woken`` set), before the
     application starts. The launch host drives the activities the plan hosts itself."""
     for name in deployment.processes[app.process].activities:
-        placed = deployment.activities[name]
-        if placed.driving is Driving.HOSTED:
-            continue
-        driver = MainThreadDriver if placed.driving is Driving.MAIN else ThreadDriver
-        app.activities[name].drive_with(driver(eventfds[name] if placed.eventfd else None))
+        _give(app.activities[name], deployment.activities[name], eventfds)
+
+
+def drive_unplanned(app: Application) -> None:
+    """Give every activity of ``app`` that has no driver yet the one the plan of the application's
+    own activities names (:func:`of_application`, the plain host's rules): what an application built
+    in code, which no launch planned, gets from :meth:`Application.start
+    <coco_core.application.Application.start>`. So the rules (a main activity in the calling
+    thread, every other on a thread of its own) live here only, not restated by the activity; a
+    driver given before (a launch's, a launch host's own, a program's) stays."""
+    unplanned = [activity for activity in app.activities.values() if not activity.driven]
+    if unplanned:
+        plan = of_application(app)
+        for activity in unplanned:
+            _give(activity, plan.activities[activity.name], {})
+
+
+def _give(activity: Activity, placed: ActivityDeployment, eventfds: Mapping[str, int]) -> None:
+    """``activity``'s thread driver as ``placed`` says; nothing for one the launch host drives."""
+    if placed.driving is Driving.HOSTED:
+        return
+    driver = MainThreadDriver if placed.driving is Driving.MAIN else ThreadDriver
+    activity.drive_with(driver(eventfds[placed.name] if placed.eventfd else None))
 
 
 def deployed(app: Application, deployment: HostDeployment) -> None:
