@@ -11,8 +11,9 @@ again (so there is nothing left to disagree, and no cross-check at run time)::
     └── HostDeployment            one host's part (the file's whole when it declares no host)
         ├── placement             every activity's and component's process (Placement)
         ├── crossings             the connections between processes, with the activity each wakes
-        └── ProcessPlan           one process: affinity, nice, memory lock, GC, its wake set,
-            │                     what its launch host runs beside it (its own threads)
+        └── ProcessPlan           one process: its activities' real-time class (RealtimeClass),
+            │                     affinity, nice, memory lock, GC, its wake set, what its
+            │                     launch host runs beside it (its own threads)
             └── ActivityDeployment  one activity: its schedule (ActivityFacts) and its driver, and why
 
 Who consumes which part:
@@ -216,6 +217,43 @@ class ActivityDeployment:
 
 
 @dataclass(frozen=True)
+class RealtimeClass:
+    """A process's real-time class: the plan's summary of the classes its activities' threads ask
+    for (``<schedule realtime=... priority=...>``).
+
+    Linux schedules threads, not processes, and CoCo asks for a real-time class where the deadline
+    is, per activity: a ``<process realtime=...>`` would be a second place to say the same, and
+    would also put in that class the threads nobody asked for (DDS's, an executor's, the control
+    link's listener), where a busy one starves the machine and, through the GIL, the loop itself.
+    What a user reads at the process level is the summary: which process holds real-time threads,
+    the highest class among them (what the process needs: root, ``CAP_SYS_NICE`` or a real-time
+    budget, and usually its memory locked beside it), and which activities ask."""
+
+    policy: str
+    """``FIFO`` or ``RR``: the highest class's."""
+    priority: int | None
+    """The highest priority asked (None: none named, the OS's lowest)."""
+    activities: tuple[str, ...]
+    """Every activity of the process that asks for a real-time class, in file order."""
+
+    @classmethod
+    def of(cls, activities: Iterable[ActivityDeployment]) -> RealtimeClass | None:
+        """The class of a process that runs ``activities``; None when none asks for one."""
+        asking = [placed for placed in activities if placed.facts.scheduling.realtime != "none"]
+        if not asking:
+            return None
+        highest = max(asking, key=lambda placed: (placed.facts.scheduling.priority or 0,
+                                                  placed.facts.scheduling.realtime == "FIFO"))
+        return cls(highest.facts.scheduling.realtime, highest.facts.scheduling.priority,
+                   tuple(placed.name for placed in asking))
+
+    def describe(self) -> str:
+        """``real-time SCHED_FIFO priority 80 (haptics)``: the highest class, and who asks."""
+        priority = f" priority {self.priority}" if self.priority is not None else ""
+        return f"real-time SCHED_{self.policy}{priority} ({', '.join(self.activities)})"
+
+
+@dataclass(frozen=True)
 class ProcessPlan:
     """One process of a host: the launcher's (``""``, no ``<process>``) or a child. Its settings are
     applied by the child itself (:mod:`coco_core.processes.child`), from here, not from the file."""
@@ -233,24 +271,42 @@ class ProcessPlan:
     """Its activities that a write in another process wakes: each gets an eventfd and a thread."""
     host: HostSettings | None = None
     """What the launch host runs beside the activities (:meth:`LaunchRules.settings`)."""
+    realtime: RealtimeClass | None = None
+    """The real-time class of its activities' threads, summed up (see :class:`RealtimeClass` for why
+    a summary and not a setting of its own); None: every thread in the normal class."""
 
     @classmethod
-    def of(cls, spec: ProcessSpec | None, name: str, activities: Iterable[str], woken: Iterable[str],
+    def of(cls, spec: ProcessSpec | None, name: str, activities: Sequence[ActivityDeployment],
            host: HostSettings | None) -> ProcessPlan:
+        """The plan of process ``name`` (``spec``: its ``<process>``; None: the launcher's) that runs
+        ``activities``, planned."""
+        names = tuple(placed.name for placed in activities)
+        woken = frozenset(placed.name for placed in activities if placed.eventfd)
+        realtime = RealtimeClass.of(activities)
         if spec is None:
-            return cls(name, tuple(activities), woken=frozenset(woken), host=host)
-        return cls(name, tuple(activities), tuple(spec.affinity), spec.nice, spec.lock_memory, spec.gc,
-                   frozenset(woken), host)
+            return cls(name, names, woken=woken, host=host, realtime=realtime)
+        return cls(name, names, tuple(spec.affinity), spec.nice, spec.lock_memory, spec.gc, woken, host, realtime)
+
+    @property
+    def asks_nothing(self) -> bool:
+        """Whether the process asks nothing of the OS or the launch host beyond what its activities
+        ask each (a one-process application's tree then lists its activities alone)."""
+        return not self._settings()
 
     def describe(self) -> str:
-        """``affinity 2,3, nice -5, memory locked, gc between cycles, ...``: what it asks beyond the
+        """``real-time SCHED_FIFO priority 80 (haptics), affinity 2,3, nice -5, memory locked, gc
+        between cycles, ...``: its activities' real-time class, then what it asks beyond the
         defaults, the launch host's settings last."""
+        return ", ".join([self.realtime.describe()] + self._settings() if self.realtime is not None
+                         else self._settings())
+
+    def _settings(self) -> list[str]:
         words = [f"affinity {','.join(map(str, self.affinity))}" if self.affinity else "",
                  f"nice {self.nice}" if self.nice is not None else "",
                  "memory locked" if self.lock_memory else "",
                  "gc between cycles" if self.gc == "between_cycles" else "",
                  self.host.describe() if self.host is not None else ""]
-        return ", ".join(word for word in words if word)
+        return [word for word in words if word]
 
 
 @dataclass(frozen=True)
@@ -361,8 +417,7 @@ def plan_host(spec: AppSpec, rules: LaunchRules, placement: Placement) -> HostDe
     for name in [LAUNCHER, *children]:
         own = [a for a in planned.values() if a.process == name]
         stand_ins = len(planned) - len(own) if name == LAUNCHER else 0
-        processes[name] = ProcessPlan.of(children.get(name), name, (a.name for a in own),
-                                         (a.name for a in own if a.eventfd), rules.settings(own, stand_ins))
+        processes[name] = ProcessPlan.of(children.get(name), name, own, rules.settings(own, stand_ins))
     return HostDeployment(spec, rules.describe(), placement, crossed, processes, planned)
 
 
@@ -386,7 +441,7 @@ def of_application(app: Application, rules: LaunchRules = PLAIN) -> HostDeployme
     rules.check([f.name for f in facts])
     planned = {f.name: _place(f, False, rules) for f in facts}
     own = [a for a in planned.values() if a.process == app.process]
-    process = ProcessPlan(app.process, tuple(a.name for a in own), host=rules.settings(own, len(planned) - len(own)))
+    process = ProcessPlan.of(None, app.process, own, rules.settings(own, len(planned) - len(own)))
     return HostDeployment(AppSpec(name=app.name), rules.describe(), Placement(), (), {app.process: process}, planned)
 
 
