@@ -46,7 +46,9 @@ The rules, in order (``docs/processes.md`` has the measurements behind them):
 - every other activity: the launch host's rules (:meth:`LaunchRules.decide`) say whether the host
   runs it with a driver of its own (``HOSTED``) or it has a thread of its own. The plain host
   (``coco-launch``, :class:`PlainRules`) gives every activity a thread; another launch host plugs
-  its own rules in, from its own package, with its own words for what it hosts.
+  its own rules in, from its own package, with its own words for what it hosts;
+- a process's real-time class is its activities' summed up (:class:`RealtimeClass`, which says why
+  it is no setting of the process's own).
 """
 
 from __future__ import annotations
