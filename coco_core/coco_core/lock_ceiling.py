@@ -4,10 +4,11 @@ Why: a thread of CPython runs Python only while it holds the process's one inter
 lock has no priority inheritance. A 1 kHz loop in SCHED_FIFO that wakes while another thread of its
 process holds the lock sleeps until that thread lets go, and that thread, in the normal class, waits
 for a core behind every normal thread of the machine: on the loaded 2-core machine of issue 34 a
-scheduler trace of the palpation app showed the haptic loop asleep 3-8 ms at a time, woken each time
-by another thread of its own process handing the lock back (the relay that moves the search
-structures, the control link), 9-31 deadlines missed a run with a worst case of 9-20 ms while the
-same loop alone in its process missed none. Two causes add up:
+scheduler trace of the palpation app showed the haptic loop asleep 2-9.6 ms at a time, woken each time
+by another thread of its own process handing the lock back (most likely the relay that moves the
+search structures), a thread that had been runnable but preempted by other processes meanwhile:
+9-31 deadlines missed a run with a worst case of 9-20 ms, while the same loop alone in its process
+missed none. Two causes add up:
 
 - priority inversion: the holder is preempted by normal work elsewhere while the loop waits for it;
 - CPython's switch interval: a waiting thread asks the holder to let go only after 5 ms, so a holder
