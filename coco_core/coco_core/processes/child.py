@@ -35,6 +35,7 @@ from ..hosts.level import ends_between_hosts
 from ..hosts.session import matched
 from ..hosts.transport import Ends
 from ..launcher import stopped_by_a_failure
+from ..lock_ceiling import describe as describe_ceiling, raise_lock_holders, realtime_priorities
 from ..memory_lock import lock_memory
 from ..report import snapshot
 from ..signals import signal_watcher
@@ -146,6 +147,11 @@ class ChildProcess:
         apply_process_placement(settings.affinity, settings.nice)
         if settings.lock_memory and (refused := lock_memory()):
             log.warning("process %s: %s", process, refused)
+        ceiling, refusals = raise_lock_holders(realtime_priorities(spec.activities, process))
+        for refusal in refusals:
+            log.warning("process %s: %s", process, refusal)
+        if ceiling:
+            log.info("process %s: %s", process, describe_ceiling())
         try:
             app = self.app = build_application(spec, process, placement=deployment.placement)
             app.measure_ages = config.measure_ages
