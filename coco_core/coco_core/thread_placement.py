@@ -15,6 +15,9 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from .model import ScheduleSpec
 
+REALTIME_CLASSES = ("FIFO", "RR")
+"""The real-time scheduling classes a ``<schedule realtime=...>`` may ask for."""
+
 
 @dataclass
 class SchedulingRequest:
@@ -84,8 +87,8 @@ def apply_to_current_thread(request: SchedulingRequest, reserved: set[int]) -> l
             os.sched_setaffinity(0, wanted)  # 0: the calling thread on Linux
         except OSError as error:
             warnings.append(f"affinity {sorted(wanted)} refused by the OS: {error.strerror}")
-    if request.realtime in ("FIFO", "RR"):
-        warnings.extend(_set_realtime(request.realtime, request.priority))
+    if request.realtime in REALTIME_CLASSES:
+        warnings.extend(set_realtime(request.realtime, request.priority))
     elif request.priority is not None:
         warnings.append(f"priority {request.priority} ignored: it needs realtime=\"FIFO\" or \"RR\" "
                         "(use nice for normal threads)")
@@ -98,7 +101,9 @@ def apply_to_current_thread(request: SchedulingRequest, reserved: set[int]) -> l
     return warnings
 
 
-def _set_realtime(kind: str, priority: int | None) -> list[str]:
+def set_realtime(kind: str, priority: int | None) -> list[str]:
+    """Put the calling thread in real-time class ``kind`` (FIFO or RR) at ``priority`` (the lowest when
+    None); the OS's refusal as a warning. Threads it starts afterwards inherit the class."""
     if not hasattr(os, "sched_setscheduler"):
         return [f"realtime {kind} is not available on this OS"]
     policy = os.SCHED_FIFO if kind == "FIFO" else os.SCHED_RR

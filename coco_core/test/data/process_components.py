@@ -207,3 +207,29 @@ class CycleGarbage(Component):
 
         self.states.append(self.state())
         Path(self.path).write_text(json.dumps(self.states))
+
+
+class SchedulingProbe(Component):
+    """Writes to ``path`` (JSON), at its first update, how the OS schedules the thread that runs it
+    (class and real-time priority) and its process's interpreter switch interval; then stops the
+    application when ``stop_after_probe`` is set."""
+
+    path = Attribute(str, "scheduling.json", "output file")
+    stop_after_probe = Attribute(bool, False, "stop the application after the first update")
+
+    def on_config(self) -> None:
+        self.done = False
+
+    def on_update(self) -> None:
+        import json
+        import sys
+
+        if self.done:
+            return
+        self.done = True
+        policy = os.sched_getscheduler(0)  # 0: the calling thread on Linux
+        Path(self.path).write_text(json.dumps({
+            "fifo": policy == os.SCHED_FIFO, "priority": os.sched_getparam(0).sched_priority,
+            "switch_interval": sys.getswitchinterval()}))
+        if self.stop_after_probe and self.app is not None:
+            self.app.request_stop(f"{self.name}: probed")
