@@ -60,6 +60,7 @@ from typing import TYPE_CHECKING, Iterable, Mapping, Protocol, Sequence
 from . import registry
 from .drivers import Driving, MainThreadDriver, ThreadDriver
 from .errors import CocoError
+from .lock_ceiling import CEILING_PRIORITY, applies as ceiling_applies
 from .model import ActivitySpec, AppSpec, ComponentSpec, ProcessSpec
 from .processes.channels import Crossing, crossings
 from .processes.placement import LAUNCHER, Placement
@@ -221,15 +222,18 @@ class ActivityDeployment:
 @dataclass(frozen=True)
 class RealtimeClass:
     """A process's real-time class: the plan's summary of the classes its activities' threads ask
-    for (``<schedule realtime=... priority=...>``).
+    for (``<schedule realtime=... priority=...>``), and what follows from them for its other threads.
 
     Linux schedules threads, not processes, and CoCo asks for a real-time class where the deadline
-    is, per activity: a ``<process realtime=...>`` would be a second place to say the same, and
-    would also put in that class the threads nobody asked for (DDS's, an executor's, the control
-    link's listener), where a busy one starves the machine and, through the GIL, the loop itself.
-    What a user reads at the process level is the summary: which process holds real-time threads,
-    the highest class among them (what the process needs: root, ``CAP_SYS_NICE`` or a real-time
-    budget, and usually its memory locked beside it), and which activities ask."""
+    is, per activity; the rest of a real-time process follows from that: its other threads take the
+    interpreter lock's ceiling (:mod:`coco_core.lock_ceiling`: the lowest real-time priority, below
+    its loops, so a loop never waits for the lock behind the machine's normal work). A ``<process
+    realtime=...>`` would be a second place to say it, with a rule for which wins, and could
+    contradict the ceiling (other threads at the loop's priority or above: the loop then waits for
+    them). So the plan derives the process's class once, from its activities: ``--check`` prints it
+    on the process's line (which process holds real-time threads, at what priority, so which needs
+    root, ``CAP_SYS_NICE`` or a real-time budget, and usually its memory locked beside it), and the
+    child applies the ceiling from it (:mod:`coco_core.processes.child`), not from the file."""
 
     policy: str
     """``FIFO`` or ``RR``: the highest class's."""
@@ -237,22 +241,32 @@ class RealtimeClass:
     """The highest priority asked (None: none named, the OS's lowest)."""
     activities: tuple[str, ...]
     """Every activity of the process that asks for a real-time class, in file order."""
+    priorities: tuple[int, ...]
+    """Each one's priority (the lowest, :data:`~coco_core.lock_ceiling.CEILING_PRIORITY`, where it
+    names none, as the OS applies it)."""
+    ceiling: bool
+    """Whether the process's other threads take the interpreter lock's ceiling
+    (:mod:`coco_core.lock_ceiling`): a ``<process>``'s (the launcher's own runs everything else of
+    the application) whose real-time activities leave room below them. Its child applies it."""
 
     @classmethod
-    def of(cls, activities: Iterable[ActivityDeployment]) -> RealtimeClass | None:
-        """The class of a process that runs ``activities``; None when none asks for one."""
-        asking = [placed for placed in activities if placed.facts.scheduling.realtime != "none"]
+    def of(cls, activities: Iterable[ActivityDeployment], child: bool) -> RealtimeClass | None:
+        """The class of a process that runs ``activities`` (``child``: a ``<process>``, not the
+        launcher's own); None when none asks for one."""
+        asking = [placed.facts for placed in activities if placed.facts.scheduling.realtime != "none"]
         if not asking:
             return None
-        highest = max(asking, key=lambda placed: (placed.facts.scheduling.priority or 0,
-                                                  placed.facts.scheduling.realtime == "FIFO"))
-        return cls(highest.facts.scheduling.realtime, highest.facts.scheduling.priority,
-                   tuple(placed.name for placed in asking))
+        highest = max(asking, key=lambda facts: (facts.scheduling.priority or 0, facts.scheduling.realtime == "FIFO"))
+        priorities = tuple(facts.scheduling.priority or CEILING_PRIORITY for facts in asking)
+        return cls(highest.scheduling.realtime, highest.scheduling.priority, tuple(facts.name for facts in asking),
+                   priorities, child and ceiling_applies(priorities))
 
     def describe(self) -> str:
-        """``real-time SCHED_FIFO priority 80 (haptics)``: the highest class, and who asks."""
+        """``real-time SCHED_FIFO priority 80 (haptics), other threads SCHED_FIFO 1 (the lock's
+        ceiling)``: the highest class, who asks, and the ceiling when the process takes it."""
         priority = f" priority {self.priority}" if self.priority is not None else ""
-        return f"real-time SCHED_{self.policy}{priority} ({', '.join(self.activities)})"
+        ceiling = f", other threads SCHED_FIFO {CEILING_PRIORITY} (the lock's ceiling)" if self.ceiling else ""
+        return f"real-time SCHED_{self.policy}{priority} ({', '.join(self.activities)}){ceiling}"
 
 
 @dataclass(frozen=True)
@@ -284,7 +298,7 @@ class ProcessPlan:
         ``activities``, planned."""
         names = tuple(placed.name for placed in activities)
         woken = frozenset(placed.name for placed in activities if placed.eventfd)
-        realtime = RealtimeClass.of(activities)
+        realtime = RealtimeClass.of(activities, spec is not None)
         if spec is None:
             return cls(name, names, woken=woken, host=host, realtime=realtime)
         return cls(name, names, tuple(spec.affinity), spec.nice, spec.lock_memory, spec.gc, woken, host, realtime)

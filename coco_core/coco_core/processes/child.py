@@ -34,7 +34,7 @@ from ..garbage import GarbageBetweenCycles
 from ..calls import serve_call
 from ..launcher import stopped_by_a_failure
 from ..levels import Ends
-from ..lock_ceiling import describe as describe_ceiling, raise_lock_holders, realtime_priorities
+from ..lock_ceiling import describe as describe_ceiling, raise_lock_holders
 from ..memory_lock import lock_memory
 from ..messages import Call, Damage, Outcome
 from ..report import snapshot
@@ -145,7 +145,7 @@ class ChildProcess:
         apply_process_placement(settings.affinity, settings.nice)
         if settings.lock_memory and (refused := lock_memory()):
             log.warning("process %s: %s", process, refused)
-        ceiling, refusals = raise_lock_holders(realtime_priorities(spec.activities, process))
+        ceiling, refusals = raise_lock_holders(settings.realtime.priorities if settings.realtime is not None else ())
         for refusal in refusals:
             log.warning("process %s: %s", process, refusal)
         if ceiling:
