@@ -231,7 +231,7 @@ import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from coco_core.hosts.channel import topic_of
 from coco_core.hosts.messages import Heartbeat, Stage
-from coco_core.processes.messages import Call
+from coco_core.messages import Call
 from coco_core.stamps import Stamp, Stamped
 from coco_core.wire import Encoder
 from coco_interfaces.msg import HostMessage, Sample

@@ -8,9 +8,13 @@ so components only ever see their state touched by their own activity.
 What an activity *is* lives here: its components, operation queue, the three steps of its life
 (``configure``, ``cycle``, ``finish``), its stats and its schedule. What *drives* it (a thread of its
 own, the launcher's main thread, an rclpy executor, ...) is a separate :mod:`driver
-<coco_core.drivers>` object, chosen before the activity starts; the activity's ``wake``, ``stop``,
-``set_period`` and ``join`` go to that driver, so nothing that talks to an activity knows what drives
-it.
+<coco_core.drivers>` object, given before the activity starts (:meth:`Activity.drive_with`); the
+activity's ``wake``, ``stop``, ``set_period`` and ``join`` go to that driver, so nothing that talks to
+an activity knows what drives it. Which driver is the deployment plan's word alone
+(:mod:`coco_core.deployment`): an activity has none until it is given one, by its launch
+(:func:`coco_core.deployment.drive`, a launch host's own driver) or, for an application built in
+code, by :meth:`Application.start <coco_core.application.Application.start>` from the plan of the
+application's own activities.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from collections import deque
 from typing import TYPE_CHECKING, Callable, Iterable
 
 from .component import Component
-from .drivers import Driver, MainThreadDriver, ThreadDriver
+from .drivers import Driver, ThreadDriver
 from .errors import ActivityError
 from .garbage import GarbageBetweenCycles
 from .lifecycle import StartGate
@@ -65,7 +69,11 @@ class Activity:
         self._position = sys.maxsize
         """Index of ``current`` in ``components`` during a cycle; ``sys.maxsize`` between cycles."""
         self._ops: deque[Callable[[], None]] = deque()
-        self._driver: Driver = MainThreadDriver() if main else ThreadDriver()
+        self._driver: Driver | None = None
+        """None until the plan's driver is given (:meth:`drive_with`)."""
+        self._woken = False
+        """A wake-up (data, a queued call) that came before the activity had a driver: handed to the
+        driver it is given."""
         self._stopping = False
         self._drain = False
         """Whether the stop is natural and this activity's feeders have finished: see :meth:`stop`."""
@@ -101,22 +109,30 @@ class Activity:
         self._bind_wake(len(self.components) - 1, component)
 
     @property
-    def driver(self) -> Driver:
-        """What drives this activity (a :class:`~coco_core.drivers.ThreadDriver` unless a host chose
-        another with :meth:`drive_with`)."""
+    def driver(self) -> Driver | None:
+        """What drives this activity: the one the deployment plan names (:meth:`drive_with`); None
+        before it was given one."""
         return self._driver
 
+    @property
+    def driven(self) -> bool:
+        """Whether the activity was given its driver."""
+        return self._driver is not None
+
     def drive_with(self, driver: Driver) -> None:
-        """Have ``driver`` drive this activity instead of its own thread; before :meth:`start` only.
-        A wake-up already pending (data written before the start) is handed to the new driver."""
+        """Have ``driver`` drive this activity; before :meth:`start` only. A wake-up already pending
+        (data written before the start) is handed to the new driver."""
         if self._started:
             raise ActivityError(f"activity {self.name} already started: its driver cannot change")
-        pending = self._driver.wake_pending
-        self._driver = driver
+        pending = self.wake_pending
+        self._driver, self._woken = driver, False
         if pending:
             driver.wake()
         for position, component in enumerate(self.components):
             self._bind_wake(position, component)
+
+    def _wake_before_driven(self) -> None:
+        self._woken = True
 
     def _bind_wake(self, position: int, component: Component) -> None:
         """Let every input of ``component`` (at ``position`` in the order) and its peers wake this
@@ -133,7 +149,7 @@ class Activity:
         data gets a cycle of its own. Without this, every pipeline in one activity ran one empty cycle
         after each real one. ``_position`` only grows during a cycle, and the data is stored before
         the wake-up, so a skipped wake-up's data is always read."""
-        wake = self._driver.wake
+        wake = self._driver.wake if self._driver is not None else self._wake_before_driven
 
         def waker() -> None:
             if position <= self._position:
@@ -170,12 +186,13 @@ class Activity:
         last one was due (at once if that is already past), and the time grid continues from there.
         The one path to a new period: it is checked here, then the driver applies it."""
         self.schedule = self.schedule.with_period(period, f"activity {self.name}: ")
-        self._driver.set_period(period)
+        if self._driver is not None:  # else its driver reads the new period when it starts
+            self._driver.set_period(period)
 
     @property
     def wake_pending(self) -> bool:
         """Whether a wake-up (data, a queued call) is waiting for a cycle that has not begun."""
-        return self._driver.wake_pending
+        return self._driver.wake_pending if self._driver is not None else self._woken
 
     def wait_finished(self, timeout: float | None = None) -> bool:
         """Block until :meth:`finish` ran; False on timeout (for drivers' ``join``)."""
@@ -186,10 +203,14 @@ class Activity:
         """Hand the activity to its driver (a main activity's driver waits for :meth:`run_here`)."""
         if self._started:
             raise ActivityError(f"activity {self.name} was already started")
+        driver = self._driver
+        if driver is None:
+            raise ActivityError(f"activity {self.name} has no driver: the deployment plan gives it one "
+                                "(Application.start, or a launch's coco_core.deployment.drive)")
         self._started = True
         for position, component in enumerate(self.components):  # ports and peers may have been added
             self._bind_wake(position, component)
-        self._driver.start(self)
+        driver.start(self)
 
     def run_here(self) -> None:
         """Run the activity in the calling thread until it stops (the main activity)."""
@@ -320,7 +341,10 @@ class Activity:
         """Ask a triggered activity for one more cycle (what event ports call on new data). Data on
         an event port does not advance a periodic activity: it is read at the next cycle."""
         if self.schedule.period is None:
-            self._driver.wake()
+            if self._driver is not None:
+                self._driver.wake()
+            else:
+                self._wake_before_driven()
 
     def stop(self, drain: bool = False) -> None:
         """Ask the activity to finish its current cycle and stop; returns at once.
@@ -331,11 +355,12 @@ class Activity:
         self._drain = drain
         self._stopping = True
         self._may_run.set()  # an activity waiting for the start gate finishes instead
-        self._driver.stop()
+        if self._driver is not None:  # else nothing runs it: there is nothing to end
+            self._driver.stop()
 
     def join(self, timeout: float | None = None) -> bool:
         """Wait until the activity has finished; False on timeout."""
-        return self._driver.join(timeout)
+        return self._driver.join(timeout) if self._driver is not None else True
 
     def describe(self) -> str:
         return self.schedule.describe()

@@ -15,6 +15,7 @@ from typing import Callable, Protocol, Union, get_args, get_origin
 from .activity import Activity
 from .component import Component, ErrorPolicy, UnknownNameError
 from .connections import Connection, End, make_connection
+from .deployment import drive_unplanned
 from .filters import Filter
 from .filters import Router as RoutingFilter
 from .hosts.auth import Refusals
@@ -348,6 +349,7 @@ class Application:
         if self.measure_ages:
             for connection in self.connections:
                 connection.measure_ages(MessageAges())
+        drive_unplanned(self)  # an application built in code: the plan of its own activities drives them
         reserved = self._exclusive_cores()
         self.gate.expect(self.activities)
         for component in self.unscheduled():

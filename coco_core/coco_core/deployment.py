@@ -11,8 +11,9 @@ again (so there is nothing left to disagree, and no cross-check at run time)::
     └── HostDeployment            one host's part (the file's whole when it declares no host)
         ├── placement             every activity's and component's process (Placement)
         ├── crossings             the connections between processes, with the activity each wakes
-        └── ProcessPlan           one process: affinity, nice, memory lock, GC, its wake set,
-            │                     what its launch host runs beside it (its own threads)
+        └── ProcessPlan           one process: its activities' real-time class (RealtimeClass),
+            │                     affinity, nice, memory lock, GC, its wake set, what its
+            │                     launch host runs beside it (its own threads)
             └── ActivityDeployment  one activity: its schedule (ActivityFacts) and its driver, and why
 
 Who consumes which part:
@@ -26,7 +27,15 @@ Who consumes which part:
   of a ``woken`` set and plans the shared-memory channels of the ``crossings``; each child applies
   its :class:`ProcessPlan`'s settings and drives its activities with :func:`drive`;
 - a launch host's own driver: the activities planned ``HOSTED`` and its process's
-  :attr:`ProcessPlan.host` settings (whatever the host runs beside the activities).
+  :attr:`ProcessPlan.host` settings (whatever the host runs beside the activities);
+- :meth:`Application.start <coco_core.application.Application.start>`, for an application built in
+  code that no launch planned: the plan of its own activities (:func:`drive_unplanned`). An activity
+  has no driver of its own choosing, so these rules live here only.
+
+The host level and the process level take their branches without knowing each other
+(:mod:`coco_core.levels` has the protocols through which the launch joins them): the planner, above
+both, cuts the hosts' parts and gives the host level every component's host and process
+(:class:`~coco_core.hosts.part.Where`).
 
 The rules, in order (``docs/processes.md`` has the measurements behind them):
 
@@ -37,7 +46,9 @@ The rules, in order (``docs/processes.md`` has the measurements behind them):
 - every other activity: the launch host's rules (:meth:`LaunchRules.decide`) say whether the host
   runs it with a driver of its own (``HOSTED``) or it has a thread of its own. The plain host
   (``coco-launch``, :class:`PlainRules`) gives every activity a thread; another launch host plugs
-  its own rules in, from its own package, with its own words for what it hosts.
+  its own rules in, from its own package, with its own words for what it hosts;
+- a process's real-time class is its activities' summed up (:class:`RealtimeClass`, which says why
+  it is no setting of the process's own).
 """
 
 from __future__ import annotations
@@ -49,6 +60,7 @@ from typing import TYPE_CHECKING, Iterable, Mapping, Protocol, Sequence
 from . import registry
 from .drivers import Driving, MainThreadDriver, ThreadDriver
 from .errors import CocoError
+from .lock_ceiling import CEILING_PRIORITY, applies as ceiling_applies
 from .model import ActivitySpec, AppSpec, ComponentSpec, ProcessSpec
 from .processes.channels import Crossing, crossings
 from .processes.placement import LAUNCHER, Placement
@@ -208,6 +220,56 @@ class ActivityDeployment:
 
 
 @dataclass(frozen=True)
+class RealtimeClass:
+    """A process's real-time class: the plan's summary of the classes its activities' threads ask
+    for (``<schedule realtime=... priority=...>``), and what follows from them for its other threads.
+
+    Linux schedules threads, not processes, and CoCo asks for a real-time class where the deadline
+    is, per activity; the rest of a real-time process follows from that: its other threads take the
+    interpreter lock's ceiling (:mod:`coco_core.lock_ceiling`: the lowest real-time priority, below
+    its loops, so a loop never waits for the lock behind the machine's normal work). A ``<process
+    realtime=...>`` would be a second place to say it, with a rule for which wins, and could
+    contradict the ceiling (other threads at the loop's priority or above: the loop then waits for
+    them). So the plan derives the process's class once, from its activities: ``--check`` prints it
+    on the process's line (which process holds real-time threads, at what priority, so which needs
+    root, ``CAP_SYS_NICE`` or a real-time budget, and usually its memory locked beside it), and the
+    child applies the ceiling from it (:mod:`coco_core.processes.child`), not from the file."""
+
+    policy: str
+    """``FIFO`` or ``RR``: the highest class's."""
+    priority: int | None
+    """The highest priority asked (None: none named, the OS's lowest)."""
+    activities: tuple[str, ...]
+    """Every activity of the process that asks for a real-time class, in file order."""
+    priorities: tuple[int, ...]
+    """Each one's priority (the lowest, :data:`~coco_core.lock_ceiling.CEILING_PRIORITY`, where it
+    names none, as the OS applies it)."""
+    ceiling: bool
+    """Whether the process's other threads take the interpreter lock's ceiling
+    (:mod:`coco_core.lock_ceiling`): a ``<process>``'s (the launcher's own runs everything else of
+    the application) whose real-time activities leave room below them. Its child applies it."""
+
+    @classmethod
+    def of(cls, activities: Iterable[ActivityDeployment], child: bool) -> RealtimeClass | None:
+        """The class of a process that runs ``activities`` (``child``: a ``<process>``, not the
+        launcher's own); None when none asks for one."""
+        asking = [placed.facts for placed in activities if placed.facts.scheduling.realtime != "none"]
+        if not asking:
+            return None
+        highest = max(asking, key=lambda facts: (facts.scheduling.priority or 0, facts.scheduling.realtime == "FIFO"))
+        priorities = tuple(facts.scheduling.priority or CEILING_PRIORITY for facts in asking)
+        return cls(highest.scheduling.realtime, highest.scheduling.priority, tuple(facts.name for facts in asking),
+                   priorities, child and ceiling_applies(priorities))
+
+    def describe(self) -> str:
+        """``real-time SCHED_FIFO priority 80 (haptics), other threads SCHED_FIFO 1 (the lock's
+        ceiling)``: the highest class, who asks, and the ceiling when the process takes it."""
+        priority = f" priority {self.priority}" if self.priority is not None else ""
+        ceiling = f", other threads SCHED_FIFO {CEILING_PRIORITY} (the lock's ceiling)" if self.ceiling else ""
+        return f"real-time SCHED_{self.policy}{priority} ({', '.join(self.activities)}){ceiling}"
+
+
+@dataclass(frozen=True)
 class ProcessPlan:
     """One process of a host: the launcher's (``""``, no ``<process>``) or a child. Its settings are
     applied by the child itself (:mod:`coco_core.processes.child`), from here, not from the file."""
@@ -225,24 +287,42 @@ class ProcessPlan:
     """Its activities that a write in another process wakes: each gets an eventfd and a thread."""
     host: HostSettings | None = None
     """What the launch host runs beside the activities (:meth:`LaunchRules.settings`)."""
+    realtime: RealtimeClass | None = None
+    """The real-time class of its activities' threads, summed up (see :class:`RealtimeClass` for why
+    a summary and not a setting of its own); None: every thread in the normal class."""
 
     @classmethod
-    def of(cls, spec: ProcessSpec | None, name: str, activities: Iterable[str], woken: Iterable[str],
+    def of(cls, spec: ProcessSpec | None, name: str, activities: Sequence[ActivityDeployment],
            host: HostSettings | None) -> ProcessPlan:
+        """The plan of process ``name`` (``spec``: its ``<process>``; None: the launcher's) that runs
+        ``activities``, planned."""
+        names = tuple(placed.name for placed in activities)
+        woken = frozenset(placed.name for placed in activities if placed.eventfd)
+        realtime = RealtimeClass.of(activities, spec is not None)
         if spec is None:
-            return cls(name, tuple(activities), woken=frozenset(woken), host=host)
-        return cls(name, tuple(activities), tuple(spec.affinity), spec.nice, spec.lock_memory, spec.gc,
-                   frozenset(woken), host)
+            return cls(name, names, woken=woken, host=host, realtime=realtime)
+        return cls(name, names, tuple(spec.affinity), spec.nice, spec.lock_memory, spec.gc, woken, host, realtime)
+
+    @property
+    def asks_nothing(self) -> bool:
+        """Whether the process asks nothing of the OS or the launch host beyond what its activities
+        ask each (a one-process application's tree then lists its activities alone)."""
+        return not self._settings()
 
     def describe(self) -> str:
-        """``affinity 2,3, nice -5, memory locked, gc between cycles, ...``: what it asks beyond the
+        """``real-time SCHED_FIFO priority 80 (haptics), affinity 2,3, nice -5, memory locked, gc
+        between cycles, ...``: its activities' real-time class, then what it asks beyond the
         defaults, the launch host's settings last."""
+        return ", ".join([self.realtime.describe()] + self._settings() if self.realtime is not None
+                         else self._settings())
+
+    def _settings(self) -> list[str]:
         words = [f"affinity {','.join(map(str, self.affinity))}" if self.affinity else "",
                  f"nice {self.nice}" if self.nice is not None else "",
                  "memory locked" if self.lock_memory else "",
                  "gc between cycles" if self.gc == "between_cycles" else "",
                  self.host.describe() if self.host is not None else ""]
-        return ", ".join(word for word in words if word)
+        return [word for word in words if word]
 
 
 @dataclass(frozen=True)
@@ -312,16 +392,31 @@ class Deployment:
 def plan_deployment(spec: AppSpec, rules: LaunchRules = PLAIN, host: str | None = None) -> Deployment:
     """The deployment of ``spec`` under the launch host's ``rules``: every host's part, or only
     ``host``'s (a run with ``--host``; ``--check`` plans all). Pure (the file and the rules only)."""
-    from .hosts.part import Where, host_part
+    from .hosts.part import host_part
 
     placement = Placement.of(spec)
     if not spec.hosts:
         return Deployment(spec, {"": plan_host(spec, rules, placement)}, placement)
-    where = Where.of(spec, placement)
+    where = _where(spec, placement)
     names = [host] if host is not None else [machine.name for machine in spec.hosts]
     parts = [host_part(spec, name, where) for name in names]
     return Deployment(spec, {part.part_of: plan_host(part, rules, Placement.of(part)) for part in parts}, placement,
                       where)
+
+
+def _where(spec: AppSpec, placement: Placement) -> Where:
+    """The host and process of everything in ``spec``: the process level's ``placement`` (every
+    component's process, through the activity that runs its top-level owner) with each one's host,
+    the host of that activity, or the first host for what no activity runs. Here, above both levels,
+    since each level knows only its own."""
+    from .hosts.part import Where
+
+    hosts = tuple(host.name for host in spec.hosts)
+    host_of = {activity.name: activity.host for activity in spec.activities}
+    runs = {name: activity.host for activity in spec.activities for name in activity.components}
+    return Where(hosts, {name: (host_of[name], process) for name, process in placement.of_activity.items()},
+                 {name: (runs.get(placement.top_of[name], hosts[0]), process)
+                  for name, process in placement.of_component.items()})
 
 
 def plan_host(spec: AppSpec, rules: LaunchRules, placement: Placement) -> HostDeployment:
@@ -338,8 +433,7 @@ def plan_host(spec: AppSpec, rules: LaunchRules, placement: Placement) -> HostDe
     for name in [LAUNCHER, *children]:
         own = [a for a in planned.values() if a.process == name]
         stand_ins = len(planned) - len(own) if name == LAUNCHER else 0
-        processes[name] = ProcessPlan.of(children.get(name), name, (a.name for a in own),
-                                         (a.name for a in own if a.eventfd), rules.settings(own, stand_ins))
+        processes[name] = ProcessPlan.of(children.get(name), name, own, rules.settings(own, stand_ins))
     return HostDeployment(spec, rules.describe(), placement, crossed, processes, planned)
 
 
@@ -363,7 +457,7 @@ def of_application(app: Application, rules: LaunchRules = PLAIN) -> HostDeployme
     rules.check([f.name for f in facts])
     planned = {f.name: _place(f, False, rules) for f in facts}
     own = [a for a in planned.values() if a.process == app.process]
-    process = ProcessPlan(app.process, tuple(a.name for a in own), host=rules.settings(own, len(planned) - len(own)))
+    process = ProcessPlan.of(None, app.process, own, rules.settings(own, len(planned) - len(own)))
     return HostDeployment(AppSpec(name=app.name), rules.describe(), Placement(), (), {app.process: process}, planned)
 
 
@@ -372,11 +466,29 @@ def drive(app: Application, deployment: HostDeployment, eventfds: Mapping[str, i
     thread; woken by their eventfd of ``eventfds``, made for the plan's ``woken`` set), before the
     application starts. The launch host drives the activities the plan hosts itself."""
     for name in deployment.processes[app.process].activities:
-        placed = deployment.activities[name]
-        if placed.driving is Driving.HOSTED:
-            continue
-        driver = MainThreadDriver if placed.driving is Driving.MAIN else ThreadDriver
-        app.activities[name].drive_with(driver(eventfds[name] if placed.eventfd else None))
+        _give(app.activities[name], deployment.activities[name], eventfds)
+
+
+def drive_unplanned(app: Application) -> None:
+    """Give every activity of ``app`` that has no driver yet the one the plan of the application's
+    own activities names (:func:`of_application`, the plain host's rules): what an application built
+    in code, which no launch planned, gets from :meth:`Application.start
+    <coco_core.application.Application.start>`. So the rules (a main activity in the calling
+    thread, every other on a thread of its own) live here only, not restated by the activity; a
+    driver given before (a launch's, a launch host's own, a program's) stays."""
+    unplanned = [activity for activity in app.activities.values() if not activity.driven]
+    if unplanned:
+        plan = of_application(app)
+        for activity in unplanned:
+            _give(activity, plan.activities[activity.name], {})
+
+
+def _give(activity: Activity, placed: ActivityDeployment, eventfds: Mapping[str, int]) -> None:
+    """``activity``'s thread driver as ``placed`` says; nothing for one the launch host drives."""
+    if placed.driving is Driving.HOSTED:
+        return
+    driver = MainThreadDriver if placed.driving is Driving.MAIN else ThreadDriver
+    activity.drive_with(driver(eventfds[placed.name] if placed.eventfd else None))
 
 
 def deployed(app: Application, deployment: HostDeployment) -> None:

@@ -26,12 +26,12 @@ from .deployment import PLAIN, HostDeployment, LaunchRules, deployed, plan_deplo
 from .errors import CocoError, CommandLineError, ConfigError, ConfigErrors, Interrupted
 from .hosts.crossing import crossing_problems
 from .hosts.key import launch_key
-from .hosts.level import host_level
+from .hosts.level import HostsLink, host_level
 from .hosts.session import START_TIMEOUT
 from .model import AppSpec
 from .ports import InputPort
 from .processes.level import process_level
-from .processes.messages import HostConfig, HostsLink
+from .processes.messages import HostConfig
 from .processes.placement import LAUNCHER
 from .processes.supervisor import ProcessSupervisor
 from .report import profile_report

@@ -26,17 +26,18 @@ machine, so a real-time process keeps beside its loop only short work (a relay's
 transform's update); anything long belongs in another process, as the process level has it.
 
 Only a ``<process>`` of the launcher does this: the launcher's own process runs everything else of
-the application (and an rclpy executor), which must not become real-time.
+the application (and an rclpy executor), which must not become real-time. The deployment plan
+decides it once, from the activities (:class:`~coco_core.deployment.RealtimeClass`, which ``--check``
+prints on the process's line), and the child applies what the plan says.
 """
 
 from __future__ import annotations
 
 import os
 import sys
-from typing import Iterable
+from typing import Sequence
 
-from .model import ActivitySpec
-from .thread_placement import REALTIME_CLASSES, set_realtime
+from .thread_placement import set_realtime
 
 CEILING_PRIORITY = 1
 """The SCHED_FIFO priority of a real-time process's other threads: the lowest, above every normal thread."""
@@ -46,20 +47,20 @@ SWITCH_INTERVAL = 100e-6
 default is 5 ms, five periods of a 1 kHz loop; 0.1 ms is a sixth of the haptic loop's spin)."""
 
 
-def realtime_priorities(activities: Iterable[ActivitySpec], process: str) -> list[int]:
-    """The real-time priorities the activities of ``process`` ask for (the lowest one's when a
-    real-time class is asked without a priority, as :func:`~coco_core.thread_placement.set_realtime` applies it)."""
-    return [activity.schedule.priority or CEILING_PRIORITY for activity in activities
-            if activity.process == process and activity.schedule.realtime in REALTIME_CLASSES]
+def applies(priorities: Sequence[int]) -> bool:
+    """Whether a ``<process>`` whose real-time activities ask for ``priorities`` (the deployment
+    plan's :class:`~coco_core.deployment.RealtimeClass`) gets the ceiling: it has one, and each
+    leaves room below it."""
+    return bool(priorities) and min(priorities) > CEILING_PRIORITY
 
 
-def raise_lock_holders(priorities: list[int]) -> tuple[bool, list[str]]:
+def raise_lock_holders(priorities: Sequence[int]) -> tuple[bool, list[str]]:
     """Apply the ceiling to every thread of the process (and so to every thread started later) when
     ``priorities`` holds a real-time activity's: whether it was applied, and one warning per thing
     that stood in its way (the OS's refusal, or a loop whose priority leaves no room below it)."""
     if not priorities:
         return False, []
-    if min(priorities) <= CEILING_PRIORITY:
+    if not applies(priorities):
         return False, [f"a real-time activity at priority {min(priorities)} leaves no real-time priority "
                        f"below it for the other threads of its process: they stay normal, and the loop may "
                        f"wait for the interpreter lock behind the machine's normal threads "

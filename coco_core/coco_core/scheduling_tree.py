@@ -34,7 +34,7 @@ def _host(deployment: HostDeployment, parts: Mapping[str, Application]) -> str:
     lines = [f"application {spec.name}" + _host_words(spec), f"  deployment: {deployment.rules}",
              *_composite_lines(spec)]
     launcher = deployment.processes[LAUNCHER]
-    if len(deployment.processes) == 1 and not launcher.describe():
+    if len(deployment.processes) == 1 and launcher.asks_nothing:
         lines += _activity_lines(deployment, parts.get(LAUNCHER), LAUNCHER, "  ")
         return "\n".join(lines + _between_hosts_lines(spec))
     for name, process in deployment.processes.items():

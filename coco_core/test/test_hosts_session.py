@@ -23,7 +23,8 @@ from coco_core.errors import HostError, RemoteError
 from coco_core.hosts.clock import ClockOffset, best, exchange
 from coco_core.deployment import plan_deployment
 from coco_core.hosts.session import HostSession
-from coco_core.processes.messages import Call, Message, Outcome, Stop
+from coco_core.messages import Call, Message, Outcome
+from coco_core.processes.messages import Stop
 from coco_core.wire import Decoder, Encoder
 from coco_core.xml import load_application
 

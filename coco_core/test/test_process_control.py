@@ -9,7 +9,8 @@ import threading
 import pytest
 
 from coco_core.processes.control import ControlLink
-from coco_core.processes.messages import Damage, Outcome, ProfileRequest, Result, Run, Start, Stop
+from coco_core.messages import Damage, Outcome, Result
+from coco_core.processes.messages import ProfileRequest, Run, Start, Stop
 
 
 @pytest.fixture

@@ -10,7 +10,7 @@ import time
 import pytest
 
 from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, InputPort, OutputPort, TriggeredActivity
-from coco_core.drivers import ThreadDriver
+from coco_core.drivers import Driving, ThreadDriver
 from coco_core.errors import ActivityError
 from coco_core.period import PeriodGrid
 from coco_core.profiling import ActivityStats
@@ -107,3 +107,27 @@ def test_an_eventfd_driver_is_woken_by_another_process() -> None:
     finally:
         assert app.stop()
         os.close(fd)
+
+
+def test_application_start_drives_each_activity_as_the_plan_says_and_keeps_a_given_driver() -> None:
+    """The activity restates no rule of the plan: it has no driver until given one, and an
+    application built in code gets its activities' drivers from the plan (the main one in the
+    calling thread), while a driver given before stays."""
+    app = Application("drivers")
+    app.add(Counter("shown"), TriggeredActivity("gui", main=True))
+    app.add(Counter("counter"), TriggeredActivity("events"))
+    app.add(Counter("other"), TriggeredActivity("own"))
+    assert app.activity("events").driver is None and not app.activity("events").driven
+    with pytest.raises(ActivityError, match="no driver"):
+        app.activity("events").start()
+    given = ThreadDriver()
+    app.activity("own").drive_with(given)
+    app.start()
+    try:
+        drivers = {name: activity.driver for name, activity in app.activities.items()}
+        assert {name: driver.driving for name, driver in drivers.items() if driver is not None} == {
+            "gui": Driving.MAIN, "events": Driving.THREAD, "own": Driving.THREAD}
+        assert drivers["own"] is given
+    finally:
+        app.request_stop("test done", hard=True)
+        assert app.stop()

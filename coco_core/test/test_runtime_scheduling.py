@@ -133,3 +133,41 @@ def test_check_prints_what_each_activity_asks_of_the_os() -> None:
                      "activity pinned: periodic 10 ms, nice 5, exclusive cores 1 -> own thread",
                      "activity shared: triggered, cores 0,1 -> own thread",
                      "activity plain: periodic 10 ms -> own thread"]
+
+
+def test_a_process_real_time_class_is_its_activities_summed_up_and_check_prints_it() -> None:
+    """A process's real-time class is the plan's summary of its activities' (the highest, and who
+    asks), on its ``--check`` line before its own settings, with the interpreter lock's ceiling that
+    its child applies from it: a ``<process>``'s whose loops leave room below them, never the
+    launcher's. A process whose threads all run in the normal class has none, and a one-process
+    application still lists its activities alone."""
+    from coco_core.deployment import plan_deployment
+
+    spec = parse_application_string("""<package>
+      <activities>
+        <process name="haptics" lock_memory="true">
+          <activity name="io"><schedule period="10" realtime="RR" priority="90"/><components/></activity>
+          <activity name="loop"><schedule period="1" realtime="FIFO" priority="80"/><components/></activity>
+          <activity name="log"><schedule period="100"/><components/></activity>
+        </process>
+        <process name="lowest"><activity name="slow"><schedule period="5" realtime="FIFO"/><components/></activity></process>
+        <process name="view"><activity name="draw"><schedule period="20"/><components/></activity></process>
+      </activities>
+    </package>""", filename="classes.xml")
+    deployment = plan_deployment(spec)
+    haptics, lowest = deployment.host().process("haptics").realtime, deployment.host().process("lowest").realtime
+    assert haptics is not None and lowest is not None and deployment.host().process("view").realtime is None
+    assert (haptics.policy, haptics.priority, haptics.activities, haptics.priorities, haptics.ceiling) == (
+        "RR", 90, ("io", "loop"), (90, 80), True)
+    assert (lowest.priority, lowest.priorities, lowest.ceiling) == (None, (1,), False), "no room below priority 1"
+    text = deployment.render()
+    assert ("process haptics (real-time SCHED_RR priority 90 (io, loop), other threads SCHED_FIFO 1 (the lock's "
+            "ceiling), memory locked)") in text, text
+    assert "process lowest (real-time SCHED_FIFO (slow))" in text and "process view\n" in text, text
+    alone = parse_application_string("""<package><activities>
+        <activity name="loop"><schedule period="1" realtime="FIFO" priority="80"/><components/></activity>
+      </activities></package>""", filename="alone.xml")
+    launcher = plan_deployment(alone).host().process("").realtime
+    assert launcher is not None and not launcher.ceiling, "the launcher's own process never takes the ceiling"
+    tree = plan_deployment(alone).render()
+    assert "process" not in tree and "activity loop: periodic 1 ms, SCHED_FIFO priority 80 -> own thread" in tree, tree

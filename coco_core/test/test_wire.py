@@ -16,7 +16,7 @@ import pytest
 
 from coco_core.errors import DeclarationError, PacketError, WrongTypeError
 from coco_core.hosts.messages import Heartbeat, Stage
-from coco_core.processes.messages import Call, Outcome, Result
+from coco_core.messages import Call, Outcome, Result
 from coco_core.stamps import Stamp, Stamped, UserStamps
 from coco_core.transforms.samples import FramePose, JointSample
 from coco_core.wire import ARRAY, OBJECT, Decoder, Encoder, conforms, crossing_problem, value_type

@@ -1,19 +1,22 @@
-"""``host_level``: what both launchers wrap around a run of one host's part of an application."""
+"""``host_level``: what both launchers wrap around a run of one host's part of an application, and
+:class:`HostsLink`, what its child processes get of it."""
 
 from __future__ import annotations
 
 import contextlib
 import logging
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 
 from ..application import Application
+from ..errors import ConfigError, ConfigErrors, KeyFileError
+from ..levels import Ends
 from ..model import AppSpec
 from .clock import ClockOffset
-from .key import AppKey
-from ..errors import ConfigError, ConfigErrors, KeyFileError
 from .crossing import crossing_problems
-from .session import HostSession
-from .transport import Ends, host_transport
+from .key import AppKey
+from .session import HostSession, matched
+from .transport import host_transport
 
 log = logging.getLogger("coco")
 
@@ -60,3 +63,31 @@ def ends_between_hosts(app: Application, spec: AppSpec, clock: ClockOffset, key:
             if (channel.src_host, channel.src_process) == (spec.part_of, app.process)
             or (channel.dest_host, channel.dest_process) == (spec.part_of, app.process)]
     return host_transport().attach(app, spec, clock, key) if here else None
+
+
+@dataclass(frozen=True)
+class HostsLink:
+    """What a child process of one host of an application over several needs of the other hosts
+    (:class:`~coco_core.levels.HostEnds`): the launch puts it in every child's configuration, so the
+    process level carries it without knowing what it is."""
+
+    clock: ClockOffset
+    """This host's clock against the application's: a child with ends of connections between hosts
+    puts its stamps on the application's clock."""
+    key: AppKey
+    """The application's key (:mod:`coco_core.hosts.key`): the child's ends of connections between
+    hosts seal and check their samples with it (the launch's pipe is inside one host: one trust
+    domain)."""
+    timeout: float
+    """Seconds a child waits for the other ends of its connections to other hosts (``--host-timeout``)."""
+
+    def attach(self, app: Application, spec: AppSpec) -> Ends | None:
+        app.clock = self.clock
+        ends = ends_between_hosts(app, spec, self.clock, self.key)
+        if ends is not None:
+            try:
+                matched(ends, self.timeout, lambda: None, app)
+            except BaseException:  # the child fails to build: its network goes with it
+                ends.close()
+                raise
+        return ends

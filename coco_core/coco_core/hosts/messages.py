@@ -1,8 +1,8 @@
 """The messages between the hosts of one application, beside the process level's own.
 
-Hosts exchange the typed messages of :mod:`coco_core.processes.messages` (an operation
-:class:`~coco_core.processes.messages.Call` and its :class:`~coco_core.processes.messages.Result`)
-and these: each host's :class:`Heartbeat`, several times a second, which carries its stage of the
+Hosts exchange the typed messages every link of a launch carries (:mod:`coco_core.messages`: an
+operation :class:`~coco_core.messages.Call`, its :class:`~coco_core.messages.Result`, a
+:class:`~coco_core.messages.Damage` report) and these: each host's :class:`Heartbeat`, several times a second, which carries its stage of the
 launch (every stage is a barrier: no host configures before every host is built, none runs before
 every host is configured), its stop and why; and the clock exchange that puts every host on the
 first host's clock (:mod:`coco_core.hosts.clock`). A heartbeat says the whole state, not a change, so
@@ -15,7 +15,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from ..processes.messages import Message, Request
+from ..messages import Message, Request
 from ..wire import value_type
 
 

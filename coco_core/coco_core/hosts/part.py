@@ -16,13 +16,12 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from ..boundary import declared_port, ring_policy
 from ..errors import ConfigError, ConfigErrors, did_you_mean
 from ..model import AppSpec, ConnectionSpec, PortRef
 from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from ..pool import DEFAULT_SLOTS
 from ..ports import PooledOutputPort
-from ..processes.channels import declared_port
-from ..processes.placement import Placement, ring_policy
 from .channel import HostChannel, topic_of
 
 SEPARATOR = "@"
@@ -49,19 +48,6 @@ class Where:
     of_activity: dict[str, tuple[str, str]]
     of_component: dict[str, tuple[str, str]]
     """Every component, peers included."""
-
-    @classmethod
-    def of(cls, spec: AppSpec, placement: Placement) -> Where:
-        """The process level's ``placement`` of ``spec`` (every component's process, through the
-        activity that runs its top-level owner) with each one's host: the host of that activity, or
-        the first host for what no activity runs."""
-        hosts = tuple(host.name for host in spec.hosts)
-        host_of = {activity.name: activity.host for activity in spec.activities}
-        runs = {name: activity.host for activity in spec.activities for name in activity.components}
-        return cls(hosts,
-                   {name: (host_of[name], process) for name, process in placement.of_activity.items()},
-                   {name: (runs.get(placement.top_of[name], hosts[0]), process)
-                    for name, process in placement.of_component.items()})
 
     def of_ref(self, ref: PortRef) -> tuple[str, str]:
         """(host, process) of the component, or activity (``beginit``/``endit``), ``ref`` names."""
@@ -116,7 +102,7 @@ def _channel(spec: AppSpec, connection: ConnectionSpec, src_host: str, src_proce
 
 def _policy(spec: AppSpec, connection: ConnectionSpec) -> ConnectionPolicy:
     """What the reader's side stores a connection between hosts with, as a ring between processes
-    would (:func:`~coco_core.processes.placement.ring_policy`: a filter's feed), and for a pooled
+    would (:func:`~coco_core.boundary.ring_policy`: a filter's feed), and for a pooled
     output's frames a pool of the slots the output declares."""
     if connection.data is BufferPolicy.POOL:
         components = {component.name: component for component in spec.all_components()}

@@ -26,18 +26,18 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable
 
+from ..calls import serve_call, settle
 from ..component import ErrorPolicy
 from ..errors import HostError, WrongTypeError
-from ..processes.messages import Call, Damage, Message, Outcome, Result
-from ..processes.remote import serve_call, settle
+from ..messages import Call, Damage, Message, Outcome, Result
 from .clock import EXCHANGES, ClockOffset, best, exchange
 from .messages import ClockRequest, Heartbeat, Stage
 from .part import split_address
-from .transport import Bus, Ends
+from .transport import Bus
 
 if TYPE_CHECKING:
     from ..application import Application
-    from ..levels import LocalProcesses
+    from ..levels import Ends, LocalProcesses
     from ..model import AppSpec
 
 log = logging.getLogger("coco")
@@ -70,8 +70,8 @@ class Peer:
 
 class HostSession:
     """This host's side of the launch (see the module docstring). It carries operation calls to the
-    other hosts too (the :class:`~coco_core.processes.remote.Router` protocol, for addresses
-    ``process@host``), and the calls that other hosts make to this host's processes."""
+    other hosts too (:class:`~coco_core.levels.OtherHosts`, for addresses ``process@host``), and the
+    calls that other hosts make to this host's processes."""
 
     def __init__(self, spec: AppSpec, app: Application, timeout: float = START_TIMEOUT,
                  interrupted: Callable[[], None] = lambda: None, lost_after: float = LOST) -> None:

@@ -16,8 +16,9 @@ from ..errors import MissingPackageError
 
 if TYPE_CHECKING:
     from ..application import Application
+    from ..levels import Ends
+    from ..messages import Message
     from ..model import AppSpec
-    from ..processes.messages import Message
     from .auth import Refusals
     from .clock import ClockOffset
     from .key import AppKey
@@ -34,17 +35,6 @@ class Bus(Protocol):
 
     def close(self) -> None:
         """Deliver what was sent (bounded), then release the network resources."""
-
-
-class Ends(Protocol):
-    """This process's ends of the connections between hosts, closed at the process's end."""
-
-    def unmatched(self) -> list[str]:
-        """The ends whose other end on another host has not been found yet: a sample written before
-        a writer found its reader would be lost, one written before a reader found its writer late,
-        so no host starts before every end found its other."""
-
-    def close(self) -> None: ...
 
 
 class HostTransport(Protocol):

@@ -25,7 +25,7 @@ from collections import Counter
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Callable
 
-from .. import registry
+from ..boundary import declared_port, ring_policy
 from ..errors import ConfigError
 from ..model import ActivitySpec, AppSpec, ComponentSpec, ConnectionSpec
 from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
@@ -36,7 +36,7 @@ from ..ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
 from ..pool import DEFAULT_SLOTS
 from ..stamps import Stamp
 from .filtered import FedFilter, FedRouter, RoutedCount
-from .placement import Placement, ring_policy
+from .placement import Placement
 from .routed import RoutingEnd
 
 if TYPE_CHECKING:
@@ -77,19 +77,6 @@ class ChannelPlan:
     stamps_only: bool = False
     """The connection carries the messages' stamps only: the writer's process puts each message's
     :class:`~coco_core.stamps.Stamp` into the ring, never its payload."""
-
-
-def declared_port(spec: ComponentSpec | None, port: str) -> Any:
-    """The class-level declaration of ``port`` on the component of ``spec``, if it has one: the
-    launcher plans channels (and each host the connections between hosts) without building the
-    other processes' components."""
-    if spec is None:
-        return None
-    try:
-        cls = registry.load(spec.task, spec.library)
-    except Exception:  # reported where the component is built
-        return None
-    return cls._port_decls.get(port)
 
 
 @dataclass(frozen=True)

@@ -31,12 +31,12 @@ from ..builder import build_application
 from ..deployment import deployed, drive
 from ..errors import CocoError
 from ..garbage import GarbageBetweenCycles
-from ..hosts.level import ends_between_hosts
-from ..hosts.session import matched
-from ..hosts.transport import Ends
+from ..calls import serve_call
 from ..launcher import stopped_by_a_failure
-from ..lock_ceiling import describe as describe_ceiling, raise_lock_holders, realtime_priorities
+from ..levels import Ends
+from ..lock_ceiling import describe as describe_ceiling, raise_lock_holders
 from ..memory_lock import lock_memory
+from ..messages import Call, Damage, Outcome
 from ..report import snapshot
 from ..signals import signal_watcher
 from .channels import attach
@@ -44,11 +44,8 @@ from .control import ControlLink, Handlers
 from .messages import (
     BuildFailed,
     Built,
-    Call,
     Config,
     Configured,
-    Damage,
-    Outcome,
     ProfileRequest,
     Pause,
     Run,
@@ -58,7 +55,7 @@ from .messages import (
     Stopped,
     StopRequest,
 )
-from .remote import call_over, serve_call
+from .remote import call_over
 
 log = logging.getLogger("coco")
 
@@ -128,7 +125,8 @@ class ChildProcess:
         self.garbage: GarbageBetweenCycles | None = None
         """The collections between cycles of a ``gc="between_cycles"`` process."""
         self.ends: Ends | None = None
-        """This process's ends of connections between hosts (over the network), when it has any."""
+        """This process's ends of connections between hosts (over the network), when it has any
+        (:class:`~coco_core.levels.HostEnds` attached them)."""
         self.orphaned = False
         """Whether the launcher went away under this process (its link closed, or a SIGTERM, which
         its death sends): the child then sweeps the launch's segments once the launcher is gone."""
@@ -147,7 +145,7 @@ class ChildProcess:
         apply_process_placement(settings.affinity, settings.nice)
         if settings.lock_memory and (refused := lock_memory()):
             log.warning("process %s: %s", process, refused)
-        ceiling, refusals = raise_lock_holders(realtime_priorities(spec.activities, process))
+        ceiling, refusals = raise_lock_holders(settings.realtime.priorities if settings.realtime is not None else ())
         for refusal in refusals:
             log.warning("process %s: %s", process, refusal)
         if ceiling:
@@ -157,11 +155,8 @@ class ChildProcess:
             app.measure_ages = config.measure_ages
             drive(app, config.deployment, config.wakes)
             attach(app, config.plans, config.wakes)
-            if config.hosts is not None:
-                app.clock = config.hosts.clock
-                self.ends = ends_between_hosts(app, spec, config.hosts.clock, config.hosts.key)
-                if self.ends is not None:
-                    matched(self.ends, config.hosts.timeout, lambda: None, app)
+            if config.hosts is not None:  # the host level's side, which the launch put in the config
+                self.ends = config.hosts.attach(app, spec)
         except CocoError as error:
             self.link.send(BuildFailed(str(error)))
             return 1

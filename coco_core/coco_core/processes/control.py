@@ -19,7 +19,7 @@ from multiprocessing.connection import Connection
 from typing import Any, Callable, Mapping
 
 from ..errors import ConnectionClosedError
-from .messages import Message, Outcome, Request, Result
+from ..messages import Message, Outcome, Request, Result
 
 log = logging.getLogger("coco")
 

@@ -11,64 +11,27 @@ The life of a launch, in order: the launcher sends :class:`Config`; the child an
 start the activities), the child answers :class:`Configured` when all of its own are; once every
 process has, :class:`Run` opens the start gate (:mod:`coco_core.lifecycle`). At the end,
 :class:`Stop`, and the child's :class:`Stopped` with its last profile. At any time:
-:class:`StopRequest` (a child's component stopped the application), :class:`Damage` (damaged input
+:class:`StopRequest` (a child's component stopped the application), ``Damage`` (damaged input
 found somewhere, passed on to every process), :class:`SetPeriod`, :class:`Pause` (a managed
 node's deactivate and activate), and the two requests,
-:class:`Call` (an operation of a component in another process) and :class:`ProfileRequest`, each
-answered by a :class:`Result` with the request's ``id``.
+:class:`~coco_core.messages.Call` (an operation of a component in another process) and
+:class:`ProfileRequest`, each answered by a :class:`~coco_core.messages.Result` with the request's
+``id``. The call, its result and the damage report are the messages every link of a launch carries,
+between hosts too: they live in :mod:`coco_core.messages`, beside neither level.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from ..wire import value_type
+from ..messages import Message, Request
 
 if TYPE_CHECKING:
     from ..deployment import HostDeployment
-    from ..hosts.clock import ClockOffset
-    from ..hosts.key import AppKey
+    from ..levels import HostEnds
     from ..report import ProfileSnapshot
     from .channels import ChannelPlan
-
-
-@dataclass(frozen=True)
-class Message:
-    """Base of every control message."""
-
-
-@dataclass(frozen=True)
-class Request(Message):
-    """A message answered by a :class:`Result` carrying its ``id`` (set by ``ControlLink.request``)."""
-
-    id: int = 0
-
-
-@value_type
-@dataclass(frozen=True)
-class Outcome:
-    """What a request came to: its value, or the exception's type name, text and traceback."""
-
-    ok: bool
-    value: Any = None
-    type: str = ""
-    message: str = ""
-    traceback: str = ""
-
-    @classmethod
-    def failure(cls, type_name: str, message: str) -> Outcome:
-        """The outcome of a request that did not run (the other end is gone, no such process)."""
-        return cls(False, type=type_name, message=message)
-
-
-@value_type
-@dataclass(frozen=True)
-class Result(Message):
-    """The answer to the request with this ``id``."""
-
-    id: int
-    outcome: Outcome
 
 
 # --- launcher -> child ------------------------------------------------------------------------
@@ -77,20 +40,6 @@ class HostConfig:
     """What every child of a launch host needs beyond the plan: nothing for the plain host; another
     launch host sends a frozen subclass with its own typed fields (the ROS launcher: the node's
     name, the ROS arguments)."""
-
-
-@dataclass(frozen=True)
-class HostsLink:
-    """What a child of one host of an application over several needs to reach the others."""
-
-    clock: ClockOffset
-    """This host's clock against the application's: a child with ends of connections between hosts
-    puts its stamps on the application's clock."""
-    key: AppKey
-    """The application's key (:mod:`coco_core.hosts.key`): the child's ends of connections between
-    hosts seal and check their samples with it (this pipe is inside one host: one trust domain)."""
-    timeout: float
-    """Seconds a child waits for the readers of its connections to other hosts (``--host-timeout``)."""
 
 
 @dataclass(frozen=True)
@@ -109,8 +58,9 @@ class Config(Message):
     log_level: int
     host: HostConfig = field(default_factory=HostConfig)
     """What the child's launch host needs beyond the plan (its own subclass of :class:`HostConfig`)."""
-    hosts: HostsLink | None = None
-    """The other hosts, when the application has several; None otherwise."""
+    hosts: HostEnds | None = None
+    """How the child attaches its ends of the connections between hosts, when the application has
+    several (the host level's, which the launch gives the process level); None otherwise."""
     measure_ages: bool = False
     """Whether the child's readers record the age of what they take (a profiled launch)."""
 
@@ -182,25 +132,3 @@ class Stopped(Message):
     clean: bool
     failed: bool
     snapshot: ProfileSnapshot
-
-
-# --- both ways --------------------------------------------------------------------------------
-@value_type
-@dataclass(frozen=True)
-class Damage(Message):
-    """Damaged input found by one process, for every process's summary and exit status."""
-
-    what: str
-
-
-@value_type
-@dataclass(frozen=True)
-class Call(Request):
-    """An operation of ``component`` in ``process`` (a child asks the launcher, which runs it or
-    passes it on; the launcher asks the child that runs the component)."""
-
-    process: str = ""
-    component: str = ""
-    operation: str = ""
-    args: tuple[Any, ...] = ()
-    kwargs: dict[str, Any] = field(default_factory=dict)

@@ -5,7 +5,8 @@ component belongs to the process of the activity that runs it, a peer to its own
 component that no activity runs stays in the launcher's process (where it serves operations, like
 the TransformationInterface that keeps the transformation graph whole). A connection whose two ends
 are in different processes *crosses*: it becomes a shared-memory channel with the same policy (a
-connection with a filter: a ring that feeds the filter on the reader's side, :func:`ring_policy`).
+connection with a filter: a ring that feeds the filter on the reader's side,
+:func:`coco_core.boundary.ring_policy`).
 """
 
 from __future__ import annotations
@@ -15,27 +16,14 @@ from dataclasses import dataclass, field
 
 from ..errors import ConfigError
 from ..files import MiB
-from ..filters import Greedy
+from ..boundary import ring_policy
 from ..model import AppSpec, ConnectionSpec, PortRef, ProcessSpec
-from ..policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from ..policy import BufferPolicy, SyncPolicy
 from ..shm import layout, ring_size
 from ..shm.segment import SHM_DIR, free_bytes
 
 LAUNCHER = ""
 """The name of the launcher's own process in a placement."""
-
-
-def ring_policy(connection: ConnectionSpec) -> ConnectionPolicy:
-    """The policy of the ring of ``connection`` between two processes: its own; with a filter
-    (which stays on the reader's side, :mod:`coco_core.processes.filtered`) a BUFFER of its
-    ``buffersize`` that hands the filter every message in order, or for a ``Greedy`` a DATA ring
-    (it keeps the newest only)."""
-    size = max(1, connection.buffersize)
-    if connection.filter is None:
-        return ConnectionPolicy(connection.data, connection.policy, size)
-    if connection.filter.type == Greedy.name:
-        return ConnectionPolicy(BufferPolicy.DATA, SyncPolicy.LOCKED, 1)
-    return ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, size)
 
 
 @dataclass

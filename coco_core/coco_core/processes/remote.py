@@ -4,19 +4,20 @@ A component in one process calls ``self.find_operation("ticker", "scale")`` exac
 a component of its own process; when ``ticker`` runs in another process, it gets a
 :class:`RemoteOperation`, which the launcher routes to that process. There the call is queued to the
 component's activity like any call from another thread, and the result, or the exception's type,
-message and traceback (:class:`~coco_core.errors.RemoteError`), comes back to the caller's Future.
-Arguments and results cross the boundary pickled.
+message and traceback (:class:`~coco_core.errors.RemoteError`), comes back to the caller's Future
+(:mod:`coco_core.calls` serves and settles calls, for the host level too). Arguments and results
+cross the boundary pickled.
 """
 
 from __future__ import annotations
 
-import traceback
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Callable, Protocol
 
-from ..errors import CocoError, RemoteError
+from ..calls import settle
+from ..errors import CocoError
 from ..operations import current_activity
-from .messages import Call, Outcome
+from ..messages import Call
 
 if TYPE_CHECKING:
     from ..application import Application
@@ -63,23 +64,6 @@ class RemoteOperation:
         return f"<RemoteOperation {self.component}.{self.name} in process {self.process or 'launcher'}>"
 
 
-def outcome(future: Future[Any]) -> Outcome:
-    """A finished local call's outcome: the value, or the exception as text."""
-    error = future.exception()
-    if error is None:
-        return Outcome(True, future.result())
-    text = "".join(traceback.format_exception(type(error), error, error.__traceback__))
-    return Outcome(False, type=type(error).__name__, message=str(error), traceback=text)
-
-
-def settle(future: Future[Any], result: Outcome, process: str, target: str) -> None:
-    """Complete the caller's ``future`` from the outcome of its call."""
-    if result.ok:
-        future.set_result(result.value)
-    else:
-        future.set_exception(RemoteError(process, target, result.type, result.message, result.traceback))
-
-
 def call_over(link: ControlLink, process: str, component: str, operation: str, args: tuple[Any, ...],
               kwargs: dict[str, Any]) -> Future[Any]:
     """Ask the other end of ``link`` for an operation of ``component`` in ``process`` (the
@@ -89,28 +73,3 @@ def call_over(link: ControlLink, process: str, component: str, operation: str, a
     link.request(Call(process=process, component=component, operation=operation, args=args, kwargs=kwargs),
                  lambda result: settle(future, result, process, target))
     return future
-
-
-def serve_call(app: Application, call: Call, reply: Callable[[Outcome], object]) -> None:
-    """Run a call that arrived from another process on a component of this one; ``reply`` gets the
-    outcome once the component's activity ran it."""
-    try:
-        future = app.operation(call.component, call.operation)(*call.args, **call.kwargs)
-    except Exception as error:  # an unknown name: the caller gets the explanation
-        failed: Future[Any] = Future()
-        failed.set_exception(error)
-        reply(outcome(failed))
-        return
-    future.add_done_callback(lambda done: reply(_picklable(outcome(done))))
-
-
-def _picklable(result: Outcome) -> Outcome:
-    """``result``, or an error saying the value cannot cross the process boundary."""
-    import pickle
-
-    if result.ok:
-        try:
-            pickle.dumps(result.value)
-        except Exception as error:
-            return Outcome.failure(type(error).__name__, f"the result cannot be sent to another process: {error}")
-    return result

@@ -32,22 +32,20 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from ..activity import Activity
 from ..application import Application
+from ..calls import serve_call
 from ..deployment import HostDeployment, drive
 from ..drivers import Driving, eventfd_pending
 from ..errors import ProcessError
 from ..lifecycle import STOP_TIMEOUT
+from ..messages import Call, Damage, Outcome
 from ..report import ProfileSnapshot, connection_rows, render, snapshot
 from .control import ControlLink
 from .messages import (
     BuildFailed,
     Built,
-    Call,
     Config,
     HostConfig,
-    HostsLink,
     Configured,
-    Damage,
-    Outcome,
     Pause,
     ProfileRequest,
     Run,
@@ -59,10 +57,10 @@ from .messages import (
 )
 from .channels import ChannelPlan, attach, plan_channels, reader_stats
 from .placement import LAUNCHER
-from .remote import call_over, serve_call
+from .remote import call_over
 
 if TYPE_CHECKING:
-    from ..levels import OtherHosts
+    from ..levels import HostEnds, OtherHosts
     from ..shm import Arena
 
 log = logging.getLogger("coco")
@@ -164,13 +162,14 @@ class ProcessSupervisor:
 
     def __init__(self, app: Application, deployment: HostDeployment, log_level: int = logging.INFO,
                  child_module: str = "coco_core.processes.child", child_config: HostConfig = HostConfig(),
-                 hosts_link: HostsLink | None = None, hosts: OtherHosts | None = None) -> None:
+                 hosts_link: HostEnds | None = None, hosts: OtherHosts | None = None) -> None:
         self.child_module = child_module
         """The module a child runs (``python -m``): the ROS launcher's children host an rclpy node."""
         self.child_config = child_config
         """Extra configuration every child receives (the ROS launcher's node name and ROS arguments)."""
         self.hosts_link = hosts_link
-        """What every child needs to reach the other hosts, when the application has several."""
+        """How every child attaches its ends of connections between hosts, when the application has
+        several (the host level's :class:`~coco_core.levels.HostEnds`, carried without knowing it)."""
         self.app = app
         self.deployment = deployment
         """This host's part of the launch's plan, which every child receives and executes

@@ -2,7 +2,7 @@
 
 Every host publishes on ``/coco/<application>/hosts`` and listens to it; a message names its
 sender and its recipient (empty: every host). Its body is one of the typed messages of the launch
-(:mod:`coco_core.hosts.messages`, :mod:`coco_core.processes.messages`) in the typed encoding of
+(:mod:`coco_core.hosts.messages`, :mod:`coco_core.messages`) in the typed encoding of
 :mod:`coco_core.wire` (never a pickle: any participant of the DDS domain may publish here). Every
 message is sealed with the application's key (:mod:`coco_core.hosts.auth`); one whose seal fails
 (no key, another application's, a replay, a host the file does not declare) is refused and counted
@@ -29,7 +29,7 @@ from coco_core.hosts.auth import Refusals, Sealer, Verifier
 from coco_core.hosts.channel import ros_name
 from coco_core.hosts.key import AppKey
 from coco_core.hosts.messages import Heartbeat
-from coco_core.processes.messages import Message
+from coco_core.messages import Message
 from coco_core.wire import Decoder, Encoder
 from coco_interfaces.msg import HostMessage
 

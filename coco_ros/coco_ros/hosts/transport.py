@@ -18,7 +18,7 @@ from coco_core.hosts.clock import ClockOffset
 from coco_core.hosts.channel import ros_name
 from coco_core.hosts.key import AppKey
 from coco_core.model import AppSpec
-from coco_core.processes.messages import Message
+from coco_core.messages import Message
 
 from .bridge import HostBridge
 from .bus import DdsBus
@@ -69,7 +69,7 @@ class DdsTransport:
 
 
 class ProcessEnds:
-    """This process's ends of the connections between hosts (:class:`coco_core.hosts.transport.Ends`)."""
+    """This process's ends of the connections between hosts (:class:`coco_core.levels.Ends`)."""
 
     def __init__(self, ends: HostEnds, release: Callable[[], None]) -> None:
         self.ends = ends
