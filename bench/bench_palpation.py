@@ -77,7 +77,11 @@ GOAL_LATENCY_MEAN_MS = 75.0
 """Issue 34: the mean, the paper's figure (an average, on a 4-core i7 with an embedded GPU)."""
 GOAL_LATENCY_P99_MS = 120.0
 GOAL_DISPLAY_FPS = 30.0
+"""Issue 34, at the 16 ms period: judged only where the period allows it (50 ms: 20 fps at most)."""
 GOAL_HAPTIC_RATIO = 2.0
+GOAL_HAPTIC_HZ = 990.0
+GOAL_INTERVAL_P99_MS = 0.3
+"""Issue 34 keeps what held: the renderer's samples at >= 990 Hz, their interval p99 <= 0.3 ms."""
 GOAL_TREE_HZ = 30.0
 GOAL_TOUCHABLE_MS = 40.0
 """Issue 34: a frame's acquisition to its structure usable by the haptic loop, median."""
@@ -259,6 +263,7 @@ def combine(runs: list[dict[str, Any]]) -> dict[str, Any]:
     out["latency_p99"] = median(pick("latency_ms", "p99"))
     out["latency_mean"] = median(pick("latency_ms", "mean"))
     out["latency_frames"] = sum(v or 0 for v in pick("latency_ms", "frames"))
+    out["stream_frames"] = sum(v or 0 for v in pick("stream_frames"))
     out["touchable_median"] = median(pick("touchable_ms", "median"))
     out["display_steps"] = {step: median(pick("display_steps_ms", step, "median")) for step in DISPLAY_STEPS}
     out["touchable_steps"] = {step: median(pick("touchable_steps_ms", step, "median")) for step in TOUCH_STEPS}
@@ -385,7 +390,7 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
                    f"goal p50 <= {GOAL_LATENCY_MS:.0f}, mean <= {GOAL_LATENCY_MEAN_MS:.0f}, p99 <= {GOAL_LATENCY_P99_MS:.0f} ms",
                    "haptic rate", "haptic p99", "/ idle p99", "missed", "max",
                    f"goal <= {GOAL_HAPTIC_RATIO:.0f}x, none missed, max <= {bound_us:.0f} us",
-                   "KD-tree", "points", f"goal >= {GOAL_TREE_HZ:.0f} Hz", "display fps", f"goal >= {GOAL_DISPLAY_FPS:.0f}",
+                   "KD-tree", "points", f"goal >= {GOAL_TREE_HZ:.0f} Hz", "display fps", f"goal >= {GOAL_DISPLAY_FPS:.0f}", "camera frames shown",
                    "registered",
                    "app CPU", "others' CPU"])
     anchor_table = Table("The haptic loop's anchors: an idle 1 kHz activity under the loop's scheduling, "
@@ -422,12 +427,15 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
         latency_ok = None if lat is None else (lat <= GOAL_LATENCY_MS and p99 is not None and p99 <= GOAL_LATENCY_P99_MS
                                                and (mean is None or mean <= GOAL_LATENCY_MEAN_MS))
         fps = c["display_fps"]
+        fps_judged = period <= 1000.0 / GOAL_DISPLAY_FPS
         table.add(f"{period} ms", layout, ms(lat), ms(mean), ms(p99), verdict(latency_ok),
                   "-" if c["haptic_rate_hz"] is None else f"{c['haptic_rate_hz']:.0f} Hz", haptic_p99, fmt_ratio(ratio),
                   c["haptic_missed"], worst,
                   verdict(haptic_ok), f"{c['tree_hz'] or 0:.1f} Hz",
                   f"{c['tree_points'] or 0:,.0f}", verdict((c["tree_hz"] or 0) >= GOAL_TREE_HZ * 0.97),
-                  "-" if fps is None else f"{fps:.1f}", verdict(None if fps is None else fps >= GOAL_DISPLAY_FPS * 0.97),
+                  "-" if fps is None else f"{fps:.1f}", verdict(None if fps is None or not fps_judged else
+                                                               fps >= GOAL_DISPLAY_FPS * 0.97),
+                  f"{c['latency_frames']} of {c['stream_frames']}" if fps is not None else "-",
                   c["registered"],
                   "n/a" if c["app_cores"] is None else f"{c['app_cores']:.2f} cores",
                   "n/a" if c["others"] is None else f"{100 * c['others']:.0f}%")
@@ -441,7 +449,7 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
                             + f" (goal median {GOAL_LATENCY_MS:.0f}, mean {GOAL_LATENCY_MEAN_MS:.0f}, p99 "
                             f"{GOAL_LATENCY_P99_MS:.0f} ms; paper 75 ms average: mean {ms(mean, 0)}); bound by "
                             + bound(c["display_steps"], c["display_shares"]))
-        if fps is not None:
+        if fps is not None and fps_judged:
             verdicts.append(f"{period} ms display, {layout}: display {fps:.1f} fps, "
                             + ("PASS" if fps >= GOAL_DISPLAY_FPS * 0.97 else f"MISS by {GOAL_DISPLAY_FPS / max(fps, 1e-9):.2f}x")
                             + f" (goal {GOAL_DISPLAY_FPS:.0f} fps at the {period} ms period)")
@@ -453,6 +461,12 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
                         + f" (goal {GOAL_HAPTIC_RATIO:.0f}x, none missed, worst <= {bound_us:.0f} us; rate "
                         + ("- : no run registered" if c["haptic_rate_hz"] is None else f"{c['haptic_rate_hz']:.0f} Hz")
                         + ")")
+        interval, rate = c["haptic_interval_p99_ms"], c["haptic_rate_hz"]
+        if interval is not None and rate is not None:
+            kept = rate >= GOAL_HAPTIC_HZ and interval <= GOAL_INTERVAL_P99_MS
+            verdicts.append(f"{period} ms display, {layout}: haptic samples at {rate:.0f} Hz, interval p99 "
+                            f"{interval:.2f} ms: " + ("PASS" if kept else "MISS")
+                            + f" (issue 34 keeps: >= {GOAL_HAPTIC_HZ:.0f} Hz, interval p99 <= {GOAL_INTERVAL_P99_MS} ms)")
         tree_hz = c["tree_hz"] or 0.0
         touchable = c["touchable_median"]
         verdicts.append(f"{period} ms display, {layout}: KD-tree {tree_hz:.1f} Hz over {c['tree_points'] or 0:,.0f} "
@@ -478,7 +492,10 @@ def report(args: Any, runs: Runs, idle: list[dict[str, Any]], rounds: int, strid
         "anchors (p99s under 1 us compared as 1 us: the clock's and the spin's grain); missed: the loop's deadlines missed (the profile's overruns, all rounds); max: its worst "
         "period error (all rounds)",
         f"KD-tree: structures arriving at the haptic side per second (the camera sends {CAMERA_HZ:.0f} Hz); "
-        "display fps: display cycles / run time; registered: runs whose calibration touch registered the "
+        "display fps: display cycles / run time (a cycle starts when a camera frame or a hand pose arrives, "
+        f"at most one a period; judged at periods that allow {GOAL_DISPLAY_FPS:.0f} fps); camera frames shown: those "
+        "whose pixels were read back, of the frames the receiver delivered (all rounds; the others were "
+        "superseded by a newer one before the view took them); registered: runs whose calibration touch registered the "
         "hand (before it the haptic loop runs but renders no sample: its rate is from the samples); app CPU: "
         "the cores the app's processes used (CPU time / wall time, start-up included); others' CPU: both "
         "cores' share used by processes other than the benchmark and the app",

@@ -179,6 +179,8 @@ class ProcessSupervisor:
         self.children: dict[str, Child] = {}
         self._fds: list[int] = []
         """Descriptors the launcher made for the children (eventfds), closed at the end."""
+        self._watchers: list[threading.Thread] = []
+        """The threads reading each child's link: :meth:`close` lets them read its end first."""
         self._wakes: dict[str, int] = {}
         """activity -> eventfd, for every activity of the plan's wake sets."""
         self.arena: Arena | None = None
@@ -222,7 +224,9 @@ class ProcessSupervisor:
             for name in child.activities:
                 ProcessDriver(self, child, self.app.activities[name], self.deployment.activities[name].driving,
                               self._wakes.get(name))
-            threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True).start()
+            watcher = threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True)
+            watcher.start()
+            self._watchers.append(watcher)
         self.app.add_damage_listener(self.pass_on_damage)
 
     def _spawn(self, name: str) -> Child:
@@ -434,7 +438,12 @@ class ProcessSupervisor:
                 child.popen.wait()
 
     def close(self) -> None:
-        """Release the control links and descriptors (after the children exited)."""
+        """Release the control links and descriptors (after the children exited). Each link's reader
+        reads the end of its exited child first: a link closed under a thread still in ``recv`` made
+        that thread fail on a released handle (seen at the end of a benchmark's run)."""
+        for watcher in self._watchers:
+            if watcher is not threading.current_thread():
+                watcher.join(timeout=1.0)
         for child in self.children.values():
             child.link.close()
         for fd in self._fds:
