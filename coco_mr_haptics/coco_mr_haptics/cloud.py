@@ -296,9 +296,7 @@ class KDTreeBuilder(Component):
         if organized is None:
             raise StructureError(f"{self.name}: a projective structure needs an organised cloud "
                                  "(PointCloud.from_depth(..., organized=True)); use kdtree for this one")
-        if self.voxel:
-            raise StructureError(f"{self.name}: voxel decimation makes a cloud unorganised; use stride "
-                                 "with a projective structure")
+        self._refuse_voxel()
         grid = points.reshape(organized[0], organized[1], 3)
         if self.intrinsics:
             fx, fy, cx, cy = self.intrinsics
@@ -309,11 +307,7 @@ class KDTreeBuilder(Component):
             grid = grid[::s, ::s]
             fx, fy, cx, cy = fx / s, fy / s, cx / s, cy / s
         if self.min_distance or self.max_distance:  # unknown depth (NaN, 0) needs no filter: never a neighbour
-            z = grid[:, :, 2]
-            keep = z > self.min_distance
-            if self.max_distance:
-                keep &= z <= self.max_distance
-            grid = np.where(keep[:, :, None], grid, np.float32(np.nan))
+            grid = np.where(self._within_distances(grid[:, :, 2])[:, :, None], grid, np.float32(np.nan))
         valid = int(np.count_nonzero(grid[:, :, 2] > 0))
         return {"kind": "projective", "points": grid.reshape(-1, 3), "grid": np.ascontiguousarray(grid),
                 "intrinsics": (fx, fy, cx, cy), "valid": valid}
@@ -325,21 +319,28 @@ class KDTreeBuilder(Component):
         if k is None:
             raise StructureError(f"{self.name}: the RGB-D frame carries no intrinsics, so its depth cannot be "
                                  "searched projectively")
-        if self.voxel:
-            raise StructureError(f"{self.name}: voxel decimation makes a cloud unorganised; use stride "
-                                 "with a projective structure")
+        self._refuse_voxel()
         s = self.stride
         depth = np.array(frame.depth.data[::s, ::s])  # pixel (s*i, s*j) becomes (i, j)
         scale = 1.0 if frame.depth.format is ImageFormat.DEPTH32F else 1.0 / frame.depth_scale
         if self.min_distance or self.max_distance:
-            z = depth * scale
-            keep = z > self.min_distance
-            if self.max_distance:
-                keep &= z <= self.max_distance
-            depth[~keep] = 0
+            depth[~self._within_distances(depth * scale)] = 0
         return {"kind": "depth", "points": np.empty((0, 3), np.float32), "depth": depth, "depth_scale": scale,
                 "intrinsics": (k.fx / s, k.fy / s, k.cx / s, k.cy / s), "skew": k.skew / s,
                 "valid": int(np.count_nonzero(depth > 0))}
+
+    def _refuse_voxel(self) -> None:
+        """A structure searched in the image's grid (projective, depth) keeps every pixel's place."""
+        if self.voxel:
+            raise StructureError(f"{self.name}: voxel decimation makes a cloud unorganised; use stride "
+                                 "with a projective structure")
+
+    def _within_distances(self, z: np.ndarray) -> np.ndarray:
+        """Where the depths ``z`` (m) pass min_distance and max_distance (0: no bound)."""
+        keep = z > self.min_distance
+        if self.max_distance:
+            keep &= z <= self.max_distance
+        return keep
 
     def _estimated(self, grid: np.ndarray) -> tuple[float, float, float, float]:
         """The intrinsics of the stream: estimated on its first cloud, then only checked on a few
