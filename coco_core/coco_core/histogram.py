@@ -73,7 +73,8 @@ class LogHistogram:
         """The named quantiles (``median=0.5``), the max and the mean, in milliseconds, for a summary's
         JSON; nulls when nothing was recorded. The mean because some figures are stated as one (the
         CoCo paper's 75 ms sensor-to-display latency is an average)."""
-        if not self.count:
+        mean = self.mean
+        if mean is None:
             return {**{name: None for name in quantiles}, "max": None, "mean": None}
         return {**{name: 1e3 * self.quantile(q) for name, q in quantiles.items()}, "max": 1e3 * self.max,
-                "mean": 1e3 * self.total / self.count}
+                "mean": 1e3 * mean}

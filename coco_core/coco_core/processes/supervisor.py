@@ -116,6 +116,8 @@ class Child:
     stop_sent: bool = False
     hard_stop_sent: bool = False
     """The child was told that the stop is hard (a signal or a fault came during a natural stop)."""
+    watcher: threading.Thread | None = None
+    """The thread reading the child's link until its end (:meth:`ProcessSupervisor.close` waits for it)."""
 
 
 class ProcessDriver:
@@ -179,8 +181,6 @@ class ProcessSupervisor:
         self.children: dict[str, Child] = {}
         self._fds: list[int] = []
         """Descriptors the launcher made for the children (eventfds), closed at the end."""
-        self._watchers: list[threading.Thread] = []
-        """The threads reading each child's link: :meth:`close` lets them read its end first."""
         self._wakes: dict[str, int] = {}
         """activity -> eventfd, for every activity of the plan's wake sets."""
         self.arena: Arena | None = None
@@ -224,9 +224,9 @@ class ProcessSupervisor:
             for name in child.activities:
                 ProcessDriver(self, child, self.app.activities[name], self.deployment.activities[name].driving,
                               self._wakes.get(name))
-            watcher = threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}", daemon=True)
-            watcher.start()
-            self._watchers.append(watcher)
+            child.watcher = threading.Thread(target=self._watch, args=(child,), name=f"coco:watch:{child.name}",
+                                             daemon=True)
+            child.watcher.start()
         self.app.add_damage_listener(self.pass_on_damage)
 
     def _spawn(self, name: str) -> Child:
@@ -441,10 +441,9 @@ class ProcessSupervisor:
         """Release the control links and descriptors (after the children exited). Each link's reader
         reads the end of its exited child first: a link closed under a thread still in ``recv`` made
         that thread fail on a released handle (seen at the end of a benchmark's run)."""
-        for watcher in self._watchers:
-            if watcher is not threading.current_thread():
-                watcher.join(timeout=1.0)
         for child in self.children.values():
+            if child.watcher is not None and child.watcher is not threading.current_thread():
+                child.watcher.join(timeout=1.0)
             child.link.close()
         for fd in self._fds:
             os.close(fd)
