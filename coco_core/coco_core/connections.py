@@ -12,13 +12,13 @@ reaches these classes as its *record* (:meth:`Connection.put`: the value and its
 one tuple), which they store as it is: the :class:`~coco_core.stamps.Message` (and the
 :class:`~coco_core.stamps.Stamp`) is made only for whoever asks for it, most reads asking for neither.
 
-The LOCKED classes take their lock as the first thing in a ``try`` whose ``finally`` releases it
-rather than in a ``with`` block: no bound ``__enter__``/``__exit__`` to look up and call at each
-access, which saves about half the bench's floor per write and read, and an exception
-raised after the acquisition (a signal's, between two bytecodes) still releases it. Only an
-exception raised by ``acquire`` itself while it waits for the other side would release a lock not
-held; Python raises there only from a signal handler, and CoCo's handlers only record
-(:mod:`coco_core.signals`).
+The LOCKED classes hold a :mod:`~coco_core.mutex` (one token in a ``SimpleQueue``, a third cheaper
+to take and give back than a ``threading.Lock``), taken as the first thing in a ``try`` whose
+``finally`` gives it back rather than in a ``with`` block: no ``__enter__``/``__exit__`` to look
+up and call at each access, and an exception raised after the taking (a signal's, between two
+bytecodes) still gives it back. Only an exception raised by ``get`` itself while it waits for the
+other side would give back a token not taken; Python raises there only from a signal handler, and
+CoCo's handlers only record (:mod:`coco_core.signals`).
 """
 
 from __future__ import annotations
@@ -26,11 +26,11 @@ from __future__ import annotations
 import abc
 import logging
 import sys
-import threading
 from collections import deque
 from typing import TYPE_CHECKING, Any, Callable, ClassVar, Protocol
 
 from .errors import PolicyError
+from .mutex import TOKEN, mutex
 from .policy import BufferPolicy, ConnectionPolicy, SyncPolicy
 from .stamps import Message, Record, item_of, record_of
 
@@ -303,27 +303,27 @@ class DataConnection(PolicyConnection):
 class LockedDataConnection(DataConnection):
     """DATA, LOCKED."""
 
-    __slots__ = ("_lock",)
+    __slots__ = ("_mutex",)
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
-        self._lock = threading.Lock()
+        self._mutex = mutex()
 
     def put(self, record: Record) -> None:
-        lock = self._lock
+        guard = self._mutex
         try:
-            lock.acquire()
+            guard.get()
             self.written += 1
             self._cell = record
         finally:
-            lock.release()
+            guard.put_nowait(TOKEN)
         if self.trigger is not None:
             self.trigger()
 
     def take(self) -> Any:
-        lock = self._lock
+        guard = self._mutex
         try:
-            lock.acquire()
+            guard.get()
             record = self._cell
             if record is self._seen:
                 return EMPTY
@@ -331,7 +331,7 @@ class LockedDataConnection(DataConnection):
             self.read += 1
             return record
         finally:
-            lock.release()
+            guard.put_nowait(TOKEN)
 
 
 class BufferConnection(PolicyConnection):
@@ -369,35 +369,35 @@ class BufferConnection(PolicyConnection):
 class LockedBufferConnection(BufferConnection):
     """BUFFER, LOCKED."""
 
-    __slots__ = ("_lock",)
+    __slots__ = ("_mutex",)
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
-        self._lock = threading.Lock()
+        self._mutex = mutex()
 
     def put(self, record: Record) -> None:
-        lock = self._lock
+        guard = self._mutex
         try:
-            lock.acquire()
+            guard.get()
             self.written += 1
             if len(self._queue) >= self._size:
                 return
             self._queue.append(record)
         finally:
-            lock.release()
+            guard.put_nowait(TOKEN)
         if self.trigger is not None:
             self.trigger()
 
     def take(self) -> Any:
-        lock = self._lock
+        guard = self._mutex
         try:
-            lock.acquire()
+            guard.get()
             if self._queue:
                 self.read += 1
                 return self._queue.popleft()
             return EMPTY
         finally:
-            lock.release()
+            guard.put_nowait(TOKEN)
 
 
 class CircularConnection(PolicyConnection):
@@ -429,33 +429,33 @@ class CircularConnection(PolicyConnection):
 class LockedCircularConnection(CircularConnection):
     """CIRCULAR, LOCKED."""
 
-    __slots__ = ("_lock",)
+    __slots__ = ("_mutex",)
 
     def __init__(self, policy: ConnectionPolicy) -> None:
         super().__init__(policy)
-        self._lock = threading.Lock()
+        self._mutex = mutex()
 
     def put(self, record: Record) -> None:
-        lock = self._lock
+        guard = self._mutex
         try:
-            lock.acquire()
+            guard.get()
             self.written += 1
             self._queue.append(record)
         finally:
-            lock.release()
+            guard.put_nowait(TOKEN)
         if self.trigger is not None:
             self.trigger()
 
     def take(self) -> Any:
-        lock = self._lock
+        guard = self._mutex
         try:
-            lock.acquire()
+            guard.get()
             if self._queue:
                 self.read += 1
                 return self._queue.popleft()
             return EMPTY
         finally:
-            lock.release()
+            guard.put_nowait(TOKEN)
 
 
 _CLASSES: dict[tuple[BufferPolicy, bool], type[PolicyConnection]] = {

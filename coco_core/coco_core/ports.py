@@ -16,7 +16,7 @@ from .connections import EMPTY, Connection
 from .errors import PolicyError, PoolError
 from .policy import NEW_DATA, NO_DATA, OLD_DATA, ReadStatus
 from .pool import DEFAULT_SLOTS, FramePool, LocalFramePool, PoolConnection, PoolReader, Slot, frame_stamp
-from .stamps import NO_USER_STAMPS, Message, Record, Stamp, Stamped, item_of, record_of, user_stamps
+from .stamps import Message, Record, Stamp, Stamped, item_of, record_of, user_stamps
 
 if TYPE_CHECKING:
     from .activity import Activity
@@ -125,11 +125,12 @@ class OutputPort(Port):
         """Offer ``value`` to every connection, and to one of the shared ones; never blocks.
         ``stamps``: user stamps (small named values, e.g. ``{"bbox": (x0, y0, x1, y1)}``) the
         message carries in its stamp, which readers and filters read without the payload."""
-        self._written += 1  # _record, inlined: a call would cost the write a tenth of the floor
+        self._written = seq = self._written + 1  # _record, inlined: a call would cost a tenth of the floor
         activity = self.activity
-        self._last = record = (value, perf_counter(), self._written, self._source,
-                               -1 if activity is None else activity.stats.cycles,
-                               NO_USER_STAMPS if stamps is None else user_stamps(stamps))
+        record: Record = (value, perf_counter(), seq, self._source, -1 if activity is None else activity.stats.cycles)
+        if stamps is not None:
+            record += (user_stamps(stamps),)
+        self._last = record
         route = self._route
         if route is not None:
             route.put(record)
@@ -151,11 +152,12 @@ class OutputPort(Port):
 
     def _record(self, value: Any, stamps: Mapping[str, Any] | None = None) -> Record:
         """The record of a write of ``value`` (kept as the last): the fields of its stamp."""
-        self._written += 1
+        self._written = seq = self._written + 1
         activity = self.activity
-        self._last = record = (value, perf_counter(), self._written, self._source,
-                               -1 if activity is None else activity.stats.cycles,
-                               NO_USER_STAMPS if stamps is None else user_stamps(stamps))
+        record: Record = (value, perf_counter(), seq, self._source, -1 if activity is None else activity.stats.cycles)
+        if stamps is not None:
+            record += (user_stamps(stamps),)
+        self._last = record
         return record
 
     def _put_stamps_only(self, record: Record) -> None:
@@ -310,18 +312,21 @@ class InputPort(Port):
     An *event* input wakes the triggered activity of its component whenever a value arrives.
     """
 
-    __slots__ = ("event", "_next", "_last", "_has_last", "_taken", "_keeps_last", "_wake", "_triggering", "_only")
+    __slots__ = ("event", "_next", "_taken", "_keeps_last", "_wake", "_triggering", "_only")
 
     def __init__(self, type_: Any = object, event: bool = False, doc: str = "") -> None:
         super().__init__(type_, doc)
         self.event = event
         self._next = 0
-        self._last: Any = None
-        self._has_last = False
         self._taken: Record | None = None
         """What the last new value came as: the record its connection gave
-        (:meth:`Connection.take <coco_core.connections.Connection.take>`); None before the first."""
+        (:meth:`Connection.take <coco_core.connections.Connection.take>`); None before the first.
+        Its value is also the last value, which a read without a new one returns as OLD_DATA: one
+        field kept by every new read, where a copy of the value beside it would cost each read a
+        twentieth of the bench's floor."""
         self._keeps_last = True
+        """Whether a read without a new value returns the last one (not from a pool, whose slot
+        may be reused once released)."""
         self._wake: Callable[[], None] | None = None
         self._triggering: list[Connection] = []
         """The connections whose writes wake this port's activity."""
@@ -332,8 +337,7 @@ class InputPort(Port):
     def bind(self, owner: Component, name: str | None = None) -> InputPort:
         port = super().bind(owner, name)
         assert isinstance(port, InputPort)
-        port._next, port._last, port._has_last, port._keeps_last, port._wake = 0, None, False, True, None
-        port._taken = None
+        port._next, port._taken, port._keeps_last, port._wake = 0, None, True, None
         port._triggering = []
         port._only = None
         return port
@@ -381,14 +385,11 @@ class InputPort(Port):
         connection = self._only
         if connection is not None:
             record = connection.take()
-            if record is not EMPTY:  # _took, inlined: the common case
+            if record is not EMPTY:
                 if connection.age is not None:
                     connection.age.took(item_of(record))
                 self._taken = record
-                value = record[0]
-                if self._keeps_last:
-                    self._last, self._has_last = value, True
-                return NEW_DATA, value
+                return NEW_DATA, record[0]
         elif connections := self.connections:
             count = len(connections)
             start = self._next
@@ -400,20 +401,17 @@ class InputPort(Port):
                     if connection.age is not None:
                         connection.age.took(item_of(record))
                     self._next = (index + 1) % count
-                    return NEW_DATA, self._took(record)
-        if self._has_last:
-            return OLD_DATA, self._last
-        return NO_DATA, None
+                    self._taken = record
+                    return NEW_DATA, record[0]
+        return self._old()
 
-    def _took(self, record: Record) -> Any:
-        """The value of ``record`` (see :meth:`Connection.take
-        <coco_core.connections.Connection.take>`) taken from a connection, the record kept for
-        :attr:`stamp` and the value as the last one."""
-        self._taken = record
-        value = record[0]
-        if self._keeps_last:
-            self._last, self._has_last = value, True
-        return value
+    def _old(self) -> tuple[ReadStatus, Any]:
+        """What a read without a new value gives: the last value (OLD_DATA), unless none came yet or
+        the port reads from a pool (NO_DATA)."""
+        taken = self._taken
+        if taken is None or not self._keeps_last:
+            return NO_DATA, None
+        return OLD_DATA, taken[0]
 
     @property
     def stamp(self) -> Stamp | None:
@@ -485,10 +483,9 @@ class InputPort(Port):
         if newest_connection is not None:
             if newest_connection.age is not None:
                 newest_connection.age.took(newest)
-            return NEW_DATA, self._took(record_of(newest))
-        if self._has_last:
-            return OLD_DATA, self._last
-        return NO_DATA, None
+            self._taken = taken = record_of(newest)
+            return NEW_DATA, taken[0]
+        return self._old()
 
     def read_all(self) -> list[Any]:
         """Every value waiting on every connection, in round-robin order; empty when none."""

@@ -137,6 +137,8 @@ Record = tuple[Any, ...]
 arguments of its :class:`Message`, ``(value, time, seq, source, it, user)``, in one tuple, which is
 made in a fraction of a message's time (:meth:`OutputPort.write <coco_core.ports.OutputPort.write>`,
 :meth:`Connection.put <coco_core.connections.Connection.put>`); ``Message(*record)`` is the message.
+A write without user stamps leaves ``user`` out (the message's default): one field less at most
+writes.
 A message pushed whole becomes its record again (:func:`record_of`), anything else ``(item,)``:
 the first field of a record is always the value a reader gets."""
 

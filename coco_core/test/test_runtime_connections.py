@@ -21,6 +21,7 @@ from coco_core import (
     SyncPolicy,
 )
 from coco_core.connections import EMPTY, make_connection
+from coco_core.mutex import TOKEN
 
 SYNCS = [SyncPolicy.LOCKED, SyncPolicy.UNSYNC, SyncPolicy.LOCK_FREE]
 ALL = [(data, sync) for data in (BufferPolicy.DATA, BufferPolicy.BUFFER, BufferPolicy.CIRCULAR) for sync in SYNCS]
@@ -375,3 +376,20 @@ def test_concurrent_data_connection_never_goes_back_in_time(sync, tight_switchin
     assert conn.written == conn.read + conn.dropped + conn.pending
     assert conn.pending == 0
     assert everything[-1] == N - 1
+
+
+@pytest.mark.parametrize("data", [BufferPolicy.DATA, BufferPolicy.BUFFER, BufferPolicy.CIRCULAR], ids=lambda d: d.value)
+def test_a_locked_write_waits_while_the_other_side_holds_the_mutex(data):
+    """The mutex is one token (coco_core.mutex): while the reader's side holds it, the writer's put
+    does not store, and it stores as soon as the token is back."""
+    conn = make_connection(ConnectionPolicy(data, SyncPolicy.LOCKED, 1 if data is BufferPolicy.DATA else 4))
+    guard = conn._mutex
+    guard.get()  # the reader's critical section, entered
+    writer = threading.Thread(target=conn.push, args=("late",))
+    writer.start()
+    writer.join(0.05)
+    assert writer.is_alive() and conn.written == 0, "a LOCKED put entered while the other side held the mutex"
+    guard.put_nowait(TOKEN)
+    writer.join(20)
+    assert not writer.is_alive() and conn.pop() == "late"
+    assert guard.qsize() == 1, "the mutex was not given back exactly once"
