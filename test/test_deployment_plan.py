@@ -12,7 +12,6 @@ each process logs when it runs (with ``--executor-threads`` and ``--threads`` to
 
 from __future__ import annotations
 
-import os
 import re
 from pathlib import Path
 
@@ -25,6 +24,7 @@ from coco_core.builder import build_application
 from coco_core.application import Application
 from coco_core.deployment import PLAIN, ActivityFacts, HostDeployment, drive, plan_deployment
 from coco_core.model import AppSpec
+from coco_core.wakeup import Wakeup
 from coco_core.xml import load_application
 from coco_ros.deployment import ExecutorPlan, RosRules
 from coco_ros.hosting import ExecutorHost
@@ -101,7 +101,7 @@ def execute(deployment: HostDeployment, node: Node, process: str) -> Application
     eventfds of the plan's wake sets, the ROS host's wait sets or executor on a real node), then
     check them and the built activities against the plan; nothing runs. The part, for ``--check``."""
     part = build_application(deployment.spec, process, allow_unknown=True, placement=deployment.placement)
-    eventfds = {name: os.eventfd(0) for name in deployment.woken}
+    eventfds = {name: Wakeup.new() for name in deployment.woken}
     try:
         drive(part, deployment, eventfds)
         host = ExecutorHost(node, part, deployment) if isinstance(deployment.process(process).host, ExecutorPlan) else None
@@ -115,8 +115,8 @@ def execute(deployment: HostDeployment, node: Node, process: str) -> Application
             if host is not None:
                 host.close()
     finally:
-        for fd in eventfds.values():
-            os.close(fd)
+        for wakeup in eventfds.values():
+            wakeup.close()
     return part
 
 

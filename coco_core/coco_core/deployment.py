@@ -66,6 +66,7 @@ from .processes.channels import Crossing, crossings
 from .processes.placement import LAUNCHER, Placement
 from .schedule import DEFAULT_SPIN, Schedule
 from .thread_placement import SchedulingRequest
+from .wakeup import Wakeup
 
 if TYPE_CHECKING:
     from .activity import Activity
@@ -461,7 +462,7 @@ def of_application(app: Application, rules: LaunchRules = PLAIN) -> HostDeployme
     return HostDeployment(AppSpec(name=app.name), rules.describe(), Placement(), (), {app.process: process}, planned)
 
 
-def drive(app: Application, deployment: HostDeployment, eventfds: Mapping[str, int]) -> None:
+def drive(app: Application, deployment: HostDeployment, eventfds: Mapping[str, Wakeup]) -> None:
     """Give this process's activities of ``app`` the thread drivers the plan names (own thread, main
     thread; woken by their eventfd of ``eventfds``, made for the plan's ``woken`` set), before the
     application starts. The launch host drives the activities the plan hosts itself."""
@@ -483,7 +484,7 @@ def drive_unplanned(app: Application) -> None:
             _give(activity, plan.activities[activity.name], {})
 
 
-def _give(activity: Activity, placed: ActivityDeployment, eventfds: Mapping[str, int]) -> None:
+def _give(activity: Activity, placed: ActivityDeployment, eventfds: Mapping[str, Wakeup]) -> None:
     """``activity``'s thread driver as ``placed`` says; nothing for one the launch host drives."""
     if placed.driving is Driving.HOSTED:
         return

@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import enum
 import logging
-import os
-import select
 import threading
 import time
 from typing import TYPE_CHECKING, Protocol
@@ -26,6 +24,7 @@ from .cpu import CpuUse
 from .operations import set_current_activity
 from .period import PeriodGrid
 from .thread_placement import apply_to_current_thread
+from .wakeup import Wakeup
 
 if TYPE_CHECKING:
     from .activity import Activity
@@ -51,7 +50,7 @@ class Driver(Protocol):
         """What kind of driver this is, in the deployment plan's words."""
 
     @property
-    def eventfd(self) -> int | None:
+    def eventfd(self) -> Wakeup | None:
         """The eventfd through which other processes wake the activity; None: they do not."""
 
     def start(self, activity: Activity) -> None:
@@ -87,7 +86,7 @@ class ThreadDriver:
 
     driving = Driving.THREAD
 
-    def __init__(self, eventfd: int | None = None) -> None:
+    def __init__(self, eventfd: Wakeup | None = None) -> None:
         self.eventfd = eventfd
         self._wake = threading.Event()
         self._interrupt = threading.Event()
@@ -129,9 +128,9 @@ class ThreadDriver:
 
     def _triggered(self, activity: Activity) -> None:
         if self.eventfd is not None:
-            read, fd = os.eventfd_read, self.eventfd
+            woken = self.eventfd.wait
             while not activity.stopping:
-                read(fd)  # blocks with the GIL released until the counter is non-zero, then clears it
+                woken()  # blocks with the GIL released until the counter is non-zero, then clears it
                 if activity.stopping:
                     break
                 activity.cycle()
@@ -184,19 +183,19 @@ class ThreadDriver:
 
     def wake(self) -> None:
         if self.eventfd is not None:
-            os.eventfd_write(self.eventfd, 1)
+            self.eventfd.wake()
         else:
             self._wake.set()
 
     @property
     def wake_pending(self) -> bool:
-        return eventfd_pending(self.eventfd) if self.eventfd is not None else self._wake.is_set()
+        return self.eventfd.pending if self.eventfd is not None else self._wake.is_set()
 
     def stop(self) -> None:
         self._wake.set()
         self._interrupt.set()
         if self.eventfd is not None:
-            os.eventfd_write(self.eventfd, 1)
+            self.eventfd.wake()
 
     def set_period(self, period: float) -> None:
         self._interrupt.set()
@@ -214,8 +213,3 @@ class MainThreadDriver(ThreadDriver):
 
     def start(self, activity: Activity) -> None:
         self._activity = activity
-
-
-def eventfd_pending(fd: int) -> bool:
-    """Whether an eventfd holds a wake-up not taken yet (its counter is non-zero), without taking it."""
-    return bool(select.select([fd], [], [], 0)[0])

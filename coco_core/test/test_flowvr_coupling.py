@@ -3,7 +3,6 @@ Greedy), from Python and from the XML, with the errors a wrong file gets."""
 
 from __future__ import annotations
 
-import os
 import time
 
 import pytest
@@ -25,6 +24,7 @@ from coco_core.filters import Greedy, MaxFrequency, Merge, MergeGroup, PreSignal
 from coco_core.iteration import port_of
 from coco_core.policy import NEW_DATA, NO_DATA, OLD_DATA
 from coco_core.stamps import Message
+from coco_core.wakeup import Wakeup
 from coco_core.xml import parse_application_string
 
 BUFFERED = ConnectionPolicy(BufferPolicy.BUFFER, SyncPolicy.LOCKED, 100)
@@ -258,7 +258,7 @@ def test_a_max_frequency_from_another_process_times_the_messages_on_the_readers_
         plans = plan_channels(arena, plan_deployment(spec).host())
         [loop] = [plan for plan in plans if plan.dest_activity]
         assert (loop.src_process, loop.dest_process, loop.wakes) == ("worker", "", "produce")
-        consume = os.eventfd(0)  # what the launcher makes for the reader of producer.out, in worker
+        consume = Wakeup.new()  # what the launcher makes for the reader of producer.out, in worker
         attach(app, plans, {"consume": consume})
         [limiter] = port_of(app.activity("produce"), "beginit").connections
         assert isinstance(limiter, FedFilter) and limiter.describe() == "MaxFrequency(hz=20)"
@@ -272,7 +272,7 @@ def test_a_max_frequency_from_another_process_times_the_messages_on_the_readers_
             assert time.perf_counter() < due + 1.0
         assert time.perf_counter() >= due and item.stamp.source == "consume.endit"
         assert limiter.counters() == {"written": 2, "read": 2, "dropped": 0, "pending": 0}
-        os.close(consume)
+        consume.close()
     finally:
         arena.close()
 

@@ -38,6 +38,7 @@ from coco_core.frustum import Frustum
 from coco_core.policy import NEW_DATA
 from coco_core.shm import Arena, ShmReader, ShmWriter
 from coco_core.stamps import Stamp
+from coco_core.wakeup import Wakeup
 from coco_core.xml import load_application, parse_application_string
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
@@ -462,7 +463,7 @@ def test_split_and_cull_decide_on_the_writers_side_so_what_is_routed_away_never_
     assert sorted(writer_app.outgoing_routers) == ["emitter.out->left.item", "emitter.out->right.item",
                                                   "emitter.out->worker0.item", "emitter.out->worker1.item"]
     arena = Arena(f"writerroute{os.getpid()}x{os.urandom(3).hex()}")
-    view = os.eventfd(0)
+    view = Wakeup.new()
     try:
         plans = plan_channels(arena, plan_deployment(spec).host())
         attach(writer_app, plans, {"view": view})
@@ -490,7 +491,7 @@ def test_split_and_cull_decide_on_the_writers_side_so_what_is_routed_away_never_
         [monitor] = reader_app.component("monitor").item.connections
         assert monitor.written == 11  # a plain connection still takes every message
     finally:
-        os.close(view)
+        view.close()
         arena.close()
 
 

@@ -14,6 +14,7 @@ from coco_core.drivers import Driving, ThreadDriver
 from coco_core.errors import ActivityError
 from coco_core.period import PeriodGrid
 from coco_core.profiling import ActivityStats
+from coco_core.wakeup import Wakeup
 
 
 class Counter(Component):
@@ -72,9 +73,9 @@ def test_a_wake_pending_before_start_goes_to_the_new_driver() -> None:
     app.component("source").out.write(1)
     activity = app.activity("events")
     assert activity.wake_pending
-    fd = os.eventfd(0)
+    wakeup = Wakeup.new()
     try:
-        activity.drive_with(ThreadDriver(fd))
+        activity.drive_with(ThreadDriver(wakeup))
         assert activity.wake_pending, "the pending wake-up came along"
         app.start()
         deadline = time.monotonic() + 2
@@ -85,14 +86,15 @@ def test_a_wake_pending_before_start_goes_to_the_new_driver() -> None:
             activity.drive_with(ThreadDriver())
     finally:
         assert app.stop()
-        os.close(fd)
+        wakeup.close()
 
 
 def test_an_eventfd_driver_is_woken_by_another_process() -> None:
     app = Application("drivers")
     counter = app.add(Counter("counter"), TriggeredActivity("events"))
-    fd = os.eventfd(0)
-    app.activity("events").drive_with(ThreadDriver(fd))
+    wakeup = Wakeup.new()
+    fd = wakeup.fd
+    app.activity("events").drive_with(ThreadDriver(wakeup))
     app.start()
     try:
         time.sleep(0.05)
@@ -106,7 +108,29 @@ def test_an_eventfd_driver_is_woken_by_another_process() -> None:
         assert not app.activity("events").wake_pending
     finally:
         assert app.stop()
-        os.close(fd)
+        wakeup.close()
+
+
+def test_a_wake_after_the_close_writes_into_no_descriptor() -> None:
+    """The launcher closes its eventfds at the end while a host's receiver may still write: the write
+    must not reach the file that got the number since (8 bytes in a profile or a bag)."""
+    wakeup = Wakeup.new()
+    number = wakeup.fd
+    wakeup.wake()
+    assert wakeup.pending
+    wakeup.close()
+    read, write = os.pipe()  # the lowest free numbers: the eventfd's, now released
+    try:
+        assert number in (read, write), "the test needs the released number reused"
+        wakeup.wake()
+        wakeup.close()  # twice: nothing
+        assert not wakeup.pending and wakeup.fd == -1
+        os.set_blocking(read, False)
+        with pytest.raises(BlockingIOError):
+            os.read(read, 8)
+    finally:
+        os.close(read)
+        os.close(write)
 
 
 def test_application_start_drives_each_activity_as_the_plan_says_and_keeps_a_given_driver() -> None:

@@ -20,8 +20,8 @@ memory, when that process died).
 
 from __future__ import annotations
 
-import os
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -35,6 +35,7 @@ from ..iteration import port_of
 from ..ports import InputPort, OutputPort, PooledOutputPort, Port, type_name
 from ..pool import DEFAULT_SLOTS
 from ..stamps import Stamp
+from ..wakeup import Wakeup
 from .filtered import FedFilter, FedRouter, RoutedCount
 from .placement import Placement
 from .routed import RoutingEnd
@@ -181,7 +182,7 @@ def plan_channels(arena: Arena, deployment: HostDeployment) -> list[ChannelPlan]
     return plans
 
 
-def attach(app: Application, plans: list[ChannelPlan], wakes: dict[str, int]) -> None:
+def attach(app: Application, plans: list[ChannelPlan], wakes: Mapping[str, Wakeup]) -> None:
     """Attach this process's ends of the ``plans`` to ``app``'s ports; ``wakes`` maps each reader
     activity to its eventfd (inherited from the launcher)."""
     if not plans:
@@ -283,15 +284,15 @@ def _flags(app: Application, plans: list[ChannelPlan]) -> memoryview | None:
     return Segment(flags_name(plans[0].channel)).view.cast("q")
 
 
-def _waker(fd: int, flags: memoryview | None, ask: int) -> Callable[[], None]:
+def _waker(wakeup: Wakeup, flags: memoryview | None, ask: int) -> Callable[[], None]:
     """What a write calls to wake the reader's activity: its eventfd, or, where the reader's
     process decides (``ask``), its eventfd if that process said so."""
     if ask < 0 or flags is None:
-        return lambda: os.eventfd_write(fd, 1)
+        return wakeup.wake
 
     def wake_if_asked() -> None:
         if flags[ask]:
-            os.eventfd_write(fd, 1)
+            wakeup.wake()
 
     return wake_if_asked
 

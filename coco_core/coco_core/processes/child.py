@@ -39,6 +39,7 @@ from ..memory_lock import lock_memory
 from ..messages import Call, Damage, Outcome
 from ..report import snapshot
 from ..signals import signal_watcher
+from ..wakeup import Wakeup
 from .channels import attach
 from .control import ControlLink, Handlers
 from .messages import (
@@ -153,8 +154,9 @@ class ChildProcess:
         try:
             app = self.app = build_application(spec, process, placement=deployment.placement)
             app.measure_ages = config.measure_ages
-            drive(app, config.deployment, config.wakes)
-            attach(app, config.plans, config.wakes)
+            wakes = {activity: Wakeup(fd) for activity, fd in config.wakes.items()}  # inherited, kept to the end
+            drive(app, config.deployment, wakes)
+            attach(app, config.plans, wakes)
             if config.hosts is not None:  # the host level's side, which the launch put in the config
                 self.ends = config.hosts.attach(app, spec)
         except CocoError as error:

@@ -34,11 +34,12 @@ from ..activity import Activity
 from ..application import Application
 from ..calls import serve_call
 from ..deployment import HostDeployment, drive
-from ..drivers import Driving, eventfd_pending
+from ..drivers import Driving
 from ..errors import ProcessError
 from ..lifecycle import STOP_TIMEOUT
 from ..messages import Call, Damage, Outcome
 from ..report import ProfileSnapshot, connection_rows, render, snapshot
+from ..wakeup import Wakeup
 from .control import ControlLink
 from .messages import (
     BuildFailed,
@@ -127,7 +128,7 @@ class ProcessDriver:
     wherever it runs."""
 
     def __init__(self, supervisor: ProcessSupervisor, child: Child, activity: Activity, driving: Driving,
-                 eventfd: int | None) -> None:
+                 eventfd: Wakeup | None) -> None:
         self.supervisor = supervisor
         self.child = child
         self.activity = activity
@@ -142,11 +143,11 @@ class ProcessDriver:
 
     def wake(self) -> None:
         if self.eventfd is not None:
-            os.eventfd_write(self.eventfd, 1)
+            self.eventfd.wake()
 
     @property
     def wake_pending(self) -> bool:
-        return self.eventfd is not None and eventfd_pending(self.eventfd)
+        return self.eventfd is not None and self.eventfd.pending
 
     def stop(self) -> None:
         self.supervisor.stop_child(self.child, self.supervisor.app.stop_reason or "stop requested")
@@ -179,10 +180,9 @@ class ProcessSupervisor:
         self.log_level = log_level
         self.launch_id = f"{os.getpid()}-{secrets.token_hex(3)}"
         self.children: dict[str, Child] = {}
-        self._fds: list[int] = []
-        """Descriptors the launcher made for the children (eventfds), closed at the end."""
-        self._wakes: dict[str, int] = {}
-        """activity -> eventfd, for every activity of the plan's wake sets."""
+        self._wakes: dict[str, Wakeup] = {}
+        """activity -> its eventfd, for every activity of the plan's wake sets: made here for the
+        children, closed at the end (:meth:`close`)."""
         self.arena: Arena | None = None
         """The launch's shared-memory segments (when a connection crosses processes)."""
         self.plans: list[ChannelPlan] = []
@@ -204,9 +204,7 @@ class ProcessSupervisor:
                 self.arena = Arena(self.launch_id)
                 self.plans = plan_channels(self.arena, self.deployment)
             for name in sorted(self.deployment.woken):
-                fd = os.eventfd(0, os.EFD_CLOEXEC)
-                self._fds.append(fd)
-                self._wakes[name] = fd
+                self._wakes[name] = Wakeup.new()
             drive(self.app, self.deployment, self._wakes)
             attach(self.app, self.plans, self._wakes)
             for name in self.deployment.placement.processes:
@@ -235,11 +233,12 @@ class ProcessSupervisor:
         try:  # every child gets every wake-up eventfd: it may write to any process's reader
             popen = subprocess.Popen(
                 [sys.executable, "-m", self.child_module, str(theirs), str(os.getpid())],
-                pass_fds=(theirs, *self._wakes.values()), stdin=subprocess.DEVNULL,
+                pass_fds=(theirs, *(wakeup.fd for wakeup in self._wakes.values())), stdin=subprocess.DEVNULL,
                 start_new_session=True)  # a terminal's Ctrl-C reaches the launcher, which stops them
         finally:
             os.close(theirs)
-        link.send(Config(name, self.launch_id, self._wakes, self.plans, self.deployment, self.log_level,
+        wakes = {activity: wakeup.fd for activity, wakeup in self._wakes.items()}
+        link.send(Config(name, self.launch_id, wakes, self.plans, self.deployment, self.log_level,
                          self.child_config, self.hosts_link, self.app.measure_ages))
         return Child(name, link, popen, activities)
 
@@ -445,9 +444,8 @@ class ProcessSupervisor:
             if child.watcher is not None and child.watcher is not threading.current_thread():
                 child.watcher.join(timeout=1.0)
             child.link.close()
-        for fd in self._fds:
-            os.close(fd)
-        self._fds.clear()
+        for wakeup in self._wakes.values():  # a late write (a host's receiver) then does nothing
+            wakeup.close()
         if self.arena is not None:
             self.arena.close()
             self.arena = None
