@@ -60,26 +60,33 @@ def machine() -> dict[str, Any]:
 
 
 class LoadMeter:
-    """``with LoadMeter() as m:`` -> ``m.others``: the share of all cores that *other* processes used.
+    """``with LoadMeter() as m:`` -> ``m.others``: the share of all cores that *other* processes used;
+    ``m.own``: the cores this process used (its CPU seconds over the wall time).
 
     Read from /proc/stat (every process, steal included) minus this process's own CPU time, so that a
-    timing figure can be printed next to how busy the shared machine was meanwhile. None off Linux.
+    timing figure can be printed next to how busy the shared machine was meanwhile. ``children``:
+    the processes this one waited for (a bench's launchers, and theirs) count as its own, in both
+    figures. None off Linux.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, children: bool = False) -> None:
+        self.children = children
         self.others: float | None = None
+        self.own: float | None = None
         self._start: tuple[float, float, float] | None = None
 
-    @staticmethod
-    def _read() -> tuple[float, float, float] | None:
+    def _read(self) -> tuple[float, float, float] | None:
         try:
             fields = Path("/proc/stat").read_text().splitlines()[0].split()[1:]
         except OSError:
             return None
         ticks = [int(f) for f in fields]
         busy = sum(ticks) - ticks[3] - ticks[4] - sum(ticks[8:])  # minus idle, iowait, guest (counted in user)
-        own = os.times()
-        return busy / os.sysconf("SC_CLK_TCK"), own.user + own.system, time.monotonic()
+        times = os.times()
+        own = times.user + times.system
+        if self.children:
+            own += times.children_user + times.children_system
+        return busy / os.sysconf("SC_CLK_TCK"), own, time.monotonic()
 
     def __enter__(self) -> LoadMeter:
         self._start = self._read()
@@ -91,6 +98,7 @@ class LoadMeter:
             return
         busy, own, wall = (e - s for e, s in zip(end, self._start))
         self.others = max(0.0, (busy - own) / (wall * (os.cpu_count() or 1)))
+        self.own = own / wall
 
 
 @contextlib.contextmanager

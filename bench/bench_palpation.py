@@ -55,7 +55,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 from typing import Any
 
@@ -124,33 +123,6 @@ def session(path: Path) -> Path:
     return path
 
 
-class Cpu:
-    """``with Cpu() as c:`` -> ``c.others``: the share of all cores that processes other than this
-    benchmark and the launchers it waited for (and their children) used meanwhile; ``c.app``: the
-    cores those launchers and their children used (CPU seconds over the wall time)."""
-
-    def __init__(self) -> None:
-        self.others: float | None = None
-        self.app: float | None = None
-
-    @staticmethod
-    def _read() -> tuple[float, float, float]:
-        fields = [int(f) for f in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
-        busy = sum(fields) - fields[3] - fields[4] - sum(fields[8:])
-        own = os.times()
-        mine = own.user + own.system + own.children_user + own.children_system
-        return busy / os.sysconf("SC_CLK_TCK"), mine, time.monotonic()
-
-    def __enter__(self) -> Cpu:
-        self._start = self._read()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        busy, mine, wall = (e - s for e, s in zip(self._read(), self._start))
-        self.others = max(0.0, (busy - mine) / (wall * (os.cpu_count() or 1)))
-        self.app = mine / wall
-
-
 def profile(stdout: str) -> dict[str, Any]:
     """What the launcher's profile at exit says: run time, per process CPU, per activity cycles,
     overruns and period error (us). Without the process level its tables have no process column."""
@@ -180,7 +152,7 @@ def run_app(app: Path, bag: Path, period: int, stride: int, folder: Path, extra:
                f"display_period:={period}",
                f"stride:={stride}", f"stream:=tcp://127.0.0.1:{free_port()}", "--profile", "3600",
                *extra, "--duration", "120"]
-    with Cpu() as cpu:
+    with _report.LoadMeter(children=True) as cpu:  # the launchers it waits for are its own
         result = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=600,
                                 env={**os.environ, "PYTHONUNBUFFERED": "1"})
     if not (output / "summary.json").exists():  # a run that did not reach its stop
@@ -211,7 +183,7 @@ def run_app(app: Path, bag: Path, period: int, stride: int, folder: Path, extra:
         "stream_frames": summary["stream"]["frames"], "stream_dropped": summary["stream"]["dropped"],
         "display_fps": display["cycles"] / facts["elapsed_s"] if display and facts["elapsed_s"] > 0 else None,
         "display_missed": display.get("overruns"),
-        "elapsed_s": facts["elapsed_s"], "cpu_s": facts["cpu_s"], "others": cpu.others, "app_cores": cpu.app,
+        "elapsed_s": facts["elapsed_s"], "cpu_s": facts["cpu_s"], "others": cpu.others, "app_cores": cpu.own,
         "registered": summary["registration_residual_mm"] is not None, "exit": result.returncode,
     }
 

@@ -33,7 +33,6 @@ the publishers' messages per CPU-second are the figure that still compares them.
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import statistics
 import struct
@@ -49,6 +48,8 @@ import _report
 from _ros import RosContext  # sets ROS_DOMAIN_ID before rclpy is imported
 from _table import Table, fmt_ratio
 from _timing import Samples
+
+from coco_core.cpu import process_cpu
 
 if str(_report.REPO / "coco_ros") not in sys.path:
     sys.path.insert(0, str(_report.REPO / "coco_ros"))
@@ -177,12 +178,9 @@ def ports_rate(bag: Path, output: str, warmup: float, window: float) -> float:
 # --- DDS variants ---------------------------------------------------------------------------------
 
 def cpu_seconds(pid: int) -> float:
-    """User + system CPU time of a process (Linux /proc), 0 elsewhere."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    """User + system CPU time of a process so far (coco_core.cpu, from /proc), 0 once it is gone."""
+    use = process_cpu(pid)
+    return use.seconds if use is not None else 0.0
 
 
 def stamp_ns(cdr: bytes) -> int:
