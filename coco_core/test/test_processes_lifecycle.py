@@ -28,6 +28,7 @@ APP = """<package name="procs">
         <attribute name="pid_file" value="{tmp}/ticker.pid"/>
         <attribute name="fault" value="{fault}"/>
         <attribute name="fault_after" value="{fault_after}"/>
+        <attribute name="linger" value="{linger}"/>
       </attributes></component>
     <component><name>sink</name><task>process_components:Sink</task>
       <attributes><attribute name="path" value="{tmp}/sink.txt"/></attributes></component>
@@ -48,9 +49,9 @@ APP = """<package name="procs">
 """
 
 
-def write_app(tmp_path: Path, fault: str = "", fault_after: int = 5, period: float = 10) -> Path:
+def write_app(tmp_path: Path, fault: str = "", fault_after: int = 5, period: float = 10, linger: float = 0) -> Path:
     path = tmp_path / "app.xml"
-    path.write_text(APP.format(tmp=tmp_path, fault=fault, fault_after=fault_after, period=period))
+    path.write_text(APP.format(tmp=tmp_path, fault=fault, fault_after=fault_after, period=period, linger=linger))
     return path
 
 
@@ -199,6 +200,24 @@ def test_a_signal_to_the_launcher_stops_every_process_within_a_second(tmp_path: 
     assert len(values) > 20 and values == list(range(len(values))), "every value crossed, in order"
 
 
+def test_a_child_slow_to_end_after_its_part_stopped_is_ended_without_a_failure(tmp_path: Path, reap) -> None:
+    """A child that stopped its part cleanly (its last profile sent, everything flushed) but whose
+    process does not end within the stop time (here a thread it left running; a ROS child releasing
+    its node and rclpy on a loaded machine, as a CI run saw) is ended, and the launcher still exits 0:
+    nothing was lost. It exited 1 with "process worker died: killed by SIGKILL"."""
+    launcher = launch(write_app(tmp_path, linger=60), "--duration", "60")
+    reap(launcher)
+    child = int(wait_for_file(tmp_path / "ticker.pid"))
+    wait_for_file(tmp_path / "sink.txt")
+    os.killpg(launcher.pid, signal.SIGINT)
+    out, _ = launcher.communicate(timeout=30)
+    assert launcher.returncode == 0, out
+    assert "process worker stopped its part cleanly but did not end within 1.0 s" in out, out
+    assert "died" not in out, out
+    assert wait_dead(child, 1.0)
+    assert (tmp_path / "sink.txt").read_text().splitlines()[-1] == "stopped"
+
+
 def test_children_die_with_a_killed_launcher(tmp_path: Path, reap) -> None:
     launcher = launch(write_app(tmp_path), "--duration", "60")
     reap(launcher)
@@ -299,7 +318,7 @@ def test_check_finds_a_buffer_between_processes_larger_than_the_shared_memory(tm
         reap(process)
         out, _ = process.communicate(timeout=60)
         assert process.returncode == 1, out
-        assert f"app.xml:13: connection ticker.out -> sink.value (BUFFER/LOCKED[{slots}]) between processes needs" in out
+        assert f"app.xml:14: connection ticker.out -> sink.value (BUFFER/LOCKED[{slots}]) between processes needs" in out
         assert "MiB free (a smaller buffersize, or both ends in one process)" in out
         assert "Traceback" not in out, out
 

@@ -119,6 +119,9 @@ class Child:
     """The child was told that the stop is hard (a signal or a fault came during a natural stop)."""
     watcher: threading.Thread | None = None
     """The thread reading the child's link until its end (:meth:`ProcessSupervisor.close` waits for it)."""
+    cut_short: bool = False
+    """The launcher ended the child after it stopped its part cleanly, while it still released what it
+    holds beyond it (a ROS child's node and rclpy): not a death, nothing lost."""
 
 
 class ProcessDriver:
@@ -298,7 +301,7 @@ class ProcessSupervisor:
         child.stopped.set()
         self.app.progress.advance()
         child.link.abandon(f"process {child.name} ended ({exit_description(code)}) before it answered")
-        if child.last is not None and code == 0:
+        if child.last is not None and (code == 0 or child.cut_short):
             return  # it stopped as asked
         what = exit_description(code)
         log.error("process %s (pid %d) died: %s", child.name, child.popen.pid, what)
@@ -423,10 +426,17 @@ class ProcessSupervisor:
             if not self.app.progress.wait(partial(_exited, child.popen), lambda: self.app.stop_deadline(begun, timeout)):
                 how = (f"within {timeout:.1f} s" if self.app.stop_is_hard else
                        f"(no progress for {timeout:.1f} s after the application's own stop request)")
-                log.error("process %s did not stop %s; killing it", child.name, how)
+                if child.stopped.is_set() and child.last is not None and child.clean:
+                    # Its activities stopped and flushed (Stopped, clean): only its release is late.
+                    child.cut_short = True
+                    log.warning("process %s stopped its part cleanly but did not end %s (what it holds "
+                                "beyond the application: a ROS node, a thread left running); ending it",
+                                child.name, how)
+                else:
+                    log.error("process %s did not stop %s; killing it", child.name, how)
+                    clean = False
                 child.popen.kill()
                 child.popen.wait()
-                clean = False
             clean = clean and child.clean
         return clean
 

@@ -24,6 +24,8 @@ class Ticker(Component):
     damage_at = Attribute(int, 0, "the update at which the ticker reports damaged input (0: never)")
     last_after = Attribute(float, 0.0, "seconds on_stop works before it writes a last value, -1 "
                            "(a component that flushes at its stop); 0: no last value")
+    linger = Attribute(float, 0.0, "seconds a thread that on_stop leaves running keeps its process from "
+                       "ending after the part stopped (a ROS child releasing its node); 0: none")
     out = OutputPort(Stamped)
 
     def init(self) -> None:
@@ -58,6 +60,8 @@ class Ticker(Component):
         if self.last_after:
             time.sleep(self.last_after)
             self.out.write(Stamped(-1))
+        if self.linger:  # not a daemon (as the activity thread is): the interpreter waits for it at the end
+            threading.Thread(target=threading.Event().wait, args=(self.linger,), name="lingering", daemon=False).start()
 
     @operation
     def scale(self, factor: int) -> int:
