@@ -134,7 +134,8 @@ def profile(stdout: str) -> dict[str, Any]:
         facts["cpu_s"][match.group(1)] = float(match.group(2))
         if match.group(3) != "-":
             facts["cores"][match.group(1)] = float(match.group(3))
-    pattern = (r"^(?:(\w+)\s+)?(\w+)(?: \(main\))?\s+(?:periodic [0-9.]+ m?s|triggered)\s+(\d+)\s+(\d+)\s+"
+    pattern = (r"^(?:(\w+)\s+)?(\w+)(?: \(main\))?\s+"
+               r"(?:periodic [0-9.]+ m?s|triggered(?:, at most every [0-9.]+ ms)?)\s+(\d+)\s+(\d+)\s+"
                r"(?:([0-9.]+) / ([0-9.]+) / ([0-9.]+)|-)")
     for match in re.finditer(pattern, stdout, re.M):
         process, activity, cycles, overruns, p50, p99, top = match.groups()

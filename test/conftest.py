@@ -118,7 +118,8 @@ def activity_cycles(report: str, process: str, activity: str) -> int:
 
     Tests count what a run produced against this instead of against wall time: how many cycles a
     periodic activity gets depends on the machine's load, what each cycle must produce does not."""
-    pattern = rf"^{re.escape(process)}\s+{re.escape(activity)}\s+(?:periodic [0-9.]+ m?s|triggered)\s+(\d+)\s"
+    schedule = r"(?:periodic [0-9.]+ m?s|triggered(?:, at most every [0-9.]+ ms)?)"  # Schedule.describe()
+    pattern = rf"^{re.escape(process)}\s+{re.escape(activity)}\s+{schedule}\s+(\d+)\s"
     match = re.search(pattern, report, re.M)
     assert match, f"no activity {activity} of process {process} in the profile:\n{report}"
     return int(match.group(1))

@@ -392,4 +392,13 @@ class TriggeredActivity(Activity):
     Wake-ups that arrive during a cycle are not lost: they cause one more cycle, unless the data is
     for a component that cycle has yet to update (a pipeline's stages in one activity: each stage's
     output is read by the next in the same cycle).
+
+    ``min_period``: seconds from the start of one cycle to the start of the next, at least (0: no
+    bound); the wake-ups within it cause one cycle at the bound (:attr:`Schedule.min_period
+    <coco_core.schedule.Schedule.min_period>`).
     """
+
+    def __init__(self, name: str, components: Iterable[Component] = (), *, min_period: float = 0.0,
+                 **options: object) -> None:
+        super().__init__(name, components, schedule=Schedule.triggered(min_period, f"activity {name}: "),
+                         **options)  # type: ignore[arg-type]

@@ -101,7 +101,8 @@ class _Builder:
             assert schedule.period_ms is not None  # the loader guarantees it
             return PeriodicActivity(spec.name, schedule.period_ms / 1e3, main=schedule.main, scheduling=request,
                                     spin=schedule.spin)
-        return TriggeredActivity(spec.name, main=schedule.main, scheduling=request)
+        return TriggeredActivity(spec.name, main=schedule.main, scheduling=request,
+                                 min_period=schedule.min_period_ms / 1e3)
 
     def install_transforms(self, app: Application) -> None:
         """Install the declared ``<transforms>`` structure into ``app.transforms``.

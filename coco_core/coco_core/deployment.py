@@ -91,11 +91,14 @@ class ActivityFacts:
     """Its components (peers included) that must run in the thread that configured them."""
     spin: float = DEFAULT_SPIN
     """Seconds before each periodic deadline at which its thread stops sleeping and spins."""
+    min_period: float = 0.0
+    """Triggered: seconds from the start of one cycle to the start of the next, at least (0: none)."""
 
     def describe(self) -> str:
         """The schedule, then what the file asks beyond it (a spin, the thread's real-time class,
-        priority, nice value and cores): ``periodic 1 ms, spin 0.6 ms, SCHED_FIFO priority 80``."""
-        words = [Schedule(self.period).describe()]
+        priority, nice value and cores): ``periodic 1 ms, spin 0.6 ms, SCHED_FIFO priority 80``,
+        ``triggered, at most every 16 ms, nice 10``."""
+        words = [Schedule(self.period, min_period=self.min_period).describe()]
         if self.period is not None and self.spin != DEFAULT_SPIN:
             words.append(f"spin {self.spin * 1e3:g} ms")
         return ", ".join([*words, *self.scheduling.describe()])
@@ -115,13 +118,13 @@ class ActivityFacts:
                 bound.append(component.name)
             stack.extend(reversed(component.peers))
         return cls(spec.name, spec.process, period, schedule.main, SchedulingRequest.of(schedule), tuple(bound),
-                   schedule.spin)
+                   schedule.spin, schedule.min_period_ms / 1e3)
 
     @classmethod
     def of_activity(cls, activity: Activity) -> ActivityFacts:
         bound = tuple(c.name for top in activity.components for c in top.walk() if c.thread_bound)
         return cls(activity.name, activity.process, activity.period, activity.main, activity.scheduling,
-                   bound, activity.schedule.spin)
+                   bound, activity.schedule.spin, activity.schedule.min_period)
 
 
 def _thread_bound(component: ComponentSpec) -> bool:

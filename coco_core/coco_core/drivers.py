@@ -75,7 +75,8 @@ class Driver(Protocol):
 
 class ThreadDriver:
     """Runs the activity in a thread of its own: periodic on the activity's time grid with a precise
-    sleep, triggered on each wake-up. Wake-ups that arrive during a cycle are not lost: they cause one
+    sleep, triggered on each wake-up (no sooner than the schedule's ``min_period`` after the last
+    cycle began, when it has one). Wake-ups that arrive during a cycle are not lost: they cause one
     more cycle.
 
     ``eventfd``: a Linux eventfd (a kernel counter that any process holding the descriptor can
@@ -90,7 +91,8 @@ class ThreadDriver:
         self.eventfd = eventfd
         self._wake = threading.Event()
         self._interrupt = threading.Event()
-        """Ends a periodic activity's coarse sleep early: a stop or a period change (data never does)."""
+        """Ends a periodic activity's coarse sleep early (a stop or a period change), and a triggered
+        one's wait for its ``min_period`` (a stop); data never does."""
         self._activity: Activity | None = None
         self._entered = False
         """Whether a thread runs (or will run) the activity: a main activity's only once it is run."""
@@ -127,20 +129,48 @@ class ThreadDriver:
             set_current_activity(None)
 
     def _triggered(self, activity: Activity) -> None:
-        if self.eventfd is not None:
+        min_period = activity.schedule.min_period
+        if min_period:
+            self._triggered_bounded(activity, min_period)
+        elif self.eventfd is not None:
             woken = self.eventfd.wait
             while not activity.stopping:
                 woken()  # blocks with the GIL released until the counter is non-zero, then clears it
                 if activity.stopping:
                     break
                 activity.cycle()
-            return
-        wait, clear = self._wake.wait, self._wake.clear
+        else:
+            wait, clear = self._wake.wait, self._wake.clear
+            while not activity.stopping:
+                wait()
+                clear()
+                if activity.stopping:
+                    break
+                activity.cycle()
+
+    def _triggered_bounded(self, activity: Activity, min_period: float) -> None:
+        """Cycle when woken, no sooner than ``min_period`` after the last cycle began. The bound is
+        waited out *before* the wait for a wake-up: the wake-ups that come meanwhile are all taken at
+        once after it, and cause one cycle at the bound (which reads the newest of every input), not
+        one each. The wait is on ``_interrupt``, so a stop ends it at once."""
+        clock, interrupted = time.perf_counter, self._interrupt.wait
+        if self.eventfd is not None:
+            woken = self.eventfd.wait
+        else:
+            event = self._wake
+
+            def woken() -> None:
+                event.wait()
+                event.clear()
+
+        began = float("-inf")  # no cycle yet: nothing to wait for
         while not activity.stopping:
-            wait()
-            clear()
+            while (remaining := began + min_period - clock()) > 0 and not activity.stopping:
+                interrupted(remaining)
+            woken()
             if activity.stopping:
                 break
+            began = clock()
             activity.cycle()
 
     def _periodic(self, activity: Activity, grid: PeriodGrid) -> None:

@@ -131,6 +131,9 @@ class ScheduleSpec:
     spin_ms: float | None = None
     """Periodic: milliseconds before each deadline at which the thread stops sleeping and spins
     (:attr:`Schedule.spin <coco_core.schedule.Schedule.spin>`); None: the runtime's default."""
+    min_period_ms: float = 0.0
+    """Triggered: milliseconds from the start of one cycle to the start of the next, at least
+    (:attr:`Schedule.min_period <coco_core.schedule.Schedule.min_period>`); 0: no bound."""
     priority: int | None = None
     nice: int | None = None
     affinity: list[int] = field(default_factory=list)

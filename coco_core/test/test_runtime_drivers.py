@@ -13,6 +13,7 @@ from coco_core import Application, BufferPolicy, Component, ConnectionPolicy, In
 from coco_core.drivers import Driving, ThreadDriver
 from coco_core.errors import ActivityError
 from coco_core.period import PeriodGrid
+from coco_core.policy import NEW_DATA
 from coco_core.profiling import ActivityStats
 from coco_core.wakeup import Wakeup
 
@@ -31,6 +32,22 @@ class Counter(Component):
 
 class Source(Component):
     out = OutputPort(int)
+
+
+class Stamps(Component):
+    """Notes when each of its updates began and the newest value it read."""
+
+    value = InputPort(int, event=True)
+
+    def init(self) -> None:
+        self.starts: list[float] = []
+        self.seen: int | None = None
+
+    def on_update(self) -> None:
+        self.starts.append(time.perf_counter())
+        status, value = self.value.read_newest()
+        if status is NEW_DATA:
+            self.seen = value
 
 
 def test_grid_skips_missed_deadlines_and_counts_one_overrun() -> None:
@@ -63,6 +80,72 @@ def test_grid_period_change_continues_from_the_last_deadline() -> None:
     assert grid.change_period(0.001, 100.05) == pytest.approx(100.05), "a past deadline is now"
     with pytest.raises(ValueError, match="greater than 0"):
         grid.change_period(0, 100.0)
+
+
+LATE_START = 0.005
+"""Seconds from a driver's start of a cycle to its first component's update, at most: microseconds,
+more when the thread is preempted in between on a loaded machine. The gaps between updates may be
+that much shorter than the ``min_period`` between the cycles' starts; a driver that ignored the
+bound would start the next cycle within a millisecond."""
+
+
+@pytest.fixture(params=["eventfd", "event"])
+def wakeup(request: pytest.FixtureRequest):
+    """What wakes a thread driver: an eventfd (closed at teardown, after the test's application
+    stopped), or None, the driver's thread event."""
+    if request.param == "event":
+        yield None
+        return
+    wakeup = Wakeup.new()
+    yield wakeup
+    wakeup.close()
+
+
+def bounded(app: Application, wakeup: Wakeup | None, min_period: float) -> tuple[Source, Stamps]:
+    """``source`` (in no activity: the test writes) -> ``stamps`` in a triggered activity ``view``
+    with ``min_period``, on a thread driver woken by ``wakeup``."""
+    stamps = app.add(Stamps("stamps"), TriggeredActivity("view", min_period=min_period))
+    source = app.add(Source("source"))
+    app.connect("source.out", "stamps.value")
+    app.activity("view").drive_with(ThreadDriver(wakeup))
+    return source, stamps
+
+
+def test_a_min_period_keeps_cycles_apart_and_a_burst_of_wake_ups_gets_one_cycle_at_the_bound(
+        wakeup, make_app, wait_until) -> None:
+    min_period = 0.2
+    app = make_app("bounded")
+    source, stamps = bounded(app, wakeup, min_period)
+    activity = app.activity("view")
+    app.start()
+    source.out.write(1)
+    assert wait_until(lambda: stamps.seen == 1, timeout=20), "the first wake-up waits for nothing"
+    for value in (2, 3, 4, 5):
+        source.out.write(value)
+    burst_end = time.perf_counter()
+    assert wait_until(lambda: stamps.seen == 5 and not activity.wake_pending, timeout=20), \
+        "the last wake-up is served"
+    starts = list(stamps.starts)
+    assert app.stop()
+    gaps = [later - earlier for earlier, later in zip(starts, starts[1:])]
+    assert gaps and min(gaps) >= min_period - LATE_START, f"cycles {gaps} s apart, bound {min_period} s"
+    if burst_end < starts[0] + min_period:  # the whole burst came during the wait: one cycle serves it
+        assert len(starts) == 2, f"{len(starts) - 1} cycles for a burst of 4 wake-ups within the bound"
+
+
+def test_a_stop_ends_the_wait_for_the_min_period_and_the_held_wake_up_is_drained(
+        wakeup, make_app, wait_until) -> None:
+    min_period = 60.0
+    app = make_app("bounded")
+    source, stamps = bounded(app, wakeup, min_period)
+    app.start()
+    source.out.write(1)
+    assert wait_until(lambda: stamps.seen == 1, timeout=20)
+    source.out.write(2)  # held: the next cycle may start a minute after the first
+    asked = time.monotonic()
+    assert app.stop(), "the activity did not stop"
+    assert time.monotonic() - asked < min_period / 4, "the stop waited for the min_period"
+    assert stamps.seen == 2, "a natural stop drains what the held wake-up brought"
 
 
 def test_a_wake_pending_before_start_goes_to_the_new_driver() -> None:

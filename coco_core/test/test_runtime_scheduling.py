@@ -126,13 +126,15 @@ def test_check_prints_what_each_activity_asks_of_the_os() -> None:
         <activity name="pinned"><schedule period="10" exclusive_affinity="1" nice="5"/><components/></activity>
         <activity name="shared"><schedule type="triggered" affinity="0,1"/><components/></activity>
         <activity name="plain"><schedule period="10"/><components/></activity>
+        <activity name="view"><schedule type="triggered" min_period="16" nice="10"/><components/></activity>
       </activities>
     </package>""", filename="asks.xml")
     lines = [activity.line() for activity in plan_deployment(spec).host().activities.values()]
     assert lines == ["activity haptics: periodic 1 ms, spin 0.6 ms, SCHED_FIFO priority 80 -> own thread",
                      "activity pinned: periodic 10 ms, nice 5, exclusive cores 1 -> own thread",
                      "activity shared: triggered, cores 0,1 -> own thread",
-                     "activity plain: periodic 10 ms -> own thread"]
+                     "activity plain: periodic 10 ms -> own thread",
+                     "activity view: triggered, at most every 16 ms, nice 10 -> own thread"]
 
 
 def test_a_process_real_time_class_is_its_activities_summed_up_and_check_prints_it() -> None:

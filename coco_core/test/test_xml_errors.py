@@ -281,6 +281,46 @@ def test_a_wrong_spin_is_an_error_with_file_and_line():
     ]
 
 
+def test_min_period_bounds_a_triggered_activity_in_either_layout():
+    from coco_core.builder import build_application
+
+    text = """<package>
+  <activities>
+    <activity name="view"><schedule type="triggered" min_period="16"/><components/></activity>
+    <activity name="legacy"><schedulepolicy activity="parallel" min_period="2.5"/><components/></activity>
+    <activity name="plain"><schedule type="triggered"/><components/></activity>
+  </activities>
+</package>"""
+    spec = parse_application_string(text)
+    assert [a.schedule.min_period_ms for a in spec.activities] == [16.0, 2.5, 0.0]
+    app = build_application(spec)
+    assert [app.activity(name).schedule.min_period for name in ("view", "legacy", "plain")] == pytest.approx(
+        [0.016, 0.0025, 0.0])
+    assert app.activity("view").describe() == "triggered, at most every 16 ms"
+    assert app.activity("plain").describe() == "triggered"
+
+
+def test_a_wrong_min_period_is_an_error_with_file_and_line():
+    text = """<package>
+  <activities>
+    <activity><schedule period="10" min_period="16"/><components/></activity>
+    <activity><schedule type="triggered" min_period="-1"/><components/></activity>
+    <activity><schedule type="triggered" min_period="soon"/><components/></activity>
+    <activity><schedulepolicy type="periodic" value="5" min_period="1"/><components/></activity>
+    <activity><schedule type="triggered" min_period="1e9"/><components/></activity>
+  </activities>
+</package>"""
+    periodic = ("only a triggered activity has a minimum period (a periodic one cycles every period); leave it "
+                'out, or make the activity type="triggered"')
+    assert errors_of(text) == [
+        (3, f'<schedule> attribute min_period="16": {periodic}'),
+        (4, '<schedule> attribute min_period="-1": expected milliseconds from 0 (no bound) to 86400000 (a day)'),
+        (5, '<schedule> attribute min_period="soon": expected a number of milliseconds'),
+        (6, f'<schedulepolicy> attribute min_period="1": {periodic}'),
+        (7, '<schedule> attribute min_period="1e9": expected milliseconds from 0 (no bound) to 86400000 (a day)'),
+    ]
+
+
 def test_activity_structure():
     text = """<package>
   <activities>

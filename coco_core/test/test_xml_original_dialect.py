@@ -338,6 +338,16 @@ def test_unknown_elements_are_ignored_anywhere_in_an_original_file_but_errors_in
     assert [line for line, _ in errors_of(strict)] == [3, 3]
 
 
+@pytest.mark.parametrize("tag", ["schedule", "schedulepolicy"])
+def test_a_min_period_in_either_layout_puts_the_file_in_this_projects_dialect(tag):
+    text = f"""<package>
+  <activities><activity><{tag} type="triggered" min_period="16"/><components/></activity></activities>
+  <test/>
+</package>"""
+    assert [(line, message.split(";")[0]) for line, message in errors_of(text)] == [
+        (3, "unexpected element <test> in <package>")]
+
+
 def test_an_included_file_has_its_own_dialect(tmp_path):
     (tmp_path / "app.xml").write_text('<package on_error="continue"><includes><include>old.xml</include>'
                                       '</includes></package>')

@@ -1,9 +1,11 @@
 """GLManager: one OpenGL output (a window or an offscreen framebuffer) rendering its peers each frame.
 
 The paper's display module puts performance before visual effects: one context per manager, owned
-by the manager's activity thread (its period is the frame rate), peers drawn in file order, and the
-frame read back once into a fresh array that goes out on the ``color`` port as an image (so it can be
-streamed, recorded or fed to vision code without further copies). Several managers run at once, each
+by the manager's activity thread (its period is the frame rate; in a triggered activity, woken by
+its peers' event inputs, a frame starts when an input arrives, at most every ``min_period`` of the
+activity's schedule), peers drawn in file order, and the frame read back once into a fresh array
+that goes out on the ``color`` port as an image (so it can be streamed, recorded or fed to vision
+code without further copies). Several managers run at once, each
 on its own activity.
 
 Each update is one frame: window events go to the controller peers, every peer steps (reads its
@@ -78,9 +80,6 @@ class GLManager(Component):
     title = Attribute(str, "CoCo", "window title")
     depth_output = Attribute(bool, False, "also read back the depth buffer to the depth port (metres)")
     vsync = Attribute(bool, False, "window: wait for the display's refresh (off: the activity sets the rate)")
-    min_period = Attribute(float, 0.0, "ms between the starts of two frames, at least (0: no bound): in a "
-                           "triggered activity, woken by its event inputs, the display draws as soon as something "
-                           "new arrives, at most this often", min=0.0)
     stamped = Attribute(bool, False, "write the images as Stamped(Image, frame stamp): the oldest input the "
                         "frame is the first to show (sensor-to-display latency downstream)")
 
@@ -97,9 +96,6 @@ class GLManager(Component):
         self.frames = 0
         self.last_stamp: Stamp | None = None
         """The stamp of the last frame rendered (see the module docstring)."""
-        self.frame_started: float | None = None
-        """When the current (or last) frame began, ``time.perf_counter()`` seconds: ``min_period``
-        counts from it."""
         self._drawing: list[GLPeer] = []
         """The drawing peers whose gl_init succeeded, in drawing order: only these render and release."""
 
@@ -127,30 +123,17 @@ class GLManager(Component):
     def on_update(self) -> None:
         surface = self.surface
         assert surface is not None, "on_update before a successful on_config"
-        self._pace()
         events = surface.poll()
         if events:
             dispatch(events, self.walk()[1:])
             if any(event.kind is EventKind.CLOSE for event in events):
                 self._close()
-        started = self.frame_started = time.perf_counter()
+        started = time.perf_counter()
         for peer in self.peers:
             peer.step()
         self.render_frame(started)
         surface.present()
         self.frames += 1
-
-    def _pace(self) -> None:
-        """Wait until ``min_period`` after the last frame began. A display woken by each new input (a
-        camera frame, a pose) starts its frame when the input arrives, not at the next tick of a
-        period (up to a period later); this bound keeps a stream of inputs (poses at 100 Hz and more)
-        from drawing faster than the display's rate. The frame then reads the newest of each input,
-        whatever came meanwhile."""
-        if self.frame_started is None or self.min_period <= 0.0:
-            return
-        wait = self.frame_started + self.min_period / 1e3 - time.perf_counter()
-        if wait > 0.0:
-            time.sleep(wait)
 
     def on_stop(self) -> None:
         if self.surface is None:

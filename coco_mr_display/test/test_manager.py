@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from conftest import CUBE_CORNERS, Cube, Frames, project, render_once
-from coco_core import Application, PeriodicActivity, TriggeredActivity
+from coco_core import Application, PeriodicActivity
 from coco_core.component import Component, ErrorPolicy
-from coco_core.policy import NEW_DATA, BufferPolicy, ConnectionPolicy, SyncPolicy
-from coco_core.ports import InputPort, OutputPort
+from coco_core.policy import BufferPolicy, ConnectionPolicy, SyncPolicy
+from coco_core.ports import InputPort
 from coco_mr_display.camera import GLCameraManager
 from coco_mr_display.manager import GLManager
 from coco_mr_vision.image import ImageFormat
@@ -231,55 +231,3 @@ def test_a_peer_whose_gl_init_fails_is_disabled_and_the_others_draw(caplog: pyte
     assert "component broken raised in gl_init" in caplog.text and "undefined_name" in caplog.text
     assert not broken.enabled and not broken.released  # nothing to release: it never initialised
     assert manager.enabled and np.all(image.data == (0, 255, 0), axis=2).sum() > 50
-
-
-class Source(Component):
-    value = OutputPort(float)
-
-
-class Probe(Component):
-    """A (non-drawing) peer that notes when each frame of its manager began and the newest value it read."""
-
-    value = InputPort(float, event=True)
-
-    def init(self) -> None:
-        self.starts: list[float] = []
-        self.seen: float | None = None
-
-    def on_update(self) -> None:
-        manager = self.owner
-        assert isinstance(manager, GLManager) and manager.frame_started is not None
-        self.starts.append(manager.frame_started)
-        status, value = self.value.read_newest()
-        if status is NEW_DATA:
-            self.seen = value
-
-
-def test_a_triggered_display_draws_when_an_input_arrives_at_most_every_min_period() -> None:
-    min_period = 0.08
-    app = Application("triggered-display")
-    manager = GLManager("display", width=16, height=16, visualization="2d", min_period=min_period * 1e3)
-    probe = Probe("probe")
-    manager.add_peer(probe)
-    source = Source("source")
-    app.add(source)
-    app.add(manager, TriggeredActivity("render"))
-    app.connect("source.value", "probe.value")
-    app.start()
-    try:
-        def drawn(value: float) -> bool:
-            deadline = time.monotonic() + 20
-            while time.monotonic() < deadline and probe.seen != value:
-                time.sleep(0.005)
-            return probe.seen == value
-
-        source.value.write(1.0)
-        assert drawn(1.0), "a new input starts a frame (no period to wait for)"
-        for value in (2.0, 3.0, 4.0, 5.0):  # a burst: frames no closer than min_period, the newest drawn
-            source.value.write(value)
-        assert drawn(5.0)
-    finally:
-        assert app.stop()
-    gaps = np.diff(probe.starts)
-    assert gaps.size >= 1 and gaps.min() >= min_period, f"frames {gaps} s apart, bound {min_period} s"
-    assert manager.stats.errors == 0

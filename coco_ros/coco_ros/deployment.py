@@ -84,7 +84,8 @@ class RosRules:
         reason = self._own_thread_reason(facts)
         if reason is not None:
             return Decision(False, reason)
-        entity = "guard condition" if facts.period is None else "rclpy timer"
+        entity = "rclpy timer" if facts.period is not None else (
+            "guard condition, a one-shot timer for its min_period" if facts.min_period else "guard condition")
         where = "wait set on its own thread" if self.wait_sets else "executor"
         return Decision(True, f"{where} ({entity} in its callback group)")
 

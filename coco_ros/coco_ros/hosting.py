@@ -30,7 +30,13 @@ Either way:
   activity woken by a hosted activity's callback runs its cycle in that callback, right after, as
   itself and under its own lock (``ExecutorDriver.busy``: its own callbacks wait for it, and a
   wake-up while one of them runs goes to its guard condition), so a pipeline of triggered
-  activities crosses all its stages in the callback that brought the message.
+  activities crosses all its stages in the callback that brought the message. A triggered activity
+  whose schedule has a ``min_period`` also has a one-shot timer in its group: a cycle due sooner than
+  ``min_period`` after its last cycle began does not run; its wake-up stays pending (the later ones
+  coalesce into it) and the timer, set to the time left, runs the one cycle at the bound. No
+  callback ever sleeps for the bound: a sleep would hold the executor thread or the wait set that
+  runs other activities' chained cycles and this group's other entities, and a stop, which the
+  group's next callback serves, would wait for it.
 
 Every callback makes the activity the thread's *current activity* while it runs (executor threads
 are shared, and a chained cycle runs in another activity's thread, so operations called from a
@@ -58,6 +64,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import math
 import threading
 import time
 from typing import TYPE_CHECKING, Callable
@@ -86,7 +93,7 @@ MULTI_POLL = 0.1
 """Seconds a multi-threaded executor's spin waits at most (see :class:`ExecutorThread`)."""
 
 PARKED_NS = 86_400 * 10**9
-"""The period (a day) a stopped activity's timer is parked at until the node is destroyed."""
+"""The period (a day) a stopped activity's timer, and an idle ``min_period`` timer, are parked at."""
 CHAIN_LIMIT = 64
 """Cycles one executor callback runs at most for the activities its data woke (the rest get their
 guard conditions): a chain that keeps waking itself cannot hold an executor thread for ever."""
@@ -137,6 +144,17 @@ class ExecutorDriver:
         self.grid: PeriodGrid | None = None
         """A periodic activity's time grid, against which the timer's callbacks are measured."""
         self._lock = threading.Lock()
+        self.min_period = activity.schedule.min_period
+        """Triggered: seconds from the start of one cycle to the start of the next, at least (0: none)."""
+        self.began = float("-inf")
+        """When the last cycle began (``time.perf_counter``), kept when there is a ``min_period``."""
+        self.held = False
+        """A pending wake-up waits for ``min_period``: the ``bound`` timer serves it (changed under ``busy``)."""
+        self.bound: Timer | None = None
+        """The one-shot timer that runs the cycle held for ``min_period``; parked while none is."""
+        if self.min_period:
+            self.bound = node.create_timer(self.min_period, self._on_bound, callback_group=group,
+                                           clock=host.clock, autostart=False)
         period = activity.schedule.period
         if period is not None:
             self.grid = PeriodGrid(period, activity.stats)
@@ -194,7 +212,11 @@ class ExecutorDriver:
             if self.running:
                 self.timer.reset()  # the timer's next call is one new period from now: so is the grid's
                 self.grid.begin(now + period)
-        # the current wait was computed with the old period
+        self._rewait()  # the current wait was computed with the old period
+
+    def _rewait(self) -> None:
+        """Have the wait set (or the executor) that waits on this group's entities wait again: it
+        computes its timeout from the group's timers anew, after one of them changed."""
         if self.server is not None:
             self.server.wake()
         elif self.host.node.executor is not None:
@@ -214,8 +236,8 @@ class ExecutorDriver:
         set_current_activity(None)
         self.inside = False
         self.busy.release()
-        if self.pending and self.running:  # before the start gate opens, its opening triggers
-            self._trigger()
+        if self.pending and self.running and not self.held:  # before the start gate opens, its opening
+            self._trigger()  # triggers; a held wake-up is the bound timer's
 
     def _trigger(self) -> None:
         if self.closed:
@@ -289,11 +311,19 @@ class ExecutorDriver:
         queue.clear()
 
     def _cycle_pending(self) -> bool:
-        """The activity's cycle, when a wake-up is pending and the activity still runs; whether it ran
-        (the caller holds ``busy``)."""
+        """The activity's cycle, when a wake-up is pending, the activity still runs and its
+        ``min_period`` has passed since the last cycle began (else the wake-up is held for the bound
+        timer); whether it ran (the caller holds ``busy``)."""
         activity = self.activity
-        if not self.pending or activity.stopping or activity.finished:
+        if not self.pending or self.held or activity.stopping or activity.finished:
             return False
+        if self.bound is not None:
+            now = time.perf_counter()
+            remaining = self.began + self.min_period - now
+            if remaining > 0:
+                self._hold(self.bound, remaining)
+                return False
+            self.began = now
         self.pending = False
         set_current_activity(activity)
         activity.cycle()
@@ -314,8 +344,39 @@ class ExecutorDriver:
         finally:
             self.inside = False
             self.busy.release()
-        if self.pending:
+        if self.pending and not self.held:
             self._trigger()
+
+    # --- min_period: a one-shot timer instead of a sleep ----------------------------------------
+    def _hold(self, bound: Timer, remaining: float) -> None:
+        """Keep the pending wake-up for ``bound`` to serve in ``remaining`` seconds (the caller
+        holds ``busy``): the timer restarts with that period, and the wait that waits on it again."""
+        self.held = True
+        with self._lock:
+            bound.timer_period_ns = max(1, math.ceil(remaining * 1e9))
+            bound.reset()
+        self._rewait()
+
+    def _on_bound(self) -> None:
+        """The ``min_period`` since the last cycle began has passed: the held wake-up gets its cycle
+        (and the chain its data woke). The timer is parked, not cancelled: a cancel races with an
+        executor that already took it as ready (see :meth:`stop`)."""
+        bound = self.bound
+        assert bound is not None  # the timer of an activity with a min_period
+        with self._lock:
+            bound.timer_period_ns = PARKED_NS
+            bound.reset()
+        if not self.started or self.activity.finished:
+            return
+        self._enter()
+        try:
+            self.held = False
+            if self.running:
+                self._serve()
+        except Exception:  # components isolate their own errors; this is a bug guard
+            self._crashed()
+        finally:
+            self._leave()
 
     def run_entity_callback(self, callback: Callable[..., None], *args: object) -> None:
         """A ROS entity callback of this group (so never during a cycle), as the activity, then at
@@ -366,8 +427,9 @@ class ExecutorDriver:
         if self.server is not None:
             self.server.stop()
         self.closed = True
-        if self.timer is not None:
-            self.host.node.destroy_timer(self.timer)
+        for timer in (self.timer, self.bound):
+            if timer is not None:
+                self.host.node.destroy_timer(timer)
         self.host.node.destroy_guard_condition(self.guard)
 
 

@@ -1,15 +1,15 @@
 """Activities hosted by an rclpy executor (coco_ros.hosting), in-process.
 
 Each test builds a small application from test-local components, hosts it on a node of its own rclpy
-context (domain 94, localhost only, set before rclpy.init) and stops it at teardown, even when the
-test fails half-way.
+context (domain 94, localhost only, set before rclpy.init; 201 for the ``min_period`` tests) and
+stops it at teardown, even when the test fails half-way.
 """
 
 from __future__ import annotations
 
 import threading
 import time
-from typing import Callable
+from typing import Callable, Iterator
 
 import pytest
 import rclpy
@@ -68,7 +68,8 @@ class Counter(Component):
 
 
 class Recorder(Component):
-    """Records its life cycle: phase, thread name and current activity of every call."""
+    """Records its life cycle: phase, thread name and current activity of every call, and when each
+    update began."""
 
     ev = InputPort(int, event=True)
 
@@ -76,6 +77,7 @@ class Recorder(Component):
         self.events: list[tuple[str, str, object]] = []
         self.values: list[int] = []
         self.updates = 0
+        self.starts: list[float] = []
         self.in_update = 0
         self.max_in_update = 0
         self.work = 0.0
@@ -89,6 +91,7 @@ class Recorder(Component):
         self._note("on_config")
 
     def on_update(self) -> None:
+        self.starts.append(time.perf_counter())
         with self.lock:
             self.in_update += 1
             self.max_in_update = max(self.max_in_update, self.in_update)
@@ -170,13 +173,24 @@ class Hosting:
             self.context.destroy()
 
 
-@pytest.fixture(params=[True, False], ids=["wait sets", "executor"])
-def hosting(monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest):
-    monkeypatch.setenv("ROS_DOMAIN_ID", "94")  # read by rclpy.init: this test's own domain, this host only
+def hosting_on(monkeypatch: pytest.MonkeyPatch, domain: str, wait_sets: bool) -> Iterator[Hosting]:
+    """For a fixture: a :class:`Hosting` on DDS ``domain``, this host only, closed at teardown."""
+    monkeypatch.setenv("ROS_DOMAIN_ID", domain)  # read by rclpy.init
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    rig = Hosting(wait_sets=request.param)
+    rig = Hosting(wait_sets=wait_sets)
     yield rig
     rig.close()
+
+
+@pytest.fixture(params=[True, False], ids=["wait sets", "executor"])
+def hosting(monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest) -> Iterator[Hosting]:
+    yield from hosting_on(monkeypatch, "94", request.param)
+
+
+@pytest.fixture(params=[True, False], ids=["wait sets", "executor"])
+def bounded_hosting(monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest) -> Iterator[Hosting]:
+    """The ``min_period`` tests' own domain."""
+    yield from hosting_on(monkeypatch, "201", request.param)
 
 
 def pipeline(period: float = 0.01) -> tuple[Application, Counter, Recorder]:
@@ -288,6 +302,47 @@ def test_wakes_during_a_cycle_cause_one_more_cycle(hosting: Hosting) -> None:
         writer.join()
     assert wait_until(lambda: len(recorder.values) == 300), f"{len(recorder.values)} of 300 values read"
     assert recorder.max_in_update == 1, "the activity's cycles overlapped"
+
+
+LATE_START = 0.005
+"""Seconds from the driver's start of a cycle to its first component's update, at most (more than
+microseconds only when the thread is preempted in between): the gaps between updates may be that
+much shorter than the ``min_period`` between the cycles' starts."""
+
+
+def test_a_min_period_holds_the_wake_ups_for_a_one_shot_timer_and_a_stop_does_not_wait(
+        bounded_hosting: Hosting) -> None:
+    """``view`` is woken every 10 ms by ``ticks``' cycles (the chain: in ticks' callback), ``slow``
+    by this thread (its guard condition): each cycles no sooner than its min_period after its last
+    cycle began, the last wake-up is served, and a stop ends a minute's wait at once."""
+    min_period = 0.1
+    app = Application("bounded")
+    counter = app.add(Counter("counter"), PeriodicActivity("ticks", 0.01))
+    view = app.add(Recorder("view"), TriggeredActivity("view", min_period=min_period))
+    source = app.add(Counter("source"))  # in no activity: the test writes for it
+    slow = app.add(Recorder("slow"), TriggeredActivity("slow", min_period=60.0))
+    app.connect("counter.out", "view.ev", BUFFERED)
+    app.connect("source.out", "slow.ev", BUFFERED)
+    bounded_hosting.start(app)
+    assert wait_until(lambda: len(view.starts) >= 4, timeout=20)
+    ticks = app.activity("ticks")
+    ticks.stop()
+    assert wait_until(lambda: ticks.finished, timeout=20)
+    assert wait_until(lambda: view.values[-1:] == [counter.count - 1] and not app.activity("view").wake_pending,
+                      timeout=20), "the last value written is read"
+    starts = list(view.starts)
+    gaps = [later - earlier for earlier, later in zip(starts, starts[1:])]
+    assert min(gaps) >= min_period - LATE_START, f"cycles {gaps} s apart, bound {min_period} s"
+    assert view.values == list(range(counter.count)), "every value, none lost"
+    assert len(starts) < counter.count, "the wake-ups within the bound got one cycle, not one each"
+
+    source.out.write(0)
+    assert wait_until(lambda: slow.values == [0], timeout=20), "the first wake-up waits for nothing"
+    source.out.write(1)  # held: the next cycle may start a minute after the first
+    asked = time.monotonic()
+    assert bounded_hosting.stop()
+    assert time.monotonic() - asked < 15, "the stop waited for the min_period"
+    assert slow.values == [0, 1], "a natural stop drains what the held wake-up brought"
 
 
 def test_operation_queued_to_a_triggered_activity_runs_in_it_before_its_cycle(hosting: Hosting) -> None:

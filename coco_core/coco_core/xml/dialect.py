@@ -29,7 +29,8 @@ EXTENSION_ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "connection": ("event",),
     "activity": ("name",),
     "farm": ("name",),
-    "schedule": ("main", "nice"),
+    "schedule": ("main", "min_period", "nice"),
+    "schedulepolicy": ("main", "min_period", "nice"),
     "src": ("activity",),
     "dest": ("activity",),
 }

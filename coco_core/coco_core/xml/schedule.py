@@ -3,7 +3,8 @@
 Both spellings of the period (``period=`` and CoCo's older ``value=``) are accepted, in
 milliseconds. ``spin`` (milliseconds, periodic only) is how long before each deadline the thread
 stops sleeping and spins: a real-time loop on a loaded machine whose timer wake-ups come late gives
-it more. ``type`` may be left out: a period makes the activity periodic. ``runtime`` (a
+it more. ``min_period`` (milliseconds, triggered only) is the least time from the start of one
+cycle to the start of the next: a display woken by every input draws at most at its rate. ``type`` may be left out: a period makes the activity periodic. ``runtime`` (a
 SCHED_DEADLINE budget in the C++ CoCo) is accepted and ignored, since DEADLINE is not available
 from Python.
 """
@@ -26,7 +27,7 @@ COMMON_ATTRIBUTES = (
     "realtime",
     "runtime",
 )
-ACTIVITY_SCHEDULE_ATTRIBUTES = (*COMMON_ATTRIBUTES, "main", "period", "spin", "type", "value")
+ACTIVITY_SCHEDULE_ATTRIBUTES = (*COMMON_ATTRIBUTES, "main", "min_period", "period", "spin", "type", "value")
 PIPELINE_SCHEDULE_ATTRIBUTES = (*COMMON_ATTRIBUTES, "buffersize")
 """A pipeline's stages are triggered by their input, so there is no type or period to give."""
 
@@ -43,6 +44,7 @@ def read_schedule(reader: FileReader, element: Element, values: dict[str, str]) 
         main=bool(reader.parsed(element, values, "main", parse_bool)),
         realtime=_realtime(reader, element, values),
         spin_ms=_spin(reader, element, values, kind, period),
+        min_period_ms=_min_period(reader, element, values, kind),
         priority=reader.parsed(element, values, "priority", parse_int),
         nice=reader.parsed(element, values, "nice", parse_nice),
         affinity=reader.parsed(element, values, "affinity", parse_cores) or [],
@@ -110,6 +112,24 @@ def _spin(reader: FileReader, element: Element, values: dict[str, str], kind: st
                      f"than the period ({period:g})", element)
         return None
     return spin
+
+
+def _min_period(reader: FileReader, element: Element, values: dict[str, str], kind: str) -> float:
+    """``min_period`` (milliseconds from the start of one cycle to the start of the next, at least):
+    from 0 (no bound) to a day, on a triggered schedule only; 0 when not given."""
+    bound = reader.parsed(element, values, "min_period", _milliseconds)
+    if bound is None:
+        return 0.0
+    if kind != "triggered":
+        reader.error(f'<{element.tag}> attribute min_period="{values["min_period"]}": only a triggered activity '
+                     "has a minimum period (a periodic one cycles every period); leave it out, or make the "
+                     'activity type="triggered"', element)
+        return 0.0
+    if not 0 <= bound <= MAX_PERIOD * 1e3:
+        reader.error(f'<{element.tag}> attribute min_period="{values["min_period"]}": expected milliseconds '
+                     f"from 0 (no bound) to {MAX_PERIOD * 1e3:.0f} (a day)", element)
+        return 0.0
+    return bound
 
 
 def _realtime(reader: FileReader, element: Element, values: dict[str, str]) -> str:
