@@ -4,9 +4,9 @@ Both spellings of the period (``period=`` and CoCo's older ``value=``) are accep
 milliseconds. ``spin`` (milliseconds, periodic only) is how long before each deadline the thread
 stops sleeping and spins: a real-time loop on a loaded machine whose timer wake-ups come late gives
 it more. ``min_period`` (milliseconds, triggered only) is the least time from the start of one
-cycle to the start of the next: a display woken by every input draws at most at its rate. ``type`` may be left out: a period makes the activity periodic. ``runtime`` (a
-SCHED_DEADLINE budget in the C++ CoCo) is accepted and ignored, since DEADLINE is not available
-from Python.
+cycle to the start of the next: a display woken by every input draws at most at its rate. ``type``
+may be left out: a period makes the activity periodic. ``runtime`` (a SCHED_DEADLINE budget in the
+C++ CoCo) is accepted and ignored, since DEADLINE is not available from Python.
 """
 
 from __future__ import annotations
