@@ -66,8 +66,9 @@ def buses() -> Iterator[tuple[DdsBus, DdsBus, Heard, HostBridge]]:
                      Refusals())
     receiving = DdsBus(beta, APP, "beta", HOSTS, heard, lambda: released.append("beta"), KEY, Refusals())
     try:
-        assert wait_for(lambda: sending.publisher.get_subscription_count() >= 1
-                        and sending.beats.get_subscription_count() >= 1), "the buses never matched"
+        # Each bus listens to its own topics too: two readers of each, alpha's own and beta's.
+        assert wait_for(lambda: sending.publisher.get_subscription_count() >= 2
+                        and sending.beats.get_subscription_count() >= 2), "the buses never matched"
         yield sending, receiving, heard, alpha
     finally:
         for bus in (sending, receiving):
@@ -82,7 +83,7 @@ def test_a_stop_goes_on_the_reliable_topic_as_well(buses: tuple[DdsBus, DdsBus, 
     on_reliable: list[Message] = []
     decoder = Decoder()
     alpha.subscribe(HostMessage, bus_topic(APP), lambda out: on_reliable.append(decoder.decode(out.body)), QOS)
-    assert wait_for(lambda: sending.publisher.get_subscription_count() >= 2)
+    assert wait_for(lambda: sending.publisher.get_subscription_count() >= 3)
     sending.send("", Heartbeat(Stage.RUNNING))
     sending.send("", Heartbeat(Stage.STOPPING, "test: stop", hard=True))
     assert wait_for(lambda: any(isinstance(m, Heartbeat) and m.stage is Stage.STOPPING for m in on_reliable)), \
