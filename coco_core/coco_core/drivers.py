@@ -129,33 +129,15 @@ class ThreadDriver:
             set_current_activity(None)
 
     def _triggered(self, activity: Activity) -> None:
+        """Cycle when woken (the eventfd's counter, or the thread event), and with a ``min_period`` no
+        sooner than that after the last cycle began. The bound is waited out *before* the wait for a
+        wake-up: the wake-ups that come meanwhile are all taken at once after it, and cause one cycle
+        at the bound (which reads the newest of every input), not one each. The wait is on
+        ``_interrupt``, so a stop ends it at once."""
         min_period = activity.schedule.min_period
-        if min_period:
-            self._triggered_bounded(activity, min_period)
-        elif self.eventfd is not None:
-            woken = self.eventfd.wait
-            while not activity.stopping:
-                woken()  # blocks with the GIL released until the counter is non-zero, then clears it
-                if activity.stopping:
-                    break
-                activity.cycle()
-        else:
-            wait, clear = self._wake.wait, self._wake.clear
-            while not activity.stopping:
-                wait()
-                clear()
-                if activity.stopping:
-                    break
-                activity.cycle()
-
-    def _triggered_bounded(self, activity: Activity, min_period: float) -> None:
-        """Cycle when woken, no sooner than ``min_period`` after the last cycle began. The bound is
-        waited out *before* the wait for a wake-up: the wake-ups that come meanwhile are all taken at
-        once after it, and cause one cycle at the bound (which reads the newest of every input), not
-        one each. The wait is on ``_interrupt``, so a stop ends it at once."""
         clock, interrupted = time.perf_counter, self._interrupt.wait
         if self.eventfd is not None:
-            woken = self.eventfd.wait
+            woken = self.eventfd.wait  # blocks with the GIL released until the counter is non-zero, then clears it
         else:
             event = self._wake
 
@@ -165,12 +147,14 @@ class ThreadDriver:
 
         began = float("-inf")  # no cycle yet: nothing to wait for
         while not activity.stopping:
-            while (remaining := began + min_period - clock()) > 0 and not activity.stopping:
-                interrupted(remaining)
+            if min_period:
+                while (remaining := began + min_period - clock()) > 0 and not activity.stopping:
+                    interrupted(remaining)
             woken()
             if activity.stopping:
                 break
-            began = clock()
+            if min_period:
+                began = clock()
             activity.cycle()
 
     def _periodic(self, activity: Activity, grid: PeriodGrid) -> None:
