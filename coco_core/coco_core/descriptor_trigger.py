@@ -20,10 +20,11 @@ once, without polling, since the descriptor may not signal what is already waiti
 
 from __future__ import annotations
 
-import os
 import select
 import threading
 from typing import Callable, Sequence
+
+from .wakeup import Wakeup
 
 
 class DescriptorTrigger:
@@ -35,9 +36,9 @@ class DescriptorTrigger:
         self._poll = select.poll()
         for descriptor in descriptors:
             self._poll.register(descriptor, select.POLLIN)
-        self._close = os.eventfd(0, os.EFD_CLOEXEC)
+        self._close = Wakeup.new()
         """Ends the poll at :meth:`close` (the descriptors are the component's, not to be closed here)."""
-        self._poll.register(self._close, select.POLLIN)
+        self._poll.register(self._close.fd, select.POLLIN)
         self._armed = threading.Event()
         self._more = False
         self._closed = False
@@ -56,16 +57,16 @@ class DescriptorTrigger:
 
     def close(self) -> None:
         """End the thread and wait for it; before the component closes the descriptors (a closed one
-        would make the poll return at once, for ever). Once: a second call does nothing (closing the
-        eventfd again could close a descriptor that has its number since)."""
+        would make the poll return at once, for ever). Once: a second call does nothing (its eventfd
+        is released once, :class:`~coco_core.wakeup.Wakeup`)."""
         if self._closed:
             return
         self._closed = True
-        os.eventfd_write(self._close, 1)
+        self._close.wake()
         self._armed.set()
         if self._thread.is_alive():
             self._thread.join()
-        os.close(self._close)
+        self._close.close()
 
     def _loop(self) -> None:
         while not self._closed:

@@ -426,7 +426,7 @@ class ProcessSupervisor:
             if not self.app.progress.wait(partial(_exited, child.popen), lambda: self.app.stop_deadline(begun, timeout)):
                 how = (f"within {timeout:.1f} s" if self.app.stop_is_hard else
                        f"(no progress for {timeout:.1f} s after the application's own stop request)")
-                if child.stopped.is_set() and child.last is not None and child.clean:
+                if child.last is not None and child.clean:
                     # Its activities stopped and flushed (Stopped, clean): only its release is late.
                     child.cut_short = True
                     log.warning("process %s stopped its part cleanly but did not end %s (what it holds "
